@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Installs every build and test dependency of moslam from Debian packages.
+# Non-interactive and idempotent: packages already present are left as they are.
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake ninja-build pkg-config git
+  libeigen3-dev libsuitesparse-dev
+  libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libceres-dev            # independent cross-check in bench/ only
+  clang libclang-rt-14-dev  # libFuzzer target for the g2o reader
+  python3-matplotlib      # plots in bench/ (README figures)
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if ((${#missing[@]})); then
+  SUDO=""
+  [[ $(id -u) -ne 0 ]] && SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -q
+  $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+echo "setup: all ${#PACKAGES[@]} dependency packages present"
