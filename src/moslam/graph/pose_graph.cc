@@ -1,0 +1,81 @@
+#include "moslam/graph/pose_graph.h"
+
+#include <algorithm>
+#include <queue>
+#include <unordered_map>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+
+const SE3& Lookup(const Values& values, Key key) {
+  const auto it = values.find(key);
+  if (it == values.end()) {
+    throw InvalidInputError("no estimate for variable " + ToString(key) +
+                            " (it appears in a factor but not in the values)");
+  }
+  return it->second;
+}
+
+}  // namespace
+
+std::set<Key> PoseGraph::keys() const {
+  std::set<Key> out;
+  for (const auto& f : factors_) {
+    out.insert(f.a());
+    out.insert(f.b());
+  }
+  for (const auto& p : priors_) out.insert(p.key());
+  return out;
+}
+
+int PoseGraph::numRobots() const {
+  int n = 0;
+  for (const Key& k : keys()) n = std::max(n, k.robot + 1);
+  return n;
+}
+
+double PoseGraph::cost(const Values& values) const {
+  double total = 0.0;
+  for (const auto& f : factors_) total += f.cost(Lookup(values, f.a()), Lookup(values, f.b()));
+  for (const auto& p : priors_) total += p.cost(Lookup(values, p.key()));
+  return total;
+}
+
+Key GaugeAnchor(const PoseGraph& graph) {
+  for (const Key& k : graph.keys()) {
+    if (k.robot == 0 && k.isPose()) return k;  // keys() is ordered: the first is the smallest
+  }
+  throw UnderdeterminedError(
+      "no gauge anchor: robot 0 has no pose (the first pose of robot 0 is held fixed; "
+      "is robot 0's file missing or empty?)");
+}
+
+std::vector<Key> UnreachableFrom(const PoseGraph& graph, Key root) {
+  std::unordered_map<Key, std::vector<Key>> adj;
+  for (const auto& f : graph.factors()) {
+    adj[f.a()].push_back(f.b());
+    adj[f.b()].push_back(f.a());
+  }
+  std::set<Key> seen{root};
+  std::queue<Key> q;
+  q.push(root);
+  for (const auto& p : graph.priors()) {
+    if (seen.insert(p.key()).second) q.push(p.key());
+  }
+  while (!q.empty()) {
+    const Key k = q.front();
+    q.pop();
+    for (const Key& n : adj[k]) {
+      if (seen.insert(n).second) q.push(n);
+    }
+  }
+  std::vector<Key> out;
+  for (const Key& k : graph.keys()) {
+    if (!seen.count(k)) out.push_back(k);
+  }
+  return out;
+}
+
+}  // namespace moslam

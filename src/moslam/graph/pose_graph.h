@@ -1,0 +1,46 @@
+// A pose graph: relative-pose factors and priors over SE(3) variables, and its cost
+//   F(x) = sum_f 1/2 r_f^T Omega_f r_f   (GTSAM NonlinearFactorGraph::error).
+#pragma once
+
+#include <map>
+#include <set>
+#include <vector>
+
+#include "moslam/graph/factors.h"
+
+namespace moslam {
+
+// An estimate: one pose per variable, ordered by key (deterministic iteration).
+using Values = std::map<Key, SE3>;
+
+class PoseGraph {
+ public:
+  void add(const RelativePoseFactor& factor) { factors_.push_back(factor); }
+  void add(const PriorFactor& prior) { priors_.push_back(prior); }
+
+  const std::vector<RelativePoseFactor>& factors() const { return factors_; }
+  const std::vector<PriorFactor>& priors() const { return priors_; }
+  bool empty() const { return factors_.empty() && priors_.empty(); }
+
+  // Every variable some factor touches, ordered.
+  std::set<Key> keys() const;
+  // Number of robots: 1 + the largest robot id of any variable (0 for an empty graph).
+  int numRobots() const;
+
+  // Throws InvalidInputError naming the first variable missing from `values`.
+  double cost(const Values& values) const;
+
+ private:
+  std::vector<RelativePoseFactor> factors_;
+  std::vector<PriorFactor> priors_;
+};
+
+// The gauge of CONVENTIONS.md: the first pose of robot 0 (smallest key with robot 0, kind pose).
+// Throws UnderdeterminedError when robot 0 has no pose.
+Key GaugeAnchor(const PoseGraph& graph);
+
+// Variables connected through factors neither to `root` nor to any prior: the part of the graph
+// whose gauge nothing fixes (empty when the problem is well posed).
+std::vector<Key> UnreachableFrom(const PoseGraph& graph, Key root);
+
+}  // namespace moslam
