@@ -1,0 +1,76 @@
+// g2o pose-graph files (shared/CONVENTIONS.md, "g2o files"):
+//   VERTEX_SE3:QUAT id x y z qx qy qz qw
+//   EDGE_SE3:QUAT i j x y z qx qy qz qw  I11 I12 .. I16 I22 .. I66   (upper triangle, row by row,
+//                                        g2o order x y z rx ry rz; permuted to (rotation,
+//                                        translation) on read and back on write, never rescaled)
+// Ids are GTSAM Symbol keys (graph/key.h). Quaternions are normalised on read.
+//
+// Accepted: edges without vertices (initialise with the chordal relaxation), i > j, parallel
+// edges, blank lines and '#' comments. Rejected with G2oParseError (file, line, reason): unknown
+// tags (2D tags included: moslam is SE(3)), wrong field counts, non-numbers, NaN/Inf, information
+// that is not symmetric positive definite, an id whose Symbol character is not a robot letter, a
+// vertex defined twice, an empty file, and in a file that has vertices an edge to a vertex that
+// no file defines and no other edge connects (a dangling edge).
+//
+// A multi-robot dataset is a folder of 0.g2o .. N-1.g2o (distributed-mapper layout): each file
+// holds its robot's vertices and edges; an inter-robot edge appears in both robots' files and is
+// counted once. Other files in the folder (fullGraph.g2o) are ignored.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "moslam/common/errors.h"
+#include "moslam/graph/pose_graph.h"
+
+namespace moslam {
+
+class G2oParseError : public InvalidInputError {
+ public:
+  G2oParseError(std::string file, int line, std::string reason);
+  const std::string& file() const { return file_; }
+  int line() const { return line_; }  // 1-based; 0 when the error concerns the whole file
+  const std::string& reason() const { return reason_; }
+
+ private:
+  std::string file_;
+  int line_;
+  std::string reason_;
+};
+
+struct G2oReadOptions {
+  // How upper-case Symbol characters read: poses of robots 26..51, or objects of robots 0..25.
+  KeyScheme scheme = KeyScheme::kPosesOnly;
+};
+
+struct Dataset {
+  PoseGraph graph;
+  Values initial;                   // from VERTEX lines: may be empty (edge-only files) or partial
+  bool plain_keys = true;           // every id read was a plain integer (character byte 0)
+  std::vector<std::string> files;   // the files read, in order
+};
+
+// Parses g2o text; `name` is used in error messages.
+Dataset ParseG2o(std::istream& in, const std::string& name, const G2oReadOptions& options = {});
+Dataset ReadG2oFile(const std::string& path, const G2oReadOptions& options = {});
+Dataset ReadG2oFolder(const std::string& dir, const G2oReadOptions& options = {});
+// A file or a distributed-mapper folder, by what `path` is.
+Dataset ReadG2o(const std::string& path, const G2oReadOptions& options = {});
+
+struct G2oWriteOptions {
+  KeyScheme scheme = KeyScheme::kPosesOnly;
+  bool plain_keys = false;  // write robot 0's poses as plain integers (single-robot files)
+};
+
+// Writes vertices for every variable in `values` and one edge per factor (priors are not
+// written: g2o has no standard prior tag). Full double precision, so a round trip is exact.
+// Throws moslam::Error when the file cannot be written.
+void WriteG2oFile(const std::string& path, const PoseGraph& graph, const Values& values,
+                  const G2oWriteOptions& options = {});
+// Writes 0.g2o .. N-1.g2o into `dir` (created if missing): each robot's vertices and its
+// edges, inter-robot edges into both robots' files.
+void WriteG2oFolder(const std::string& dir, const PoseGraph& graph, const Values& values,
+                    const G2oWriteOptions& options = {});
+
+}  // namespace moslam
