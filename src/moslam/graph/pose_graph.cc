@@ -78,4 +78,16 @@ std::vector<Key> UnreachableFrom(const PoseGraph& graph, Key root) {
   return out;
 }
 
+void RequireAnchored(const PoseGraph& graph, Key root) {
+  const std::vector<Key> loose = UnreachableFrom(graph, root);
+  if (loose.empty()) return;
+  std::string names;
+  for (size_t i = 0; i < loose.size() && i < 5; ++i) names += (i ? ", " : "") + ToString(loose[i]);
+  if (loose.size() > 5) names += ", ...";
+  throw UnderdeterminedError("the graph is disconnected: " + std::to_string(loose.size()) +
+                             " variable(s) (" + names + ") are linked neither to the anchor " +
+                             ToString(root) + " nor to a prior, so their gauge is free "
+                             "(a missing inter-robot edge or a missing file?)");
+}
+
 }  // namespace moslam

@@ -43,4 +43,7 @@ Key GaugeAnchor(const PoseGraph& graph);
 // whose gauge nothing fixes (empty when the problem is well posed).
 std::vector<Key> UnreachableFrom(const PoseGraph& graph, Key root);
 
+// Throws UnderdeterminedError, naming a few of the variables, when UnreachableFrom is not empty.
+void RequireAnchored(const PoseGraph& graph, Key root);
+
 }  // namespace moslam
