@@ -13,9 +13,20 @@ bool IsFinite(const SE3& x) {
   return x.rotation().matrix().allFinite() && x.translation().allFinite();
 }
 
-Matrix6 UpperCholesky(const Matrix6& information) {
+Matrix6 Symmetrized(const Matrix6& information) {
+  return 0.5 * information + 0.5 * information.transpose();  // no overflow near DBL_MAX
+}
+
+// Validates `information` and returns its upper Cholesky factor U (U^T U = information).
+Matrix6 CheckedSqrtInformation(const Matrix6& information, const std::string& what) {
+  ValidateInformation(information, what);
   Eigen::LLT<Matrix6> llt(information);
-  return llt.matrixU();
+  Matrix6 U = llt.matrixU();
+  if (llt.info() != Eigen::Success || !U.allFinite()) {
+    throw InvalidInputError(what + ": information matrix has no finite Cholesky factor "
+                                   "(entries too large?)");
+  }
+  return U;
 }
 
 }  // namespace
@@ -29,6 +40,10 @@ void ValidateInformation(const Matrix6& information, const std::string& what) {
     throw InvalidInputError(what + ": information matrix is not symmetric");
   }
   Eigen::SelfAdjointEigenSolver<Matrix6> eig(information);
+  if (!eig.eigenvalues().allFinite()) {
+    throw InvalidInputError(what + ": information matrix entries are too large (its eigenvalues "
+                                   "overflow double precision)");
+  }
   const double min_eig = eig.eigenvalues().minCoeff();
   if (!(min_eig > 0.0) || min_eig < 1e-14 * eig.eigenvalues().maxCoeff()) {
     std::ostringstream os;
@@ -40,12 +55,12 @@ void ValidateInformation(const Matrix6& information, const std::string& what) {
 
 RelativePoseFactor::RelativePoseFactor(Key a, Key b, const SE3& measured,
                                        const Matrix6& information)
-    : a_(a), b_(b), z_(measured), information_(0.5 * (information + information.transpose())) {
+    : a_(a), b_(b), z_(measured), information_(Symmetrized(information)) {
   const std::string what = "factor " + ToString(a) + " -> " + ToString(b);
   if (a == b) throw InvalidInputError(what + ": both ends are the same variable");
   if (!IsFinite(measured)) throw InvalidInputError(what + ": measurement has NaN or Inf");
-  ValidateInformation(information, what);
-  sqrt_information_ = UpperCholesky(information_);
+  ValidateInformation(information, what);  // the matrix as given: symmetry is checked here
+  sqrt_information_ = CheckedSqrtInformation(information_, what);
 }
 
 Vector6 RelativePoseFactor::residual(const SE3& xa, const SE3& xb, Matrix6* Ha,
@@ -66,11 +81,11 @@ double RelativePoseFactor::cost(const SE3& xa, const SE3& xb) const {
 }
 
 PriorFactor::PriorFactor(Key key, const SE3& prior, const Matrix6& information)
-    : key_(key), z_(prior), information_(0.5 * (information + information.transpose())) {
+    : key_(key), z_(prior), information_(Symmetrized(information)) {
   const std::string what = "prior on " + ToString(key);
   if (!IsFinite(prior)) throw InvalidInputError(what + ": prior has NaN or Inf");
   ValidateInformation(information, what);
-  sqrt_information_ = UpperCholesky(information_);
+  sqrt_information_ = CheckedSqrtInformation(information_, what);
 }
 
 Vector6 PriorFactor::residual(const SE3& x, Matrix6* H) const {

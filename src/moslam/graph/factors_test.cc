@@ -74,6 +74,14 @@ TEST(RelativePoseFactor, RejectsBadInformationAndMeasurements) {
   EXPECT_THROW(RelativePoseFactor(a, b, SE3(SO3(), Vector3(INFINITY, 0, 0)), Matrix6::Identity()),
                InvalidInputError);
   EXPECT_THROW(RelativePoseFactor(a, a, SE3(), Matrix6::Identity()), InvalidInputError);
+  // Entries near DBL_MAX are valid; symmetrising must not overflow them to Inf.
+  Matrix6 huge = 1.7e308 * Matrix6::Identity();
+  huge(0, 1) = huge(1, 0) = 1e300;
+  const RelativePoseFactor big(a, b, SE3(), huge);
+  EXPECT_TRUE(big.information().allFinite());
+  EXPECT_TRUE(big.sqrtInformation().allFinite());
+  huge(0, 1) = huge(1, 0) = 1e308;  // largest eigenvalue 2.7e308: not representable
+  EXPECT_THROW(RelativePoseFactor(a, b, SE3(), huge), InvalidInputError);
   EXPECT_THROW(PriorFactor(a, SE3(), not_pd), InvalidInputError);
 }
 

@@ -42,6 +42,13 @@ class G2oParseError : public InvalidInputError {
 struct G2oReadOptions {
   // How upper-case Symbol characters read: poses of robots 26..51, or objects of robots 0..25.
   KeyScheme scheme = KeyScheme::kPosesOnly;
+  // Some published files hold information matrices that are indefinite only because of their
+  // translation-rotation coupling block: datasets/pgo/cubicle.g2o, 5021 of 16869 edges (x-y, z-rx
+  // and z-ry entries set, both 3x3 diagonal blocks positive definite). By default such an edge is
+  // rejected like any matrix that is not SPD. With this set, the coupling block of exactly those
+  // edges is zeroed (the diagonal blocks are kept as read and must be SPD) and the edges so changed
+  // are counted in Dataset::repaired_information.
+  bool drop_indefinite_coupling = false;
 };
 
 struct Dataset {
@@ -49,6 +56,7 @@ struct Dataset {
   Values initial;                   // from VERTEX lines: may be empty (edge-only files) or partial
   bool plain_keys = true;           // every id read was a plain integer (character byte 0)
   std::vector<std::string> files;   // the files read, in order
+  int repaired_information = 0;     // edges read with G2oReadOptions::drop_indefinite_coupling
 };
 
 // Parses g2o text; `name` is used in error messages.

@@ -1,0 +1,589 @@
+#include "moslam/io/g2o.h"
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <istream>
+#include <limits>
+#include <locale>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string_view>
+#include <system_error>
+#include <tuple>
+#include <unordered_map>
+#include <utility>
+
+namespace moslam {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr std::string_view kVertexTag = "VERTEX_SE3:QUAT";
+constexpr std::string_view kEdgeTag = "EDGE_SE3:QUAT";
+constexpr std::size_t kVertexFields = 8;      // id x y z qx qy qz qw
+constexpr std::size_t kEdgeFields = 9 + 21;   // i j x y z qx qy qz qw + upper triangle
+constexpr std::size_t kEdgeNumbers = 7 + 21;  // the doubles of an edge line
+
+// g2o orders a tangent vector (x, y, z, rx, ry, rz); moslam (rx, ry, rz, x, y, z).
+constexpr int MoslamIndex(int g2o_index) { return (g2o_index + 3) % 6; }
+
+std::string FormatError(const std::string& file, int line, const std::string& reason) {
+  if (line <= 0) return file + ": " + reason;
+  return file + ":" + std::to_string(line) + ": " + reason;
+}
+
+// A token as it may be printed in a message: at most 40 characters, non-printable bytes escaped
+// (binary input must give a readable message).
+std::string Printable(std::string_view token) {
+  constexpr std::size_t kMax = 40;
+  std::string out;
+  for (std::size_t i = 0; i < token.size() && i < kMax; ++i) {
+    const auto c = static_cast<unsigned char>(token[i]);
+    if (c >= 0x20 && c < 0x7f) {
+      out += static_cast<char>(c);
+    } else {
+      static constexpr char kHex[] = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 0xf];
+    }
+  }
+  if (token.size() > kMax) out += "...";
+  return out;
+}
+
+// Splits on blanks; '#' starts a comment that runs to the end of the line.
+std::vector<std::string_view> Tokenize(std::string_view line) {
+  const auto hash = line.find('#');
+  if (hash != std::string_view::npos) line = line.substr(0, hash);
+  static constexpr std::string_view kBlanks = " \t\r\v\f";
+  std::vector<std::string_view> tokens;
+  std::size_t pos = 0;
+  while (true) {
+    pos = line.find_first_not_of(kBlanks, pos);
+    if (pos == std::string_view::npos) break;
+    std::size_t end = line.find_first_of(kBlanks, pos);
+    if (end == std::string_view::npos) end = line.size();
+    tokens.push_back(line.substr(pos, end - pos));
+    pos = end;
+  }
+  return tokens;
+}
+
+// Where a line of the dataset came from.
+struct Location {
+  const std::string* file;
+  int line;
+};
+
+[[noreturn]] void Fail(const Location& at, const std::string& reason) {
+  throw G2oParseError(*at.file, at.line, reason);
+}
+
+// A whole token as a finite double (locale-independent; "1.5abc", hex, NaN and Inf rejected).
+double ParseNumber(std::string_view token, const char* what, const Location& at) {
+  std::string_view digits = token;
+  if (digits.size() > 1 && digits[0] == '+' && digits[1] != '-' && digits[1] != '+') {
+    digits.remove_prefix(1);  // from_chars does not take a leading '+'
+  }
+  double value = 0.0;
+  const char* end = digits.data() + digits.size();
+  const auto [ptr, ec] = std::from_chars(digits.data(), end, value);
+  if (ec == std::errc::result_out_of_range) {
+    Fail(at, std::string(what) + " '" + Printable(token) + "' is out of the range of a double");
+  }
+  if (ec != std::errc() || ptr != end) {
+    Fail(at, std::string(what) + " '" + Printable(token) + "' is not a number");
+  }
+  if (!std::isfinite(value)) {
+    Fail(at, std::string(what) + " is " + Printable(token) + ": NaN and Inf are not allowed");
+  }
+  return value;
+}
+
+// A whole token as an unsigned 64-bit id.
+std::uint64_t ParseId(std::string_view token, const Location& at) {
+  std::uint64_t value = 0;
+  const char* end = token.data() + token.size();
+  const auto [ptr, ec] = std::from_chars(token.data(), end, value);
+  if (!token.empty() && token[0] == '-') {
+    Fail(at, "id '" + Printable(token) + "' is negative: ids are unsigned 64-bit Symbol keys");
+  }
+  if (ec == std::errc::result_out_of_range) {
+    Fail(at, "id '" + Printable(token) + "' is out of range: larger than 2^64 - 1");
+  }
+  if (ec != std::errc() || ptr != end) {
+    Fail(at, "id '" + Printable(token) + "' is not an unsigned integer");
+  }
+  return value;
+}
+
+struct DecodedId {
+  std::uint64_t raw;
+  Key key;
+};
+
+DecodedId Decode(std::string_view token, const G2oReadOptions& options, const Location& at) {
+  const std::uint64_t raw = ParseId(token, at);
+  try {
+    return {raw, DecodeSymbol(raw, options.scheme)};
+  } catch (const InvalidInputError& e) {
+    Fail(at, e.what());
+  }
+}
+
+// x y z qx qy qz qw (7 tokens) as a pose; the quaternion is normalised, a zero one rejected.
+SE3 ParsePose(const std::vector<std::string_view>& tokens, std::size_t first,
+              std::array<double, 7>* numbers, const Location& at) {
+  static constexpr const char* kNames[7] = {"x", "y", "z", "qx", "qy", "qz", "qw"};
+  std::array<double, 7>& v = *numbers;
+  for (std::size_t i = 0; i < 7; ++i) v[i] = ParseNumber(tokens[first + i], kNames[i], at);
+  double qx = v[3], qy = v[4], qz = v[5], qw = v[6];
+  const double largest = std::max({std::abs(qx), std::abs(qy), std::abs(qz), std::abs(qw)});
+  if (largest == 0.0) Fail(at, "quaternion (qx qy qz qw) is zero: it encodes no rotation");
+  // Rescale only where the norm would overflow or underflow, so ordinary files read exactly as
+  // every other reader reads them.
+  const double norm = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
+  if (!std::isfinite(norm) || norm < 1e-100) {
+    qx /= largest;
+    qy /= largest;
+    qz /= largest;
+    qw /= largest;
+  }
+  try {
+    return SE3(SO3::FromQuaternion(qw, qx, qy, qz), Vector3(v[0], v[1], v[2]));
+  } catch (const std::invalid_argument& e) {
+    Fail(at, std::string("quaternion (qx qy qz qw) cannot be normalised: ") + e.what());
+  }
+}
+
+struct VertexRecord {
+  DecodedId id;
+  SE3 pose;
+  Location at;
+};
+
+struct EdgeRecord {
+  DecodedId a, b;
+  std::array<double, kEdgeNumbers> numbers;  // as read: for recognising the copy of an edge
+  RelativePoseFactor factor;
+  Location at;
+  bool repaired;  // read with drop_indefinite_coupling
+};
+
+struct FileRecords {
+  std::vector<VertexRecord> vertices;
+  std::vector<EdgeRecord> edges;
+  bool plain_keys = true;
+};
+
+void CheckFieldCount(const std::vector<std::string_view>& tokens, std::size_t expected,
+                     const char* layout, const Location& at) {
+  const std::size_t found = tokens.size() - 1;
+  if (found == expected) return;
+  Fail(at, std::string(tokens[0]) + " needs " + std::to_string(expected) +
+               " fields after the tag (" + layout + "), found " + std::to_string(found) +
+               (found < expected ? " (truncated line?)" : " (too many fields)"));
+}
+
+[[noreturn]] void FailTag(std::string_view tag, const Location& at) {
+  const std::string shown = "'" + Printable(tag) + "'";
+  if (tag.rfind("VERTEX_SE2", 0) == 0 || tag.rfind("EDGE_SE2", 0) == 0) {
+    Fail(at, "2D tag " + shown +
+                 " is not supported: moslam reads 3D pose graphs (VERTEX_SE3:QUAT, "
+                 "EDGE_SE3:QUAT) only");
+  }
+  if (tag == "FIX") {
+    Fail(at, "unknown tag " + shown +
+                 ": moslam does not read FIX lines (the gauge is always the first pose of "
+                 "robot 0); remove the line");
+  }
+  Fail(at, "unknown tag " + shown + ": moslam reads VERTEX_SE3:QUAT and EDGE_SE3:QUAT lines only");
+}
+
+void ParseVertex(const std::vector<std::string_view>& tokens, const G2oReadOptions& options,
+                 const Location& at, FileRecords* out) {
+  CheckFieldCount(tokens, kVertexFields, "id x y z qx qy qz qw", at);
+  const DecodedId id = Decode(tokens[1], options, at);
+  std::array<double, 7> numbers{};
+  const SE3 pose = ParsePose(tokens, 2, &numbers, at);
+  out->plain_keys = out->plain_keys && (id.raw >> 56) == 0;
+  out->vertices.push_back({id, pose, at});
+}
+
+void ParseEdge(const std::vector<std::string_view>& tokens, const G2oReadOptions& options,
+               const Location& at, FileRecords* out) {
+  CheckFieldCount(tokens, kEdgeFields,
+                  "i j x y z qx qy qz qw and the 21 upper-triangular information entries", at);
+  const DecodedId a = Decode(tokens[1], options, at);
+  const DecodedId b = Decode(tokens[2], options, at);
+  std::array<double, kEdgeNumbers> numbers{};
+  std::array<double, 7> pose_numbers{};
+  const SE3 measured = ParsePose(tokens, 3, &pose_numbers, at);
+  std::copy(pose_numbers.begin(), pose_numbers.end(), numbers.begin());
+  Matrix6 information;
+  std::size_t k = 7;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i; j < 6; ++j, ++k) {
+      const std::string what =
+          "information entry I" + std::to_string(i + 1) + std::to_string(j + 1);
+      numbers[k] = ParseNumber(tokens[3 + k], what.c_str(), at);
+      information(MoslamIndex(i), MoslamIndex(j)) = numbers[k];
+      information(MoslamIndex(j), MoslamIndex(i)) = numbers[k];
+    }
+  }
+  const auto make_factor = [&](const Matrix6& info) {
+    return RelativePoseFactor(a.key, b.key, measured, info);
+  };
+  bool repaired = false;
+  std::optional<RelativePoseFactor> factor;
+  try {
+    factor.emplace(make_factor(information));
+  } catch (const InvalidInputError& e) {
+    // Rotation-first order: the coupling block is rows 0..2 x columns 3..5 (and its transpose).
+    Matrix6 uncoupled = information;
+    uncoupled.topRightCorner<3, 3>().setZero();
+    uncoupled.bottomLeftCorner<3, 3>().setZero();
+    if (options.drop_indefinite_coupling && uncoupled != information) {
+      try {
+        factor.emplace(make_factor(uncoupled));
+        repaired = true;
+      } catch (const InvalidInputError&) {
+        // Not the coupling's fault: report the matrix as read.
+      }
+    }
+    if (!factor) {
+      std::string reason = std::string("edge ") + std::to_string(a.raw) + " " +
+                           std::to_string(b.raw) + ": " + e.what();
+      if (!options.drop_indefinite_coupling && uncoupled != information &&
+          std::string(e.what()).find("positive definite") != std::string::npos) {
+        reason +=
+            " (if only the translation-rotation coupling makes it indefinite, as in "
+            "cubicle.g2o, G2oReadOptions::drop_indefinite_coupling (moslam solve --drop-indefinite-coupling) reads it "
+            "without the coupling)";
+      }
+      Fail(at, reason);
+    }
+  }
+  out->plain_keys = out->plain_keys && (a.raw >> 56) == 0 && (b.raw >> 56) == 0;
+  out->edges.push_back({a, b, numbers, std::move(*factor), at, repaired});
+}
+
+FileRecords ParseRecords(std::istream& in, const std::string* name, const G2oReadOptions& options) {
+  FileRecords out;
+  std::string text;
+  int line = 0;
+  while (std::getline(in, text)) {
+    if (line == std::numeric_limits<int>::max()) {
+      Fail({name, line}, "file has too many lines");
+    }
+    ++line;
+    const Location at{name, line};
+    const std::vector<std::string_view> tokens = Tokenize(text);
+    if (tokens.empty()) continue;
+    if (tokens[0] == kVertexTag) {
+      ParseVertex(tokens, options, at, &out);
+    } else if (tokens[0] == kEdgeTag) {
+      ParseEdge(tokens, options, at, &out);
+    } else {
+      FailTag(tokens[0], at);
+    }
+  }
+  if (in.bad()) Fail({name, line}, "read error after this line");
+  if (out.vertices.empty() && out.edges.empty()) {
+    Fail({name, 0}, "empty file: no VERTEX_SE3:QUAT or EDGE_SE3:QUAT line");
+  }
+  return out;
+}
+
+std::string Describe(const DecodedId& id) {
+  return "id " + std::to_string(id.raw) + " (" + ToString(id.key) + ")";
+}
+
+std::string Where(const Location& at) { return *at.file + ":" + std::to_string(at.line); }
+
+bool IsInterRobot(const EdgeRecord& e) { return e.a.key.robot != e.b.key.robot; }
+
+// What makes two edge lines the same edge: their keys and every number as read.
+using EdgeSignature = std::tuple<Key, Key, std::array<double, kEdgeNumbers>>;
+
+struct SignatureLess {
+  bool operator()(const EdgeSignature& x, const EdgeSignature& y) const {
+    if (std::get<0>(x) != std::get<0>(y)) return std::get<0>(x) < std::get<0>(y);
+    if (std::get<1>(x) != std::get<1>(y)) return std::get<1>(x) < std::get<1>(y);
+    return std::get<2>(x) < std::get<2>(y);
+  }
+};
+
+// Merges the files of one dataset: duplicate vertices are rejected, the copy of an inter-robot
+// edge that another file already holds is dropped, dangling edges are rejected.
+Dataset Assemble(const std::vector<FileRecords>& files, const std::vector<std::string>& names) {
+  Dataset data;
+  data.files = names;
+  std::map<Key, Location> defined;
+  for (const FileRecords& file : files) {
+    data.plain_keys = data.plain_keys && file.plain_keys;
+    for (const VertexRecord& v : file.vertices) {
+      const auto [it, inserted] = defined.emplace(v.id.key, v.at);
+      if (!inserted) {
+        Fail(v.at,
+             "vertex " + Describe(v.id) + " is defined twice (first at " + Where(it->second) + ")");
+      }
+      data.initial.emplace(v.id.key, v.pose);
+    }
+  }
+
+  // Inter-robot edges kept so far, per file, with how many copies may still be matched.
+  std::map<EdgeSignature, std::map<std::size_t, int>, SignatureLess> unmatched;
+  std::vector<const EdgeRecord*> kept;
+  for (std::size_t f = 0; f < files.size(); ++f) {
+    for (const EdgeRecord& e : files[f].edges) {
+      if (files.size() > 1 && IsInterRobot(e)) {
+        auto& copies = unmatched[EdgeSignature{e.a.key, e.b.key, e.numbers}];
+        const auto other = std::find_if(copies.begin(), copies.end(), [&](const auto& c) {
+          return c.first != f && c.second > 0;
+        });
+        if (other != copies.end()) {
+          --other->second;  // the other robot's copy of this edge: counted once
+          continue;
+        }
+        ++copies[f];
+      }
+      kept.push_back(&e);
+    }
+  }
+
+  if (!defined.empty()) {
+    std::unordered_map<Key, int> degree;
+    for (const EdgeRecord* e : kept) {
+      ++degree[e->a.key];
+      ++degree[e->b.key];
+    }
+    for (const EdgeRecord* e : kept) {
+      for (const DecodedId* end : {&e->a, &e->b}) {
+        if (defined.count(end->key) == 0 && degree[end->key] == 1) {
+          Fail(e->at, "dangling edge: " + Describe(*end) +
+                          " has no VERTEX_SE3:QUAT line in any file and no other edge connects "
+                          "it");
+        }
+      }
+    }
+  }
+  for (const EdgeRecord* e : kept) {
+    data.graph.add(e->factor);
+    data.repaired_information += e->repaired ? 1 : 0;
+  }
+  return data;
+}
+
+// Full precision, locale-independent: reading the text back gives the same doubles.
+void SetUpStream(std::ostream& os) {
+  os.imbue(std::locale::classic());
+  os << std::setprecision(std::numeric_limits<double>::max_digits10);
+}
+
+std::uint64_t FileId(const Key& key, const G2oWriteOptions& options) {
+  if (options.plain_keys && key.robot == 0 && key.isPose()) {
+    if (key.index > kMaxKeyIndex) {
+      throw InvalidInputError("key index " + std::to_string(key.index) +
+                              " does not fit in 56 bits");
+    }
+    return key.index;
+  }
+  return EncodeSymbol(key, options.scheme);
+}
+
+void WritePose(std::ostream& os, const SE3& x) {
+  const Vector3& t = x.translation();
+  const Eigen::Vector4d q = x.rotation().quaternionWxyz();
+  os << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q[1] << ' ' << q[2] << ' ' << q[3] << ' '
+     << q[0];
+}
+
+void WriteVertex(std::ostream& os, const Key& key, const SE3& x, const G2oWriteOptions& options) {
+  os << kVertexTag << ' ' << FileId(key, options) << ' ';
+  WritePose(os, x);
+  os << '\n';
+}
+
+void WriteEdge(std::ostream& os, const RelativePoseFactor& f, const G2oWriteOptions& options) {
+  os << kEdgeTag << ' ' << FileId(f.a(), options) << ' ' << FileId(f.b(), options) << ' ';
+  WritePose(os, f.measured());
+  const Matrix6& information = f.information();
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i; j < 6; ++j) os << ' ' << information(MoslamIndex(i), MoslamIndex(j));
+  }
+  os << '\n';
+}
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) {
+    throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
+  }
+  out << text;
+  out.close();
+  if (!out) throw Error("failed to write '" + path + "' (disk full?)");
+}
+
+std::string RobotFileName(std::size_t index) { return std::to_string(index) + ".g2o"; }
+
+// The index of a per-robot file name "k.g2o" (no sign, no leading zero), or -1.
+long long RobotFileIndex(const std::string& name) {
+  constexpr std::string_view kSuffix = ".g2o";
+  if (name.size() <= kSuffix.size() || name.size() > kSuffix.size() + 9) return -1;
+  if (name.compare(name.size() - kSuffix.size(), kSuffix.size(), kSuffix) != 0) return -1;
+  const std::string digits = name.substr(0, name.size() - kSuffix.size());
+  if (digits.size() > 1 && digits[0] == '0') return -1;
+  long long index = 0;
+  const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), index);
+  if (ec != std::errc() || ptr != digits.data() + digits.size() || index < 0) return -1;
+  return index;
+}
+
+}  // namespace
+
+G2oParseError::G2oParseError(std::string file, int line, std::string reason)
+    : InvalidInputError(FormatError(file, line, reason)),
+      file_(std::move(file)),
+      line_(line),
+      reason_(std::move(reason)) {}
+
+Dataset ParseG2o(std::istream& in, const std::string& name, const G2oReadOptions& options) {
+  std::vector<FileRecords> files;
+  files.push_back(ParseRecords(in, &name, options));
+  return Assemble(files, {name});
+}
+
+Dataset ReadG2oFile(const std::string& path, const G2oReadOptions& options) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    throw G2oParseError(path, 0, "is a folder, not a g2o file (ReadG2oFolder reads folders)");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw G2oParseError(path, 0, std::string("cannot open: ") + std::strerror(errno));
+  return ParseG2o(in, path, options);
+}
+
+Dataset ReadG2oFolder(const std::string& dir, const G2oReadOptions& options) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) {
+    throw G2oParseError(dir, 0, "is not a folder of per-robot files 0.g2o .. N-1.g2o");
+  }
+  std::vector<long long> indices;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const long long index = RobotFileIndex(it->path().filename().string());
+    if (index >= 0) indices.push_back(index);
+  }
+  if (ec) throw G2oParseError(dir, 0, "cannot list the folder: " + ec.message());
+  if (indices.empty()) {
+    throw G2oParseError(dir, 0, "no per-robot files: expected 0.g2o .. N-1.g2o");
+  }
+  std::sort(indices.begin(), indices.end());
+  for (std::size_t i = 0; i < indices.size(); ++i) {
+    if (indices[i] != static_cast<long long>(i)) {
+      throw G2oParseError(dir, 0,
+                          "missing " + RobotFileName(i) +
+                              ": per-robot files must be 0.g2o .. N-1.g2o without gaps (found " +
+                              RobotFileName(static_cast<std::size_t>(indices[i])) + ")");
+    }
+  }
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < indices.size(); ++i) {
+    names.push_back((fs::path(dir) / RobotFileName(i)).string());
+  }
+  std::vector<FileRecords> files;
+  for (const std::string& name : names) {
+    std::ifstream in(name, std::ios::binary);
+    if (!in) throw G2oParseError(name, 0, std::string("cannot open: ") + std::strerror(errno));
+    files.push_back(ParseRecords(in, &name, options));
+  }
+  return Assemble(files, names);
+}
+
+Dataset ReadG2o(const std::string& path, const G2oReadOptions& options) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return ReadG2oFolder(path, options);
+  return ReadG2oFile(path, options);
+}
+
+void WriteG2oFile(const std::string& path, const PoseGraph& graph, const Values& values,
+                  const G2oWriteOptions& options) {
+  std::ostringstream os;
+  SetUpStream(os);
+  for (const auto& [key, pose] : values) WriteVertex(os, key, pose, options);
+  for (const RelativePoseFactor& f : graph.factors()) WriteEdge(os, f, options);
+  WriteText(path, os.str());
+}
+
+void WriteG2oFolder(const std::string& dir, const PoseGraph& graph, const Values& values,
+                    const G2oWriteOptions& options) {
+  int num_robots = graph.numRobots();
+  for (const auto& entry : values) num_robots = std::max(num_robots, entry.first.robot + 1);
+  const auto check_robot = [&](const Key& key) {
+    if (key.robot < 0) {
+      throw InvalidInputError("WriteG2oFolder: key " + ToString(key) + " has a negative robot");
+    }
+  };
+  for (const auto& entry : values) check_robot(entry.first);
+  for (const RelativePoseFactor& f : graph.factors()) {
+    check_robot(f.a());
+    check_robot(f.b());
+  }
+  if (num_robots <= 0) throw InvalidInputError("WriteG2oFolder: nothing to write to " + dir);
+
+  std::vector<std::ostringstream> texts(static_cast<std::size_t>(num_robots));
+  std::vector<bool> used(static_cast<std::size_t>(num_robots), false);
+  for (auto& os : texts) SetUpStream(os);
+  for (const auto& [key, pose] : values) {
+    const auto r = static_cast<std::size_t>(key.robot);
+    WriteVertex(texts[r], key, pose, options);
+    used[r] = true;
+  }
+  for (const RelativePoseFactor& f : graph.factors()) {
+    const auto ra = static_cast<std::size_t>(f.a().robot);
+    const auto rb = static_cast<std::size_t>(f.b().robot);
+    WriteEdge(texts[ra], f, options);
+    used[ra] = true;
+    if (rb != ra) {
+      WriteEdge(texts[rb], f, options);
+      used[rb] = true;
+    }
+  }
+  for (std::size_t r = 0; r < used.size(); ++r) {
+    if (!used[r]) {
+      throw InvalidInputError("WriteG2oFolder: robot " + std::to_string(r) +
+                              " has no variable and no factor, but a folder needs files for "
+                              "robots 0..N-1 with no gap");
+    }
+  }
+
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw Error("cannot create folder '" + dir + "': " + ec.message());
+  // A stale k.g2o with k >= N would be read back as part of this dataset.
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const long long index = RobotFileIndex(it->path().filename().string());
+    if (index >= num_robots) {
+      throw Error("cannot write a " + std::to_string(num_robots) + "-robot dataset into '" + dir +
+                  "': it already holds " + it->path().filename().string() +
+                  ", which would be read back as another robot; remove it or use another folder");
+    }
+  }
+  if (ec) throw Error("cannot list folder '" + dir + "': " + ec.message());
+  for (std::size_t r = 0; r < texts.size(); ++r) {
+    WriteText((fs::path(dir) / RobotFileName(r)).string(), texts[r].str());
+  }
+}
+
+}  // namespace moslam
