@@ -1,0 +1,154 @@
+#include <fmt/core.h>
+
+#include <chrono>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "moslam/common/errors.h"
+#include "moslam/io/g2o.h"
+#include "moslam/io/tum.h"
+#include "moslam/solver/initialization.h"
+#include "moslam/solver/optimizer.h"
+
+namespace moslam::cli {
+namespace {
+
+struct SolveArgs {
+  std::string input;
+  std::string init = "chordal";
+  std::string method = "gn";
+  int max_iterations = 100;
+  double relative_tolerance = 1e-10;
+  bool objects = false;
+  bool drop_indefinite_coupling = false;
+  std::string out;
+  std::string tum_dir;
+  bool json = false;
+  bool verbose = false;
+};
+
+double Since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+Values InitialEstimate(const Dataset& data, const std::string& how) {
+  const Key anchor = GaugeAnchor(data.graph);
+  const auto it = data.initial.find(anchor);
+  const SE3 anchor_pose = it != data.initial.end() ? it->second : SE3();
+  if (how == "chordal") return ChordalInitialization(data.graph, anchor_pose);
+  if (how == "odometry") return OdometryInitialization(data.graph, anchor_pose);
+  // "file": every variable needs a vertex.
+  for (const Key& k : data.graph.keys()) {
+    if (!data.initial.count(k)) {
+      throw InvalidInputError("--init file: the input has no vertex for " + ToString(k) +
+                              " (edge-only file? use --init chordal or --init odometry)");
+    }
+  }
+  return data.initial;
+}
+
+int RunSolve(const SolveArgs& a) {
+  const auto t_start = std::chrono::steady_clock::now();
+  G2oReadOptions read_options;
+  read_options.scheme = a.objects ? KeyScheme::kWithObjects : KeyScheme::kPosesOnly;
+  read_options.drop_indefinite_coupling = a.drop_indefinite_coupling;
+  const Dataset data = ReadG2o(a.input, read_options);
+  const double load_seconds = Since(t_start);
+
+  const auto t_init = std::chrono::steady_clock::now();
+  const Values initial = InitialEstimate(data, a.init);
+  const double init_seconds = Since(t_init);
+
+  OptimizerOptions options;
+  options.method = a.method == "lm" ? Method::kLevenbergMarquardt : Method::kGaussNewton;
+  options.max_iterations = a.max_iterations;
+  options.relative_cost_tolerance = a.relative_tolerance;
+  options.verbose = a.verbose;
+  NonlinearOptimizer optimizer(data.graph, initial, options);
+  if (!a.json) {
+    fmt::print("{}: {} variables, {} factors, {} robot(s); init {} ({:.3f} s), cost {:.6f}\n",
+               a.input, data.graph.keys().size(), data.graph.factors().size(),
+               data.graph.numRobots(), a.init, init_seconds, optimizer.cost());
+    if (data.repaired_information > 0) {
+      fmt::print("note: {} information matrices read without their indefinite coupling\n",
+                 data.repaired_information);
+    }
+  }
+  const OptimizerResult result = optimizer.optimize();
+  const double total_seconds = Since(t_start);
+
+  if (!a.out.empty()) {
+    G2oWriteOptions w;
+    w.scheme = read_options.scheme;
+    w.plain_keys = data.plain_keys;
+    if (std::filesystem::is_directory(a.out) || a.out.back() == '/') {
+      WriteG2oFolder(a.out, data.graph, result.values, w);
+    } else {
+      WriteG2oFile(a.out, data.graph, result.values, w);
+    }
+  }
+  if (!a.tum_dir.empty()) WriteTumTrajectories(a.tum_dir, result.values);
+
+  if (a.json) {
+    const nlohmann::json j = {
+        {"input", a.input},
+        {"variables", data.graph.keys().size()},
+        {"factors", data.graph.factors().size()},
+        {"robots", data.graph.numRobots()},
+        {"repaired_information", data.repaired_information},
+        {"init", a.init},
+        {"method", a.method},
+        {"initial_cost", result.initial_cost},
+        {"final_cost", result.final_cost},
+        {"iterations", result.iterations},
+        {"termination", ToString(result.termination)},
+        {"seconds", result.seconds},
+        {"init_seconds", init_seconds},
+        {"load_seconds", load_seconds},
+        {"linearize_seconds", result.linearize_seconds},
+        {"cholesky_seconds", result.solve_seconds},
+        {"total_seconds", total_seconds},
+    };
+    fmt::print("{}\n", j.dump());
+  } else {
+    fmt::print("{} after {} iteration(s): cost {:.6f} -> {:.10g} in {:.3f} s\n",
+               ToString(result.termination), result.iterations, result.initial_cost,
+               result.final_cost, result.seconds);
+  }
+  // Not converging within the limits is a result, not an error; a rising GN step is reported
+  // but the best estimate is still written.
+  return 0;
+}
+
+}  // namespace
+
+Runner RegisterSolve(CLI::App& app) {
+  auto args = std::make_shared<SolveArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "solve", "Centralized solve of a g2o file or a multi-robot folder (0.g2o .. N-1.g2o)");
+  sub->add_option("input", args->input, "g2o file or distributed-mapper folder")->required();
+  sub->add_option("--init", args->init, "initial estimate")
+      ->check(CLI::IsMember({"chordal", "odometry", "file"}))
+      ->capture_default_str();
+  sub->add_option("--method", args->method, "gn (Gauss-Newton) or lm (Levenberg-Marquardt)")
+      ->check(CLI::IsMember({"gn", "lm"}))
+      ->capture_default_str();
+  sub->add_option("--max-iterations", args->max_iterations)->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  sub->add_option("--rel-tol", args->relative_tolerance, "stop when the cost drops by less than this fraction")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  sub->add_flag("--objects", args->objects,
+                "upper-case Symbol keys are objects of robots 0-25 (not poses of robots 26-51)");
+  sub->add_flag("--drop-indefinite-coupling", args->drop_indefinite_coupling,
+                "read information matrices that only their rotation-translation coupling makes "
+                "indefinite (cubicle.g2o) without that coupling; the count is reported");
+  sub->add_option("--out", args->out, "write the estimate: a .g2o file, or a folder (ends with /)");
+  sub->add_option("--tum", args->tum_dir, "write one TUM trajectory per robot into this folder");
+  sub->add_flag("--json", args->json, "print one JSON object as the last line");
+  sub->add_flag("-v,--verbose", args->verbose, "one line per iteration on stderr");
+  return [args] { return RunSolve(*args); };
+}
+
+}  // namespace moslam::cli
