@@ -85,6 +85,8 @@ int RunSolve(const SolveArgs& a) {
     if (std::filesystem::is_directory(a.out) || a.out.back() == '/') {
       WriteG2oFolder(a.out, data.graph, result.values, w);
     } else {
+      const auto parent = std::filesystem::path(a.out).parent_path();
+      if (!parent.empty()) std::filesystem::create_directories(parent);
       WriteG2oFile(a.out, data.graph, result.values, w);
     }
   }
