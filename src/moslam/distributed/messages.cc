@@ -1,0 +1,229 @@
+#include "moslam/distributed/messages.h"
+
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+
+const double* Message::entry(std::size_t i) const {
+  return values.data() + i * static_cast<std::size_t>(StageDimension(stage));
+}
+
+namespace {
+
+constexpr std::size_t kMaxVarintBytes = 9;  // 7 bits each: 63 bits, enough for index << 1 | kind
+
+bool ValidStage(std::uint8_t s) { return s >= 1 && s <= 3; }
+
+// Writes into a buffer sized up front (the encoded size is known from the entries).
+class Writer {
+ public:
+  explicit Writer(std::uint8_t* out) : p_(out) {}
+  void u8(std::uint8_t v) { *p_++ = v; }
+  void u16(std::uint16_t v) {
+    for (int b = 0; b < 2; ++b) *p_++ = static_cast<std::uint8_t>(v >> (8 * b));
+  }
+  void u32(std::uint32_t v) {
+    for (int b = 0; b < 4; ++b) *p_++ = static_cast<std::uint8_t>(v >> (8 * b));
+  }
+  void u64(std::uint64_t v) {
+    for (int b = 0; b < 8; ++b) *p_++ = static_cast<std::uint8_t>(v >> (8 * b));
+  }
+  void f64(double d) {
+    std::uint64_t v;
+    std::memcpy(&v, &d, sizeof v);
+    u64(v);
+  }
+  void varint(std::uint64_t v) {
+    while (v >= 0x80) {
+      *p_++ = static_cast<std::uint8_t>((v & 0x7F) | 0x80);
+      v >>= 7;
+    }
+    *p_++ = static_cast<std::uint8_t>(v);
+  }
+  const std::uint8_t* position() const { return p_; }
+
+ private:
+  std::uint8_t* p_;
+};
+
+std::size_t VarintSize(std::uint64_t v) {
+  std::size_t n = 1;
+  while (v >= 0x80) {
+    v >>= 7;
+    ++n;
+  }
+  return n;
+}
+
+class Reader {
+ public:
+  explicit Reader(const std::vector<std::uint8_t>& in) : in_(in) {}
+  std::size_t remaining() const { return in_.size() - pos_; }
+  void need(std::size_t n, const char* what) const {
+    if (remaining() < n) {
+      throw InvalidInputError(std::string("DGS message truncated: ") + what + " needs " +
+                              std::to_string(n) + " bytes, " + std::to_string(remaining()) +
+                              " left");
+    }
+  }
+  std::uint8_t u8(const char* what) {
+    need(1, what);
+    return in_[pos_++];
+  }
+  std::uint16_t u16(const char* what) {
+    need(2, what);
+    std::uint16_t v = 0;
+    for (int b = 0; b < 2; ++b) v = static_cast<std::uint16_t>(v | (in_[pos_++] << (8 * b)));
+    return v;
+  }
+  std::uint32_t u32(const char* what) {
+    need(4, what);
+    std::uint32_t v = 0;
+    for (int b = 0; b < 4; ++b) v |= std::uint32_t{in_[pos_++]} << (8 * b);
+    return v;
+  }
+  double f64(const char* what) {
+    need(8, what);
+    std::uint64_t v = 0;
+    for (int b = 0; b < 8; ++b) v |= std::uint64_t{in_[pos_++]} << (8 * b);
+    double d;
+    std::memcpy(&d, &v, sizeof d);
+    return d;
+  }
+  std::uint64_t varint(const char* what) {
+    std::uint64_t v = 0;
+    for (std::size_t i = 0; i < kMaxVarintBytes; ++i) {
+      const std::uint8_t byte = u8(what);
+      v |= std::uint64_t{byte & 0x7Fu} << (7 * i);
+      if ((byte & 0x80) == 0) {
+        if (i > 0 && byte == 0) {
+          throw InvalidInputError(std::string("DGS message: non-canonical varint in ") + what);
+        }
+        return v;
+      }
+    }
+    throw InvalidInputError(std::string("DGS message: varint longer than 9 bytes in ") + what);
+  }
+
+ private:
+  const std::vector<std::uint8_t>& in_;
+  std::size_t pos_ = 0;
+};
+
+std::uint64_t PackKey(const Key& key) {
+  return (key.index << 1) | static_cast<std::uint64_t>(key.kind);
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeMessage(const Message& m) {
+  const int dim = StageDimension(m.stage);
+  if (m.sender < 0 || m.sender > kMaxMessageRobot) {
+    throw InvalidInputError("DGS message: sender robot " + std::to_string(m.sender) +
+                            " outside [0, 65535]");
+  }
+  if (m.values.size() != m.keys.size() * static_cast<std::size_t>(dim)) {
+    throw InvalidInputError("DGS message: " + std::to_string(m.values.size()) + " values for " +
+                            std::to_string(m.keys.size()) + " keys of dimension " +
+                            std::to_string(dim));
+  }
+  if (m.keys.size() > 0xFFFFFFFFu) throw InvalidInputError("DGS message: too many entries");
+  for (std::size_t i = 0; i < m.keys.size(); ++i) {
+    const Key& k = m.keys[i];
+    if (k.robot != m.sender) {
+      throw InvalidInputError("DGS message: key " + ToString(k) + " is not robot " +
+                              std::to_string(m.sender) + "'s (a robot sends only its own)");
+    }
+    if (k.index > kMaxKeyIndex) throw InvalidInputError("DGS message: key index >= 2^56");
+    if (i > 0 && !(m.keys[i - 1] < k)) {
+      throw InvalidInputError("DGS message: keys not strictly increasing at " + ToString(k));
+    }
+  }
+  for (double v : m.values) {
+    if (!std::isfinite(v)) throw InvalidInputError("DGS message: non-finite estimate");
+  }
+  std::size_t size = kMessageHeaderBytes + m.values.size() * 8;
+  for (const Key& k : m.keys) size += VarintSize(PackKey(k));
+  std::vector<std::uint8_t> out(size);
+  Writer w(out.data());
+  w.u8(kMessageMagic);
+  w.u8(kMessageVersion);
+  w.u8(static_cast<std::uint8_t>(m.stage));
+  w.u8(m.initialised ? 1 : 0);
+  w.u16(static_cast<std::uint16_t>(m.sender));
+  w.u16(0);
+  w.u32(m.iteration);
+  w.u32(static_cast<std::uint32_t>(m.keys.size()));
+  for (std::size_t i = 0; i < m.keys.size(); ++i) {
+    w.varint(PackKey(m.keys[i]));
+    const double* e = m.entry(i);
+    for (int d = 0; d < dim; ++d) w.f64(e[d]);
+  }
+  return out;
+}
+
+Message DecodeMessage(const std::vector<std::uint8_t>& bytes) {
+  Reader r(bytes);
+  r.need(kMessageHeaderBytes, "header");
+  Message m;
+  if (r.u8("magic") != kMessageMagic) {
+    throw InvalidInputError("DGS message: bad magic byte (not a DGS message)");
+  }
+  const std::uint8_t version = r.u8("version");
+  if (version != kMessageVersion) {
+    throw InvalidInputError("DGS message: unsupported version " + std::to_string(version));
+  }
+  const std::uint8_t stage = r.u8("stage");
+  if (!ValidStage(stage)) {
+    throw InvalidInputError("DGS message: unknown stage " + std::to_string(stage));
+  }
+  m.stage = static_cast<DgsStage>(stage);
+  const std::uint8_t flags = r.u8("flags");
+  if ((flags & ~1u) != 0) {
+    throw InvalidInputError("DGS message: unknown flag bits " + std::to_string(flags));
+  }
+  m.initialised = (flags & 1u) != 0;
+  m.sender = r.u16("sender");
+  if (r.u16("reserved") != 0) throw InvalidInputError("DGS message: reserved field not zero");
+  m.iteration = r.u32("iteration");
+  const std::uint32_t count = r.u32("entry count");
+  const std::size_t dim = static_cast<std::size_t>(StageDimension(m.stage));
+  const std::size_t min_entry = 1 + 8 * dim;
+  if (count > r.remaining() / min_entry) {
+    throw InvalidInputError("DGS message: entry count " + std::to_string(count) +
+                            " exceeds what the " + std::to_string(r.remaining()) +
+                            " payload bytes can hold");
+  }
+  m.keys.reserve(count);
+  m.values.reserve(count * dim);
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const std::uint64_t packed = r.varint("key");
+    if ((packed >> 1) > kMaxKeyIndex) {
+      throw InvalidInputError("DGS message: key index >= 2^56 at entry " + std::to_string(i));
+    }
+    Key key{m.sender, static_cast<VariableKind>(packed & 1u), packed >> 1};
+    if (!m.keys.empty() && !(m.keys.back() < key)) {
+      throw InvalidInputError("DGS message: keys not strictly increasing at entry " +
+                              std::to_string(i));
+    }
+    m.keys.push_back(key);
+    for (std::size_t d = 0; d < dim; ++d) {
+      const double v = r.f64("estimate");
+      if (!std::isfinite(v)) {
+        throw InvalidInputError("DGS message: non-finite estimate at entry " + std::to_string(i));
+      }
+      m.values.push_back(v);
+    }
+  }
+  if (r.remaining() != 0) {
+    throw InvalidInputError("DGS message: " + std::to_string(r.remaining()) +
+                            " trailing bytes after the last entry");
+  }
+  return m;
+}
+
+}  // namespace moslam

@@ -1,0 +1,51 @@
+// Messages the DGS robots exchange, and their compact binary serialization (the bytes a network
+// layer sends). A message carries, from one sender robot, the current estimates of some of the
+// sender's own variables in one stage and iteration:
+//
+//   header (16 bytes, little-endian):
+//     u8  magic 0xD6 | u8 version 1 | u8 stage (dgs_types.h) | u8 flags (bit 0: initialised)
+//     u16 sender robot | u16 reserved (0) | u32 iteration | u32 entry count
+//   entries, keys strictly increasing (graph/key.h order within one robot: poses, then objects):
+//     varint (index << 1 | kind)  -- LEB128, at most 9 bytes (index < 2^56)
+//     StageDimension(stage) IEEE-754 doubles, 8 bytes each, little-endian
+//
+// Every key belongs to the sender (robots only send their own variables), so the robot is not
+// repeated per entry. `initialised` tells the receiver the sender has solved in this stage
+// (flagged initialisation, DGS.md). DecodeMessage rejects, with InvalidInputError naming the
+// cause: truncated input, a bad magic/version/stage/flags/reserved field, an entry count the
+// payload cannot hold, a malformed varint, keys not strictly increasing, a non-finite value and
+// trailing bytes.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "moslam/distributed/dgs_types.h"
+#include "moslam/graph/key.h"
+
+namespace moslam {
+
+struct Message {
+  DgsStage stage = DgsStage::kRotation;
+  std::uint32_t iteration = 0;  // the sender's iteration count in this stage (0: before solving)
+  int sender = 0;
+  bool initialised = false;
+  std::vector<Key> keys;        // the sender's variables, strictly increasing
+  std::vector<double> values;   // keys.size() * StageDimension(stage), key by key
+
+  // The StageDimension(stage) numbers of entry i.
+  const double* entry(std::size_t i) const;
+};
+
+inline constexpr std::uint8_t kMessageMagic = 0xD6;
+inline constexpr std::uint8_t kMessageVersion = 1;
+inline constexpr std::size_t kMessageHeaderBytes = 16;
+inline constexpr int kMaxMessageRobot = 65535;
+
+// Throws InvalidInputError when the message cannot be encoded: a key of another robot, keys not
+// strictly increasing, values.size() not keys.size() * dimension, non-finite values, sender
+// outside [0, 65535], an index >= 2^56.
+std::vector<std::uint8_t> EncodeMessage(const Message& message);
+Message DecodeMessage(const std::vector<std::uint8_t>& bytes);
+
+}  // namespace moslam

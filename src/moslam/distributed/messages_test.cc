@@ -1,0 +1,206 @@
+#include "moslam/distributed/messages.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+
+Message MakeMessage(DgsStage stage, int sender, int n) {
+  Message m;
+  m.stage = stage;
+  m.iteration = 4000000007u;
+  m.sender = sender;
+  m.initialised = true;
+  const int dim = StageDimension(stage);
+  for (int i = 0; i < n; ++i) {
+    m.keys.push_back(Key::Pose(sender, static_cast<std::uint64_t>(i) * 1000003u));
+    for (int d = 0; d < dim; ++d) m.values.push_back(std::sin(1.0 + i * dim + d) * 1e3 / (d + 1));
+  }
+  m.keys.push_back(Key::Object(sender, kMaxKeyIndex));
+  for (int d = 0; d < dim; ++d) m.values.push_back(d == 0 ? -0.0 : d * 1e-310);  // -0, denormals
+  return m;
+}
+
+void ExpectEqual(const Message& a, const Message& b) {
+  EXPECT_EQ(a.stage, b.stage);
+  EXPECT_EQ(a.iteration, b.iteration);
+  EXPECT_EQ(a.sender, b.sender);
+  EXPECT_EQ(a.initialised, b.initialised);
+  EXPECT_EQ(a.keys, b.keys);
+  ASSERT_EQ(a.values.size(), b.values.size());
+  for (std::size_t i = 0; i < a.values.size(); ++i) {
+    // Bit-exact, including the sign of zero and denormals.
+    EXPECT_EQ(std::memcmp(&a.values[i], &b.values[i], sizeof(double)), 0) << i;
+  }
+}
+
+TEST(Messages, RoundTripEveryStage) {
+  for (DgsStage stage : {DgsStage::kRotation, DgsStage::kPose, DgsStage::kRefine}) {
+    const Message m = MakeMessage(stage, 65535, 7);
+    const std::vector<std::uint8_t> bytes = EncodeMessage(m);
+    ExpectEqual(m, DecodeMessage(bytes));
+  }
+}
+
+TEST(Messages, RoundTripEmptyAndUninitialised) {
+  Message m;
+  m.stage = DgsStage::kPose;
+  m.sender = 3;
+  m.iteration = 0;
+  m.initialised = false;
+  const std::vector<std::uint8_t> bytes = EncodeMessage(m);
+  EXPECT_EQ(bytes.size(), kMessageHeaderBytes);
+  ExpectEqual(m, DecodeMessage(bytes));
+}
+
+TEST(Messages, SizeIsHeaderPlusCompactEntries) {
+  Message m;
+  m.stage = DgsStage::kRotation;
+  m.sender = 2;
+  m.keys = {Key::Pose(2, 5), Key::Pose(2, 63), Key::Pose(2, 64), Key::Object(2, 1)};
+  m.values.assign(4 * 9, 0.5);
+  // Varints of (index << 1 | kind): 10 -> 1 byte, 126 -> 1, 128 -> 2, 3 -> 1.
+  EXPECT_EQ(EncodeMessage(m).size(), kMessageHeaderBytes + 5 + 4 * 9 * 8);
+}
+
+TEST(Messages, HeaderIsLittleEndian) {
+  Message m;
+  m.stage = DgsStage::kPose;
+  m.sender = 0x0102;
+  m.iteration = 0x0A0B0C0D;
+  const std::vector<std::uint8_t> b = EncodeMessage(m);
+  EXPECT_EQ(b[0], kMessageMagic);
+  EXPECT_EQ(b[1], kMessageVersion);
+  EXPECT_EQ(b[2], 2);
+  EXPECT_EQ(b[3], 0);
+  EXPECT_EQ(b[4], 0x02);
+  EXPECT_EQ(b[5], 0x01);
+  EXPECT_EQ(b[8], 0x0D);
+  EXPECT_EQ(b[11], 0x0A);
+}
+
+TEST(Messages, RejectsEveryTruncation) {
+  const std::vector<std::uint8_t> bytes = EncodeMessage(MakeMessage(DgsStage::kPose, 1, 3));
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    const std::vector<std::uint8_t> cut(bytes.begin(), bytes.begin() + static_cast<long>(n));
+    EXPECT_THROW(DecodeMessage(cut), InvalidInputError) << n;
+  }
+}
+
+TEST(Messages, RejectsTrailingBytes) {
+  std::vector<std::uint8_t> bytes = EncodeMessage(MakeMessage(DgsStage::kPose, 1, 3));
+  bytes.push_back(0);
+  EXPECT_THROW(DecodeMessage(bytes), InvalidInputError);
+}
+
+TEST(Messages, RejectsBadHeaderFields) {
+  const std::vector<std::uint8_t> good = EncodeMessage(MakeMessage(DgsStage::kRotation, 1, 2));
+  ASSERT_NO_THROW(DecodeMessage(good));
+  const std::vector<std::pair<std::size_t, std::uint8_t>> corruptions = {
+      {0, 0x00},  // magic
+      {1, 2},     // version
+      {2, 0},     // stage
+      {2, 4},     // stage
+      {3, 2},     // unknown flag bit
+      {6, 1},     // reserved
+  };
+  for (const auto& [offset, value] : corruptions) {
+    std::vector<std::uint8_t> bad = good;
+    bad[offset] = value;
+    EXPECT_THROW(DecodeMessage(bad), InvalidInputError) << offset;
+  }
+}
+
+TEST(Messages, RejectsOversizedCount) {
+  std::vector<std::uint8_t> bytes = EncodeMessage(MakeMessage(DgsStage::kPose, 1, 2));
+  // Count field at offset 12: claim 2^32 - 1 entries.
+  for (int b = 12; b < 16; ++b) bytes[static_cast<std::size_t>(b)] = 0xFF;
+  EXPECT_THROW(DecodeMessage(bytes), InvalidInputError);
+  // One more entry than the payload holds.
+  std::vector<std::uint8_t> plus_one = EncodeMessage(MakeMessage(DgsStage::kPose, 1, 2));
+  plus_one[12] = static_cast<std::uint8_t>(plus_one[12] + 1);
+  EXPECT_THROW(DecodeMessage(plus_one), InvalidInputError);
+}
+
+TEST(Messages, RejectsInconsistentEntries) {
+  Message m;
+  m.stage = DgsStage::kPose;
+  m.sender = 1;
+  m.keys = {Key::Pose(1, 3), Key::Pose(1, 4)};
+  m.values.assign(12, 1.0);
+  const std::vector<std::uint8_t> good = EncodeMessage(m);
+  const std::size_t first_key = kMessageHeaderBytes;
+  const std::size_t second_key = kMessageHeaderBytes + 1 + 6 * 8;
+  ASSERT_EQ(good[first_key], 6);
+  ASSERT_EQ(good[second_key], 8);
+
+  std::vector<std::uint8_t> duplicate = good;  // same key twice
+  duplicate[second_key] = 6;
+  EXPECT_THROW(DecodeMessage(duplicate), InvalidInputError);
+
+  std::vector<std::uint8_t> decreasing = good;
+  decreasing[second_key] = 4;
+  EXPECT_THROW(DecodeMessage(decreasing), InvalidInputError);
+
+  std::vector<std::uint8_t> nan = good;  // first value -> NaN
+  const double q = std::numeric_limits<double>::quiet_NaN();
+  std::uint64_t bits;
+  std::memcpy(&bits, &q, sizeof bits);
+  for (int b = 0; b < 8; ++b) {
+    nan[first_key + 1 + static_cast<std::size_t>(b)] = static_cast<std::uint8_t>(bits >> (8 * b));
+  }
+  EXPECT_THROW(DecodeMessage(nan), InvalidInputError);
+}
+
+TEST(Messages, RejectsMalformedVarints) {
+  Message m;
+  m.stage = DgsStage::kPose;
+  m.sender = 1;
+  const std::vector<std::uint8_t> header = EncodeMessage(m);
+  auto with_key_bytes = [&](const std::vector<std::uint8_t>& key) {
+    std::vector<std::uint8_t> b = header;
+    b[12] = 1;  // one entry
+    b.insert(b.end(), key.begin(), key.end());
+    b.insert(b.end(), 48, 0);  // six zero doubles
+    return b;
+  };
+  ASSERT_NO_THROW(DecodeMessage(with_key_bytes({0x05})));
+  // Ten continuation bytes: longer than any 57-bit key.
+  EXPECT_THROW(DecodeMessage(with_key_bytes(std::vector<std::uint8_t>(10, 0x80))),
+               InvalidInputError);
+  // Non-canonical (a redundant zero group).
+  EXPECT_THROW(DecodeMessage(with_key_bytes({0x85, 0x00})), InvalidInputError);
+  // Index 2^56 (packed 2^57, bit 57 = bit 1 of the 9th group): a valid varint, index too big.
+  EXPECT_THROW(
+      DecodeMessage(with_key_bytes({0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x02})),
+      InvalidInputError);
+}
+
+TEST(Messages, EncodeRejectsInconsistentMessages) {
+  Message m = MakeMessage(DgsStage::kRotation, 1, 2);
+  Message foreign = m;
+  foreign.keys[0].robot = 2;
+  EXPECT_THROW(EncodeMessage(foreign), InvalidInputError);
+  Message short_values = m;
+  short_values.values.pop_back();
+  EXPECT_THROW(EncodeMessage(short_values), InvalidInputError);
+  Message unordered = m;
+  std::swap(unordered.keys[0], unordered.keys[1]);
+  EXPECT_THROW(EncodeMessage(unordered), InvalidInputError);
+  Message inf = m;
+  inf.values[3] = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(EncodeMessage(inf), InvalidInputError);
+  Message big_sender = m;
+  big_sender.sender = 70000;
+  for (Key& k : big_sender.keys) k.robot = 70000;
+  EXPECT_THROW(EncodeMessage(big_sender), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam

@@ -1,0 +1,434 @@
+#include "moslam/distributed/robot_agent.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <numeric>
+#include <string>
+#include <utility>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/two_stage_terms.h"
+
+namespace moslam {
+
+void AgentOptions::validate() const {
+  if (!(gamma > 0.0 && gamma < 2.0)) {
+    throw InvalidInputError("DGS: gamma must be in (0, 2) (over-relaxation), got " +
+                            std::to_string(gamma));
+  }
+}
+
+namespace {
+
+int Find(std::vector<int>& parent, int i) {
+  while (parent[i] != i) {
+    parent[i] = parent[parent[i]];
+    i = parent[i];
+  }
+  return i;
+}
+
+}  // namespace
+
+RobotAgent::RobotAgent(int robot, const PoseGraph& subgraph, const Values& initial,
+                       const Key& anchor, const AgentOptions& options)
+    : robot_(robot), options_(options), anchor_(anchor) {
+  options_.validate();
+  std::set<Key> own;
+  std::vector<std::pair<Key, Key>> coupled;
+  for (const RelativePoseFactor& f : subgraph.factors()) {
+    const bool own_a = f.a().robot == robot_;
+    const bool own_b = f.b().robot == robot_;
+    if (!own_a && !own_b) {
+      throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": factor " +
+                              ToString(f.a()) + "-" + ToString(f.b()) +
+                              " touches none of its variables");
+    }
+    const std::size_t index = factors_.size();
+    factors_.push_back(f);
+    if (own_a) own.insert(f.a());
+    if (own_b) own.insert(f.b());
+    if (own_a && own_b) {
+      inner_.push_back(index);
+      coupled.emplace_back(f.a(), f.b());
+    } else {
+      const Key mine = own_a ? f.a() : f.b();
+      const Key theirs = own_a ? f.b() : f.a();
+      separators_.push_back({index, mine, theirs, theirs.robot});
+      neighbour_keys_.insert(theirs);
+      auto& shared = shared_with_[theirs.robot];
+      shared.push_back(mine);
+    }
+  }
+  for (const PriorFactor& p : subgraph.priors()) {
+    if (p.key().robot != robot_) {
+      throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": prior on " +
+                              ToString(p.key()) + " is another robot's");
+    }
+    priors_.push_back(p);
+    own.insert(p.key());
+  }
+  if (own.empty()) {
+    throw UnderdeterminedError("DGS robot " + std::to_string(robot_) +
+                               ": its subgraph touches none of its variables");
+  }
+  for (auto& [r, keys] : shared_with_) {
+    std::sort(keys.begin(), keys.end());
+    keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  }
+  own_.assign(own.begin(), own.end());
+  owns_anchor_ = own.count(anchor_) > 0;
+  for (const Key& k : own_) {
+    const auto it = initial.find(k);
+    initial_[k] = it != initial.end() ? it->second : SE3();
+    if (k == anchor_) continue;
+    unknown_index_[k] = static_cast<int>(unknowns_.size());
+    unknowns_.push_back(k);
+  }
+  if (owns_anchor_) anchor_pose_ = initial_.at(anchor_);
+
+  // Components of the unknowns through inner edges (the anchor is fixed, so it does not join
+  // components: it ties each one it touches).
+  const int n = static_cast<int>(unknowns_.size());
+  std::vector<int> parent(n);
+  std::iota(parent.begin(), parent.end(), 0);
+  for (std::size_t i : inner_) {
+    const auto ia = unknown_index_.find(factors_[i].a());
+    const auto ib = unknown_index_.find(factors_[i].b());
+    if (ia == unknown_index_.end() || ib == unknown_index_.end()) continue;
+    parent[Find(parent, ia->second)] = Find(parent, ib->second);
+  }
+  std::map<int, int> root_to_component;
+  component_of_.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const int root = Find(parent, i);
+    const auto [it, inserted] =
+        root_to_component.emplace(root, static_cast<int>(root_to_component.size()));
+    component_of_[i] = it->second;
+  }
+  component_fixed_.assign(root_to_component.size(), false);
+  component_separators_.assign(root_to_component.size(), {});
+  for (std::size_t i : inner_) {
+    const Key a = factors_[i].a(), b = factors_[i].b();
+    if (a == anchor_ && b != anchor_) component_fixed_[component_of_[unknown_index_.at(b)]] = true;
+    if (b == anchor_ && a != anchor_) component_fixed_[component_of_[unknown_index_.at(a)]] = true;
+  }
+  for (const PriorFactor& p : priors_) {
+    const auto it = unknown_index_.find(p.key());
+    if (it != unknown_index_.end()) component_fixed_[component_of_[it->second]] = true;
+  }
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    const auto it = unknown_index_.find(separators_[s].own);
+    if (it != unknown_index_.end()) component_separators_[component_of_[it->second]].push_back(s);
+  }
+
+  rotation_problem_ = std::make_unique<BlockLeastSquares>(unknowns_, 3, 3, coupled);
+  pose_problem_ = std::make_unique<BlockLeastSquares>(unknowns_, 6, 1, coupled);
+}
+
+RobotAgent::~RobotAgent() = default;
+
+std::set<int> RobotAgent::neighbourRobots() const {
+  std::set<int> robots;
+  for (const Key& k : neighbour_keys_) robots.insert(k.robot);
+  return robots;
+}
+
+std::map<int, int> RobotAgent::neighbourLinks() const {
+  std::map<int, int> links;
+  for (const Key& k : neighbour_keys_) ++links[k.robot];
+  return links;
+}
+
+DgsStage RobotAgent::currentStage() const {
+  switch (state_) {
+    case AgentState::kRotation:
+      return DgsStage::kRotation;
+    case AgentState::kPose:
+      return DgsStage::kPose;
+    case AgentState::kRefine:
+      return DgsStage::kRefine;
+    default:
+      break;
+  }
+  throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": no stage is running (state " +
+                          ToString(state_) + ")");
+}
+
+RobotAgent::StageInbox& RobotAgent::inbox(DgsStage stage) { return inboxes_[stage]; }
+
+void RobotAgent::startRotation() {
+  if (state_ != AgentState::kIdle) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": startRotation() in state " + ToString(state_));
+  }
+  x_.clear();
+  for (const Key& k : unknowns_) x_.push_back(RowMajor(initial_.at(k).rotation().matrix()));
+  state_ = AgentState::kRotation;
+  prepareStage(DgsStage::kRotation);
+  iteration_ = 0;
+  initialised_ = false;
+  last_change_ = std::numeric_limits<double>::infinity();
+}
+
+void RobotAgent::startPose() {
+  if (state_ != AgentState::kRotation) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": startPose() in state " +
+                            ToString(state_));
+  }
+  relaxed_ = x_;
+  R_hat_.clear();
+  for (std::size_t i = 0; i < unknowns_.size(); ++i) {
+    R_hat_[unknowns_[i]] = ProjectToRotation(x_[i]);
+  }
+  if (owns_anchor_) R_hat_[anchor_] = anchor_pose_.rotation().matrix();
+  // Neighbours: the projection of the last rotation estimate received (the same numbers their
+  // owner projected, as the owner's final estimate was delivered after its last solve).
+  const StageInbox& rot = inbox(DgsStage::kRotation);
+  for (const Key& k : neighbour_keys_) {
+    const auto it = rot.values.find(k);
+    if (it != rot.values.end()) R_hat_[k] = ProjectToRotation(it->second);
+  }
+  x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
+  state_ = AgentState::kPose;
+  prepareStage(DgsStage::kPose);
+  iteration_ = 0;
+  initialised_ = false;
+  last_change_ = std::numeric_limits<double>::infinity();
+}
+
+void RobotAgent::finish() {
+  if (state_ != AgentState::kPose) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": finish() in state " +
+                            ToString(state_));
+  }
+  state_ = AgentState::kDone;
+}
+
+ReceiveStatus RobotAgent::receive(const Message& m) {
+  if (m.sender == robot_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": message from itself");
+  }
+  const int dim = StageDimension(m.stage);
+  if (m.values.size() != m.keys.size() * static_cast<std::size_t>(dim)) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": message from robot " +
+                            std::to_string(m.sender) + " has " + std::to_string(m.values.size()) +
+                            " values for " + std::to_string(m.keys.size()) + " keys");
+  }
+  for (const Key& k : m.keys) {
+    if (k.robot != m.sender) {
+      throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": message from robot " +
+                              std::to_string(m.sender) + " carries " + ToString(k) +
+                              ", another robot's variable");
+    }
+  }
+  // A message of a stage this agent has left is stale.
+  const bool left = (state_ == AgentState::kDone) ||
+                    (state_ == AgentState::kPose && m.stage == DgsStage::kRotation) ||
+                    (state_ == AgentState::kRefine && m.stage != DgsStage::kRefine);
+  StageInbox& box = inbox(m.stage);
+  const auto last = box.last_iteration.find(m.sender);
+  const std::int64_t last_iteration = last == box.last_iteration.end() ? -1 : last->second;
+  if (!left && static_cast<std::int64_t>(m.iteration) == last_iteration) {
+    ++duplicates_;
+    return ReceiveStatus::kDuplicate;
+  }
+  if (left || static_cast<std::int64_t>(m.iteration) < last_iteration) {
+    ++stale_;
+    return ReceiveStatus::kStale;
+  }
+  box.last_iteration[m.sender] = m.iteration;
+  if (m.initialised) box.initialised_robots.insert(m.sender);
+  for (std::size_t i = 0; i < m.keys.size(); ++i) {
+    if (neighbour_keys_.count(m.keys[i]) == 0) continue;  // a variable this robot does not need
+    box.values[m.keys[i]] = Eigen::Map<const Eigen::VectorXd>(m.entry(i), dim);
+  }
+  return ReceiveStatus::kAccepted;
+}
+
+bool RobotAgent::usable(const Separator& s, DgsStage stage) const {
+  const auto it = inboxes_.find(stage);
+  if (it == inboxes_.end() || it->second.values.count(s.foreign) == 0) return false;
+  if (options_.flagged_initialisation && it->second.initialised_robots.count(s.foreign_robot) == 0) {
+    return false;
+  }
+  if (stage == DgsStage::kPose && R_hat_.count(s.foreign) == 0) return false;
+  return true;
+}
+
+Eigen::MatrixXd RobotAgent::neighbourValue(const Key& key, DgsStage stage) const {
+  const Eigen::VectorXd& v = inboxes_.at(stage).values.at(key);
+  if (stage == DgsStage::kRotation) return RotationUnknown(FromRowMajor(v));
+  return v;
+}
+
+void RobotAgent::prepareStage(DgsStage stage) {
+  const bool rotation = stage == DgsStage::kRotation;
+  const bool weighted = options_.weight_by_information;
+  if (owns_anchor_) {
+    if (rotation) {
+      anchor_value_ = RotationUnknown(anchor_pose_.rotation().matrix());
+    } else {
+      anchor_value_ = Eigen::VectorXd::Zero(6);
+      anchor_value_.bottomRows(3) = anchor_pose_.translation();
+    }
+  }
+  terms_.assign(factors_.size(), LinearTerm());
+  auto build = [&](std::size_t i) {
+    const RelativePoseFactor& f = factors_[i];
+    terms_[i] = rotation ? RotationTerm(f, weighted)
+                         : PoseTerm(f, R_hat_.at(f.a()), R_hat_.at(f.b()), weighted);
+  };
+  for (std::size_t i : inner_) build(i);
+  coupling_.assign(separators_.size(), Eigen::MatrixXd());
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    const Separator& sep = separators_[s];
+    // Stage 2 needs the neighbour's rotation; without one the separator stays unusable.
+    if (!rotation && R_hat_.count(sep.foreign) == 0) continue;
+    build(sep.factor);
+    const LinearTerm& t = terms_[sep.factor];
+    const bool own_is_a = factors_[sep.factor].a() == sep.own;
+    const Eigen::MatrixXd& A_own = own_is_a ? t.A_a : t.A_b;
+    const Eigen::MatrixXd& A_foreign = own_is_a ? t.A_b : t.A_a;
+    coupling_[s] = A_own.transpose() * t.W * A_foreign;
+  }
+  prior_terms_.clear();
+  for (const PriorFactor& p : priors_) {
+    prior_terms_.push_back(rotation ? RotationPriorTerm(p, weighted)
+                                    : PosePriorTerm(p, R_hat_.at(p.key()), weighted));
+  }
+  cached_use_.clear();
+  factorized_ = false;
+}
+
+bool RobotAgent::iterate() {
+  const DgsStage stage = currentStage();
+  if (stage == DgsStage::kRefine) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": the refinement stage is not implemented");
+  }
+  std::vector<bool> use(separators_.size());
+  for (std::size_t s = 0; s < separators_.size(); ++s) use[s] = usable(separators_[s], stage);
+  for (std::size_t c = 0; c < component_fixed_.size(); ++c) {
+    if (component_fixed_[c]) continue;
+    bool reached = false;
+    for (std::size_t s : component_separators_[c]) reached = reached || use[s];
+    if (!reached) return false;  // some variables are not anchored yet: wait
+  }
+
+  const bool rotation = stage == DgsStage::kRotation;
+  BlockLeastSquares& problem = rotation ? *rotation_problem_ : *pose_problem_;
+  const Eigen::MatrixXd* anchor = owns_anchor_ ? &anchor_value_ : nullptr;
+  auto fixedValue = [&](const Key& k) -> const Eigen::MatrixXd* {
+    return k == anchor_ ? anchor : nullptr;
+  };
+  if (!factorized_ || use != cached_use_) {
+    // Normal matrix and the constant part of the right-hand side (neighbours at zero).
+    problem.setZero();
+    for (std::size_t i : inner_) {
+      const RelativePoseFactor& f = factors_[i];
+      if (f.a() == anchor_ && f.b() == anchor_) continue;
+      problem.add(terms_[i], fixedValue(f.a()), fixedValue(f.b()));
+    }
+    const int bs = rotation ? 3 : 6;
+    const Eigen::MatrixXd zero = Eigen::MatrixXd::Zero(bs, rotation ? 3 : 1);
+    for (std::size_t s = 0; s < separators_.size(); ++s) {
+      if (!use[s] || unknown_index_.count(separators_[s].own) == 0) continue;
+      const RelativePoseFactor& f = factors_[separators_[s].factor];
+      const bool foreign_is_a = f.a() == separators_[s].foreign;
+      problem.add(terms_[separators_[s].factor], foreign_is_a ? &zero : nullptr,
+                  foreign_is_a ? nullptr : &zero);
+    }
+    for (std::size_t p = 0; p < priors_.size(); ++p) {
+      if (priors_[p].key() == anchor_) continue;
+      problem.add(prior_terms_[p], nullptr, nullptr);
+    }
+    problem.factorize();
+    G0_ = problem.rhs();
+    cached_use_ = use;
+    factorized_ = true;
+  }
+  Eigen::MatrixXd G = G0_;
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    if (!use[s] || unknown_index_.count(separators_[s].own) == 0) continue;
+    const Eigen::MatrixXd foreign = neighbourValue(separators_[s].foreign, stage);
+    G.middleRows(problem.row(separators_[s].own), coupling_[s].rows()).noalias() -=
+        coupling_[s] * foreign;
+  }
+  const std::vector<Eigen::MatrixXd> solution = problem.backSolve(G);
+
+  double change2 = 0.0;
+  for (std::size_t i = 0; i < unknowns_.size(); ++i) {
+    // Stage 1: X = R^T, whose column-major flattening is r (row by row).
+    const Eigen::VectorXd x_new =
+        Eigen::Map<const Eigen::VectorXd>(solution[i].data(), solution[i].size());
+    change2 += (x_new - x_[i]).squaredNorm();
+    x_[i] = (1.0 - options_.gamma) * x_[i] + options_.gamma * x_new;
+  }
+  last_change_ = std::sqrt(change2);
+  ++iteration_;
+  initialised_ = true;
+  return true;
+}
+
+std::vector<OutgoingMessage> RobotAgent::outgoing() const {
+  std::vector<OutgoingMessage> out;
+  if (state_ != AgentState::kRotation && state_ != AgentState::kPose) return out;
+  const DgsStage stage = currentStage();
+  const int dim = StageDimension(stage);
+  for (const auto& [to, keys] : shared_with_) {
+    OutgoingMessage o;
+    o.to = to;
+    Message& m = o.message;
+    m.stage = stage;
+    m.iteration = static_cast<std::uint32_t>(iteration_);
+    m.sender = robot_;
+    m.initialised = initialised_;
+    m.keys = keys;
+    m.values.reserve(keys.size() * static_cast<std::size_t>(dim));
+    for (const Key& k : keys) {
+      Eigen::VectorXd v;
+      const auto it = unknown_index_.find(k);
+      if (it != unknown_index_.end()) {
+        v = x_[it->second];
+      } else if (stage == DgsStage::kRotation) {  // the anchor
+        v = RowMajor(anchor_pose_.rotation().matrix());
+      } else {
+        v = Eigen::VectorXd::Zero(6);
+        v.tail<3>() = anchor_pose_.translation();
+      }
+      m.values.insert(m.values.end(), v.data(), v.data() + v.size());
+    }
+    out.push_back(std::move(o));
+  }
+  return out;
+}
+
+Values RobotAgent::estimate() const {
+  Values values;
+  for (const Key& k : own_) {
+    const auto it = unknown_index_.find(k);
+    if (it == unknown_index_.end() || state_ == AgentState::kIdle) {
+      values[k] = initial_.at(k);  // the anchor, or nothing estimated yet
+      continue;
+    }
+    const Eigen::VectorXd& x = x_[it->second];
+    if (state_ == AgentState::kRotation) {
+      values[k] = SE3(SO3(ProjectToRotation(x)), Vector3::Zero());
+    } else {
+      const SO3 R = SO3(R_hat_.at(k)) * SO3::Exp(x.head<3>());
+      values[k] = SE3(R, x.tail<3>());
+    }
+  }
+  return values;
+}
+
+std::map<Key, Eigen::VectorXd> RobotAgent::relaxedRotations() const {
+  std::map<Key, Eigen::VectorXd> out;
+  const std::vector<Eigen::VectorXd>& r = state_ == AgentState::kRotation ? x_ : relaxed_;
+  for (std::size_t i = 0; i < unknowns_.size() && i < r.size(); ++i) out[unknowns_[i]] = r[i];
+  if (owns_anchor_) out[anchor_] = RowMajor(anchor_pose_.rotation().matrix());
+  return out;
+}
+
+}  // namespace moslam
