@@ -17,7 +17,7 @@ namespace {
 struct SolveArgs {
   std::string input;
   std::string init = "chordal";
-  std::string method = "gn";
+  std::string method = "lm";
   int max_iterations = 100;
   double relative_tolerance = 1e-10;
   bool objects = false;
@@ -133,7 +133,7 @@ Runner RegisterSolve(CLI::App& app) {
   sub->add_option("--init", args->init, "initial estimate")
       ->check(CLI::IsMember({"chordal", "odometry", "file"}))
       ->capture_default_str();
-  sub->add_option("--method", args->method, "gn (Gauss-Newton) or lm (Levenberg-Marquardt)")
+  sub->add_option("--method", args->method, "lm (Levenberg-Marquardt, starting almost undamped) or gn (plain Gauss-Newton)")
       ->check(CLI::IsMember({"gn", "lm"}))
       ->capture_default_str();
   sub->add_option("--max-iterations", args->max_iterations)->check(CLI::NonNegativeNumber)

@@ -80,6 +80,7 @@ TEST(Optimizer, GaussNewtonAndLevenbergMarquardtReachTheSameMinimum) {
   const SyntheticGraph s = NoisyGraph();
   const Values init = ChordalInitialization(s.graph, s.ground_truth.begin()->second);
   OptimizerOptions gn, lm;
+  gn.method = Method::kGaussNewton;
   lm.method = Method::kLevenbergMarquardt;
   const OptimizerResult a = Optimize(s.graph, init, gn);
   const OptimizerResult b = Optimize(s.graph, init, lm);
