@@ -1,0 +1,218 @@
+#include "moslam/slam/multi_robot.h"
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <set>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+
+std::set<int> MappedObjects(const ObjectSlam& robot) {
+  std::set<int> out;
+  for (const auto& lm : robot.landmarks()) {
+    if (lm.true_object >= 0) out.insert(lm.true_object);
+  }
+  return out;
+}
+
+int TrueObject(const std::vector<ObjectSlam>& robots, const Key& k) {
+  return robots.at(static_cast<std::size_t>(k.robot)).landmarks().at(k.index).true_object;
+}
+
+}  // namespace
+
+void MultiRobotSlamConfig::validate() const {
+  slam.validate();
+  rendezvous.validate();
+  if (final_iterations < 0) {
+    throw InvalidInputError("MultiRobotSlamConfig: final_iterations must be >= 0");
+  }
+}
+
+MultiRobotSlamConfig MultiRobotSlamConfigForNoise(const SensingConfig& sensing) {
+  sensing.validate();
+  MultiRobotSlamConfig c;
+  c.slam.association = AssociationGateForNoise(sensing.objects.sigma_rotation_deg, sensing.objects.sigma_translation);
+  c.rendezvous.gate = AssociationGateForNoise(sensing.objects.sigma_rotation_deg, sensing.objects.sigma_translation);
+  c.rendezvous.lambda_sigma_rotation_deg =
+      std::max(sensing.objects.sigma_rotation_deg, sensing.information_sigma_floor * kRadToDeg);
+  c.rendezvous.lambda_sigma_translation =
+      std::max(sensing.objects.sigma_translation, sensing.information_sigma_floor);
+  return c;
+}
+
+MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
+                                             const MultiRobotSlamConfig& config) {
+  config.validate();
+  const auto t0 = std::chrono::steady_clock::now();
+  const int n = data.numRobots(), steps = data.numSteps();
+  if (static_cast<int>(data.measurements.size()) != n) {
+    throw InvalidInputError("RunMultiRobotObjectSlam: " + std::to_string(n) +
+                            " trajectories but " + std::to_string(data.measurements.size()) +
+                            " measurement sets");
+  }
+  for (int r = 0; r < n; ++r) {
+    const auto& m = data.measurements[static_cast<std::size_t>(r)];
+    if (static_cast<int>(data.trajectories[static_cast<std::size_t>(r)].size()) != steps ||
+        static_cast<int>(m.detections.size()) != steps ||
+        static_cast<int>(m.odometry.size()) != std::max(steps - 1, 0)) {
+      throw InvalidInputError("RunMultiRobotObjectSlam: robot " + std::to_string(r) +
+                              " has measurements inconsistent with " + std::to_string(steps) +
+                              " time steps");
+    }
+  }
+  for (const auto& e : data.rendezvous) {
+    if (e.alpha < 0 || e.alpha >= n || e.beta < 0 || e.beta >= n || e.alpha == e.beta ||
+        e.step < 0 || e.step >= steps) {
+      throw InvalidInputError("RunMultiRobotObjectSlam: rendezvous event at step " +
+                              std::to_string(e.step) + " between robots " +
+                              std::to_string(e.alpha) + " and " + std::to_string(e.beta) +
+                              " does not fit the simulation");
+    }
+  }
+
+  MultiRobotSlamResult out;
+  out.robots.reserve(static_cast<std::size_t>(n));
+  for (int r = 0; r < n; ++r) out.robots.emplace_back(r, config.slam);
+  // Per pair of robots (lower id first): objects both had mapped at a rendezvous.
+  std::map<std::pair<int, int>, std::set<int>> possible;
+  std::size_t next_event = 0;
+  for (int t = 0; t < steps; ++t) {
+    for (int r = 0; r < n; ++r) {
+      auto& robot = out.robots[static_cast<std::size_t>(r)];
+      const auto& m = data.measurements[static_cast<std::size_t>(r)];
+      const auto ti = static_cast<std::size_t>(t);
+      if (t == 0) {
+        robot.addFirstPose(m.detections[0]);
+      } else {
+        robot.addPose(m.odometry[ti - 1], m.detections[ti]);
+      }
+    }
+    for (; next_event < data.rendezvous.size() && data.rendezvous[next_event].step == t;
+         ++next_event) {
+      const RendezvousEvent& e = data.rendezvous[next_event];
+      auto& alpha = out.robots[static_cast<std::size_t>(e.alpha)];
+      auto& beta = out.robots[static_cast<std::size_t>(e.beta)];
+      alpha.refresh(config.slam.iterations_per_update);
+      beta.refresh(config.slam.iterations_per_update);
+      const RendezvousOutcome o = RunRendezvous(
+          alpha, beta, data.trajectories[static_cast<std::size_t>(e.alpha)].front(),
+          data.trajectories[static_cast<std::size_t>(e.beta)].front(), out.shared,
+          config.rendezvous);
+      RendezvousRecord rec;
+      rec.event = e;
+      rec.objects_sent = o.objects_sent;
+      rec.new_shared = static_cast<int>(o.new_shared.size());
+      rec.bytes_alpha_to_beta = o.bytes_alpha_to_beta;
+      rec.bytes_beta_to_alpha = o.bytes_beta_to_alpha;
+      for (const auto& s : o.new_shared) {
+        const int ta = TrueObject(out.robots, s.alpha_object);
+        if (ta >= 0 && ta == TrueObject(out.robots, s.beta_object)) ++rec.new_shared_correct;
+        out.shared.push_back(s);
+      }
+      out.bytes += static_cast<std::int64_t>(o.bytes_alpha_to_beta + o.bytes_beta_to_alpha);
+      out.rendezvous.push_back(rec);
+      const std::set<int> ma = MappedObjects(alpha), mb = MappedObjects(beta);
+      auto& both = possible[{std::min(e.alpha, e.beta), std::max(e.alpha, e.beta)}];
+      std::set_intersection(ma.begin(), ma.end(), mb.begin(), mb.end(),
+                            std::inserter(both, both.end()));
+    }
+  }
+  if (next_event != data.rendezvous.size()) {
+    throw InvalidInputError("RunMultiRobotObjectSlam: rendezvous events are not sorted by step");
+  }
+  for (auto& robot : out.robots) {
+    robot.optimize(config.final_iterations);
+    out.intra += robot.associationStats();
+  }
+  // Inter-robot association statistics.
+  std::map<std::pair<int, int>, std::set<int>> found;
+  for (const auto& s : out.shared) {
+    ++out.inter.pairs;
+    const int ta = TrueObject(out.robots, s.alpha_object);
+    if (ta < 0 || ta != TrueObject(out.robots, s.beta_object)) continue;
+    ++out.inter.correct;
+    const int a = s.alpha_object.robot, b = s.beta_object.robot;
+    found[{std::min(a, b), std::max(a, b)}].insert(ta);
+  }
+  for (const auto& [pair, objects] : possible) {
+    out.inter.possible += static_cast<int>(objects.size());
+    const auto it = found.find(pair);
+    if (it == found.end()) continue;
+    for (int o : it->second) out.inter.found += static_cast<int>(objects.count(o));
+  }
+  out.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+JointProblem AssembleJointProblem(const std::vector<ObjectSlam>& robots,
+                                  const std::vector<SharedObject>& shared, const Matrix6& lambda) {
+  JointProblem p;
+  p.num_robots = static_cast<int>(robots.size());
+  for (const auto& robot : robots) {
+    const PoseGraph g = robot.graph();
+    for (const auto& f : g.factors()) p.graph.add(f);
+    for (const auto& [k, x] : robot.estimate()) p.initial.emplace(k, x);
+    p.num_poses += robot.numPoses();
+    p.num_landmarks += static_cast<int>(robot.landmarks().size());
+  }
+  for (const auto& s : shared) {
+    for (const Key& k : {s.alpha_object, s.beta_object}) {
+      if (!k.isObject() || p.initial.count(k) == 0) {
+        throw InvalidInputError("AssembleJointProblem: shared object names " + ToString(k) +
+                                ", which is not a landmark of any robot");
+      }
+    }
+    p.graph.add(ObjectObjectFactor(s, lambda));
+    ++p.num_object_object;
+  }
+  if (!robots.empty() && robots.front().robot() == 0 && robots.front().numPoses() > 0) {
+    std::set<int> unanchored;
+    for (const Key& k : UnreachableFrom(p.graph, Key::Pose(0, 0))) unanchored.insert(k.robot);
+    // A robot with a single pose and no detection has no factor: unanchored too.
+    const std::set<Key> in_graph = p.graph.keys();
+    for (const auto& [k, x] : p.initial) {
+      if (k.robot != 0 && in_graph.count(k) == 0) unanchored.insert(k.robot);
+    }
+    p.unanchored_robots.assign(unanchored.begin(), unanchored.end());
+  } else {
+    for (const auto& robot : robots) p.unanchored_robots.push_back(robot.robot());
+  }
+  return p;
+}
+
+Values JointGroundTruth(const SimulationData& data, const std::vector<ObjectSlam>& robots) {
+  if (robots.empty()) return {};
+  if (static_cast<int>(robots.size()) > data.numRobots()) {
+    throw InvalidInputError("JointGroundTruth: more robots than the simulation has");
+  }
+  const SE3 T0inv = data.trajectories.front().front().inverse();
+  std::map<int, SE3> objects;
+  for (const auto& o : data.world.objects) objects[o.id] = T0inv * o.pose;
+  Values gt;
+  for (const auto& robot : robots) {
+    const auto r = static_cast<std::size_t>(robot.robot());
+    if (r >= data.trajectories.size() ||
+        robot.numPoses() > static_cast<int>(data.trajectories[r].size())) {
+      throw InvalidInputError("JointGroundTruth: robot " + std::to_string(r) +
+                              " does not match the simulation");
+    }
+    for (int i = 0; i < robot.numPoses(); ++i) {
+      gt[Key::Pose(robot.robot(), static_cast<std::uint64_t>(i))] =
+          T0inv * data.trajectories[r][static_cast<std::size_t>(i)];
+    }
+    for (const auto& lm : robot.landmarks()) {
+      const auto it = objects.find(lm.true_object);
+      if (it != objects.end()) gt[lm.key] = it->second;
+    }
+  }
+  return gt;
+}
+
+}  // namespace moslam

@@ -1,0 +1,105 @@
+// Multi-robot object SLAM over a simulation, and the joint graph it produces.
+//
+// RunMultiRobotObjectSlam drives one ObjectSlam per robot through the simulated measurements, time
+// step by time step (all robots add pose t, then the rendezvous events of step t run in order).
+// Before a rendezvous both robots refresh their estimate (ObjectSlamConfig::iterations_per_update
+// Gauss-Newton iterations); the shared objects found are kept in one team-wide list (each pair
+// once; in a deployment both robots hold its factor). After the last step every robot runs
+// `final_iterations` Gauss-Newton iterations on its own graph.
+//
+// AssembleJointProblem builds the team's joint graph: the union of the robots' graphs (odometry and
+// object-pose factors, keys carrying the robot) and one object-object factor per shared object.
+// Its initial values are each robot's own estimate in its own frame (its first pose at the
+// identity); robot 0's first pose is the gauge, so the solution is expressed in robot 0's frame.
+// The graph is ready for the centralized solver (solver/optimizer.h) and for the distributed one
+// (distributed/, partitioned by the robot in each key). The initial values of robots other than
+// 0 are far from the joint solution (their frames differ by the initial poses): Gauss-Newton
+// from them recovers noise-free problems exactly, but with noise it can stop in a worse local
+// minimum (house, 6 robots: 7301 against 6554) or diverge (generated, 64 robots); start the
+// centralized solve from ChordalInitialization(graph), as the DGS starts with its rotation stage.
+//
+// JointGroundTruth gives the true value of every variable in robot 0's frame:
+//   x*_{r,i} = (world_T_{0,0})^-1 world_T_{r,i},   o*_{r,k} = (world_T_{0,0})^-1 world_T_object
+// where the object of a landmark is the one of the detection that created it.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "moslam/graph/pose_graph.h"
+#include "moslam/sim/sensing.h"
+#include "moslam/slam/object_slam.h"
+#include "moslam/slam/rendezvous.h"
+
+namespace moslam {
+
+struct MultiRobotSlamConfig {
+  ObjectSlamConfig slam;
+  RendezvousConfig rendezvous;
+  int final_iterations = 10;  // Gauss-Newton iterations per robot after the last step
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+};
+
+// The config whose gates and Lambda follow the object-measurement noise of a simulation: both
+// gates AssociationGateForNoise(sigma_R, sigma_t); Lambda from the object noise sigmas (floored
+// at the sensing config's information floor, like the measurements' information). The default
+// MultiRobotSlamConfig is this for the paper's 5 deg / 0.2 m.
+MultiRobotSlamConfig MultiRobotSlamConfigForNoise(const SensingConfig& sensing);
+
+struct RendezvousRecord {
+  RendezvousEvent event;
+  int objects_sent = 0;          // alpha's landmarks
+  int new_shared = 0;            // pairs added by this event
+  int new_shared_correct = 0;    // ... whose landmarks have the same true object
+  std::size_t bytes_alpha_to_beta = 0;
+  std::size_t bytes_beta_to_alpha = 0;
+};
+
+// Inter-robot association against ground truth. For each pair of robots that met: `possible`
+// counts the objects both had mapped at one of their rendezvous (distinct true objects), `found`
+// those among them with a correct shared pair. precision = correct / pairs, recall = found /
+// possible.
+struct InterRobotAssociationStats {
+  int pairs = 0;
+  int correct = 0;
+  int possible = 0;
+  int found = 0;
+  double precision() const { return pairs > 0 ? double(correct) / pairs : 1.0; }
+  double recall() const { return possible > 0 ? double(found) / possible : 1.0; }
+};
+
+struct MultiRobotSlamResult {
+  std::vector<ObjectSlam> robots;
+  std::vector<SharedObject> shared;  // every shared object, once, in the order found
+  std::vector<RendezvousRecord> rendezvous;
+  AssociationStats intra;            // summed over the robots
+  InterRobotAssociationStats inter;
+  std::int64_t bytes = 0;            // all rendezvous messages
+  double seconds = 0.0;
+};
+
+// Throws InvalidInputError on a bad config or inconsistent simulation data.
+MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
+                                             const MultiRobotSlamConfig& config);
+
+struct JointProblem {
+  PoseGraph graph;
+  Values initial;              // each robot's own estimate, in its own frame
+  int num_robots = 0;
+  int num_poses = 0;
+  int num_landmarks = 0;
+  int num_object_object = 0;   // factors, = shared objects
+  // Robots with no chain of factors to robot 0 (empty when the graph is anchored).
+  std::vector<int> unanchored_robots;
+};
+
+// Throws InvalidInputError when a shared object names a landmark no robot has.
+JointProblem AssembleJointProblem(const std::vector<ObjectSlam>& robots,
+                                  const std::vector<SharedObject>& shared, const Matrix6& lambda);
+
+// Ground truth of every pose and landmark of `robots`, in robot 0's frame. Landmarks whose true
+// object is unknown are left out. Throws InvalidInputError when `robots` does not match `data`.
+Values JointGroundTruth(const SimulationData& data, const std::vector<ObjectSlam>& robots);
+
+}  // namespace moslam

@@ -1,0 +1,362 @@
+#include "moslam/slam/object_slam.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "moslam/common/errors.h"
+#include "moslam/solver/optimizer.h"
+
+namespace moslam {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+// AssociationGateForNoise: sigma = kNoiseToGate * measurement sigma, with floors.
+constexpr double kNoiseToGate = 3.4641016151377544;  // 2 sqrt(3)
+constexpr double kLeverArm = 2.0;         // m: typical range times heading error
+constexpr double kMinGateSigma = 0.1;     // m
+constexpr double kMinGateSigmaDeg = 2.0;  // deg
+
+// Throws InvalidInputError on a detection whose factor could not be built.
+void ValidateDetections(const std::vector<ObjectDetection>& detections, int robot, int pose,
+                        bool need_ids) {
+  std::set<int> ids;
+  for (std::size_t d = 0; d < detections.size(); ++d) {
+    const std::string what = "robot " + std::to_string(robot) + " pose " + std::to_string(pose) +
+                             " detection " + std::to_string(d);
+    if (detections[d].label.empty()) throw InvalidInputError(what + ": empty label");
+    if (need_ids && (detections[d].object_id < 0 || !ids.insert(detections[d].object_id).second)) {
+      throw InvalidInputError(what + ": ground-truth association needs distinct object ids >= 0 "
+                                     "in the detections of a pose");
+    }
+    try {
+      RelativePoseFactor(Key::Pose(0, 0), Key::Object(0, 0), detections[d].measurement,
+                         detections[d].information);
+    } catch (const InvalidInputError& e) {
+      throw InvalidInputError(what + ": " + e.what());
+    }
+  }
+}
+
+Key Rekey(Key k, int robot) {
+  k.robot = robot;
+  return k;
+}
+
+}  // namespace
+
+void AssociationGate::validate() const {
+  auto bad = [](const std::string& m) { throw InvalidInputError("AssociationGate: " + m); };
+  if (!(sigma > 0.0) || !std::isfinite(sigma)) bad("sigma must be positive and finite");
+  if (!std::isfinite(sigma_rotation_deg)) bad("sigma_rotation_deg must be finite");
+  if (!(num_sigmas > 0.0) || !std::isfinite(num_sigmas)) {
+    bad("num_sigmas must be positive and finite");
+  }
+}
+
+bool AssociationGate::accepts(const SE3& predicted, const SE3& candidate, double* score) const {
+  const double d = (candidate.translation() - predicted.translation()).norm() / sigma;
+  if (d > num_sigmas) return false;
+  double s = d * d;
+  if (sigma_rotation_deg > 0.0) {
+    const double angle_deg =
+        SO3::Log(predicted.rotation().inverse() * candidate.rotation()).norm() * kRadToDeg;
+    const double a = angle_deg / sigma_rotation_deg;
+    if (a > num_sigmas) return false;
+    s += a * a;
+  }
+  if (score != nullptr) *score = s;
+  return true;
+}
+
+AssociationGate AssociationGateForNoise(double sigma_rotation_deg, double sigma_translation,
+                                        double num_sigmas) {
+  if (!(sigma_translation >= 0.0) || !std::isfinite(sigma_translation)) {
+    throw InvalidInputError("AssociationGateForNoise: sigma_translation must be >= 0 and finite");
+  }
+  if (!(sigma_rotation_deg >= 0.0) || !std::isfinite(sigma_rotation_deg)) {
+    throw InvalidInputError("AssociationGateForNoise: sigma_rotation_deg must be >= 0 and finite");
+  }
+  AssociationGate g;
+  const double lever = kLeverArm * sigma_rotation_deg / kRadToDeg;
+  g.sigma = std::max(kNoiseToGate * std::max(sigma_translation, lever), kMinGateSigma);
+  g.sigma_rotation_deg = std::max(kNoiseToGate * sigma_rotation_deg, kMinGateSigmaDeg);
+  g.num_sigmas = num_sigmas;
+  g.validate();
+  return g;
+}
+
+std::optional<std::size_t> NearestWithinGate(const std::string& label, const SE3& predicted,
+                                             const std::vector<LandmarkCandidate>& candidates,
+                                             const AssociationGate& gate) {
+  gate.validate();
+  std::optional<std::size_t> best;
+  double best_score = 0.0;
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const auto& c = candidates[i];
+    double score = 0.0;
+    if (!c.available || c.label != label || !gate.accepts(predicted, c.pose, &score)) continue;
+    if (!best || score < best_score) {
+      best = i;
+      best_score = score;
+    }
+  }
+  return best;
+}
+
+std::vector<GatedPair> MatchWithinGate(const std::vector<LandmarkCandidate>& queries,
+                                       const std::vector<LandmarkCandidate>& candidates,
+                                       const AssociationGate& gate) {
+  gate.validate();
+  std::vector<GatedPair> pairs;
+  for (std::size_t q = 0; q < queries.size(); ++q) {
+    if (!queries[q].available) continue;
+    for (std::size_t c = 0; c < candidates.size(); ++c) {
+      if (!candidates[c].available || candidates[c].label != queries[q].label) continue;
+      double score = 0.0;
+      if (gate.accepts(queries[q].pose, candidates[c].pose, &score)) pairs.push_back({q, c, score});
+    }
+  }
+  std::stable_sort(pairs.begin(), pairs.end(),
+                   [](const GatedPair& a, const GatedPair& b) { return a.score < b.score; });
+  std::vector<bool> q_used(queries.size(), false), c_used(candidates.size(), false);
+  std::vector<GatedPair> out;
+  for (const auto& p : pairs) {
+    if (q_used[p.query] || c_used[p.candidate]) continue;
+    q_used[p.query] = c_used[p.candidate] = true;
+    out.push_back(p);
+  }
+  return out;
+}
+
+AssociationStats& AssociationStats::operator+=(const AssociationStats& o) {
+  detections += o.detections;
+  associated += o.associated;
+  correct += o.correct;
+  new_landmarks += o.new_landmarks;
+  duplicate_landmarks += o.duplicate_landmarks;
+  associable += o.associable;
+  return *this;
+}
+
+void ObjectSlamConfig::validate() const {
+  association.validate();
+  if (update_every < 1) throw InvalidInputError("ObjectSlamConfig: update_every must be >= 1");
+  if (localization_iterations < 0) {
+    throw InvalidInputError("ObjectSlamConfig: localization_iterations must be >= 0");
+  }
+  if (iterations_per_update < 0) {
+    throw InvalidInputError("ObjectSlamConfig: iterations_per_update must be >= 0");
+  }
+}
+
+ObjectSlam::ObjectSlam(int robot, const ObjectSlamConfig& config)
+    : robot_(robot), config_(config) {
+  config_.validate();
+  if (robot < 0 || robot > 65535) {
+    throw InvalidInputError("ObjectSlam: robot id " + std::to_string(robot) +
+                            " outside [0, 65535]");
+  }
+}
+
+void ObjectSlam::addFirstPose(const std::vector<ObjectDetection>& detections) {
+  if (num_poses_ != 0) throw InvalidInputError("ObjectSlam::addFirstPose called twice");
+  ValidateDetections(detections, robot_, 0, config_.ground_truth_association);
+  local_values_[Key::Pose(0, 0)] = SE3();
+  num_poses_ = 1;
+  addDetections(detections, nullptr);
+  maybeUpdate();
+}
+
+void ObjectSlam::addPose(const OdometryReading& odometry,
+                         const std::vector<ObjectDetection>& detections) {
+  if (num_poses_ == 0) {
+    throw InvalidInputError("ObjectSlam::addPose before addFirstPose (robot " +
+                            std::to_string(robot_) + ")");
+  }
+  const auto i = static_cast<std::uint64_t>(num_poses_);
+  const Key prev = Key::Pose(0, i - 1), cur = Key::Pose(0, i);
+  const RelativePoseFactor odo(prev, cur, odometry.measurement, odometry.information);
+  ValidateDetections(detections, robot_, num_poses_, config_.ground_truth_association);
+  local_graph_.add(odo);
+  local_values_[cur] = local_values_.at(prev) * odometry.measurement;
+  ++num_poses_;
+  addDetections(detections, &odo);
+  maybeUpdate();
+}
+
+std::vector<std::optional<std::size_t>> ObjectSlam::associate(
+    const SE3& x, const std::vector<ObjectDetection>& detections) const {
+  if (config_.ground_truth_association) {
+    std::vector<std::optional<std::size_t>> assigned(detections.size());
+    for (std::size_t d = 0; d < detections.size(); ++d) {
+      for (std::size_t k = 0; k < landmarks_.size(); ++k) {
+        if (landmarks_[k].true_object == detections[d].object_id) assigned[d] = k;
+      }
+    }
+    return assigned;
+  }
+  std::vector<LandmarkCandidate> queries, candidates;
+  queries.reserve(detections.size());
+  for (const auto& d : detections) queries.push_back({d.label, x * d.measurement, true});
+  candidates.reserve(landmarks_.size());
+  for (std::size_t k = 0; k < landmarks_.size(); ++k) {
+    candidates.push_back({landmarks_[k].label, landmarkPose(k), true});
+  }
+  std::vector<std::optional<std::size_t>> assigned(detections.size());
+  for (const auto& m : MatchWithinGate(queries, candidates, config_.association)) {
+    assigned[m.query] = m.candidate;
+  }
+  return assigned;
+}
+
+SE3 ObjectSlam::refinePose(const SE3& x0, const RelativePoseFactor& odometry,
+                           const std::vector<ObjectDetection>& detections,
+                           const std::vector<std::optional<std::size_t>>& assigned) const {
+  // Gauss-Newton on x_i alone: its odometry factor (previous pose held) and the object-pose
+  // factors of the associated detections (landmarks held).
+  const SE3 prev = local_values_.at(odometry.a());
+  std::vector<std::pair<RelativePoseFactor, SE3>> objects;
+  for (std::size_t d = 0; d < detections.size(); ++d) {
+    if (!assigned[d]) continue;
+    objects.emplace_back(RelativePoseFactor(odometry.b(), Key::Object(0, *assigned[d]),
+                                            detections[d].measurement, detections[d].information),
+                         landmarkPose(*assigned[d]));
+  }
+  SE3 x = x0;
+  for (int it = 0; it < config_.localization_iterations; ++it) {
+    Matrix6 H = Matrix6::Zero();
+    Vector6 g = Vector6::Zero();
+    Matrix6 J;
+    Vector6 r = odometry.residual(prev, x, nullptr, &J);
+    H += J.transpose() * odometry.information() * J;
+    g += J.transpose() * odometry.information() * r;
+    for (const auto& [f, o] : objects) {
+      r = f.residual(x, o, &J, nullptr);
+      H += J.transpose() * f.information() * J;
+      g += J.transpose() * f.information() * r;
+    }
+    const Vector6 delta = H.ldlt().solve(-g);
+    if (!delta.allFinite()) break;
+    x = x.retract(delta);
+    if (delta.lpNorm<Eigen::Infinity>() < 1e-10) break;
+  }
+  return x;
+}
+
+void ObjectSlam::addDetections(const std::vector<ObjectDetection>& detections,
+                               const RelativePoseFactor* odometry) {
+  const auto i = static_cast<std::uint64_t>(num_poses_ - 1);
+  const Key pose_key = Key::Pose(0, i);
+  SE3 x = local_values_.at(pose_key);
+  std::vector<std::optional<std::size_t>> assigned = associate(x, detections);
+  const bool any = std::any_of(assigned.begin(), assigned.end(),
+                               [](const auto& a) { return a.has_value(); });
+  if (odometry != nullptr && any && config_.localization_iterations > 0) {
+    // Localise the new pose on the landmarks just matched, then match again from there.
+    x = refinePose(x, *odometry, detections, assigned);
+    local_values_[pose_key] = x;
+    assigned = associate(x, detections);
+  }
+  record(detections, assigned, x);
+}
+
+void ObjectSlam::record(const std::vector<ObjectDetection>& detections,
+                        const std::vector<std::optional<std::size_t>>& assigned, const SE3& x) {
+  const auto i = static_cast<std::uint64_t>(num_poses_ - 1);
+  const Key pose_key = Key::Pose(0, i);
+  const std::vector<int> mapped_before = mapped_objects_;
+  auto was_mapped = [&](int object) {
+    return object >= 0 && std::binary_search(mapped_before.begin(), mapped_before.end(), object);
+  };
+  last_associations_.assign(detections.size(), 0);
+  for (std::size_t d = 0; d < detections.size(); ++d) {
+    const auto& det = detections[d];
+    ++stats_.detections;
+    if (was_mapped(det.object_id)) ++stats_.associable;
+    std::size_t k;
+    if (assigned[d]) {
+      k = *assigned[d];
+      ++stats_.associated;
+      if (det.object_id >= 0 && landmarks_[k].true_object == det.object_id) ++stats_.correct;
+    } else {
+      k = landmarks_.size();
+      Landmark lm;
+      lm.key = Key::Object(robot_, k);
+      lm.label = det.label;
+      lm.true_object = det.object_id;
+      lm.first_pose = static_cast<int>(i);
+      landmarks_.push_back(lm);
+      local_values_[Key::Object(0, k)] = x * det.measurement;
+      ++stats_.new_landmarks;
+      if (was_mapped(det.object_id)) ++stats_.duplicate_landmarks;
+      if (det.object_id >= 0) {
+        const auto it = std::lower_bound(mapped_objects_.begin(), mapped_objects_.end(),
+                                         det.object_id);
+        if (it == mapped_objects_.end() || *it != det.object_id) {
+          mapped_objects_.insert(it, det.object_id);
+        }
+      }
+    }
+    ++landmarks_[k].observations;
+    last_associations_[d] = k;
+    local_graph_.add(
+        RelativePoseFactor(pose_key, Key::Object(0, k), det.measurement, det.information));
+  }
+}
+
+void ObjectSlam::maybeUpdate() {
+  if ((num_poses_ - 1) % config_.update_every == 0) optimize(config_.iterations_per_update);
+}
+
+double ObjectSlam::refresh(int max_iterations) {
+  if (local_graph_.factors().size() == factors_at_last_optimize_) {
+    return local_graph_.cost(local_values_);
+  }
+  return optimize(max_iterations);
+}
+
+double ObjectSlam::optimize(int max_iterations) {
+  factors_at_last_optimize_ = local_graph_.factors().size();
+  if (local_graph_.empty()) return 0.0;
+  if (max_iterations <= 0) return local_graph_.cost(local_values_);
+  OptimizerOptions options;
+  options.max_iterations = max_iterations;
+  options.relative_cost_tolerance = 1e-6;
+  NonlinearOptimizer opt(local_graph_, local_values_, options);
+  const OptimizerResult& r = opt.optimize();
+  local_values_ = r.values;
+  return r.final_cost;
+}
+
+PoseGraph ObjectSlam::graph() const {
+  PoseGraph g;
+  for (const auto& f : local_graph_.factors()) {
+    g.add(RelativePoseFactor(Rekey(f.a(), robot_), Rekey(f.b(), robot_), f.measured(),
+                             f.information()));
+  }
+  return g;
+}
+
+Values ObjectSlam::estimate() const {
+  Values v;
+  for (const auto& [k, x] : local_values_) v.emplace_hint(v.end(), Rekey(k, robot_), x);
+  return v;
+}
+
+SE3 ObjectSlam::pose(int i) const {
+  if (i < 0 || i >= num_poses_) {
+    throw InvalidInputError("ObjectSlam::pose: no pose " + std::to_string(i));
+  }
+  return local_values_.at(Key::Pose(0, static_cast<std::uint64_t>(i)));
+}
+
+SE3 ObjectSlam::landmarkPose(std::size_t k) const {
+  if (k >= landmarks_.size()) {
+    throw InvalidInputError("ObjectSlam::landmarkPose: no landmark " + std::to_string(k));
+  }
+  return local_values_.at(Key::Object(0, k));
+}
+
+}  // namespace moslam

@@ -1,0 +1,434 @@
+#include "moslam/slam/rendezvous.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <set>
+
+#include "moslam/common/errors.h"
+#include "moslam/metrics/metrics.h"
+
+namespace moslam {
+namespace {
+
+constexpr std::uint8_t kMagic = 0x4F;
+constexpr std::uint8_t kVersion = 1;
+constexpr std::uint8_t kKindObjectMap = 1;
+constexpr std::uint8_t kKindSharedObjects = 2;
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+class Writer {
+ public:
+  void u8(std::uint8_t v) { bytes_.push_back(v); }
+  void u16(std::uint16_t v) {
+    for (int s = 0; s < 16; s += 8) bytes_.push_back(static_cast<std::uint8_t>((v >> s) & 0xFFu));
+  }
+  void u32(std::uint32_t v) {
+    for (int s = 0; s < 32; s += 8) bytes_.push_back(static_cast<std::uint8_t>((v >> s) & 0xFFu));
+  }
+  void f32(double v) {
+    const auto f = static_cast<float>(v);
+    std::uint32_t bits;
+    std::memcpy(&bits, &f, sizeof bits);
+    u32(bits);
+  }
+  void str(const std::string& s) {
+    for (char c : s) bytes_.push_back(static_cast<std::uint8_t>(c));
+  }
+  std::vector<std::uint8_t> take() { return std::move(bytes_); }
+
+ private:
+  std::vector<std::uint8_t> bytes_;
+};
+
+class Reader {
+ public:
+  Reader(const std::vector<std::uint8_t>& bytes, std::string what)
+      : bytes_(bytes), what_(std::move(what)) {}
+
+  [[noreturn]] void fail(const std::string& msg) const {
+    throw InvalidInputError(what_ + ": " + msg + " (at byte " + std::to_string(pos_) + " of " +
+                            std::to_string(bytes_.size()) + ")");
+  }
+  void need(std::size_t n, const char* field) const {
+    if (bytes_.size() - pos_ < n) fail(std::string("truncated while reading ") + field);
+  }
+  std::uint8_t u8(const char* field) {
+    need(1, field);
+    return bytes_[pos_++];
+  }
+  std::uint16_t u16(const char* field) {
+    need(2, field);
+    std::uint16_t v = 0;
+    for (int s = 0; s < 16; s += 8) v = static_cast<std::uint16_t>(v | (bytes_[pos_++] << s));
+    return v;
+  }
+  std::uint32_t u32(const char* field) {
+    need(4, field);
+    std::uint32_t v = 0;
+    for (int s = 0; s < 32; s += 8) v |= static_cast<std::uint32_t>(bytes_[pos_++]) << s;
+    return v;
+  }
+  double f32(const char* field) {
+    const std::uint32_t bits = u32(field);
+    float f;
+    std::memcpy(&f, &bits, sizeof f);
+    if (!std::isfinite(f)) fail(std::string("non-finite ") + field);
+    return static_cast<double>(f);
+  }
+  std::string str(std::size_t n, const char* field) {
+    need(n, field);
+    std::string s(bytes_.begin() + static_cast<std::ptrdiff_t>(pos_),
+                  bytes_.begin() + static_cast<std::ptrdiff_t>(pos_ + n));
+    pos_ += n;
+    return s;
+  }
+  void header(std::uint8_t kind) {
+    if (u8("magic") != kMagic) fail("bad magic byte (not a moslam rendezvous message)");
+    const std::uint8_t version = u8("version");
+    if (version != kVersion) fail("unsupported version " + std::to_string(version));
+    const std::uint8_t k = u8("kind");
+    if (k != kind) {
+      fail("message kind " + std::to_string(k) + ", expected " + std::to_string(kind));
+    }
+  }
+  void finish() const {
+    if (pos_ != bytes_.size()) fail(std::to_string(bytes_.size() - pos_) + " trailing bytes");
+  }
+  // Upper bound on a count so that a corrupt count cannot make us allocate gigabytes.
+  void plausibleCount(std::uint32_t count, std::size_t min_bytes_each, const char* field) const {
+    if (static_cast<std::uint64_t>(count) * min_bytes_each > bytes_.size() - pos_) {
+      fail(std::string("truncated: ") + field + " count " + std::to_string(count) +
+           " exceeds the bytes left");
+    }
+  }
+
+ private:
+  const std::vector<std::uint8_t>& bytes_;
+  std::string what_;
+  std::size_t pos_ = 0;
+};
+
+std::uint16_t RobotId(int robot, const char* what) {
+  if (robot < 0 || robot > 65535) {
+    throw InvalidInputError(std::string(what) + ": robot id " + std::to_string(robot) +
+                            " does not fit the message (0..65535)");
+  }
+  return static_cast<std::uint16_t>(robot);
+}
+
+bool SharesPair(const SharedObject& s, int alpha, int beta) {
+  return (s.alpha_object.robot == alpha && s.beta_object.robot == beta) ||
+         (s.alpha_object.robot == beta && s.beta_object.robot == alpha);
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeObjectMap(const ObjectMapMessage& message) {
+  Writer w;
+  w.u8(kMagic);
+  w.u8(kVersion);
+  w.u8(kKindObjectMap);
+  w.u16(RobotId(message.sender, "EncodeObjectMap"));
+  std::vector<std::string> labels;
+  std::map<std::string, std::uint8_t> label_index;
+  for (const auto& o : message.objects) {
+    if (o.label.empty() || o.label.size() > 255) {
+      throw InvalidInputError("EncodeObjectMap: label '" + o.label + "' must have 1..255 bytes");
+    }
+    if (label_index.count(o.label) == 0) {
+      if (labels.size() == 255) throw InvalidInputError("EncodeObjectMap: more than 255 labels");
+      label_index[o.label] = static_cast<std::uint8_t>(labels.size());
+      labels.push_back(o.label);
+    }
+  }
+  w.u8(static_cast<std::uint8_t>(labels.size()));
+  for (const auto& l : labels) {
+    w.u8(static_cast<std::uint8_t>(l.size()));
+    w.str(l);
+  }
+  w.u32(static_cast<std::uint32_t>(message.objects.size()));
+  for (const auto& o : message.objects) {
+    const Vector3& t = o.pose.translation();
+    const Eigen::Vector4d q = o.pose.rotation().quaternionWxyz();
+    if (!t.allFinite() || !q.allFinite()) {
+      throw InvalidInputError("EncodeObjectMap: landmark " + std::to_string(o.landmark) +
+                              " has a non-finite pose");
+    }
+    w.u32(o.landmark);
+    w.u8(label_index.at(o.label));
+    for (int k = 0; k < 3; ++k) w.f32(t[k]);
+    w.f32(q[1]);
+    w.f32(q[2]);
+    w.f32(q[3]);
+    w.f32(q[0]);
+  }
+  return w.take();
+}
+
+ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes) {
+  Reader r(bytes, "object map message");
+  r.header(kKindObjectMap);
+  ObjectMapMessage m;
+  m.sender = r.u16("sender");
+  const std::uint8_t num_labels = r.u8("label count");
+  std::vector<std::string> labels;
+  for (int i = 0; i < num_labels; ++i) {
+    const std::uint8_t n = r.u8("label length");
+    if (n == 0) r.fail("empty label");
+    labels.push_back(r.str(n, "label"));
+  }
+  const std::uint32_t count = r.u32("object count");
+  r.plausibleCount(count, 33, "object");
+  std::set<std::uint32_t> seen;
+  for (std::uint32_t i = 0; i < count; ++i) {
+    ObjectMapEntry e;
+    e.landmark = r.u32("landmark index");
+    if (!seen.insert(e.landmark).second) {
+      r.fail("landmark " + std::to_string(e.landmark) + " appears twice");
+    }
+    const std::uint8_t li = r.u8("label index");
+    if (li >= labels.size()) {
+      r.fail("label index " + std::to_string(li) + " out of range (" +
+             std::to_string(labels.size()) + " labels)");
+    }
+    e.label = labels[li];
+    Vector3 t;
+    for (int k = 0; k < 3; ++k) t[k] = r.f32("translation");
+    const double qx = r.f32("quaternion"), qy = r.f32("quaternion"), qz = r.f32("quaternion"),
+                 qw = r.f32("quaternion");
+    const double norm = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
+    if (std::abs(norm - 1.0) > 1e-3) {
+      r.fail("quaternion of landmark " + std::to_string(e.landmark) + " has norm " +
+             std::to_string(norm));
+    }
+    e.pose = SE3(SO3::FromQuaternion(qw, qx, qy, qz), t);
+    m.objects.push_back(std::move(e));
+  }
+  r.finish();
+  return m;
+}
+
+std::vector<std::uint8_t> EncodeSharedObjects(const SharedObjectsMessage& message) {
+  Writer w;
+  w.u8(kMagic);
+  w.u8(kVersion);
+  w.u8(kKindSharedObjects);
+  w.u16(RobotId(message.sender, "EncodeSharedObjects"));
+  w.u16(RobotId(message.receiver, "EncodeSharedObjects"));
+  w.u32(static_cast<std::uint32_t>(message.pairs.size()));
+  for (const auto& [a, b] : message.pairs) {
+    w.u32(a);
+    w.u32(b);
+  }
+  return w.take();
+}
+
+SharedObjectsMessage DecodeSharedObjects(const std::vector<std::uint8_t>& bytes) {
+  Reader r(bytes, "shared objects message");
+  r.header(kKindSharedObjects);
+  SharedObjectsMessage m;
+  m.sender = r.u16("sender");
+  m.receiver = r.u16("receiver");
+  const std::uint32_t count = r.u32("pair count");
+  r.plausibleCount(count, 8, "pair");
+  std::set<std::uint32_t> alpha_seen, beta_seen;
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const std::uint32_t a = r.u32("alpha landmark"), b = r.u32("beta landmark");
+    if (!alpha_seen.insert(a).second) r.fail("alpha landmark " + std::to_string(a) + " shared twice");
+    if (!beta_seen.insert(b).second) r.fail("beta landmark " + std::to_string(b) + " shared twice");
+    m.pairs.emplace_back(a, b);
+  }
+  r.finish();
+  return m;
+}
+
+ObjectMapMessage MakeObjectMapMessage(const ObjectSlam& robot) {
+  ObjectMapMessage m;
+  m.sender = robot.robot();
+  const auto& lms = robot.landmarks();
+  for (std::size_t k = 0; k < lms.size(); ++k) {
+    if (lms[k].key.index > 0xFFFFFFFFu) {
+      throw InvalidInputError("MakeObjectMapMessage: landmark index does not fit 32 bits");
+    }
+    m.objects.push_back(
+        {static_cast<std::uint32_t>(lms[k].key.index), lms[k].label, robot.landmarkPose(k)});
+  }
+  return m;
+}
+
+void RendezvousConfig::validate() const {
+  gate.validate();
+  auto bad = [](const std::string& msg) { throw InvalidInputError("RendezvousConfig: " + msg); };
+  if (!(lambda_sigma_rotation_deg > 0.0) || !std::isfinite(lambda_sigma_rotation_deg)) {
+    bad("lambda_sigma_rotation_deg must be positive and finite");
+  }
+  if (!(lambda_sigma_translation > 0.0) || !std::isfinite(lambda_sigma_translation)) {
+    bad("lambda_sigma_translation must be positive and finite");
+  }
+  if (!(max_correction_m >= 0.0) || !std::isfinite(max_correction_m)) {
+    bad("max_correction_m must be >= 0 and finite");
+  }
+  if (!(max_correction_deg >= 0.0) || !std::isfinite(max_correction_deg)) {
+    bad("max_correction_deg must be >= 0 and finite");
+  }
+  if (min_inliers < 1) bad("min_inliers must be >= 1");
+}
+
+Matrix6 RendezvousConfig::lambda() const {
+  const double sr = lambda_sigma_rotation_deg * kDegToRad, st = lambda_sigma_translation;
+  Vector6 d;
+  d << Vector3::Constant(1.0 / (sr * sr)), Vector3::Constant(1.0 / (st * st));
+  return d.asDiagonal();
+}
+
+RelativePoseFactor ObjectObjectFactor(const SharedObject& shared, const Matrix6& lambda) {
+  return RelativePoseFactor(shared.beta_object, shared.alpha_object, SE3(), lambda);
+}
+
+std::vector<std::pair<std::uint32_t, std::uint32_t>> MatchObjectMaps(
+    const ObjectMapMessage& from_alpha, const SE3& beta_T_alpha,
+    const std::vector<ObjectMapEntry>& beta_objects, const AssociationGate& gate,
+    const std::vector<std::uint32_t>& alpha_taken, const std::vector<std::uint32_t>& beta_taken) {
+  const std::set<std::uint32_t> at(alpha_taken.begin(), alpha_taken.end());
+  const std::set<std::uint32_t> bt(beta_taken.begin(), beta_taken.end());
+  std::vector<LandmarkCandidate> queries, candidates;
+  for (const auto& o : from_alpha.objects) {
+    queries.push_back({o.label, beta_T_alpha * o.pose, at.count(o.landmark) == 0});
+  }
+  for (const auto& o : beta_objects) {
+    candidates.push_back({o.label, o.pose, bt.count(o.landmark) == 0});
+  }
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> out;
+  for (const auto& p : MatchWithinGate(queries, candidates, gate)) {
+    out.emplace_back(from_alpha.objects[p.query].landmark, beta_objects[p.candidate].landmark);
+  }
+  return out;
+}
+
+SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
+                    const std::vector<ObjectMapEntry>& beta_objects, const RendezvousConfig& config,
+                    const std::vector<std::uint32_t>& alpha_taken,
+                    const std::vector<std::uint32_t>& beta_taken, int* inliers) {
+  config.validate();
+  const auto count = [&](const SE3& T) {
+    return static_cast<int>(MatchObjectMaps(from_alpha, T, beta_objects, config.gate,
+                                            alpha_taken, beta_taken).size());
+  };
+  SE3 best = prior;
+  int best_n = count(prior);
+  if (config.refine_alignment) {
+    const std::set<std::uint32_t> at(alpha_taken.begin(), alpha_taken.end());
+    const std::set<std::uint32_t> bt(beta_taken.begin(), beta_taken.end());
+    AssociationGate wide;
+    wide.sigma = std::max(config.max_correction_m, 1e-9);
+    wide.sigma_rotation_deg = std::max(config.max_correction_deg, 1e-9);
+    wide.num_sigmas = 1.0;
+    SE3 proposal_best;
+    int proposal_n = 0;
+    double proposal_score = 0.0;
+    for (const auto& a : from_alpha.objects) {
+      if (at.count(a.landmark) != 0) continue;
+      const SE3 predicted = prior * a.pose;
+      for (const auto& b : beta_objects) {
+        double score = 0.0;
+        if (b.label != a.label || bt.count(b.landmark) != 0 ||
+            !wide.accepts(predicted, b.pose, &score)) {
+          continue;
+        }
+        const SE3 T = b.pose * a.pose.inverse();
+        const int n = count(T);
+        if (n > proposal_n || (n == proposal_n && score < proposal_score)) {
+          proposal_best = T;
+          proposal_n = n;
+          proposal_score = score;
+        }
+      }
+    }
+    if (proposal_n >= config.min_inliers && proposal_n > best_n) {
+      best = proposal_best;
+      best_n = proposal_n;
+      // Refine with the rigid fit of the matched positions (when they fix a rotation).
+      std::map<std::uint32_t, Vector3> pa, pb;
+      for (const auto& o : from_alpha.objects) pa[o.landmark] = o.pose.translation();
+      for (const auto& o : beta_objects) pb[o.landmark] = o.pose.translation();
+      std::vector<Vector3> src, dst;
+      for (const auto& [ka, kb] :
+           MatchObjectMaps(from_alpha, best, beta_objects, config.gate, alpha_taken, beta_taken)) {
+        src.push_back(pa.at(ka));
+        dst.push_back(pb.at(kb));
+      }
+      try {
+        const SE3 refined = AlignRigid(src, dst);
+        const int n = count(refined);
+        if (n >= best_n) {
+          best = refined;
+          best_n = n;
+        }
+      } catch (const UnderdeterminedError&) {
+        // Collinear or too few matches: keep the single-pair proposal.
+      }
+    }
+  }
+  if (inliers != nullptr) *inliers = best_n;
+  return best;
+}
+
+RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
+                                const SE3& world_T_alpha0, const SE3& world_T_beta0,
+                                const std::vector<SharedObject>& already_shared,
+                                const RendezvousConfig& config) {
+  config.validate();
+  const int a = alpha.robot(), b = beta.robot();
+  if (a == b) throw InvalidInputError("RunRendezvous: robot " + std::to_string(a) + " meets itself");
+  RendezvousOutcome out;
+  // Alpha -> beta: its object map, through the wire.
+  const ObjectMapMessage sent = MakeObjectMapMessage(alpha);
+  const std::vector<std::uint8_t> wire1 = EncodeObjectMap(sent);
+  out.bytes_alpha_to_beta = wire1.size();
+  out.objects_sent = static_cast<int>(sent.objects.size());
+  const ObjectMapMessage received = DecodeObjectMap(wire1);
+
+  // Beta matches against its own map, excluding landmarks already shared with alpha.
+  std::vector<std::uint32_t> alpha_taken, beta_taken;
+  for (const auto& s : already_shared) {
+    if (!SharesPair(s, a, b)) continue;
+    for (const Key& k : {s.alpha_object, s.beta_object}) {
+      (k.robot == a ? alpha_taken : beta_taken).push_back(static_cast<std::uint32_t>(k.index));
+    }
+  }
+  const SE3 beta_T_alpha = world_T_beta0.inverse() * world_T_alpha0;
+  SharedObjectsMessage reply;
+  reply.sender = b;
+  reply.receiver = a;
+  const std::vector<ObjectMapEntry> own = MakeObjectMapMessage(beta).objects;
+  if (config.ground_truth_association) {
+    const std::set<std::uint32_t> at(alpha_taken.begin(), alpha_taken.end());
+    std::set<std::uint32_t> bt(beta_taken.begin(), beta_taken.end());
+    for (const auto& o : received.objects) {
+      const int truth = alpha.landmarks().at(o.landmark).true_object;
+      if (truth < 0 || at.count(o.landmark) != 0) continue;
+      for (const auto& lm : beta.landmarks()) {
+        const auto l = static_cast<std::uint32_t>(lm.key.index);
+        if (lm.true_object == truth && bt.insert(l).second) {
+          reply.pairs.emplace_back(o.landmark, l);
+          break;
+        }
+      }
+    }
+  } else {
+    const SE3 T = AlignObjectMaps(received, beta_T_alpha, own, config, alpha_taken, beta_taken);
+    reply.pairs = MatchObjectMaps(received, T, own, config.gate, alpha_taken, beta_taken);
+  }
+
+  // Beta -> alpha: the shared-object list, through the wire; both add the factors.
+  const std::vector<std::uint8_t> wire2 = EncodeSharedObjects(reply);
+  out.bytes_beta_to_alpha = wire2.size();
+  for (const auto& [ka, kb] : DecodeSharedObjects(wire2).pairs) {
+    out.new_shared.push_back({Key::Object(b, kb), Key::Object(a, ka)});
+  }
+  return out;
+}
+
+}  // namespace moslam

@@ -1,0 +1,138 @@
+// Rendezvous between two robots (paper Section 2, "Robot Communication").
+//
+// Robot alpha sends the labels and poses of all its object landmarks, in its own frame (an
+// ObjectMapMessage). Robot beta transforms them into its frame with the known initial poses,
+//   beta_T_alpha = (world_T_beta0)^-1 * world_T_alpha0,
+// (used for this association only, never in the optimisation), and matches them with its own
+// landmarks: same label, within the gate ("2 sigma", AssociationGate in slam/object_slam.h),
+// nearest first, each landmark at most once (MatchWithinGate), landmarks already shared between
+// these two robots excluded. By default (RendezvousConfig::refine_alignment, an extension) the
+// transform is first refined by aligning the two object maps, since both maps drift from their
+// robots' first poses: on chairs25 with 6 robots at 5 deg / 0.2 m this raised the recall of the
+// shared objects from 0.67 to 0.91 at a precision of 0.99, and on generated worlds with 64
+// robots it is what connects the team (recall 0.20 -> 0.71). Beta answers with the list of new shared objects (a
+// SharedObjectsMessage), and both robots add one object-object factor per shared pair:
+//   RelativePoseFactor(a = o_{beta,l}, b = o_{alpha,k}, z = identity, information = Lambda),
+//   r = Log(o_{beta,l}^-1 o_{alpha,k}).
+// Both messages cross as bytes (encoded, then decoded by the receiver) and are counted.
+//
+// Wire format (little-endian; every message starts with magic 0x4F, version 1, and a kind byte):
+//   ObjectMap (kind 1):
+//     u8 magic, u8 version, u8 kind, u16 sender robot,
+//     u8 L (labels), L x { u8 length n >= 1, n bytes of label },
+//     u32 N (objects), N x { u32 landmark index, u8 label index < L,
+//                            f32 x y z, f32 qx qy qz qw }          (33 bytes per object)
+//   SharedObjects (kind 2):
+//     u8 magic, u8 version, u8 kind, u16 sender (beta), u16 receiver (alpha),
+//     u32 N, N x { u32 alpha landmark index, u32 beta landmark index }
+// Poses travel as float32 (they serve association only). Decoding rejects with
+// InvalidInputError: truncated input, trailing bytes, a wrong magic/version/kind, an empty
+// label, a label index out of range, a repeated landmark index, non-finite numbers, a
+// quaternion whose norm is not 1 within 1e-3, and a pair list that uses a landmark twice.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "moslam/graph/factors.h"
+#include "moslam/slam/object_slam.h"
+
+namespace moslam {
+
+struct ObjectMapEntry {
+  std::uint32_t landmark = 0;  // index k of o_{sender,k}
+  std::string label;
+  SE3 pose;                    // in the sender's frame
+};
+
+struct ObjectMapMessage {
+  int sender = 0;
+  std::vector<ObjectMapEntry> objects;
+};
+
+struct SharedObjectsMessage {
+  int sender = 0;    // beta
+  int receiver = 0;  // alpha
+  // (alpha landmark index, beta landmark index)
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+};
+
+// Throw InvalidInputError when the message cannot be encoded (robot id > 65535, more than 255
+// labels, a label longer than 255 bytes or empty, a non-finite pose).
+std::vector<std::uint8_t> EncodeObjectMap(const ObjectMapMessage& message);
+std::vector<std::uint8_t> EncodeSharedObjects(const SharedObjectsMessage& message);
+// Throw InvalidInputError naming what is wrong (the rules above).
+ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes);
+SharedObjectsMessage DecodeSharedObjects(const std::vector<std::uint8_t>& bytes);
+
+// Alpha's message: all its landmarks with their current estimates.
+ObjectMapMessage MakeObjectMapMessage(const ObjectSlam& robot);
+
+struct RendezvousConfig {
+  AssociationGate gate;  // for matching the two maps
+  // Map alignment (an extension; false reproduces the paper's procedure exactly): before the
+  // final matching, beta refines beta_T_alpha. Every label-consistent pair (o_{alpha,k},
+  // o_{beta,l}) that lies within max_correction_m and max_correction_deg of each other under the
+  // known-initial-pose transform proposes beta_T_alpha' = o_{beta,l} o_{alpha,k}^-1; the proposal
+  // with the most matches under the gate wins (ties: the smaller correction), is refined by the
+  // rigid fit of its matched positions, and replaces the prior when it has at least
+  // min_inliers matches. This absorbs the drift of both maps relative to their first poses.
+  bool refine_alignment = true;
+  double max_correction_m = 4.0;
+  double max_correction_deg = 45.0;
+  int min_inliers = 3;
+  // Simulation only, for ablations: beta pairs the landmarks whose true objects are equal
+  // (Landmark::true_object), each at most once, instead of matching; the messages still cross.
+  bool ground_truth_association = false;
+  // Lambda = diag(1/s_R^2 I3, 1/s_t^2 I3), the confidence in a shared-object association.
+  double lambda_sigma_rotation_deg = 5.0;
+  double lambda_sigma_translation = 0.2;
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+  Matrix6 lambda() const;
+};
+
+// One shared object: the factor's a = beta's landmark, b = alpha's landmark.
+struct SharedObject {
+  Key beta_object;
+  Key alpha_object;
+};
+
+RelativePoseFactor ObjectObjectFactor(const SharedObject& shared, const Matrix6& lambda);
+
+// The transform under which beta matches alpha's objects: `prior` (the known-initial-pose
+// transform), or its refinement (RendezvousConfig::refine_alignment). `inliers` (optional): the
+// number of matches under the returned transform.
+SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
+                    const std::vector<ObjectMapEntry>& beta_objects, const RendezvousConfig& config,
+                    const std::vector<std::uint32_t>& alpha_taken = {},
+                    const std::vector<std::uint32_t>& beta_taken = {}, int* inliers = nullptr);
+
+// Beta's matching step: alpha's objects moved into beta's frame by beta_T_alpha, matched with
+// `beta_objects` (beta's own map, e.g. MakeObjectMapMessage(beta).objects). Landmark indices in
+// `alpha_taken` / `beta_taken` are excluded. Returns (alpha landmark, beta landmark) pairs,
+// nearest first.
+std::vector<std::pair<std::uint32_t, std::uint32_t>> MatchObjectMaps(
+    const ObjectMapMessage& from_alpha, const SE3& beta_T_alpha,
+    const std::vector<ObjectMapEntry>& beta_objects, const AssociationGate& gate,
+    const std::vector<std::uint32_t>& alpha_taken = {},
+    const std::vector<std::uint32_t>& beta_taken = {});
+
+struct RendezvousOutcome {
+  std::vector<SharedObject> new_shared;
+  int objects_sent = 0;
+  std::size_t bytes_alpha_to_beta = 0;
+  std::size_t bytes_beta_to_alpha = 0;
+};
+
+// One rendezvous, both messages through their byte encoding; beta matches under
+// AlignObjectMaps(received, beta_T_alpha from the initial poses, ...). `already_shared` lists every pair
+// shared so far (any robots); those between alpha and beta exclude their landmarks.
+// Throws InvalidInputError when alpha and beta are the same robot.
+RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
+                                const SE3& world_T_alpha0, const SE3& world_T_beta0,
+                                const std::vector<SharedObject>& already_shared,
+                                const RendezvousConfig& config);
+
+}  // namespace moslam
