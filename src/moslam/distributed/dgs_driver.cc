@@ -31,6 +31,30 @@ void DgsOptions::validate() const {
     throw InvalidInputError("DGS options: max_iterations must be at least 1, got " +
                             std::to_string(max_iterations));
   }
+  const Refinement& f = refinement;
+  if (f.max_iterations < 1) {
+    throw InvalidInputError("DGS options: refinement.max_iterations must be at least 1, got " +
+                            std::to_string(f.max_iterations));
+  }
+  if (f.max_sweeps < 1) {
+    throw InvalidInputError("DGS options: refinement.max_sweeps must be at least 1, got " +
+                            std::to_string(f.max_sweeps));
+  }
+  auto non_negative = [](double v, const char* name) {
+    if (!(v >= 0.0) || !std::isfinite(v)) {
+      throw InvalidInputError(std::string("DGS options: refinement.") + name +
+                              " must be finite and >= 0, got " + std::to_string(v));
+    }
+  };
+  non_negative(f.relative_cost_tolerance, "relative_cost_tolerance");
+  non_negative(f.sweep_tolerance, "sweep_tolerance");
+  non_negative(f.cg_tolerance, "cg_tolerance");
+  positive(f.initial_lambda, "refinement.initial_lambda");
+  positive(f.max_lambda, "refinement.max_lambda");
+  if (!(f.gamma > 0.0 && f.gamma < 2.0)) {
+    throw InvalidInputError("DGS options: refinement.gamma must be in (0, 2), got " +
+                            std::to_string(f.gamma));
+  }
 }
 
 std::string ToString(StageStatus status) {
@@ -41,8 +65,14 @@ std::string ToString(StageStatus status) {
       return "converged";
     case StageStatus::kMaxIterations:
       return "max iterations";
+    case StageStatus::kNoDecreasingStep:
+      return "no decreasing step";
   }
   return "unknown";
+}
+
+std::string ToString(RefineSolver solver) {
+  return solver == RefineSolver::kSweeps ? "sweeps" : "cg";
 }
 
 std::vector<int> FlaggedRobotOrder(const std::vector<int>& robots,
@@ -92,6 +122,7 @@ DgsDriver::DgsDriver(const PoseGraph& graph, const Values& initial, const DgsOpt
   }
   AgentOptions agent_options;
   agent_options.gamma = options_.gamma;
+  agent_options.refine_gamma = options_.refinement.gamma;
   agent_options.flagged_initialisation = options_.flagged_initialisation;
   agent_options.weight_by_information = options_.weight_by_information;
   std::vector<int> robots;
@@ -116,9 +147,9 @@ DgsDriver::DgsDriver(const PoseGraph& graph, const Values& initial, const DgsOpt
       throw InvalidInputError("DGS faults: robot " + std::to_string(s.robot) +
                               " owns no variable, it cannot stop answering");
     }
-    if (s.iteration < 1 || s.stage == DgsStage::kRefine) {
-      throw InvalidInputError("DGS faults: a robot stops answering at a sweep >= 1 of the "
-                              "rotation or pose stage");
+    if (s.iteration < 1) {
+      throw InvalidInputError("DGS faults: a robot stops answering at a sweep (refinement: a "
+                              "step) >= 1");
     }
   }
   result_.order = order_;
@@ -194,6 +225,36 @@ void DgsDriver::transmit(std::vector<Wire> batch, DgsIterationStats& stats) {
   }
 }
 
+void DgsDriver::runSweeps(DgsStage /*stage*/, DgsIterationStats& stats, bool reverse) {
+  std::vector<Wire> pending;
+  std::vector<int> order = order_;
+  if (reverse) std::reverse(order.begin(), order.end());
+  for (int r : order) {
+    if (!live(r)) continue;
+    RobotAgent& a = *agents_.at(r);
+    if (!a.iterate()) continue;  // waiting (flagged initialisation): nothing new to send
+    ++stats.robots_solved;
+    std::vector<Wire> wires = encodeOutgoing(r);
+    if (options_.order == SweepOrder::kGaussSeidel) {
+      transmit(std::move(wires), stats);
+    } else {
+      pending.insert(pending.end(), std::make_move_iterator(wires.begin()),
+                     std::make_move_iterator(wires.end()));
+    }
+  }
+  if (options_.order == SweepOrder::kJacobi) transmit(std::move(pending), stats);
+}
+
+ControlMessage DgsDriver::sendControl(const ControlMessage& m, int /*to*/,
+                                      DgsIterationStats& stats) {
+  const std::vector<std::uint8_t> bytes = EncodeControlMessage(m);
+  ++stats.messages;
+  ++stats.control_messages;
+  stats.bytes += static_cast<std::int64_t>(bytes.size());
+  stats.control_bytes += static_cast<std::int64_t>(bytes.size());
+  return DecodeControlMessage(bytes);
+}
+
 void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
   using Clock = std::chrono::steady_clock;
   const double eta = stage == DgsStage::kRotation ? options_.eta_rotation : options_.eta_pose;
@@ -240,21 +301,7 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     DgsIterationStats stats;
     stats.stage = stage;
     stats.iteration = it;
-    std::vector<Wire> pending;
-    for (int r : order_) {
-      if (!live(r)) continue;
-      RobotAgent& a = *agents_.at(r);
-      if (!a.iterate()) continue;  // waiting (flagged initialisation): nothing new to send
-      ++stats.robots_solved;
-      std::vector<Wire> wires = encodeOutgoing(r);
-      if (options_.order == SweepOrder::kGaussSeidel) {
-        transmit(std::move(wires), stats);
-      } else {
-        pending.insert(pending.end(), std::make_move_iterator(wires.begin()),
-                       std::make_move_iterator(wires.end()));
-      }
-    }
-    if (options_.order == SweepOrder::kJacobi) transmit(std::move(pending), stats);
+    runSweeps(stage, stats, false);
     bool converged = true;
     int live_robots = 0;
     for (int r : order_) {
@@ -268,6 +315,7 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     }
     stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     record(stats);
+    if (progress_.on_sweep) progress_.on_sweep(stats);
     report.iterations = it;
     report.final_change = stats.max_change;
     if (converged && live_robots > 0) {
@@ -303,6 +351,316 @@ const DgsStageReport& DgsDriver::runPoseStage() {
   return result_.pose;
 }
 
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+}  // namespace
+
+int DgsDriver::coordinator() const {
+  for (int r : order_) {
+    if (live(r)) return r;
+  }
+  return -1;
+}
+
+void DgsDriver::openSweep(RefineRun& run) {
+  closeSweep(run);
+  run.current = run.pending;
+  run.pending = DgsIterationStats();
+  run.current.stage = DgsStage::kRefine;
+  run.current.iteration = ++result_.refine.sweeps;
+  run.current.refine_step = run.step;
+  run.open = true;
+  run.sweep_start = Clock::now();
+}
+
+void DgsDriver::closeSweep(RefineRun& run) {
+  if (!run.open) return;
+  DgsIterationStats& stats = run.current;
+  stats.seconds += Since(run.sweep_start);
+  RefineReport& report = result_.refine;
+  report.messages += stats.messages;
+  report.bytes += stats.bytes;
+  report.control_messages += stats.control_messages;
+  report.control_bytes += stats.control_bytes;
+  result_.messages += stats.messages;
+  result_.bytes += stats.bytes;
+  result_.history.push_back(stats);
+  if (progress_.on_sweep) progress_.on_sweep(stats);
+  run.open = false;
+}
+
+DgsIterationStats& DgsDriver::traffic(RefineRun& run) {
+  return run.open ? run.current : run.pending;
+}
+
+double DgsDriver::gather(RefineRun& run, ControlKind kind, std::uint32_t sweep,
+                         const std::function<double(RobotAgent&)>& share, double* max_second,
+                         const std::function<double(RobotAgent&)>& second) {
+  const int c = coordinator();
+  double total = 0.0;
+  if (max_second) *max_second = 0.0;
+  // Summed in robot id order, so the result does not depend on the order of arrival.
+  for (auto& [r, agent] : agents_) {
+    if (!live(r)) continue;
+    ControlMessage m;
+    m.kind = kind;
+    m.sender = r;
+    m.round = static_cast<std::uint32_t>(run.step);
+    m.sweep = sweep;
+    m.value[0] = share(*agent);
+    if (second) m.value[1] = second(*agent);
+    const ControlMessage got = r == c ? m : sendControl(m, c, traffic(run));
+    if (kind == ControlKind::kReport && second) {
+      total = std::max(total, got.value[0]);  // a maximum (sweep reports)
+      if (max_second) *max_second = std::max(*max_second, got.value[1]);
+    } else {
+      total += got.value[0];
+    }
+  }
+  return total;
+}
+
+void DgsDriver::broadcast(RefineRun& run, std::uint32_t sweep, bool stop, double coefficient) {
+  const int c = coordinator();
+  for (int r : order_) {
+    if (!live(r) || r == c) continue;
+    ControlMessage d;
+    d.kind = ControlKind::kBroadcast;
+    d.sender = c;
+    d.round = static_cast<std::uint32_t>(run.step);
+    d.sweep = sweep;
+    d.flags = stop ? kStopLinearSolve : 0;
+    d.value[0] = coefficient;
+    sendControl(d, r, traffic(run));
+  }
+}
+
+double DgsDriver::observedChange() const {
+  double change = 0.0;
+  for (int r : order_) {
+    if (!live(r)) continue;
+    const RobotAgent& a = *agents_.at(r);
+    if (a.initialised()) change = std::max(change, a.lastChange());
+  }
+  return change;
+}
+
+void DgsDriver::solveBySweeps(RefineRun& run, RefineStepSummary& summary) {
+  const DgsOptions::Refinement& opt = options_.refinement;
+  for (int sweep = 1; sweep <= opt.max_sweeps; ++sweep) {
+    openSweep(run);
+    runSweeps(DgsStage::kRefine, run.current, false);
+    // Every robot reports (its change, ||delta_r||); the coordinator decides and broadcasts.
+    double max_increment = 0.0;
+    const double max_change = gather(
+        run, ControlKind::kReport, static_cast<std::uint32_t>(sweep),
+        [](RobotAgent& a) { return a.initialised() ? a.lastChange() : 0.0; }, &max_increment,
+        [](RobotAgent& a) { return a.incrementNorm(); });
+    const bool stop = max_change <= opt.sweep_tolerance * max_increment;
+    broadcast(run, static_cast<std::uint32_t>(sweep), stop, 0.0);
+    run.current.max_change = max_change;
+    run.current.max_increment = max_increment;
+    summary.sweeps = sweep;
+    summary.linear_converged = stop;
+    if (stop) break;
+  }
+}
+
+void DgsDriver::solveByConjugateGradients(RefineRun& run, RefineStepSummary& summary) {
+  const DgsOptions::Refinement& opt = options_.refinement;
+  int sweeps = 0;
+  // z = M^-1 res: symmetric block Gauss-Seidel (a forward and a backward sweep) or one block
+  // Jacobi sweep, from z = 0.
+  auto precondition = [&]() {
+    for (int r : order_) {
+      if (live(r)) agents_.at(r)->startPreconditioner();
+    }
+    const bool symmetric = options_.order == SweepOrder::kGaussSeidel;
+    for (int pass = 0; pass < (symmetric ? 2 : 1); ++pass) {
+      openSweep(run);
+      runSweeps(DgsStage::kRefine, run.current, pass == 1);
+      run.current.max_change = observedChange();
+      ++sweeps;
+    }
+  };
+  auto all = [&](const std::function<void(RobotAgent&)>& f) {
+    for (int r : order_) {
+      if (live(r)) f(*agents_.at(r));
+    }
+  };
+  precondition();
+  const double rz0 = gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
+                            [](RobotAgent& a) { return a.residualDot(); });
+  double rz = rz0;
+  summary.sweeps = sweeps;
+  if (!(rz0 > 0.0)) {  // the gradient is zero: delta = 0
+    broadcast(run, static_cast<std::uint32_t>(sweeps), true, 0.0);
+    summary.linear_converged = true;
+    return;
+  }
+  broadcast(run, static_cast<std::uint32_t>(sweeps), false, 0.0);
+  all([](RobotAgent& a) { a.firstDirection(); });
+  while (true) {
+    const double pq = gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
+                             [](RobotAgent& a) { return a.curvature(); });
+    if (!(pq > 0.0)) {  // no curvature left along p (rounding): keep delta
+      broadcast(run, static_cast<std::uint32_t>(sweeps), true, 0.0);
+      break;
+    }
+    const double alpha = rz / pq;
+    broadcast(run, static_cast<std::uint32_t>(sweeps), false, alpha);
+    all([alpha](RobotAgent& a) { a.advance(alpha); });
+    precondition();
+    const double rz_new = gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
+                                 [](RobotAgent& a) { return a.residualDot(); });
+    const double relative = std::sqrt(std::max(rz_new, 0.0) / rz0);
+    run.current.residual = relative;
+    summary.sweeps = sweeps;
+    const bool stop = relative <= opt.cg_tolerance || sweeps + 2 > opt.max_sweeps;
+    summary.linear_converged = relative <= opt.cg_tolerance;
+    const double beta = rz_new / rz;
+    broadcast(run, static_cast<std::uint32_t>(sweeps), stop, beta);
+    if (stop) break;
+    all([beta](RobotAgent& a) { a.nextDirection(beta); });
+    rz = rz_new;
+  }
+}
+
+const RefineReport& DgsDriver::runRefineStage() {
+  RefineReport& report = result_.refine;
+  if (result_.pose.status == StageStatus::kNotRun || report.status != StageStatus::kNotRun) {
+    throw InvalidInputError("DGS: the refinement runs once, after the pose stage");
+  }
+  const auto stage_start = Clock::now();
+  const DgsOptions::Refinement& opt = options_.refinement;
+  previous_.clear();
+  RefineRun run;
+
+  std::set<int> told_silent;  // robots whose silence the live agents were told about
+  auto tellSilence = [&]() {
+    bool changed = false;
+    for (const auto& [robot, silence] : silent_) {
+      if (!told_silent.insert(robot).second) continue;
+      changed = true;
+      for (auto& [r, agent] : agents_) {
+        if (live(r)) agent->setUnresponsive(robot);
+      }
+    }
+    return changed;
+  };
+  updateSilence(DgsStage::kRefine, 0);
+  for (int r : order_) {
+    if (live(r)) agents_.at(r)->startRefine();
+  }
+  tellSilence();
+  auto costOf = [&](bool candidate) {
+    return gather(run, ControlKind::kCostReport, 0,
+                  [candidate](RobotAgent& a) { return a.costShare(candidate); });
+  };
+
+  report.status = StageStatus::kMaxIterations;
+  if (coordinator() < 0) {
+    report.status = StageStatus::kConverged;  // nobody left to refine
+  } else {
+    report.coordinator = coordinator();
+    double cost = costOf(false);
+    report.initial_cost = cost;
+    report.final_cost = cost;
+    double lambda = 0.0;
+    for (int step = 1; step <= opt.max_iterations; ++step) {
+      const auto step_start = Clock::now();
+      run.step = step;
+      updateSilence(DgsStage::kRefine, step);
+      if (tellSilence()) {
+        if (coordinator() < 0) {
+          report.status = StageStatus::kConverged;
+          break;
+        }
+        report.coordinator = coordinator();
+        cost = costOf(false);  // the shares changed
+      }
+      RefineStepSummary summary;
+      summary.iteration = step;
+      summary.lambda = lambda;
+      summary.cost_before = cost;
+      for (int r : order_) {
+        if (live(r)) agents_.at(r)->beginStep(lambda);
+      }
+      if (opt.solver == RefineSolver::kConjugateGradient) {
+        solveByConjugateGradients(run, summary);
+      } else {
+        solveBySweeps(run, summary);
+      }
+      // The step's cost; the coordinator's decision, broadcast.
+      const double candidate = costOf(true);
+      summary.cost_candidate = candidate;
+      const double tolerance = opt.relative_cost_tolerance * cost;
+      bool accept = false, finished = false;
+      if (candidate <= cost) {
+        accept = true;
+        finished = cost - candidate <= tolerance;
+        if (lambda > 0.0) {
+          lambda /= 10.0;
+          if (lambda < opt.initial_lambda) lambda = 0.0;
+        }
+      } else if (candidate - cost <= tolerance) {
+        finished = true;  // rounding at the optimum: nothing left to gain
+      } else {
+        ++report.rejected;
+        lambda = lambda == 0.0 ? opt.initial_lambda : 10.0 * lambda;
+        if (lambda > opt.max_lambda) {
+          finished = true;
+          report.status = StageStatus::kNoDecreasingStep;
+        }
+      }
+      if (finished && report.status != StageStatus::kNoDecreasingStep) {
+        report.status = StageStatus::kConverged;
+      }
+      if (step == opt.max_iterations) finished = true;
+      const int c = coordinator();
+      for (int r : order_) {
+        if (!live(r)) continue;
+        ControlMessage d;
+        d.kind = ControlKind::kStepDecision;
+        d.sender = c;
+        d.round = static_cast<std::uint32_t>(step);
+        d.flags = static_cast<std::uint8_t>((accept ? kAcceptStep : 0) |
+                                            (finished ? kRefineFinished : 0));
+        d.value[0] = accept ? candidate : cost;
+        d.value[1] = lambda;
+        const ControlMessage got = r == c ? d : sendControl(d, r, traffic(run));
+        if ((got.flags & kAcceptStep) != 0) agents_.at(r)->acceptStep();
+      }
+      closeSweep(run);
+      if (accept) cost = candidate;
+      summary.accepted = accept;
+      report.iterations = step;
+      report.final_cost = cost;
+      summary.seconds = Since(step_start);
+      report.steps.push_back(summary);
+      if (progress_.on_refine_step) progress_.on_refine_step(summary);
+      if (finished) break;
+    }
+  }
+  // Traffic after the last sweep (none unless the refinement ended before sweeping).
+  if (run.pending.messages > 0) {
+    openSweep(run);
+    closeSweep(run);
+  }
+  for (int r : order_) {
+    if (live(r)) agents_.at(r)->finishRefine();
+  }
+  report.seconds = Since(stage_start);
+  result_.seconds += report.seconds;
+  return report;
+}
+
 DgsResult DgsDriver::result() const {
   DgsResult out = result_;
   out.values.clear();
@@ -324,6 +682,7 @@ DgsResult RunDgs(const PoseGraph& graph, const Values& initial, const DgsOptions
   DgsDriver driver(graph, initial, options, faults);
   driver.runRotationStage();
   driver.runPoseStage();
+  if (options.refine) driver.runRefineStage();
   return driver.result();
 }
 

@@ -4,8 +4,9 @@
 // variable it owns and exchanges the estimates of its separator variables:
 //   kRotation: the chordal relaxation, 9 numbers per variable (the rotation matrix row by row);
 //   kPose:     the single Gauss-Newton pose step, 6 numbers (dtheta, dt), tangent order (w, v);
-//   kRefine:   reserved for distributed Gauss-Newton refinement on the SE(3) cost, 6 numbers
-//              (a tangent increment); not implemented yet.
+//   kRefine:   distributed Gauss-Newton refinement on the SE(3) cost (beyond DGS.md), 6 numbers
+//              per variable: the robot's current increment delta of one Gauss-Newton step
+//              (x <- x Exp(delta)), tangent order (w, v).
 #pragma once
 
 #include <cstdint>
@@ -19,8 +20,9 @@ enum class DgsStage : std::uint8_t { kRotation = 1, kPose = 2, kRefine = 3 };
 int StageDimension(DgsStage stage);
 std::string ToString(DgsStage stage);
 
-// The explicit state of a robot agent. kIdle: constructed, no stage started. kRotation / kPose:
-// iterating that stage. kDone: the pose stage was finished; estimate() is final.
+// The explicit state of a robot agent. kIdle: constructed, no stage started. kRotation / kPose /
+// kRefine: iterating that stage. kDone: the pose stage (or the refinement after it) was finished;
+// estimate() is final.
 enum class AgentState { kIdle, kRotation, kPose, kRefine, kDone };
 std::string ToString(AgentState state);
 

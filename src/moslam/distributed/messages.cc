@@ -226,4 +226,88 @@ Message DecodeMessage(const std::vector<std::uint8_t>& bytes) {
   return m;
 }
 
+namespace {
+
+std::uint8_t AllowedControlFlags(ControlKind kind) {
+  switch (kind) {
+    case ControlKind::kBroadcast:
+      return kStopLinearSolve;
+    case ControlKind::kStepDecision:
+      return kAcceptStep | kRefineFinished;
+    default:
+      return 0;
+  }
+}
+
+bool ValidControlKind(std::uint8_t k) { return k >= 1 && k <= 4; }
+
+void CheckControl(const ControlMessage& m) {
+  if (!ValidControlKind(static_cast<std::uint8_t>(m.kind))) {
+    throw InvalidInputError("DGS control message: unknown kind " +
+                            std::to_string(static_cast<int>(m.kind)));
+  }
+  if (m.sender < 0 || m.sender > kMaxMessageRobot) {
+    throw InvalidInputError("DGS control message: sender robot " + std::to_string(m.sender) +
+                            " outside [0, 65535]");
+  }
+  if ((m.flags & ~AllowedControlFlags(m.kind)) != 0) {
+    throw InvalidInputError("DGS control message: flag bits " + std::to_string(m.flags) +
+                            " not defined for kind " + std::to_string(static_cast<int>(m.kind)));
+  }
+  for (double v : m.value) {
+    if (!std::isfinite(v)) throw InvalidInputError("DGS control message: non-finite value");
+  }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeControlMessage(const ControlMessage& m) {
+  CheckControl(m);
+  std::vector<std::uint8_t> out(kControlMessageBytes);
+  Writer w(out.data());
+  w.u8(kControlMagic);
+  w.u8(kMessageVersion);
+  w.u8(static_cast<std::uint8_t>(m.kind));
+  w.u8(m.flags);
+  w.u16(static_cast<std::uint16_t>(m.sender));
+  w.u16(0);
+  w.u32(m.round);
+  w.u32(m.sweep);
+  w.f64(m.value[0]);
+  w.f64(m.value[1]);
+  return out;
+}
+
+ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes) {
+  if (bytes.size() != kControlMessageBytes) {
+    throw InvalidInputError("DGS control message: " + std::to_string(bytes.size()) +
+                            " bytes, expected " + std::to_string(kControlMessageBytes));
+  }
+  Reader r(bytes);
+  if (r.u8("magic") != kControlMagic) {
+    throw InvalidInputError("DGS control message: bad magic byte (not a control message)");
+  }
+  const std::uint8_t version = r.u8("version");
+  if (version != kMessageVersion) {
+    throw InvalidInputError("DGS control message: unsupported version " + std::to_string(version));
+  }
+  ControlMessage m;
+  const std::uint8_t kind = r.u8("kind");
+  if (!ValidControlKind(kind)) {
+    throw InvalidInputError("DGS control message: unknown kind " + std::to_string(kind));
+  }
+  m.kind = static_cast<ControlKind>(kind);
+  m.flags = r.u8("flags");
+  m.sender = r.u16("sender");
+  if (r.u16("reserved") != 0) {
+    throw InvalidInputError("DGS control message: reserved field not zero");
+  }
+  m.round = r.u32("round");
+  m.sweep = r.u32("sweep");
+  m.value[0] = r.f64("value");
+  m.value[1] = r.f64("value");
+  CheckControl(m);
+  return m;
+}
+
 }  // namespace moslam

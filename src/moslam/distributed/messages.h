@@ -48,4 +48,47 @@ inline constexpr int kMaxMessageRobot = 65535;
 std::vector<std::uint8_t> EncodeMessage(const Message& message);
 Message DecodeMessage(const std::vector<std::uint8_t>& bytes);
 
+// Control messages of the refinement stage: the scalars a coordinator robot gathers and the
+// decisions it broadcasts (dgs_driver.h). Fixed size, 32 bytes, little-endian:
+//
+//   u8 magic 0xD7 | u8 version 1 | u8 kind | u8 flags | u16 sender | u16 reserved (0)
+//   u32 round (Gauss-Newton step, 0: before the first) | u32 sweep (within the step)
+//   f64 value[0] | f64 value[1]
+//
+//   kReport     robot -> coordinator: two scalars (after a sweep: its change and ||delta_r||;
+//               conjugate gradients: its part of a dot product)
+//   kBroadcast  coordinator -> robot: flags bit 0 = stop the linear solve; value[0]: a
+//               coefficient (conjugate gradients: alpha or beta)
+//   kCostReport robot -> coordinator: value[0] = its share of the cost
+//   kStepDecision coordinator -> robot: flags bit 0 = accept the step, bit 1 = refinement
+//               finished; value = (global cost, damping lambda of the next step)
+//
+// DecodeControlMessage rejects with InvalidInputError: a wrong size, bad magic/version/kind,
+// flag bits the kind does not define, a non-zero reserved field, non-finite values.
+enum class ControlKind : std::uint8_t {
+  kReport = 1,
+  kBroadcast = 2,
+  kCostReport = 3,
+  kStepDecision = 4,
+};
+
+struct ControlMessage {
+  ControlKind kind = ControlKind::kCostReport;
+  int sender = 0;
+  std::uint32_t round = 0;
+  std::uint32_t sweep = 0;
+  std::uint8_t flags = 0;
+  double value[2] = {0.0, 0.0};
+};
+
+inline constexpr std::uint8_t kControlMagic = 0xD7;
+inline constexpr std::size_t kControlMessageBytes = 32;
+inline constexpr std::uint8_t kStopLinearSolve = 1;  // kBroadcast
+inline constexpr std::uint8_t kAcceptStep = 1;       // kStepDecision
+inline constexpr std::uint8_t kRefineFinished = 2;   // kStepDecision
+
+// Throws InvalidInputError on the same conditions DecodeControlMessage rejects.
+std::vector<std::uint8_t> EncodeControlMessage(const ControlMessage& message);
+ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes);
+
 }  // namespace moslam

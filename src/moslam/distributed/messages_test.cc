@@ -202,5 +202,78 @@ TEST(Messages, EncodeRejectsInconsistentMessages) {
   EXPECT_THROW(EncodeMessage(big_sender), InvalidInputError);
 }
 
+// Control messages of the refinement: fixed 32 bytes, bit-exact round trip, strict decoding.
+TEST(ControlMessages, RoundTripAndLayout) {
+  ControlMessage m;
+  m.kind = ControlKind::kStepDecision;
+  m.sender = 0x0102;
+  m.round = 7;
+  m.sweep = 0x0A0B0C0D;
+  m.flags = kAcceptStep | kRefineFinished;
+  m.value[0] = 1234.5678;
+  m.value[1] = -0.0;
+  const std::vector<std::uint8_t> b = EncodeControlMessage(m);
+  ASSERT_EQ(b.size(), kControlMessageBytes);
+  EXPECT_EQ(b[0], kControlMagic);
+  EXPECT_EQ(b[1], kMessageVersion);
+  EXPECT_EQ(b[2], 4);
+  EXPECT_EQ(b[3], 3);
+  EXPECT_EQ(b[4], 0x02);
+  EXPECT_EQ(b[5], 0x01);
+  EXPECT_EQ(b[12], 0x0D);
+  const ControlMessage d = DecodeControlMessage(b);
+  EXPECT_EQ(d.kind, m.kind);
+  EXPECT_EQ(d.sender, m.sender);
+  EXPECT_EQ(d.round, m.round);
+  EXPECT_EQ(d.sweep, m.sweep);
+  EXPECT_EQ(d.flags, m.flags);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(std::memcmp(&d.value[i], &m.value[i], sizeof(double)), 0);
+  // A data message is not a control message and vice versa.
+  EXPECT_THROW(DecodeMessage(b), InvalidInputError);
+  EXPECT_THROW(DecodeControlMessage(EncodeMessage(MakeMessage(DgsStage::kRefine, 1, 1))),
+               InvalidInputError);
+}
+
+TEST(ControlMessages, RejectsMalformedInput) {
+  ControlMessage m;
+  m.kind = ControlKind::kReport;
+  m.sender = 3;
+  m.value[0] = -2.5;  // a robot's part of a dot product may be negative
+  const std::vector<std::uint8_t> good = EncodeControlMessage(m);
+  ASSERT_NO_THROW(DecodeControlMessage(good));
+  for (std::size_t n = 0; n < good.size(); ++n) {
+    const std::vector<std::uint8_t> cut(good.begin(), good.begin() + static_cast<long>(n));
+    EXPECT_THROW(DecodeControlMessage(cut), InvalidInputError) << n;
+  }
+  std::vector<std::uint8_t> longer = good;
+  longer.push_back(0);
+  EXPECT_THROW(DecodeControlMessage(longer), InvalidInputError);
+  const std::vector<std::pair<std::size_t, std::uint8_t>> corruptions = {
+      {0, 0xD6},  // magic
+      {1, 2},     // version
+      {2, 0},     // kind
+      {2, 5},     // kind
+      {3, 1},     // a flag a report does not define
+      {6, 1},     // reserved
+      {23, 0x7F}, // value[0] becomes NaN (exponent all ones, mantissa set)
+  };
+  for (const auto& [offset, value] : corruptions) {
+    std::vector<std::uint8_t> bad = good;
+    bad[offset] = value;
+    if (offset == 23) bad[22] = 0xF8;
+    EXPECT_THROW(DecodeControlMessage(bad), InvalidInputError) << offset;
+  }
+  ControlMessage inf = m;
+  inf.value[1] = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(EncodeControlMessage(inf), InvalidInputError);
+  ControlMessage flags = m;
+  flags.kind = ControlKind::kBroadcast;
+  flags.flags = 2;
+  EXPECT_THROW(EncodeControlMessage(flags), InvalidInputError);
+  ControlMessage sender = m;
+  sender.sender = 65536;
+  EXPECT_THROW(EncodeControlMessage(sender), InvalidInputError);
+}
+
 }  // namespace
 }  // namespace moslam

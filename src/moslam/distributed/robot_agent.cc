@@ -16,6 +16,10 @@ void AgentOptions::validate() const {
     throw InvalidInputError("DGS: gamma must be in (0, 2) (over-relaxation), got " +
                             std::to_string(gamma));
   }
+  if (!(refine_gamma > 0.0 && refine_gamma < 2.0)) {
+    throw InvalidInputError("DGS: refine_gamma must be in (0, 2) (over-relaxation), got " +
+                            std::to_string(refine_gamma));
+  }
 }
 
 namespace {
@@ -76,6 +80,11 @@ RobotAgent::RobotAgent(int robot, const PoseGraph& subgraph, const Values& initi
     std::sort(keys.begin(), keys.end());
     keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
   }
+  neighbour_list_.assign(neighbour_keys_.begin(), neighbour_keys_.end());
+  for (std::size_t i = 0; i < neighbour_list_.size(); ++i) {
+    neighbour_slot_[neighbour_list_[i]] = static_cast<int>(i);
+  }
+  for (Separator& sep : separators_) sep.slot = neighbour_slot_.at(sep.foreign);
   own_.assign(own.begin(), own.end());
   owns_anchor_ = own.count(anchor_) > 0;
   for (const Key& k : own_) {
@@ -155,7 +164,14 @@ DgsStage RobotAgent::currentStage() const {
                           ToString(state_) + ")");
 }
 
-RobotAgent::StageInbox& RobotAgent::inbox(DgsStage stage) { return inboxes_[stage]; }
+RobotAgent::StageInbox& RobotAgent::inbox(DgsStage stage) {
+  StageInbox& box = inboxes_[stage];
+  if (box.values.size() != neighbour_list_.size()) {
+    box.values.assign(neighbour_list_.size(), Eigen::VectorXd::Zero(StageDimension(stage)));
+    box.has.assign(neighbour_list_.size(), 0);
+  }
+  return box;
+}
 
 void RobotAgent::startRotation() {
   if (state_ != AgentState::kIdle) {
@@ -185,9 +201,9 @@ void RobotAgent::startPose() {
   // Neighbours: the projection of the last rotation estimate received (the same numbers their
   // owner projected, as the owner's final estimate was delivered after its last solve).
   const StageInbox& rot = inbox(DgsStage::kRotation);
-  for (const Key& k : neighbour_keys_) {
-    const auto it = rot.values.find(k);
-    if (it != rot.values.end()) R_hat_[k] = ProjectToRotation(it->second);
+  for (std::size_t i = 0; i < neighbour_list_.size(); ++i) {
+    const Eigen::VectorXd* v = rot.get(static_cast<int>(i));
+    if (v) R_hat_[neighbour_list_[i]] = ProjectToRotation(*v);
   }
   x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
   state_ = AgentState::kPose;
@@ -240,15 +256,19 @@ ReceiveStatus RobotAgent::receive(const Message& m) {
   box.last_iteration[m.sender] = m.iteration;
   if (m.initialised) box.initialised_robots.insert(m.sender);
   for (std::size_t i = 0; i < m.keys.size(); ++i) {
-    if (neighbour_keys_.count(m.keys[i]) == 0) continue;  // a variable this robot does not need
-    box.values[m.keys[i]] = Eigen::Map<const Eigen::VectorXd>(m.entry(i), dim);
+    const auto slot = neighbour_slot_.find(m.keys[i]);
+    if (slot == neighbour_slot_.end()) continue;  // a variable this robot does not need
+    const auto j = static_cast<std::size_t>(slot->second);
+    box.values[j] = Eigen::Map<const Eigen::VectorXd>(m.entry(i), dim);
+    box.has[j] = 1;
   }
   return ReceiveStatus::kAccepted;
 }
 
 bool RobotAgent::usable(const Separator& s, DgsStage stage) const {
+  if (stage == DgsStage::kRefine) return pose_known_[static_cast<std::size_t>(s.slot)] != 0;
   const auto it = inboxes_.find(stage);
-  if (it == inboxes_.end() || it->second.values.count(s.foreign) == 0) return false;
+  if (it == inboxes_.end() || it->second.get(s.slot) == nullptr) return false;
   if (options_.flagged_initialisation && it->second.initialised_robots.count(s.foreign_robot) == 0) {
     return false;
   }
@@ -256,13 +276,23 @@ bool RobotAgent::usable(const Separator& s, DgsStage stage) const {
   return true;
 }
 
-Eigen::MatrixXd RobotAgent::neighbourValue(const Key& key, DgsStage stage) const {
-  const Eigen::VectorXd& v = inboxes_.at(stage).values.at(key);
-  if (stage == DgsStage::kRotation) return RotationUnknown(FromRowMajor(v));
-  return v;
+Eigen::MatrixXd RobotAgent::neighbourValue(int slot, DgsStage stage) const {
+  const auto box = inboxes_.find(stage);
+  const Eigen::VectorXd* v = box == inboxes_.end() ? nullptr : box->second.get(slot);
+  if (stage == DgsStage::kRefine) {
+    // The neighbour's value in this step (increment, or z of conjugate gradients); 0 until it
+    // arrives.
+    return v ? *v : Eigen::VectorXd(Eigen::VectorXd::Zero(6));
+  }
+  if (stage == DgsStage::kRotation) return RotationUnknown(FromRowMajor(*v));
+  return *v;
 }
 
 void RobotAgent::prepareStage(DgsStage stage) {
+  if (stage == DgsStage::kRefine) {
+    linearizeRefine();
+    return;
+  }
   const bool rotation = stage == DgsStage::kRotation;
   const bool weighted = options_.weight_by_information;
   if (owns_anchor_) {
@@ -301,13 +331,8 @@ void RobotAgent::prepareStage(DgsStage stage) {
   factorized_ = false;
 }
 
-bool RobotAgent::iterate() {
-  const DgsStage stage = currentStage();
-  if (stage == DgsStage::kRefine) {
-    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
-                            ": the refinement stage is not implemented");
-  }
-  std::vector<bool> use(separators_.size());
+bool RobotAgent::solvable(DgsStage stage, std::vector<bool>& use) const {
+  use.assign(separators_.size(), false);
   for (std::size_t s = 0; s < separators_.size(); ++s) use[s] = usable(separators_[s], stage);
   for (std::size_t c = 0; c < component_fixed_.size(); ++c) {
     if (component_fixed_[c]) continue;
@@ -315,55 +340,98 @@ bool RobotAgent::iterate() {
     for (std::size_t s : component_separators_[c]) reached = reached || use[s];
     if (!reached) return false;  // some variables are not anchored yet: wait
   }
+  return true;
+}
 
+void RobotAgent::assemble(DgsStage stage, const std::vector<bool>& use) {
+  if (factorized_ && use == cached_use_) return;
   const bool rotation = stage == DgsStage::kRotation;
   BlockLeastSquares& problem = rotation ? *rotation_problem_ : *pose_problem_;
   const Eigen::MatrixXd* anchor = owns_anchor_ ? &anchor_value_ : nullptr;
   auto fixedValue = [&](const Key& k) -> const Eigen::MatrixXd* {
     return k == anchor_ ? anchor : nullptr;
   };
-  if (!factorized_ || use != cached_use_) {
-    // Normal matrix and the constant part of the right-hand side (neighbours at zero).
-    problem.setZero();
-    for (std::size_t i : inner_) {
-      const RelativePoseFactor& f = factors_[i];
-      if (f.a() == anchor_ && f.b() == anchor_) continue;
-      problem.add(terms_[i], fixedValue(f.a()), fixedValue(f.b()));
-    }
-    const int bs = rotation ? 3 : 6;
-    const Eigen::MatrixXd zero = Eigen::MatrixXd::Zero(bs, rotation ? 3 : 1);
-    for (std::size_t s = 0; s < separators_.size(); ++s) {
-      if (!use[s] || unknown_index_.count(separators_[s].own) == 0) continue;
-      const RelativePoseFactor& f = factors_[separators_[s].factor];
-      const bool foreign_is_a = f.a() == separators_[s].foreign;
-      problem.add(terms_[separators_[s].factor], foreign_is_a ? &zero : nullptr,
-                  foreign_is_a ? nullptr : &zero);
-    }
-    for (std::size_t p = 0; p < priors_.size(); ++p) {
-      if (priors_[p].key() == anchor_) continue;
-      problem.add(prior_terms_[p], nullptr, nullptr);
-    }
-    problem.factorize();
-    G0_ = problem.rhs();
-    cached_use_ = use;
-    factorized_ = true;
+  // Normal matrix and the constant part of the right-hand side (neighbours at zero).
+  problem.setZero();
+  for (std::size_t i : inner_) {
+    const RelativePoseFactor& f = factors_[i];
+    if (f.a() == anchor_ && f.b() == anchor_) continue;
+    problem.add(terms_[i], fixedValue(f.a()), fixedValue(f.b()));
   }
-  Eigen::MatrixXd G = G0_;
+  const int bs = rotation ? 3 : 6;
+  const Eigen::MatrixXd zero = Eigen::MatrixXd::Zero(bs, rotation ? 3 : 1);
   for (std::size_t s = 0; s < separators_.size(); ++s) {
     if (!use[s] || unknown_index_.count(separators_[s].own) == 0) continue;
-    const Eigen::MatrixXd foreign = neighbourValue(separators_[s].foreign, stage);
-    G.middleRows(problem.row(separators_[s].own), coupling_[s].rows()).noalias() -=
-        coupling_[s] * foreign;
+    const RelativePoseFactor& f = factors_[separators_[s].factor];
+    const bool foreign_is_a = f.a() == separators_[s].foreign;
+    problem.add(terms_[separators_[s].factor], foreign_is_a ? &zero : nullptr,
+                foreign_is_a ? nullptr : &zero);
+  }
+  for (std::size_t p = 0; p < priors_.size(); ++p) {
+    if (priors_[p].key() == anchor_) continue;
+    problem.add(prior_terms_[p], nullptr, nullptr);
+  }
+  if (stage == DgsStage::kRefine && lambda_ > 0.0) {
+    // Levenberg-Marquardt damping of the robot's own diagonal blocks: + lambda diag(H_rr).
+    LinearTerm damping;
+    damping.unary = true;
+    damping.C = Eigen::VectorXd::Zero(6);
+    damping.W = Eigen::MatrixXd::Identity(6, 6);
+    for (std::size_t i = 0; i < unknowns_.size(); ++i) {
+      damping.a = unknowns_[i];
+      damping.A_a = (lambda_ * hessian_diagonal_[i]).cwiseSqrt().asDiagonal();
+      problem.add(damping, nullptr, nullptr);
+    }
+  }
+  problem.factorize();
+  G0_ = problem.rhs();
+  cached_use_ = use;
+  factorized_ = true;
+  separator_row_.assign(separators_.size(), -1);
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    const auto it = unknown_index_.find(separators_[s].own);
+    if (use[s] && it != unknown_index_.end()) separator_row_[s] = problem.row(it->first);
+  }
+}
+
+bool RobotAgent::iterate() {
+  const DgsStage stage = currentStage();
+  if (stage == DgsStage::kRefine && !linearized_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": iterate() in the refinement before beginStep()");
+  }
+  std::vector<bool> use;
+  if (!solvable(stage, use)) return false;
+  assemble(stage, use);
+  const bool rotation = stage == DgsStage::kRotation;
+  BlockLeastSquares& problem = rotation ? *rotation_problem_ : *pose_problem_;
+
+  // Conjugate gradients: the sweeps apply the preconditioner to the residual.
+  Eigen::MatrixXd G = cg_ ? Eigen::MatrixXd(cg_res_) : G0_;
+  const StageInbox& box = inbox(stage);
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    if (separator_row_[s] < 0) continue;
+    if (stage == DgsStage::kRotation) {
+      const Eigen::MatrixXd foreign = neighbourValue(separators_[s].slot, stage);
+      G.middleRows(separator_row_[s], 3).noalias() -= coupling_[s] * foreign;
+      continue;
+    }
+    // Stages 2 and refinement: 6 numbers; an increment that has not arrived is 0.
+    const Eigen::VectorXd* foreign = box.get(separators_[s].slot);
+    if (!foreign) continue;
+    G.col(0).segment<6>(separator_row_[s]).noalias() -=
+        Matrix6(coupling_[s]) * foreign->head<6>();
   }
   const std::vector<Eigen::MatrixXd> solution = problem.backSolve(G);
 
+  const double gamma = stage == DgsStage::kRefine ? options_.refine_gamma : options_.gamma;
   double change2 = 0.0;
   for (std::size_t i = 0; i < unknowns_.size(); ++i) {
     // Stage 1: X = R^T, whose column-major flattening is r (row by row).
     const Eigen::VectorXd x_new =
         Eigen::Map<const Eigen::VectorXd>(solution[i].data(), solution[i].size());
     change2 += (x_new - x_[i]).squaredNorm();
-    x_[i] = (1.0 - options_.gamma) * x_[i] + options_.gamma * x_new;
+    x_[i] = (1.0 - gamma) * x_[i] + gamma * x_new;
   }
   last_change_ = std::sqrt(change2);
   ++iteration_;
@@ -373,7 +441,10 @@ bool RobotAgent::iterate() {
 
 std::vector<OutgoingMessage> RobotAgent::outgoing() const {
   std::vector<OutgoingMessage> out;
-  if (state_ != AgentState::kRotation && state_ != AgentState::kPose) return out;
+  if (state_ != AgentState::kRotation && state_ != AgentState::kPose &&
+      state_ != AgentState::kRefine) {
+    return out;
+  }
   const DgsStage stage = currentStage();
   const int dim = StageDimension(stage);
   for (const auto& [to, keys] : shared_with_) {
@@ -393,6 +464,8 @@ std::vector<OutgoingMessage> RobotAgent::outgoing() const {
         v = x_[it->second];
       } else if (stage == DgsStage::kRotation) {  // the anchor
         v = RowMajor(anchor_pose_.rotation().matrix());
+      } else if (stage == DgsStage::kRefine) {  // the anchor: never moves
+        v = Eigen::VectorXd::Zero(6);
       } else {
         v = Eigen::VectorXd::Zero(6);
         v.tail<3>() = anchor_pose_.translation();
@@ -405,6 +478,7 @@ std::vector<OutgoingMessage> RobotAgent::outgoing() const {
 }
 
 Values RobotAgent::estimate() const {
+  if (refined_) return pose_;
   Values values;
   for (const Key& k : own_) {
     const auto it = unknown_index_.find(k);
@@ -422,6 +496,273 @@ Values RobotAgent::estimate() const {
   }
   return values;
 }
+
+void RobotAgent::requireRefine(const char* what) const {
+  if (state_ != AgentState::kRefine) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": " + what + " in state " +
+                            ToString(state_) + " (only during the refinement)");
+  }
+}
+
+void RobotAgent::startRefine() {
+  if (state_ != AgentState::kDone || refined_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": startRefine() in state " +
+                            ToString(state_) +
+                            (refined_ ? " (the refinement runs once)" : "") +
+                            "; it follows the pose stage");
+  }
+  pose_ = estimate();
+  // The neighbours' two-stage estimates, exactly as their owners form them: R_hat (the projected
+  // stage-1 rotation received) and the last stage-2 increment (dtheta, t) received.
+  neighbour_pose_.assign(neighbour_list_.size(), SE3());
+  pose_known_.assign(neighbour_list_.size(), 0);
+  const auto box = inboxes_.find(DgsStage::kPose);
+  for (std::size_t i = 0; i < neighbour_list_.size(); ++i) {
+    const auto R = R_hat_.find(neighbour_list_[i]);
+    if (R == R_hat_.end() || box == inboxes_.end()) continue;
+    const Eigen::VectorXd* x = box->second.get(static_cast<int>(i));
+    if (!x) continue;
+    neighbour_pose_[i] = SE3(SO3(R->second) * SO3::Exp(x->head<3>()), x->tail<3>());
+    pose_known_[i] = 1;
+  }
+  refined_ = true;
+  linearized_ = false;
+  lambda_ = 0.0;
+  state_ = AgentState::kRefine;
+  x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
+  iteration_ = 0;
+  initialised_ = false;
+  last_change_ = std::numeric_limits<double>::infinity();
+}
+
+const SE3* RobotAgent::knownPose(const Key& key) const {
+  const auto own = pose_.find(key);
+  if (own != pose_.end()) return &own->second;
+  const auto it = neighbour_slot_.find(key);
+  if (it == neighbour_slot_.end()) return nullptr;
+  const auto i = static_cast<std::size_t>(it->second);
+  return pose_known_[i] ? &neighbour_pose_[i] : nullptr;
+}
+
+void RobotAgent::linearizeRefine() {
+  anchor_value_ = Eigen::VectorXd::Zero(6);  // the anchor's increment
+  terms_.assign(factors_.size(), LinearTerm());
+  hessian_diagonal_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
+  auto accumulateDiagonal = [&](const Key& k, const Eigen::MatrixXd& A, const Eigen::MatrixXd& W) {
+    const auto it = unknown_index_.find(k);
+    if (it == unknown_index_.end()) return;
+    hessian_diagonal_[static_cast<std::size_t>(it->second)] +=
+        (A.transpose() * W * A).diagonal();
+  };
+  auto build = [&](std::size_t i) {
+    const RelativePoseFactor& f = factors_[i];
+    Matrix6 Ha, Hb;
+    const Vector6 r = f.residual(*knownPose(f.a()), *knownPose(f.b()), &Ha, &Hb);
+    LinearTerm& t = terms_[i];
+    t.a = f.a();
+    t.b = f.b();
+    t.A_a = Ha;
+    t.A_b = Hb;
+    t.C = r;
+    t.W = f.information();
+    accumulateDiagonal(f.a(), t.A_a, t.W);
+    if (f.b() != f.a()) accumulateDiagonal(f.b(), t.A_b, t.W);
+  };
+  for (std::size_t i : inner_) build(i);
+  coupling_.assign(separators_.size(), Eigen::MatrixXd());
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    const Separator& sep = separators_[s];
+    if (!pose_known_[static_cast<std::size_t>(sep.slot)]) continue;  // never received: left out
+    build(sep.factor);
+    const LinearTerm& t = terms_[sep.factor];
+    const bool own_is_a = factors_[sep.factor].a() == sep.own;
+    const Eigen::MatrixXd& A_own = own_is_a ? t.A_a : t.A_b;
+    const Eigen::MatrixXd& A_foreign = own_is_a ? t.A_b : t.A_a;
+    coupling_[s] = A_own.transpose() * t.W * A_foreign;
+  }
+  prior_terms_.clear();
+  for (const PriorFactor& p : priors_) {
+    Matrix6 H;
+    const Vector6 r = p.residual(pose_.at(p.key()), &H);
+    LinearTerm t;
+    t.a = p.key();
+    t.unary = true;
+    t.A_a = H;
+    t.C = r;
+    t.W = p.information();
+    accumulateDiagonal(p.key(), t.A_a, t.W);
+    prior_terms_.push_back(std::move(t));
+  }
+  cached_use_.clear();
+  factorized_ = false;
+  linearized_ = true;
+}
+
+void RobotAgent::beginStep(double lambda) {
+  requireRefine("beginStep()");
+  if (!(lambda >= 0.0) || !std::isfinite(lambda)) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": damping lambda must be finite and >= 0, got " +
+                            std::to_string(lambda));
+  }
+  if (!linearized_) prepareStage(DgsStage::kRefine);
+  if (lambda != lambda_) factorized_ = false;
+  lambda_ = lambda;
+  cg_ = false;
+  can_solve_ = true;
+  x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
+  inbox(DgsStage::kRefine).forget();  // the neighbours' increments of an earlier step
+  initialised_ = false;
+  last_change_ = std::numeric_limits<double>::infinity();
+}
+
+Vector6 RobotAgent::ownIncrement(std::size_t i) const {
+  if (cg_) return cg_delta_.segment<6>(static_cast<Eigen::Index>(6 * i));
+  return x_[i];
+}
+
+Vector6 RobotAgent::neighbourIncrement(int slot) const {
+  if (cg_) return neighbour_delta_[static_cast<std::size_t>(slot)];
+  return neighbourValue(slot, DgsStage::kRefine);
+}
+
+Eigen::VectorXd RobotAgent::stackedSweepValue() const {
+  Eigen::VectorXd z(static_cast<Eigen::Index>(6 * unknowns_.size()));
+  for (std::size_t i = 0; i < unknowns_.size(); ++i) {
+    z.segment<6>(static_cast<Eigen::Index>(6 * i)) = x_[i];
+  }
+  return z;
+}
+
+void RobotAgent::acceptStep() {
+  requireRefine("acceptStep()");
+  for (std::size_t i = 0; i < unknowns_.size(); ++i) {
+    SE3& x = pose_.at(unknowns_[i]);
+    x = x * SE3::Exp(ownIncrement(i));
+  }
+  for (std::size_t i = 0; i < neighbour_pose_.size(); ++i) {
+    if (!pose_known_[i]) continue;
+    neighbour_pose_[i] = neighbour_pose_[i] * SE3::Exp(neighbourIncrement(static_cast<int>(i)));
+  }
+  x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
+  inbox(DgsStage::kRefine).forget();
+  cg_ = false;
+  linearized_ = false;
+}
+
+void RobotAgent::startPreconditioner() {
+  requireRefine("startPreconditioner()");
+  if (!linearized_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": startPreconditioner() before beginStep()");
+  }
+  const Eigen::Index n = static_cast<Eigen::Index>(6 * unknowns_.size());
+  if (!cg_) {
+    std::vector<bool> use;
+    can_solve_ = solvable(DgsStage::kRefine, use);
+    if (can_solve_) assemble(DgsStage::kRefine, use);
+    cg_ = true;
+    cg_delta_ = Eigen::VectorXd::Zero(n);
+    cg_res_ = can_solve_ ? Eigen::VectorXd(G0_.col(0)) : Eigen::VectorXd(Eigen::VectorXd::Zero(n));
+    cg_p_ = Eigen::VectorXd::Zero(n);
+    cg_q_ = Eigen::VectorXd::Zero(n);
+    neighbour_p_.assign(neighbour_list_.size(), Vector6::Zero());
+    neighbour_delta_.assign(neighbour_list_.size(), Vector6::Zero());
+  }
+  x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
+  inbox(DgsStage::kRefine).forget();
+  initialised_ = false;
+  last_change_ = std::numeric_limits<double>::infinity();
+}
+
+double RobotAgent::residualDot() const {
+  requireRefine("residualDot()");
+  if (!cg_) return 0.0;
+  return cg_res_.dot(stackedSweepValue());
+}
+
+void RobotAgent::firstDirection() { nextDirection(0.0); }
+
+void RobotAgent::nextDirection(double beta) {
+  requireRefine("nextDirection()");
+  if (!cg_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": a search direction before startPreconditioner()");
+  }
+  cg_p_ = stackedSweepValue() + beta * cg_p_;
+  const StageInbox& box = inbox(DgsStage::kRefine);
+  for (std::size_t i = 0; i < neighbour_p_.size(); ++i) {
+    const Eigen::VectorXd* z = box.get(static_cast<int>(i));
+    neighbour_p_[i] = beta * neighbour_p_[i];
+    if (z) neighbour_p_[i] += z->head<6>();
+  }
+}
+
+double RobotAgent::curvature() {
+  requireRefine("curvature()");
+  if (!cg_ || !can_solve_) {
+    if (cg_) cg_q_.setZero();
+    return 0.0;
+  }
+  cg_q_ = pose_problem_->multiply(cg_p_);
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    if (separator_row_[s] < 0) continue;
+    cg_q_.segment<6>(separator_row_[s]).noalias() +=
+        Matrix6(coupling_[s]) * neighbour_p_[static_cast<std::size_t>(separators_[s].slot)];
+  }
+  return cg_p_.dot(cg_q_);
+}
+
+void RobotAgent::advance(double alpha) {
+  requireRefine("advance()");
+  if (!cg_) return;
+  cg_delta_ += alpha * cg_p_;
+  cg_res_ -= alpha * cg_q_;
+  for (std::size_t i = 0; i < neighbour_p_.size(); ++i) neighbour_delta_[i] += alpha * neighbour_p_[i];
+}
+
+void RobotAgent::finishRefine() {
+  requireRefine("finishRefine()");
+  state_ = AgentState::kDone;
+}
+
+double RobotAgent::costShare(bool candidate) const {
+  requireRefine("costShare()");
+  auto value = [&](const Key& k) {
+    const SE3& x = *knownPose(k);
+    if (!candidate) return x;
+    const auto own = unknown_index_.find(k);
+    if (own != unknown_index_.end()) {
+      return SE3(x * SE3::Exp(ownIncrement(static_cast<std::size_t>(own->second))));
+    }
+    const auto slot = neighbour_slot_.find(k);
+    if (slot != neighbour_slot_.end()) return SE3(x * SE3::Exp(neighbourIncrement(slot->second)));
+    return x;  // the anchor
+  };
+  double cost = 0.0;
+  for (std::size_t i : inner_) {
+    const RelativePoseFactor& f = factors_[i];
+    cost += f.cost(value(f.a()), value(f.b()));
+  }
+  for (const Separator& s : separators_) {
+    if (!pose_known_[static_cast<std::size_t>(s.slot)]) continue;
+    if (s.foreign_robot < robot_ && unresponsive_.count(s.foreign_robot) == 0) continue;
+    const RelativePoseFactor& f = factors_[s.factor];
+    cost += f.cost(value(f.a()), value(f.b()));
+  }
+  for (const PriorFactor& p : priors_) cost += p.cost(value(p.key()));
+  return cost;
+}
+
+double RobotAgent::incrementNorm() const {
+  if (state_ != AgentState::kRefine) return 0.0;
+  if (cg_) return cg_delta_.norm();
+  double n2 = 0.0;
+  for (const Eigen::VectorXd& x : x_) n2 += x.squaredNorm();
+  return std::sqrt(n2);
+}
+
+void RobotAgent::setUnresponsive(int robot) { unresponsive_.insert(robot); }
 
 std::map<Key, Eigen::VectorXd> RobotAgent::relaxedRotations() const {
   std::map<Key, Eigen::VectorXd> out;

@@ -25,9 +25,27 @@
 // (iteration strictly larger); duplicates and older (stale, reordered) messages are counted and
 // ignored, as are messages of a stage the agent has left.
 //
-// A refinement stage (Gauss-Newton on the SE(3) cost, each linear step solved by the same
-// sweeps) fits the same shape: a per-stage term builder (two_stage_terms.h) on bs = 6 unknowns,
-// the same neighbour tables and messages (DgsStage::kRefine, 6 numbers).
+// Refinement (beyond DGS.md): Gauss-Newton on the SE(3) cost F = sum 1/2 r^T Omega r
+// (graph/factors.h), each linear step H delta = -g solved by the same robot-by-robot sweeps:
+//
+//   agent.startRefine();          // from kDone: x = the two-stage estimate; the neighbours'
+//                                 // poses are rebuilt from the pose stage's messages
+//   per Gauss-Newton step:
+//     agent.beginStep(lambda);    // linearise at x (unless only lambda changed), delta = 0
+//     sweeps: receive / iterate / outgoing as above (DgsStage::kRefine: the increments delta);
+//             iterate() solves (H_rr + lambda diag(H_rr)) delta_r = -g_r - sum_s H_rs delta_s
+//             with the neighbours' latest deltas (0 until received in this step)
+//     agent.costShare(true);      // its share of F at x Exp(delta), for the global decision
+//     agent.acceptStep();         // x <- x Exp(delta), the neighbours' copies likewise
+//   agent.finishRefine();         // kDone; estimate() is the refined x
+//
+// Only increments cross the network during a step; the neighbours' poses are not re-sent: each
+// robot applies the accepted increments it received to its copy of the neighbours' poses, the
+// same operation on the same numbers as their owners (bitwise equal in the in-process driver).
+// The anchor is not an unknown (its increment is 0). The cost F is the sum over robots of
+// costShare(): every inner factor and prior, and each separator counted once, by the robot with
+// the lower id (or by the one left when the other stops answering, setUnresponsive()).
+// Separators to a neighbour whose pose the robot never received are left out of the refinement.
 #pragma once
 
 #include <Eigen/Core>
@@ -49,10 +67,11 @@ struct LinearTerm;
 
 struct AgentOptions {
   double gamma = 1.0;                  // over-relaxation: x <- (1 - gamma) x_old + gamma x_new
+  double refine_gamma = 1.0;           // the same for the refinement sweeps
   bool flagged_initialisation = true;
   bool weight_by_information = false;  // unit weights as the DGS reference
 
-  // Throws InvalidInputError unless 0 < gamma < 2.
+  // Throws InvalidInputError unless 0 < gamma < 2 and 0 < refine_gamma < 2.
   void validate() const;
 };
 
@@ -97,26 +116,68 @@ class RobotAgent {
   void startPose();
   void finish();
 
+  // Refinement (see the top of this file). startRefine(): from kDone, once, after the pose
+  // stage. beginStep(lambda >= 0): in kRefine; relinearises at the current estimate after
+  // startRefine() or acceptStep(), else keeps the linearisation and only changes the damping;
+  // the increments restart at 0 and the neighbours' increments are forgotten. acceptStep():
+  // in kRefine, applies the step's increments. finishRefine(): kRefine -> kDone. Throw
+  // InvalidInputError when called in another state or with a negative lambda.
+  void startRefine();
+  void beginStep(double lambda);
+  void acceptStep();
+  void finishRefine();
+  // Conjugate gradients on the step's system (H + lambda diag(H_rr)) delta = -g: the sweeps then
+  // apply a preconditioner M^-1 to the residual instead of updating delta directly.
+  //   startPreconditioner():  z = 0 and the neighbours' z forgotten; then sweeps on H z = res
+  //                           (Gauss-Seidel forward then backward: symmetric block Gauss-Seidel,
+  //                           SSOR with refine_gamma; one Jacobi sweep: block Jacobi)
+  //   residualDot():          res_r . z_r, this robot's part of res . z
+  //   firstDirection(), nextDirection(beta): p = z (+ beta p); the neighbours' p likewise from
+  //                           the z they sent (no extra message)
+  //   curvature():            p_r . (H p)_r with (H p)_r = H_rr p_r + sum_s H_rs p_s
+  //   advance(alpha):         delta += alpha p, res -= alpha H p (the neighbours' delta copies
+  //                           too), so the step's increments never need to be sent
+  // The first startPreconditioner() of a step switches the step to conjugate gradients (delta
+  // and res = -g start there); beginStep() switches back. In kRefine (InvalidInputError else).
+  void startPreconditioner();
+  double residualDot() const;
+  void firstDirection();
+  void nextDirection(double beta);
+  double curvature();
+  void advance(double alpha);
+
+  // This robot's share of the cost F (see the top): at the current estimate, or (candidate) at
+  // x Exp(delta) with the neighbours' latest increments. In kRefine (InvalidInputError else).
+  double costShare(bool candidate) const;
+  // ||delta||_2 over the robot's stacked increments (0 outside kRefine).
+  double incrementNorm() const;
+  // From now on this robot counts its separators to `robot` in costShare() (the other robot no
+  // longer reports).
+  void setUnresponsive(int robot);
+  bool refined() const { return refined_; }
+
   ReceiveStatus receive(const Message& message);
 
   // One local solve of the current stage with the neighbour estimates held now. Returns false
   // (and changes nothing) when the robot cannot solve yet (flagged initialisation: no usable
-  // separator reaches some of its variables). Throws InvalidInputError outside kRotation/kPose.
+  // separator reaches some of its variables). Throws InvalidInputError outside
+  // kRotation/kPose/kRefine.
   bool iterate();
   // Messages with the current estimates of the variables each neighbouring robot needs
-  // (empty outside kRotation/kPose).
+  // (empty outside kRotation/kPose/kRefine).
   std::vector<OutgoingMessage> outgoing() const;
 
   // Iterations (solves) done in the current stage; whether it has solved in this stage.
   int iteration() const { return iteration_; }
   bool initialised() const { return initialised_; }
   // ||x_solve - x_old||_2 over the robot's stacked unknowns at its last solve (9 numbers per
-  // variable in stage 1, 6 in stage 2); +infinity before the first solve of a stage.
+  // variable in stage 1, 6 in stage 2 and in a refinement step); +infinity before the first solve
+  // of a stage (of a refinement step).
   double lastChange() const { return last_change_; }
 
   // The current estimate of the robot's variables: initial values (kIdle), projected rotations
-  // with zero translation (kRotation), R_hat Exp(dtheta), t (kPose, kDone). The anchor is always
-  // its initial value.
+  // with zero translation (kRotation), R_hat Exp(dtheta), t (kPose, kDone), the last accepted
+  // refinement estimate (kRefine, kDone after it). The anchor is always its initial value.
   Values estimate() const;
   // The stage-1 relaxed rotations (row by row), own variables.
   std::map<Key, Eigen::VectorXd> relaxedRotations() const;
@@ -129,18 +190,39 @@ class RobotAgent {
     std::size_t factor;  // index into factors_
     Key own, foreign;
     int foreign_robot;
+    int slot = 0;        // the foreign variable's index in neighbour_list_
   };
   struct StageInbox {
-    std::map<Key, Eigen::VectorXd> values;
+    // The latest estimate received per neighbour variable (by slot), and whether one arrived.
+    std::vector<Eigen::VectorXd> values;
+    std::vector<char> has;
     std::map<int, std::int64_t> last_iteration;
     std::set<int> initialised_robots;
+    const Eigen::VectorXd* get(int slot) const {
+      return has.empty() || !has[static_cast<std::size_t>(slot)]
+                 ? nullptr
+                 : &values[static_cast<std::size_t>(slot)];
+    }
+    void forget() { std::fill(has.begin(), has.end(), 0); }
   };
 
   DgsStage currentStage() const;
   void prepareStage(DgsStage stage);
   StageInbox& inbox(DgsStage stage);
   bool usable(const Separator& s, DgsStage stage) const;
-  Eigen::MatrixXd neighbourValue(const Key& key, DgsStage stage) const;
+  Eigen::MatrixXd neighbourValue(int slot, DgsStage stage) const;
+  void requireRefine(const char* what) const;
+  // Which separators the current stage can use; false when some block is not anchored yet.
+  bool solvable(DgsStage stage, std::vector<bool>& use) const;
+  // Builds and factorizes the normal matrix (and G0_) unless cached for `use`.
+  void assemble(DgsStage stage, const std::vector<bool>& use);
+  // The refinement's linear terms at the current estimate (GN: A = dr/dx, C = r, W = Omega).
+  void linearizeRefine();
+  const SE3* knownPose(const Key& key) const;  // own or a neighbour's copy; nullptr if unknown
+  // The step's increment of unknown i / of a neighbour variable (0 if none arrived).
+  Vector6 ownIncrement(std::size_t i) const;
+  Vector6 neighbourIncrement(int slot) const;
+  Eigen::VectorXd stackedSweepValue() const;  // x_ stacked
 
   int robot_;
   AgentOptions options_;
@@ -155,6 +237,8 @@ class RobotAgent {
   std::vector<Key> unknowns_;  // own_ without the anchor
   std::map<Key, int> unknown_index_;
   std::set<Key> neighbour_keys_;
+  std::vector<Key> neighbour_list_;  // neighbour_keys_ in order: the slots
+  std::map<Key, int> neighbour_slot_;
   std::map<int, std::vector<Key>> shared_with_;
   // Components of the unknowns through inner edges: whether each is tied to the anchor or a
   // prior, and its separators.
@@ -180,8 +264,25 @@ class RobotAgent {
   std::vector<bool> cached_use_;
   bool factorized_ = false;
   Eigen::MatrixXd G0_;
+  std::vector<Eigen::Index> separator_row_;  // per separator: row of its own end, -1: unused
   std::unique_ptr<BlockLeastSquares> rotation_problem_, pose_problem_;
   std::int64_t duplicates_ = 0, stale_ = 0;
+
+  // Refinement: the own estimate (anchor included), the copies of the neighbours' poses (by
+  // slot; pose_known_: received), the damping, and the diagonal of each unknown's block of H.
+  bool refined_ = false;
+  bool linearized_ = false;
+  double lambda_ = 0.0;
+  Values pose_;
+  std::vector<SE3> neighbour_pose_;
+  std::vector<char> pose_known_;
+  std::vector<Eigen::VectorXd> hessian_diagonal_;
+  std::set<int> unresponsive_;
+  // Conjugate gradients (stacked over unknowns_, 6 per unknown) and the neighbours' copies.
+  bool cg_ = false;
+  bool can_solve_ = true;
+  Eigen::VectorXd cg_delta_, cg_res_, cg_p_, cg_q_;
+  std::vector<Vector6> neighbour_p_, neighbour_delta_;  // by slot
 };
 
 }  // namespace moslam

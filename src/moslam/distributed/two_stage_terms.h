@@ -80,6 +80,8 @@ class BlockLeastSquares {
   const Eigen::MatrixXd& rhs() const;  // the assembled right-hand side, n*bs x ncols
   void factorize();
   std::vector<Eigen::MatrixXd> backSolve(const Eigen::MatrixXd& G) const;
+  // H x for the assembled normal matrix H and a stacked x (one column, n*bs rows).
+  Eigen::VectorXd multiply(const Eigen::VectorXd& x) const;
   // Row of the first entry of `key`'s block in rhs() (InvalidInputError if not an unknown).
   Eigen::Index row(const Key& key) const;
 
