@@ -11,6 +11,8 @@ PACKAGES=(
   libceres-dev            # independent cross-check in bench/ only
   clang libclang-rt-14-dev  # libFuzzer target for the g2o reader
   python3-matplotlib      # plots in bench/ (README figures)
+  cyclonedds-dev cyclonedds-tools libcycloneddsidl0  # robots as processes over DDS
+  iproute2 iptables       # scripts/test-network.sh: namespaces, shaped links
 )
 
 missing=()

@@ -1,0 +1,409 @@
+#include "moslam/transport/dds_transport.h"
+
+#include <dds/ddsi/ddsi_cdrstream.h>
+#include <fmt/core.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <mutex>
+
+#include "moslam/common/errors.h"
+#include "moslam/transport/dds_entities.h"
+#include "moslam/transport/idl/DgsEstimates.h"
+#include "moslam/transport/idl/ObjectList.h"
+#include "moslam/transport/idl/Status.h"
+
+namespace moslam {
+
+void DdsTransportOptions::validate() const {
+  if (domain < 0 || domain > 232) {
+    throw InvalidInputError("DDS transport: domain id must be in [0, 232], got " +
+                            std::to_string(domain));
+  }
+  if (liveliness_lease.count() <= 0) {
+    throw InvalidInputError("DDS transport: the liveliness lease must be positive");
+  }
+}
+
+std::string StatusTopicName() { return "rt/moslam/status"; }
+std::string ObjectsTopicName() { return "rt/moslam/objects"; }
+std::string EstimatesTopicName(int robot) {
+  return "rt/moslam/robot" + std::to_string(robot) + "/dgs_estimates";
+}
+
+int DiscoveryPort(int domain, int index) { return 7400 + 250 * domain + 10 + 2 * index; }
+
+std::string CycloneConfigXml(const CycloneConfig& c) {
+  std::string xml = "<CycloneDDS><Domain id=\"any\"><General><Interfaces>";
+  for (const std::string& i : c.interfaces) xml += "<NetworkInterface name=\"" + i + "\"/>";
+  xml += "</Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery>";
+  xml += "<ParticipantIndex>auto</ParticipantIndex>";
+  xml += fmt::format("<MaxAutoParticipantIndex>{}</MaxAutoParticipantIndex>",
+                     c.max_participant_index);
+  xml += fmt::format("<SPDPInterval>{}ms</SPDPInterval>", c.spdp_interval.count());
+  xml += fmt::format("<LeaseDuration>{}ms</LeaseDuration>", c.lease.count());
+  xml += "<Peers>";
+  for (const std::string& p : c.peers) xml += "<Peer address=\"" + p + "\"/>";
+  xml += "</Peers></Discovery></Domain></CycloneDDS>";
+  return xml;
+}
+
+std::string LoopbackConfigXml(int domain, int participants, int spare) {
+  CycloneConfig c;
+  c.max_participant_index = participants + spare - 1;
+  for (int i = 0; i < participants + spare; ++i) {
+    c.peers.push_back(fmt::format("127.0.0.1:{}", DiscoveryPort(domain, i)));
+  }
+  return CycloneConfigXml(c);
+}
+
+namespace {
+
+constexpr std::uint32_t kXcdr1 = 1;
+constexpr std::int64_t kEncapsulationHeader = 4;
+
+// Serialized (CDR) size of a sample, as on the wire.
+std::int64_t CdrSize(const dds_topic_descriptor_t& type, const void* sample) {
+  dds_ostream_t os;
+  dds_ostream_init(&os, 0, kXcdr1);
+  dds_stream_write(&os, static_cast<const char*>(sample), type.m_ops);
+  const std::int64_t size = os.m_index + kEncapsulationHeader;
+  dds_ostream_fini(&os);
+  return size;
+}
+
+using EstimatesSample = moslam_msg_dds__DgsEstimates_;
+using StatusSample = moslam_msg_dds__Status_;
+using ObjectListSample = moslam_msg_dds__ObjectList_;
+using ObjectPoseSample = moslam_msg_dds__ObjectPose_;
+
+// Wire key of a variable of the sender: (index << 1) | kind.
+std::uint64_t WireKey(const Key& k) { return k.index << 1 | static_cast<std::uint64_t>(k.kind); }
+
+// Throws InvalidInputError when the content cannot be converted (checked again by CheckPacket).
+EstimatesPacket FromSample(const EstimatesSample& s) {
+  EstimatesPacket p;
+  p.receiver = s.receiver;
+  p.round = s.round;
+  p.message.stage = static_cast<DgsStage>(s.stage);
+  p.message.iteration = s.iteration;
+  p.message.sender = s.sender;
+  p.message.initialised = s.initialised;
+  p.message.keys.reserve(s.keys._length);
+  for (std::uint32_t i = 0; i < s.keys._length; ++i) {
+    const std::uint64_t w = s.keys._buffer[i];
+    p.message.keys.push_back(
+        {s.sender, (w & 1u) ? VariableKind::kObject : VariableKind::kPose, w >> 1});
+  }
+  p.message.values.assign(s.values._buffer, s.values._buffer + s.values._length);
+  return p;
+}
+
+StatusPacket FromSample(const StatusSample& s) {
+  StatusPacket p;
+  p.robot = s.robot;
+  p.incarnation = s.incarnation;
+  p.state = static_cast<RobotState>(s.state);
+  p.stage = s.stage;
+  p.round = s.round;
+  p.iteration = s.iteration;
+  p.sent = s.sent;
+  p.initialised = s.initialised;
+  p.done = s.done;
+  p.change = s.change;
+  p.neighbours.assign(s.neighbours._buffer, s.neighbours._buffer + s.neighbours._length);
+  return p;
+}
+
+ObjectListPacket FromSample(const ObjectListSample& s) {
+  ObjectListPacket p;
+  p.robot = s.robot;
+  p.revision = s.revision;
+  for (std::uint32_t i = 0; i < s.objects._length; ++i) {
+    const ObjectPoseSample& o = s.objects._buffer[i];
+    ObjectObservation ob;
+    ob.id = o.id;
+    ob.label.assign(o.label, strnlen(o.label, sizeof o.label));
+    const double* q = o.orientation;
+    const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!std::isfinite(norm) || std::abs(norm - 1.0) > 1e-6) {
+      throw InvalidInputError(
+          fmt::format("object {} orientation is not a unit quaternion (norm {})", o.id, norm));
+    }
+    for (double v : o.position) {
+      if (!std::isfinite(v)) throw InvalidInputError(fmt::format("object {} position not finite", o.id));
+    }
+    ob.pose = SE3(SO3::FromQuaternion(q[3], q[0], q[1], q[2]),
+                  Vector3(o.position[0], o.position[1], o.position[2]));
+    p.objects.push_back(std::move(ob));
+  }
+  return p;
+}
+
+}  // namespace
+
+class DdsTransport::Impl {
+ public:
+  Impl(int robot, const DdsTransportOptions& options)
+      : robot_(robot),
+        options_(options),
+        participant_(options.domain),
+        writer_qos_(dds::Qos::Reliable(kTransportHistoryDepth, options.liveliness_lease)),
+        reader_qos_(dds::Qos::ReliableKeepAll(options.liveliness_lease)),
+        status_topic_(participant_, moslam_msg_dds__Status__desc, StatusTopicName(), writer_qos_),
+        objects_topic_(participant_, moslam_msg_dds__ObjectList__desc, ObjectsTopicName(),
+                       writer_qos_),
+        inbox_topic_(participant_, moslam_msg_dds__DgsEstimates__desc, EstimatesTopicName(robot),
+                     writer_qos_),
+        status_writer_(participant_, status_topic_, writer_qos_),
+        objects_writer_(participant_, objects_topic_, writer_qos_),
+        status_reader_(participant_, status_topic_, reader_qos_),
+        objects_reader_(participant_, objects_topic_, reader_qos_),
+        inbox_reader_(participant_, inbox_topic_, reader_qos_),
+        waitset_(participant_) {
+    if (!options_.transport.log) options_.transport.log = StderrLog(robot_);
+    waitset_.attach(status_reader_);
+    waitset_.attach(objects_reader_);
+    waitset_.attach(inbox_reader_);
+  }
+
+  void send(const EstimatesPacket& p) {
+    const std::string why = CheckPacket(p, robot_, p.receiver, {});
+    if (!why.empty()) throw InvalidInputError("cannot send: " + why);
+    std::vector<std::uint64_t> keys;
+    keys.reserve(p.message.keys.size());
+    for (const Key& k : p.message.keys) keys.push_back(WireKey(k));
+    EstimatesSample s{};
+    s.sender = static_cast<std::uint16_t>(robot_);
+    s.receiver = static_cast<std::uint16_t>(p.receiver);
+    s.stage = static_cast<std::uint8_t>(p.message.stage);
+    s.round = p.round;
+    s.iteration = p.message.iteration;
+    s.initialised = p.message.initialised;
+    s.keys = {static_cast<std::uint32_t>(keys.size()), static_cast<std::uint32_t>(keys.size()),
+              keys.data(), false};
+    s.values = {static_cast<std::uint32_t>(p.message.values.size()),
+                static_cast<std::uint32_t>(p.message.values.size()),
+                const_cast<double*>(p.message.values.data()), false};
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = estimate_writers_.find(p.receiver);
+    if (it == estimate_writers_.end()) {
+      auto topic = std::make_unique<dds::Topic>(participant_, moslam_msg_dds__DgsEstimates__desc,
+                                                EstimatesTopicName(p.receiver), writer_qos_);
+      auto writer = std::make_unique<dds::Writer>(participant_, *topic, writer_qos_);
+      it = estimate_writers_.emplace(p.receiver, Outbox{std::move(topic), std::move(writer)}).first;
+    }
+    it->second.writer->write(&s);
+    const std::int64_t bytes = CdrSize(moslam_msg_dds__DgsEstimates__desc, &s);
+    ++stats_.sent_samples;
+    stats_.sent_bytes += bytes;
+    ++stats_.estimates_sent;
+    stats_.estimates_bytes += bytes;
+  }
+
+  void publish(const StatusPacket& p) {
+    const std::string why = CheckPacket(p, robot_, -1, {});
+    if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
+    std::vector<std::uint16_t> neighbours(p.neighbours.begin(), p.neighbours.end());
+    StatusSample s{};
+    s.robot = static_cast<std::uint16_t>(robot_);
+    s.incarnation = p.incarnation;
+    s.state = static_cast<std::uint8_t>(p.state);
+    s.stage = p.stage;
+    s.round = p.round;
+    s.iteration = p.iteration;
+    s.sent = p.sent;
+    s.initialised = p.initialised;
+    s.done = p.done;
+    s.change = p.change;
+    s.neighbours = {static_cast<std::uint32_t>(neighbours.size()),
+                    static_cast<std::uint32_t>(neighbours.size()), neighbours.data(), false};
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_writer_.write(&s);
+    const std::int64_t bytes = CdrSize(moslam_msg_dds__Status__desc, &s);
+    ++stats_.sent_samples;
+    stats_.sent_bytes += bytes;
+    ++stats_.status_sent;
+    stats_.status_bytes += bytes;
+  }
+
+  void publish(const ObjectListPacket& p) {
+    const std::string why = CheckPacket(p, robot_, -1, {});
+    if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
+    std::vector<ObjectPoseSample> objects(p.objects.size());
+    for (std::size_t i = 0; i < p.objects.size(); ++i) {
+      const ObjectObservation& o = p.objects[i];
+      ObjectPoseSample& s = objects[i];
+      s.id = o.id;
+      std::memset(s.label, 0, sizeof s.label);
+      std::memcpy(s.label, o.label.data(), o.label.size());
+      const Eigen::Quaterniond q(o.pose.rotation().matrix());
+      s.orientation[0] = q.x();
+      s.orientation[1] = q.y();
+      s.orientation[2] = q.z();
+      s.orientation[3] = q.w();
+      for (int k = 0; k < 3; ++k) s.position[k] = o.pose.translation()(k);
+    }
+    ObjectListSample s{};
+    s.robot = static_cast<std::uint16_t>(robot_);
+    s.revision = p.revision;
+    s.objects = {static_cast<std::uint32_t>(objects.size()),
+                 static_cast<std::uint32_t>(objects.size()), objects.data(), false};
+    std::lock_guard<std::mutex> lock(mutex_);
+    objects_writer_.write(&s);
+    const std::int64_t bytes = CdrSize(moslam_msg_dds__ObjectList__desc, &s);
+    ++stats_.sent_samples;
+    stats_.sent_bytes += bytes;
+  }
+
+  std::vector<Received> poll(std::chrono::milliseconds timeout) {
+    std::lock_guard<std::mutex> lock(poll_mutex_);
+    std::vector<Received> out;
+    drain(out);
+    if (out.empty() && waitset_.wait(timeout)) drain(out);
+    return out;
+  }
+
+  std::set<int> alive() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::set<int> out;
+    for (const auto& [robot, is_alive] : alive_) {
+      if (is_alive && robot != robot_) out.insert(robot);
+    }
+    return out;
+  }
+
+  void setKnownRobots(const std::set<int>& robots) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    known_ = robots;
+  }
+
+  TransportStats stats() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return stats_;
+  }
+
+  int robot() const { return robot_; }
+
+ private:
+  struct Outbox {
+    std::unique_ptr<dds::Topic> topic;
+    std::unique_ptr<dds::Writer> writer;
+  };
+
+  // Validates and appends; rejected samples are counted and logged.
+  void accept(std::vector<Received>& out, int sender, Packet packet, std::int64_t bytes) {
+    std::set<int> known;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      known = known_;
+    }
+    const std::string why = CheckPacket(packet, sender, robot_, known);
+    if (!why.empty()) {
+      reject(why);
+      return;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++stats_.received_samples;
+    stats_.received_bytes += bytes;
+    out.push_back({sender, std::move(packet)});
+  }
+
+  void reject(const std::string& why) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++stats_.rejected;
+    }
+    options_.transport.log("rejected: " + why);
+  }
+
+  void drain(std::vector<Received>& out) {
+    constexpr int kMax = 1 << 20;
+    inbox_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+      if (!info.valid_data) return;
+      const auto& s = *static_cast<const EstimatesSample*>(data);
+      try {
+        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__DgsEstimates__desc, &s));
+      } catch (const std::exception& e) {
+        reject(fmt::format("DGS estimates from robot {}: {}", s.sender, e.what()));
+      }
+    });
+    status_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+      const auto& s = *static_cast<const StatusSample*>(data);
+      const int robot = s.robot;  // the key: valid in invalid samples too
+      const bool instance_alive = info.instance_state == DDS_IST_ALIVE;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (robot != robot_ && (!known_.empty() ? known_.count(robot) > 0 : true)) {
+          const auto it = alive_.find(robot);
+          const bool was = it != alive_.end() && it->second;
+          if (was != instance_alive && (instance_alive ? info.valid_data : true)) {
+            alive_[robot] = instance_alive;
+            if (it != alive_.end() || !instance_alive) {
+              options_.transport.log(fmt::format("robot {} {}", robot,
+                                                 instance_alive ? "is back" : "is gone"));
+            }
+          }
+        }
+      }
+      if (!info.valid_data) return;
+      try {
+        accept(out, s.robot, FromSample(s), CdrSize(moslam_msg_dds__Status__desc, &s));
+      } catch (const std::exception& e) {
+        reject(fmt::format("status from robot {}: {}", s.robot, e.what()));
+      }
+    });
+    objects_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+      if (!info.valid_data) return;
+      const auto& s = *static_cast<const ObjectListSample*>(data);
+      try {
+        accept(out, s.robot, FromSample(s), CdrSize(moslam_msg_dds__ObjectList__desc, &s));
+      } catch (const std::exception& e) {
+        reject(fmt::format("object list from robot {}: {}", s.robot, e.what()));
+      }
+    });
+  }
+
+  int robot_;
+  DdsTransportOptions options_;
+  // Parents first: members are destroyed in reverse order.
+  dds::Participant participant_;
+  dds::Qos writer_qos_, reader_qos_;
+  dds::Topic status_topic_, objects_topic_, inbox_topic_;
+  dds::Writer status_writer_, objects_writer_;
+  dds::Reader status_reader_, objects_reader_, inbox_reader_;
+  dds::WaitSet waitset_;
+  std::map<int, Outbox> estimate_writers_;
+
+  mutable std::mutex mutex_;  // stats, known, alive, writers
+  std::mutex poll_mutex_;
+  std::set<int> known_;
+  std::map<int, bool> alive_;
+  TransportStats stats_;
+};
+
+DdsTransport::DdsTransport(int robot, const DdsTransportOptions& options) {
+  options.validate();
+  if (robot < 0 || robot > kMaxTransportRobot) {
+    throw InvalidInputError("DDS transport: robot id " + std::to_string(robot) +
+                            " out of range [0, 65535]");
+  }
+  impl_ = std::make_unique<Impl>(robot, options);
+}
+
+DdsTransport::~DdsTransport() = default;
+
+int DdsTransport::self() const { return impl_->robot(); }
+void DdsTransport::send(const EstimatesPacket& packet) { impl_->send(packet); }
+void DdsTransport::publish(const StatusPacket& packet) { impl_->publish(packet); }
+void DdsTransport::publish(const ObjectListPacket& packet) { impl_->publish(packet); }
+std::vector<Received> DdsTransport::poll(std::chrono::milliseconds timeout) {
+  return impl_->poll(timeout);
+}
+std::set<int> DdsTransport::alive() const { return impl_->alive(); }
+void DdsTransport::setKnownRobots(const std::set<int>& robots) { impl_->setKnownRobots(robots); }
+TransportStats DdsTransport::stats() const { return impl_->stats(); }
+
+}  // namespace moslam

@@ -1,0 +1,314 @@
+// The DGS protocol node (dgs_node.h) over the in-process transport, one thread per robot: the
+// result equals the in-process driver's (Jacobi) whatever the timing, and survives a robot
+// crashing and restarting from its journal, a cut link, and a robot that leaves for good.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include <unistd.h>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/partition.h"
+#include "moslam/io/g2o.h"
+#include "moslam/transport/dgs_node.h"
+#include "moslam/transport/in_process_transport.h"
+#include "moslam/transport/robot_data.h"
+
+namespace moslam {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string BlocksWorld(int robots) {
+  return std::string(MOSLAM_DATASETS_DIR) +
+         "/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/"
+         "blocks_world/" +
+         std::to_string(robots) + "robots";
+}
+
+struct Crash : std::runtime_error {
+  Crash() : std::runtime_error("simulated crash") {}
+};
+
+struct TeamResult {
+  std::map<int, DgsNodeResult> results;
+  std::map<int, std::string> errors;
+  Values merged() const {
+    Values v;
+    for (const auto& [r, res] : results) v.insert(res.estimate.begin(), res.estimate.end());
+    return v;
+  }
+};
+
+// Per robot: its options, and (optional) what to do when its node throws Crash: return true to
+// restart it from its journal with a fresh transport.
+struct RobotSetup {
+  DgsNodeOptions options;
+  bool restart_after_crash = false;
+};
+
+TeamResult RunTeam(InProcessNetwork& net, const Dataset& data,
+                   const std::function<RobotSetup(int)>& setup) {
+  TeamResult team;
+  std::mutex mutex;
+  std::vector<std::thread> threads;
+  for (const RobotSubgraph& part : PartitionByRobot(data.graph)) {
+    threads.emplace_back([&, part]() {
+      const RobotSetup s = setup(part.robot);
+      TransportOptions quiet;
+      quiet.log = [](const std::string&) {};
+      while (true) {
+        try {
+          auto transport = net.connect(part.robot, quiet);
+          DgsNode node(part.robot, part.graph, data.initial, *transport, s.options);
+          DgsNodeResult r = node.run();
+          std::lock_guard<std::mutex> lock(mutex);
+          team.results[part.robot] = std::move(r);
+          return;
+        } catch (const Crash&) {
+          if (s.restart_after_crash) continue;  // the transport was destroyed: it left
+          std::lock_guard<std::mutex> lock(mutex);
+          team.errors[part.robot] = "crashed";
+          return;
+        } catch (const std::exception& e) {
+          std::lock_guard<std::mutex> lock(mutex);
+          team.errors[part.robot] = e.what();
+          return;
+        }
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  return team;
+}
+
+double MaxDifference(const Values& a, const Values& b, int skip_robot = -1) {
+  double worst = 0.0;
+  for (const auto& [k, x] : a) {
+    if (k.robot == skip_robot) continue;
+    const auto it = b.find(k);
+    if (it == b.end()) return std::numeric_limits<double>::infinity();
+    worst = std::max(worst, (x.translation() - it->second.translation()).norm());
+    worst = std::max(worst, (x.rotation().matrix() - it->second.rotation().matrix()).norm());
+  }
+  return worst;
+}
+
+fs::path FreshDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("moslam_node_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  return dir;
+}
+
+DgsNodeOptions Options() {
+  DgsNodeOptions o;
+  o.join_timeout = std::chrono::seconds(20);
+  o.stall_timeout = std::chrono::seconds(60);
+  o.finish_timeout = std::chrono::seconds(20);
+  return o;
+}
+
+TEST(DgsNode, EqualsTheInProcessDriverInJacobiOrder) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  for (bool flagged : {true, false}) {
+    SCOPED_TRACE(flagged ? "flagged initialisation" : "initial exchange");
+    DgsNodeOptions o = Options();
+    o.flagged_initialisation = flagged;
+    const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(o));
+    InProcessNetwork net;
+    const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
+    ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+    ASSERT_EQ(team.results.size(), 4u);
+    EXPECT_LE(MaxDifference(reference.values, team.merged()), 1e-9);
+    std::int64_t messages = 0, bytes = 0;
+    for (const auto& [r, res] : team.results) {
+      EXPECT_EQ(res.rotation_rounds, reference.rotation.iterations);
+      EXPECT_EQ(res.pose_rounds, reference.pose.iterations);
+      EXPECT_EQ(res.rotation_converged, reference.rotation.status == StageStatus::kConverged);
+      EXPECT_EQ(res.team, (std::vector<int>{0, 1, 2, 3}));
+      EXPECT_TRUE(res.left.empty());
+      messages += res.estimate_messages;
+      bytes += res.estimate_binary_bytes;
+    }
+    // The same messages as the driver sends.
+    EXPECT_EQ(messages, reference.messages);
+    EXPECT_EQ(bytes, reference.bytes);
+  }
+}
+
+TEST(DgsNode, ARobotThatCrashesAndRestartsFromItsJournalLosesNothing) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const DgsNodeOptions base = Options();
+  const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
+  ASSERT_GT(reference.rotation.iterations, 6);
+  ASSERT_GT(reference.pose.iterations, 4);
+  const fs::path dir = FreshDir("restart");
+  std::atomic<int> crashes{0};
+  InProcessNetwork net;
+  const TeamResult team = RunTeam(net, data, [&](int robot) {
+    RobotSetup s{base, false};
+    s.options.state_dir = (dir / std::to_string(robot)).string();
+    if (robot == 2) {
+      s.restart_after_crash = true;
+      // Crashes in the rotation stage at round 5, then in the pose stage at round 3.
+      s.options.on_round = [&](const DgsNodeRound& r) {
+        if (r.replayed) return;
+        if ((r.stage == DgsStage::kRotation && r.round == 5 && crashes == 0) ||
+            (r.stage == DgsStage::kPose && r.round == 3 && crashes == 1)) {
+          ++crashes;
+          throw Crash();
+        }
+      };
+    }
+    return s;
+  });
+  ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+  EXPECT_EQ(crashes, 2);
+  EXPECT_LE(MaxDifference(reference.values, team.merged()), 1e-9);
+  const DgsNodeResult& r2 = team.results.at(2);
+  EXPECT_EQ(r2.incarnation, 2u);
+  EXPECT_EQ(r2.replayed_rounds, reference.rotation.iterations + 3);
+  EXPECT_EQ(r2.rotation_rounds, reference.rotation.iterations);
+  EXPECT_EQ(r2.pose_rounds, reference.pose.iterations);
+  for (int r = 0; r < 4; ++r) {
+    // The saved result: the robot's variables (full precision) and its subgraph.
+    const Dataset saved = ReadRobotG2o((dir / std::to_string(r) / "result.g2o").string());
+    EXPECT_EQ(saved.initial.size(), team.results.at(r).estimate.size());
+    EXPECT_LE(MaxDifference(team.results.at(r).estimate, saved.initial), 1e-12);
+    EXPECT_TRUE(fs::exists(dir / std::to_string(r) / "estimate.g2o"));
+  }
+  fs::remove_all(dir);
+}
+
+TEST(DgsNode, ACutLinkDelaysButDoesNotChangeTheResult) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const DgsNodeOptions base = Options();
+  const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
+  InProcessNetwork net;
+  std::mutex m;
+  std::condition_variable cv;
+  bool cut = false, finished = false;
+  std::thread restorer([&]() {
+    std::unique_lock<std::mutex> lock(m);
+    cv.wait(lock, [&]() { return cut || finished; });
+    if (finished) return;
+    // The outage lasts 300 ms (the robots poll, see each other gone, and wait).
+    cv.wait_for(lock, std::chrono::milliseconds(300), [&]() { return finished; });
+    net.setLink(0, 1, true);
+    net.setLink(0, 2, true);
+  });
+  const TeamResult team = RunTeam(net, data, [&](int robot) {
+    RobotSetup s{base, false};
+    if (robot == 0) {
+      s.options.on_round = [&](const DgsNodeRound& r) {
+        if (r.stage == DgsStage::kRotation && r.round == 3) {
+          net.setLink(0, 1, false);
+          net.setLink(0, 2, false);
+          std::lock_guard<std::mutex> lock(m);
+          cut = true;
+          cv.notify_all();
+        }
+      };
+    }
+    return s;
+  });
+  {
+    std::lock_guard<std::mutex> lock(m);
+    finished = true;
+    cv.notify_all();
+  }
+  restorer.join();
+  ASSERT_TRUE(cut);
+  ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+  EXPECT_LE(MaxDifference(reference.values, team.merged()), 1e-9);
+  for (const auto& [r, res] : team.results) EXPECT_TRUE(res.left.empty());
+}
+
+TEST(DgsNode, TheOthersFinishWithoutARobotThatLeaves) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  DgsNodeOptions base = Options();
+  base.leave_timeout = std::chrono::milliseconds(200);
+  // Robot 3 solves round 4 of the rotation stage and dies before sending it: for the others it
+  // is the driver's robot that stops answering at the start of sweep 4.
+  FaultInjection faults;
+  faults.silent = {{3, DgsStage::kRotation, 4}};
+  const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base), faults);
+  InProcessNetwork net;
+  const TeamResult team = RunTeam(net, data, [&](int robot) {
+    RobotSetup s{base, false};
+    if (robot == 3) {
+      s.options.on_round = [](const DgsNodeRound& r) {
+        if (r.stage == DgsStage::kRotation && r.round == 4) throw Crash();
+      };
+    }
+    return s;
+  });
+  ASSERT_EQ(team.errors.size(), 1u);
+  EXPECT_EQ(team.errors.at(3), "crashed");
+  ASSERT_EQ(team.results.size(), 3u);
+  for (const auto& [r, res] : team.results) {
+    EXPECT_EQ(res.left, std::vector<int>{3});
+    EXPECT_EQ(res.rotation_rounds, reference.rotation.iterations);
+    EXPECT_EQ(res.pose_rounds, reference.pose.iterations);
+  }
+  EXPECT_LE(MaxDifference(team.merged(), reference.values, 3), 1e-9);
+}
+
+TEST(RobotData, EachRobotFileHoldsItsPartitionOfTheFolder) {
+  const Dataset folder = ReadG2oFolder(BlocksWorld(4));
+  EXPECT_EQ(CountRobotFiles(BlocksWorld(4)), 4);
+  for (const RobotSubgraph& part : PartitionByRobot(folder.graph)) {
+    const Dataset own = ReadRobotG2o(RobotFile(BlocksWorld(4), part.robot));
+    ASSERT_EQ(own.graph.factors().size(), part.graph.factors().size());
+    std::set<std::pair<Key, Key>> a, b;
+    for (const auto& f : own.graph.factors()) a.insert({f.a(), f.b()});
+    for (const auto& f : part.graph.factors()) b.insert({f.a(), f.b()});
+    EXPECT_EQ(a, b);
+    for (const auto& [k, x] : own.initial) {
+      EXPECT_EQ(k.robot, part.robot);
+      EXPECT_EQ(x.translation(), folder.initial.at(k).translation());
+    }
+  }
+  EXPECT_THROW(RobotFile(BlocksWorld(4), 4), InvalidInputError);
+}
+
+TEST(DgsNode, RefusesTheJournalOfAnotherRun) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(2));
+  const auto parts = PartitionByRobot(data.graph);
+  const fs::path dir = FreshDir("foreign");
+  InProcessNetwork net;
+  auto t = net.connect(1);
+  DgsNodeOptions o = Options();
+  o.state_dir = dir.string();
+  { DgsNode node(1, parts[1].graph, data.initial, *t, o); }  // writes the journal header
+  o.eta_pose = 0.5;
+  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  o.eta_pose = Options().eta_pose;
+  EXPECT_THROW(DgsNode(0, parts[0].graph, data.initial, *net.connect(0), o), InvalidInputError);
+  EXPECT_NO_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o));
+  fs::remove_all(dir);
+}
+
+TEST(DgsNode, ValidatesOptions) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(2));
+  const auto parts = PartitionByRobot(data.graph);
+  InProcessNetwork net;
+  auto t = net.connect(1);
+  DgsNodeOptions o = Options();
+  o.eta_rotation = 0.0;
+  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  o = Options();
+  o.leave_timeout = std::chrono::milliseconds(0);
+  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  EXPECT_THROW(DgsNode(0, parts[1].graph, data.initial, *t, Options()), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam

@@ -1,0 +1,137 @@
+#include "moslam/transport/transport.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+#include "moslam/common/errors.h"
+#include "moslam/graph/key.h"
+
+namespace moslam {
+namespace {
+
+std::string CheckEstimates(const EstimatesPacket& p, int sender, int self) {
+  if (p.receiver != self) {
+    return fmt::format("DGS estimates addressed to robot {}, not to this robot", p.receiver);
+  }
+  if (p.message.sender != sender) {
+    return fmt::format("DGS estimates claim sender {} but came from robot {}", p.message.sender,
+                       sender);
+  }
+  const auto stage = static_cast<int>(p.message.stage);
+  if (stage < 1 || stage > 3) return fmt::format("DGS estimates with unknown stage {}", stage);
+  try {
+    (void)EncodeMessage(p.message);  // checks keys (owner, order, range), counts, finiteness
+  } catch (const InvalidInputError& e) {
+    return std::string("malformed DGS estimates: ") + e.what();
+  }
+  if (p.message.keys.empty()) return "DGS estimates without any variable";
+  return {};
+}
+
+std::string CheckStatus(const StatusPacket& p, int sender) {
+  if (p.robot != sender) {
+    return fmt::format("status claims robot {} but came from robot {}", p.robot, sender);
+  }
+  if (static_cast<int>(p.state) > static_cast<int>(RobotState::kFailed)) {
+    return fmt::format("status with unknown state {}", static_cast<int>(p.state));
+  }
+  if (p.stage > 3) return fmt::format("status with unknown stage {}", p.stage);
+  if (std::isnan(p.change) || p.change < 0.0) {
+    return fmt::format("status with invalid change {}", p.change);
+  }
+  if (p.neighbours.size() > kMaxNeighbours) return "status with too many neighbours";
+  for (std::size_t i = 0; i < p.neighbours.size(); ++i) {
+    const int n = p.neighbours[i];
+    if (n < 0 || n > kMaxTransportRobot || n == p.robot ||
+        (i > 0 && n <= p.neighbours[i - 1])) {
+      return fmt::format("status with invalid neighbour list (entry {}: {})", i, n);
+    }
+  }
+  return {};
+}
+
+std::string CheckObjects(const ObjectListPacket& p, int sender) {
+  if (p.robot != sender) {
+    return fmt::format("object list claims robot {} but came from robot {}", p.robot, sender);
+  }
+  if (p.objects.size() > kMaxObjects) return "object list with too many objects";
+  std::set<std::uint64_t> ids;
+  for (const ObjectObservation& o : p.objects) {
+    if (o.id > kMaxKeyIndex) return fmt::format("object id {} out of range", o.id);
+    if (!ids.insert(o.id).second) return fmt::format("object id {} listed twice", o.id);
+    if (o.label.empty() || o.label.size() > kMaxObjectLabel) {
+      return fmt::format("object {} with a label of {} characters", o.id, o.label.size());
+    }
+    for (char c : o.label) {
+      if (c < 0x20 || c > 0x7e) return fmt::format("object {} label not printable", o.id);
+    }
+    if (!o.pose.rotation().matrix().allFinite() || !o.pose.translation().allFinite()) {
+      return fmt::format("object {} with a non-finite pose", o.id);
+    }
+  }
+  return {};
+}
+
+}  // namespace
+
+std::string ToString(RobotState state) {
+  switch (state) {
+    case RobotState::kJoining:
+      return "joining";
+    case RobotState::kRotation:
+      return "rotation";
+    case RobotState::kPose:
+      return "pose";
+    case RobotState::kRefine:
+      return "refine";
+    case RobotState::kDone:
+      return "done";
+    case RobotState::kFailed:
+      return "failed";
+  }
+  return "unknown";
+}
+
+std::string CheckPacket(const Packet& packet, int sender, int self, const std::set<int>& known) {
+  if (sender < 0 || sender > kMaxTransportRobot) {
+    return fmt::format("sample from invalid robot id {}", sender);
+  }
+  if (sender == self) return fmt::format("sample claims this robot's own id {}", sender);
+  if (!known.empty() && known.count(sender) == 0) {
+    return fmt::format("sample from unknown robot {}", sender);
+  }
+  if (const auto* e = std::get_if<EstimatesPacket>(&packet)) return CheckEstimates(*e, sender, self);
+  if (const auto* s = std::get_if<StatusPacket>(&packet)) return CheckStatus(*s, sender);
+  return CheckObjects(std::get<ObjectListPacket>(packet), sender);
+}
+
+std::int64_t BinarySize(const Packet& packet) {
+  if (const auto* e = std::get_if<EstimatesPacket>(&packet)) {
+    // The binary Message plus receiver (u16) and round (u32).
+    return static_cast<std::int64_t>(EncodeMessage(e->message).size()) + 6;
+  }
+  if (const auto* s = std::get_if<StatusPacket>(&packet)) {
+    // robot u16, incarnation u32, state/stage/flags 3 x u8, round/iteration u32, change f64,
+    // neighbour count u16 + u16 each.
+    return 2 + 4 + 3 + 8 + 8 + 2 + 2 * static_cast<std::int64_t>(s->neighbours.size());
+  }
+  const auto& o = std::get<ObjectListPacket>(packet);
+  std::int64_t bytes = 2 + 4 + 4;  // robot, sequence, count
+  for (const ObjectObservation& ob : o.objects) {
+    bytes += 8 + 1 + static_cast<std::int64_t>(ob.label.size()) + 7 * 8;
+  }
+  return bytes;
+}
+
+std::function<void(const std::string&)> StderrLog(int robot) {
+  return [robot](const std::string& text) {
+    fmt::print(stderr, "moslam transport [robot {}]: {}\n", robot, text);
+    std::fflush(stderr);
+  };
+}
+
+}  // namespace moslam

@@ -1,0 +1,150 @@
+// How robot processes talk: the packets of the multi-robot protocol and the Transport interface
+// that moves them (dds_transport.h: Cyclone DDS between processes and machines;
+// in_process_transport.h: threads of one process, for unit tests).
+//
+// Packets (one DDS topic each, idl/*.idl, ROS 2 naming moslam/msg/<Name>):
+//   EstimatesPacket  DGS estimates for ONE receiver in one stage and protocol round
+//                    (topic rt/moslam/robot<R>/dgs_estimates: the receiver's inbox);
+//   StatusPacket     a robot's progress, to every robot (rt/moslam/status), after every round;
+//   ObjectListPacket the objects a robot shares at a rendezvous, label + pose each
+//                    (rt/moslam/objects).
+//
+// Delivery contract, met by both transports: reliable and in order per sender; a robot that
+// joins late (or restarts) still receives each sender's recent history (the last
+// kTransportHistoryDepth packets per sender and topic), so a restarted robot catches up; alive()
+// tells which robots currently assert liveliness.
+//
+// Every received packet is validated before poll() returns it (CheckPacket below): a sample from
+// a robot outside setKnownRobots(), addressed to another robot, or with malformed content (bad
+// stage, keys not the sender's or not increasing, wrong value count, NaN/Inf, ...) is rejected:
+// counted in stats().rejected and reported through TransportOptions::log, never returned and
+// never thrown at the caller.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <set>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "moslam/distributed/messages.h"
+#include "moslam/geometry/se3.h"
+
+namespace moslam {
+
+inline constexpr int kTransportHistoryDepth = 16;
+// Robot ids travel as 16-bit fields.
+inline constexpr int kMaxTransportRobot = 65535;
+inline constexpr std::size_t kMaxObjectLabel = 64;
+inline constexpr std::size_t kMaxObjects = 4096;
+inline constexpr std::size_t kMaxNeighbours = 1024;
+
+struct EstimatesPacket {
+  int receiver = 0;
+  std::uint32_t round = 0;  // protocol round of message.stage (0: before any solve)
+  Message message;          // sender, stage, iteration, initialised, keys, values
+};
+
+// A robot's protocol state (Status_.state on the wire).
+enum class RobotState : std::uint8_t {
+  kJoining = 0,
+  kRotation = 1,
+  kPose = 2,
+  kRefine = 3,
+  kDone = 4,
+  kFailed = 5,
+};
+std::string ToString(RobotState state);
+
+struct StatusPacket {
+  int robot = 0;
+  std::uint32_t incarnation = 0;  // process starts of this robot minus one
+  RobotState state = RobotState::kJoining;
+  std::uint8_t stage = 0;         // DgsStage of `round`, 0 while joining
+  std::uint32_t round = 0;        // last completed round of the stage
+  std::uint32_t iteration = 0;    // solves in the stage
+  bool sent = false;              // it sent estimates to its neighbours in this round
+  bool initialised = false;       // it has solved in this stage
+  bool done = false;              // its result is final and saved
+  double change = std::numeric_limits<double>::infinity();  // RobotAgent::lastChange()
+  std::vector<int> neighbours;    // robots its separators reach, increasing
+};
+
+struct ObjectObservation {
+  std::uint64_t id = 0;  // object index (Key::Object(robot, id)), < 2^56
+  std::string label;     // 1..kMaxObjectLabel characters
+  SE3 pose;              // in the sending robot's world frame
+};
+
+struct ObjectListPacket {
+  int robot = 0;
+  std::uint32_t revision = 0;  // increases with every list the robot publishes
+  std::vector<ObjectObservation> objects;
+};
+
+using Packet = std::variant<EstimatesPacket, StatusPacket, ObjectListPacket>;
+
+struct Received {
+  int sender = 0;
+  Packet packet;
+};
+
+// Counters of one transport endpoint. Bytes are the serialized payloads (CDR for DDS, the binary
+// Message encoding for DGS estimates in-process), without middleware or IP headers.
+struct TransportStats {
+  std::int64_t sent_samples = 0;
+  std::int64_t sent_bytes = 0;
+  std::int64_t received_samples = 0;  // accepted
+  std::int64_t received_bytes = 0;
+  std::int64_t rejected = 0;          // invalid or from an unknown robot
+  std::int64_t estimates_sent = 0;    // DGS estimates among sent_samples, and their bytes
+  std::int64_t estimates_bytes = 0;
+  std::int64_t status_sent = 0;
+  std::int64_t status_bytes = 0;
+};
+
+struct TransportOptions {
+  // Where rejections and connection events are reported; default: one line on stderr.
+  std::function<void(const std::string&)> log;
+};
+
+class Transport {
+ public:
+  virtual ~Transport() = default;
+
+  virtual int self() const = 0;
+  // Reliable send to packet.receiver. Throws InvalidInputError on a packet CheckPacket rejects
+  // (the caller's bug: sender must be self()).
+  virtual void send(const EstimatesPacket& packet) = 0;
+  // To every robot. Throws InvalidInputError as send().
+  virtual void publish(const StatusPacket& packet) = 0;
+  virtual void publish(const ObjectListPacket& packet) = 0;
+  // The valid packets that arrived since the last call; when none has, waits up to `timeout`
+  // for one. Never throws on received content.
+  virtual std::vector<Received> poll(std::chrono::milliseconds timeout) = 0;
+  // Other robots whose liveliness is asserted now (they have published a status and not left).
+  virtual std::set<int> alive() const = 0;
+  // From now on accept only packets from these robots (empty: any robot id).
+  virtual void setKnownRobots(const std::set<int>& robots) = 0;
+  virtual TransportStats stats() const = 0;
+};
+
+// Empty when `packet`, received by robot `self` from `sender`, is valid; else the reason.
+// `known`: accepted senders (empty: any). Estimates must be addressed to `self`; their content is
+// what EncodeMessage accepts. Status: state and stage in range, change >= 0 (+inf allowed),
+// neighbours distinct, increasing, without the robot itself. Objects: finite poses, unit
+// quaternions (checked before conversion, tolerance 1e-6), labels of 1..64 printable characters,
+// distinct ids < 2^56, at most kMaxObjects.
+std::string CheckPacket(const Packet& packet, int sender, int self, const std::set<int>& known);
+
+// Bytes of the binary encoding of a packet (messages.h for estimates; a comparable fixed-size
+// layout for the others), the in-process transport's byte count.
+std::int64_t BinarySize(const Packet& packet);
+
+// The default log: "moslam transport [robot R]: <text>" on stderr.
+std::function<void(const std::string&)> StderrLog(int robot);
+
+}  // namespace moslam

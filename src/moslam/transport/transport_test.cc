@@ -1,0 +1,267 @@
+// The in-process transport (delivery, history for late joiners, cuts, validation of received
+// packets) and the journal (records survive a reopen; a torn tail is cut).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include "moslam/common/errors.h"
+#include "moslam/transport/in_process_transport.h"
+#include "moslam/transport/journal.h"
+#include "moslam/transport/transport.h"
+
+namespace moslam {
+namespace {
+
+using std::chrono::milliseconds;
+
+EstimatesPacket Estimates(int from, int to, std::uint32_t round, double value = 1.0) {
+  EstimatesPacket p;
+  p.receiver = to;
+  p.round = round;
+  p.message.stage = DgsStage::kPose;
+  p.message.sender = from;
+  p.message.iteration = round;
+  p.message.initialised = true;
+  p.message.keys = {Key::Pose(from, 3), Key::Pose(from, 7)};
+  p.message.values.assign(12, value);
+  return p;
+}
+
+StatusPacket Status(int robot, std::uint32_t round) {
+  StatusPacket s;
+  s.robot = robot;
+  s.state = RobotState::kRotation;
+  s.stage = 1;
+  s.round = round;
+  s.neighbours = {robot + 1};
+  return s;
+}
+
+// Polls until `n` packets arrived or 5 s passed.
+std::vector<Received> PollFor(Transport& t, std::size_t n) {
+  std::vector<Received> all;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (all.size() < n && std::chrono::steady_clock::now() < deadline) {
+    for (Received& r : t.poll(milliseconds(50))) all.push_back(std::move(r));
+  }
+  return all;
+}
+
+TEST(InProcessTransport, DeliversEstimatesToTheReceiverAndStatusToEveryone) {
+  InProcessNetwork net;
+  auto t0 = net.connect(0), t1 = net.connect(1), t2 = net.connect(2);
+  EXPECT_EQ(t0->alive(), (std::set<int>{1, 2}));
+  t0->send(Estimates(0, 1, 4));
+  t0->publish(Status(0, 4));
+  const auto at1 = PollFor(*t1, 2);
+  ASSERT_EQ(at1.size(), 2u);
+  const auto& e = std::get<EstimatesPacket>(at1[0].packet);
+  EXPECT_EQ(at1[0].sender, 0);
+  EXPECT_EQ(e.round, 4u);
+  EXPECT_EQ(e.message.keys, Estimates(0, 1, 4).message.keys);
+  EXPECT_EQ(std::get<StatusPacket>(at1[1].packet).round, 4u);
+  const auto at2 = PollFor(*t2, 1);
+  ASSERT_EQ(at2.size(), 1u);  // the status only: the estimates were for robot 1
+  EXPECT_TRUE(std::holds_alternative<StatusPacket>(at2[0].packet));
+  EXPECT_TRUE(t2->poll(milliseconds(1)).empty());
+  EXPECT_EQ(t0->stats().estimates_sent, 1);
+  EXPECT_EQ(t0->stats().estimates_bytes,
+            static_cast<std::int64_t>(EncodeMessage(Estimates(0, 1, 4).message).size()) + 6);
+}
+
+TEST(InProcessTransport, ALateOrRestartedRobotReceivesTheRecentHistory) {
+  InProcessNetwork net;
+  auto t0 = net.connect(0);
+  for (std::uint32_t r = 0; r < 20; ++r) {
+    t0->publish(Status(0, r));
+    t0->send(Estimates(0, 1, r));
+  }
+  {
+    auto t1 = net.connect(1);
+    const auto got = PollFor(*t1, 2 * kTransportHistoryDepth);
+    ASSERT_EQ(got.size(), 2u * kTransportHistoryDepth);
+    // The last kTransportHistoryDepth of each, in order.
+    EXPECT_EQ(std::get<StatusPacket>(got.front().packet).round, 20u - kTransportHistoryDepth);
+    EXPECT_EQ(std::get<EstimatesPacket>(got.back().packet).round, 19u);
+  }
+  EXPECT_TRUE(t0->alive().empty());  // robot 1 left
+  auto again = net.connect(1);       // restart: the history again
+  EXPECT_EQ(PollFor(*again, 2 * kTransportHistoryDepth).size(), 2u * kTransportHistoryDepth);
+  EXPECT_THROW(net.connect(1), InvalidInputError);
+}
+
+TEST(InProcessTransport, ACutHoldsPacketsAndHidesThePeerUntilRestored) {
+  InProcessNetwork net;
+  auto t0 = net.connect(0), t1 = net.connect(1);
+  net.setLink(0, 1, false);
+  EXPECT_TRUE(t0->alive().empty());
+  for (std::uint32_t r = 1; r <= 3; ++r) t0->publish(Status(0, r));
+  EXPECT_TRUE(t1->poll(milliseconds(20)).empty());
+  net.setLink(0, 1, true);
+  EXPECT_EQ(t0->alive(), std::set<int>{1});
+  const auto got = PollFor(*t1, 3);
+  ASSERT_EQ(got.size(), 3u);
+  for (std::uint32_t r = 1; r <= 3; ++r) {
+    EXPECT_EQ(std::get<StatusPacket>(got[r - 1].packet).round, r);
+  }
+}
+
+TEST(InProcessTransport, RejectsAndLogsMalformedPacketsAndUnknownRobots) {
+  InProcessNetwork net;
+  std::vector<std::string> logged;
+  TransportOptions options;
+  options.log = [&](const std::string& s) { logged.push_back(s); };
+  auto t1 = net.connect(1, options);
+  t1->setKnownRobots({0, 1, 2});
+
+  std::vector<std::pair<std::string, Packet>> bad;
+  {
+    EstimatesPacket p = Estimates(0, 1, 1);
+    p.message.values[5] = std::nan("");
+    bad.emplace_back("non-finite", p);
+  }
+  {
+    EstimatesPacket p = Estimates(0, 1, 1);
+    p.message.values.pop_back();
+    bad.emplace_back("count", p);
+  }
+  {
+    EstimatesPacket p = Estimates(0, 1, 1);
+    p.message.keys = {Key::Pose(0, 7), Key::Pose(0, 3)};
+    bad.emplace_back("order", p);
+  }
+  {
+    EstimatesPacket p = Estimates(0, 1, 1);
+    p.message.keys[1] = Key::Pose(2, 7);  // another robot's variable
+    bad.emplace_back("foreign key", p);
+  }
+  {
+    EstimatesPacket p = Estimates(0, 1, 1);
+    p.message.stage = static_cast<DgsStage>(9);
+    bad.emplace_back("stage", p);
+  }
+  bad.emplace_back("receiver", Estimates(0, 2, 1));
+  {
+    EstimatesPacket p = Estimates(0, 1, 1);
+    p.message.sender = 2;  // claims to be robot 2
+    bad.emplace_back("sender", p);
+  }
+  {
+    StatusPacket s = Status(0, 1);
+    s.neighbours = {2, 2};
+    bad.emplace_back("neighbours", s);
+  }
+  {
+    StatusPacket s = Status(0, 1);
+    s.change = -1.0;
+    bad.emplace_back("change", s);
+  }
+  {
+    StatusPacket s = Status(0, 1);
+    s.state = static_cast<RobotState>(42);
+    bad.emplace_back("state", s);
+  }
+  {
+    ObjectListPacket o;
+    o.robot = 0;
+    o.objects.push_back({1, "", SE3()});
+    bad.emplace_back("empty label", o);
+  }
+  for (auto& [name, packet] : bad) net.inject(0, 1, packet);
+  net.inject(9, 1, Status(9, 1));  // unknown robot
+  net.inject(0, 1, Status(0, 1));  // and a good one
+  const auto got = PollFor(*t1, 1);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].sender, 0);
+  EXPECT_TRUE(t1->poll(milliseconds(1)).empty());
+  EXPECT_EQ(t1->stats().rejected, static_cast<std::int64_t>(bad.size()) + 1);
+  ASSERT_EQ(logged.size(), bad.size() + 1);
+  EXPECT_NE(logged.back().find("unknown robot 9"), std::string::npos) << logged.back();
+  EXPECT_NE(logged[0].find("non-finite"), std::string::npos) << logged[0];
+}
+
+TEST(InProcessTransport, RefusesToSendInvalidPackets) {
+  InProcessNetwork net;
+  auto t0 = net.connect(0);
+  EXPECT_THROW(t0->send(Estimates(1, 2, 1)), InvalidInputError);  // not its own
+  EXPECT_THROW(t0->send(Estimates(0, 0, 1)), InvalidInputError);  // to itself
+  StatusPacket s = Status(0, 1);
+  s.change = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(t0->publish(s), InvalidInputError);
+}
+
+TEST(CheckPacket, AcceptsInfiniteChangeAndValidObjectLists) {
+  StatusPacket s = Status(0, 1);
+  s.change = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(CheckPacket(s, 0, 1, {}), "");
+  ObjectListPacket o;
+  o.robot = 0;
+  o.objects.push_back({1, "chair", SE3(SO3::Exp(Vector3(0.1, 0.2, 0.3)), Vector3(1, 2, 3))});
+  o.objects.push_back({2, "table", SE3()});
+  EXPECT_EQ(CheckPacket(o, 0, 1, {}), "");
+  o.objects.push_back({2, "lamp", SE3()});
+  EXPECT_NE(CheckPacket(o, 0, 1, {}), "");  // id listed twice
+}
+
+class JournalTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    path_ = std::filesystem::temp_directory_path() /
+            ("moslam_journal_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+             "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".bin");
+    std::filesystem::remove(path_);
+  }
+  void TearDown() override { std::filesystem::remove(path_); }
+  std::filesystem::path path_;
+};
+
+TEST_F(JournalTest, RecordsSurviveReopeningAndATornTailIsCut) {
+  const std::vector<std::vector<std::uint8_t>> records = {{1, 2, 3}, {}, std::vector<std::uint8_t>(1000, 7)};
+  {
+    Journal j(path_.string());
+    EXPECT_TRUE(j.records().empty());
+    for (const auto& r : records) j.append(r);
+  }
+  const auto good_size = std::filesystem::file_size(path_);
+  {
+    std::ofstream out(path_, std::ios::binary | std::ios::app);
+    out.write("\x10\x00\x00\x00\x01\x02", 6);  // a record cut short by a crash
+  }
+  {
+    Journal j(path_.string());
+    EXPECT_EQ(j.records(), records);
+    EXPECT_EQ(j.truncatedBytes(), 6);
+    j.append({9});
+  }
+  EXPECT_EQ(std::filesystem::file_size(path_), good_size + 9);
+  Journal j(path_.string());
+  ASSERT_EQ(j.records().size(), 4u);
+  EXPECT_EQ(j.records().back(), std::vector<std::uint8_t>{9});
+}
+
+TEST_F(JournalTest, StopsAtACorruptRecord) {
+  {
+    Journal j(path_.string());
+    j.append({1, 2, 3});
+    j.append({4, 5, 6});
+  }
+  {
+    std::fstream f(path_, std::ios::binary | std::ios::in | std::ios::out);
+    f.seekp(8 + 1);  // a payload byte of the first record
+    f.put('\x7f');
+  }
+  Journal j(path_.string());
+  EXPECT_TRUE(j.records().empty());
+  EXPECT_EQ(j.truncatedBytes(), 2 * (8 + 3));
+}
+
+TEST(Crc32, MatchesTheStandardCheckValue) {
+  const std::string s = "123456789";
+  EXPECT_EQ(Crc32(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()), 0xCBF43926u);
+}
+
+}  // namespace
+}  // namespace moslam
