@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -136,6 +137,139 @@ TEST(Cli, WritesG2oAndTumThatReadBack) {
   const auto b = nlohmann::json::parse(LastLine(again.out));
   EXPECT_NEAR(b["initial_cost"].get<double>(), a["final_cost"].get<double>(),
               1e-9 * a["final_cost"].get<double>());
+  fs::remove_all(dir);
+}
+
+// ---- moslam dgs ----------------------------------------------------------------------------
+
+const std::string kBlocksWorld = MOSLAM_DATASETS_DIR
+    "/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/blocks_world/";
+
+TEST(CliDgs, JsonLastLineHasTheDocumentedFields) {
+  const CommandResult r = RunMoslam("dgs " + kBlocksWorld + "4robots --refine --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(LastLine(r.out));
+  for (const char* key :
+       {"final_cost", "two_stage_cost", "centralized_cost", "iterations_rotation",
+        "iterations_pose", "iterations_refine", "iterations_total", "ate_poses", "are_poses_deg",
+        "messages", "bytes", "termination_rotation", "termination_pose", "termination_refine",
+        "refine_steps", "seconds_per_iteration"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  EXPECT_FALSE(j.contains("ate_objects"));  // no objects in blocks_world
+  EXPECT_EQ(j["robots"], 4);
+  EXPECT_EQ(j["termination_rotation"], "converged");
+  EXPECT_EQ(j["termination_pose"], "converged");
+  EXPECT_EQ(j["termination_refine"], "converged");
+  EXPECT_EQ(j["iterations_total"].get<int>(), j["iterations_rotation"].get<int>() +
+                                                  j["iterations_pose"].get<int>() +
+                                                  j["iterations_refine"].get<int>());
+  const double central = j["centralized_cost"].get<double>();
+  EXPECT_LE(std::abs(j["final_cost"].get<double>() - central), 1e-4 * central);
+  EXPECT_GT(j["two_stage_cost"].get<double>(), 1.01 * central);
+  EXPECT_LE(j["ate_poses"].get<double>(), 1e-3);
+  EXPECT_GT(j["bytes"].get<long long>(), j["messages"].get<long long>() * 16);
+  // Without --refine: the two-stage estimate is final.
+  const CommandResult plain = RunMoslam("dgs " + kBlocksWorld + "4robots --json");
+  ASSERT_EQ(plain.exit_code, 0) << plain.out;
+  const auto p = nlohmann::json::parse(LastLine(plain.out));
+  EXPECT_EQ(p["final_cost"], p["two_stage_cost"]);
+  EXPECT_EQ(p["iterations_refine"], 0);
+  EXPECT_EQ(p["termination_refine"], "not run");
+}
+
+TEST(CliDgs, SplitsASingleRobotFileIntoRobots) {
+  const CommandResult r = RunMoslam("dgs " MOSLAM_DATASETS_DIR
+                                    "/pgo/smallGrid3D.g2o --robots 5 --order jacobi --refine "
+                                    "--json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(LastLine(r.out));
+  EXPECT_EQ(j["robots"], 5);
+  EXPECT_EQ(j["order"], "jacobi");
+  const double central = j["centralized_cost"].get<double>();
+  EXPECT_LE(std::abs(j["final_cost"].get<double>() - central), 1e-4 * central);
+}
+
+TEST(CliDgs, PrintsOneLinePerSweepWithoutJson) {
+  const CommandResult r = RunMoslam("dgs " + kBlocksWorld + "2robots --refine");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("rotation iteration     1  max change"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("pose     iteration     1  max change"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("refine   iteration     1  max change"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("refine   step   1:"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bytes "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("cost: two-stage"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find('{'), std::string::npos);  // no JSON
+}
+
+TEST(CliDgs, BadInputExitsOneWithAClearMessage) {
+  const CommandResult split_folder = RunMoslam("dgs " + kBlocksWorld + "4robots --robots 2");
+  EXPECT_EQ(split_folder.exit_code, 1);
+  EXPECT_NE(split_folder.out.find("moslam: error: --robots 2 splits a single-robot file"),
+            std::string::npos)
+      << split_folder.out;
+  const CommandResult eta = RunMoslam("dgs " + kBlocksWorld + "2robots --eta-rot -1");
+  EXPECT_EQ(eta.exit_code, 1);
+  EXPECT_NE(eta.out.find("eta_rotation"), std::string::npos) << eta.out;
+  const CommandResult gamma = RunMoslam("dgs " + kBlocksWorld + "2robots --refine-gamma 2");
+  EXPECT_EQ(gamma.exit_code, 1);
+  EXPECT_NE(gamma.out.find("refinement.gamma"), std::string::npos) << gamma.out;
+  const CommandResult too_many =
+      RunMoslam("dgs " MOSLAM_DATASETS_DIR "/pgo/tinyGrid3D.g2o --robots 20");  // 9 poses
+  EXPECT_EQ(too_many.exit_code, 1);
+  EXPECT_NE(too_many.out.find("moslam: error:"), std::string::npos) << too_many.out;
+  EXPECT_NE(RunMoslam("dgs " MOSLAM_DATASETS_DIR "/pgo/tinyGrid3D.g2o --robots 70000").exit_code,
+            0);
+  const CommandResult missing = RunMoslam("dgs /nonexistent/folder");
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.out.find("/nonexistent/folder"), std::string::npos) << missing.out;
+  EXPECT_NE(RunMoslam("dgs " + kBlocksWorld + "2robots --order random").exit_code, 0);
+  EXPECT_NE(RunMoslam("dgs " + kBlocksWorld + "2robots --robots 0").exit_code, 0);
+  EXPECT_NE(RunMoslam("dgs").exit_code, 0);
+}
+
+// A two-robot folder with object landmarks (upper-case Symbol characters with --objects):
+// object-object edges link the robots; ATE*/ARE* are reported for the objects too.
+TEST(CliDgs, ObjectsAreReportedSeparately) {
+  const fs::path dir = fs::temp_directory_path() / "moslam_cli_dgs_objects";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  auto key = [](char c, int index) {
+    return std::to_string((static_cast<unsigned long long>(c) << 56) |
+                          static_cast<unsigned long long>(index));
+  };
+  auto edge = [](const std::string& a, const std::string& b, double x, double qz) {
+    const double qw = std::sqrt(1.0 - qz * qz);
+    return "EDGE_SE3:QUAT " + a + " " + b + " " + std::to_string(x) + " 0.1 0 0 0 " +
+           std::to_string(qz) + " " + std::to_string(qw) + kI;
+  };
+  std::string files[2];
+  for (int r = 0; r < 2; ++r) {
+    const char pose = static_cast<char>('a' + r), object = static_cast<char>('A' + r);
+    for (int i = 0; i < 5; ++i) {
+      files[r] += edge(key(pose, i), key(pose, i + 1), 1.0 + 0.01 * i, 0.05 * (i % 2));
+    }
+    for (int k = 0; k < 2; ++k) {
+      files[r] += edge(key(pose, 2 * k), key(object, k), 1.5, 0.1);
+      files[r] += edge(key(pose, 2 * k + 3), key(object, k), -1.4, 0.12);
+    }
+  }
+  for (int k = 0; k < 2; ++k) {  // separators: in both robots' files
+    const std::string e = edge(key('B', k), key('A', k), 0.02, 0.01);
+    files[0] += e;
+    files[1] += e;
+  }
+  for (int r = 0; r < 2; ++r) std::ofstream(dir / (std::to_string(r) + ".g2o")) << files[r];
+  const CommandResult r = RunMoslam("dgs " + dir.string() + " --objects --refine --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(LastLine(r.out));
+  EXPECT_EQ(j["robots"], 2);
+  EXPECT_EQ(j["objects"], 4);
+  EXPECT_TRUE(j.contains("ate_objects"));
+  EXPECT_TRUE(j.contains("are_objects_deg"));
+  EXPECT_LE(j["ate_objects"].get<double>(), 1e-3);
+  const double central = j["centralized_cost"].get<double>();
+  EXPECT_LE(std::abs(j["final_cost"].get<double>() - central), 1e-4 * central);
   fs::remove_all(dir);
 }
 

@@ -12,4 +12,15 @@ using Runner = std::function<int()>;
 // `moslam solve <file.g2o | folder>`: centralized Gauss-Newton / LM.
 Runner RegisterSolve(CLI::App& app);
 
+// `moslam dgs <folder | file --robots N>`: distributed Gauss-Seidel (two stages, optional
+// distributed refinement), compared with centralized Gauss-Newton.
+Runner RegisterDgs(CLI::App& app);
+
+// `moslam robot --robot R --data <folder>`: one robot process, DGS over Cyclone DDS.
+Runner RegisterRobot(CLI::App& app);
+// `moslam team --data <folder> --robots N`: N robot processes on loopback, results collected.
+Runner RegisterTeam(CLI::App& app);
+// `moslam simulate --scenario chairs25 --robots 6`: simulated experiments (paper Tables 1-3).
+Runner RegisterSimulate(CLI::App& app);
+
 }  // namespace moslam::cli

@@ -15,6 +15,10 @@ int main(int argc, char** argv) {
     runners[app.get_subcommands([](const CLI::App*) { return true; }).back()] = r;
   };
   add(moslam::cli::RegisterSolve(app));
+  add(moslam::cli::RegisterDgs(app));
+  add(moslam::cli::RegisterRobot(app));
+  add(moslam::cli::RegisterTeam(app));
+  add(moslam::cli::RegisterSimulate(app));
 
   try {
     app.parse(argc, argv);

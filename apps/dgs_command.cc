@@ -1,0 +1,308 @@
+// `moslam dgs <folder | file [--robots N]>`: the distributed Gauss-Seidel solver
+// (distributed/dgs_driver.h) run in-process, compared with the centralized Gauss-Newton optimum
+// (from the chordal initialisation, same gauge: no alignment).
+#include <fmt/core.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "moslam/common/errors.h"
+#include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/messages.h"
+#include "moslam/distributed/partition.h"
+#include "moslam/io/g2o.h"
+#include "moslam/metrics/metrics.h"
+#include "moslam/solver/initialization.h"
+#include "moslam/solver/optimizer.h"
+
+namespace moslam::cli {
+namespace {
+
+struct DgsArgs {
+  std::string input;
+  int robots = 0;  // 0: the robots the keys name
+  double eta_rotation = 1e-2;
+  double eta_pose = 1e-2;
+  double gamma = 1.0;
+  std::string order = "gs";
+  int max_iterations = 1000;
+  bool no_flagged = false;
+  bool weighted = false;
+  bool refine = false;
+  std::string refine_solver = "cg";
+  int refine_max_iterations = 100;
+  double refine_tolerance = 1e-10;
+  int refine_max_sweeps = 1000;
+  double refine_linear_tolerance = -1.0;  // < 0: the solver's default
+  double refine_gamma = 1.0;
+  bool objects = false;
+  bool drop_indefinite_coupling = false;
+  bool json = false;
+};
+
+double Since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// JSON has no infinity: a stage that never finished a sweep reports null.
+nlohmann::json Number(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+double StageSeconds(const DgsResult& r, DgsStage stage) {
+  double s = 0.0;
+  for (const DgsIterationStats& it : r.history) {
+    if (it.stage == stage) s += it.seconds;
+  }
+  return s;
+}
+
+int RunDgsCommand(const DgsArgs& a) {
+  const auto t_start = std::chrono::steady_clock::now();
+  G2oReadOptions read_options;
+  read_options.scheme = a.objects ? KeyScheme::kWithObjects : KeyScheme::kPosesOnly;
+  read_options.drop_indefinite_coupling = a.drop_indefinite_coupling;
+  const Dataset data = ReadG2o(a.input, read_options);
+  PoseGraph graph = data.graph;
+  Values initial = data.initial;
+  if (a.robots != 0) {
+    if (std::filesystem::is_directory(a.input)) {
+      throw InvalidInputError("--robots " + std::to_string(a.robots) +
+                              " splits a single-robot file; the folder " + a.input +
+                              " is already split by robot (drop --robots)");
+    }
+    if (graph.numRobots() > 1) {
+      throw InvalidInputError("--robots " + std::to_string(a.robots) +
+                              " splits a single-robot file; " + a.input + " already has " +
+                              std::to_string(graph.numRobots()) + " robots (drop --robots)");
+    }
+    SplitGraph split = SplitIntoRobots(graph, initial, a.robots);
+    graph = std::move(split.graph);
+    initial = std::move(split.initial);
+  }
+
+  DgsOptions options;
+  options.eta_rotation = a.eta_rotation;
+  options.eta_pose = a.eta_pose;
+  options.gamma = a.gamma;
+  options.order = a.order == "jacobi" ? SweepOrder::kJacobi : SweepOrder::kGaussSeidel;
+  options.max_iterations = a.max_iterations;
+  options.flagged_initialisation = !a.no_flagged;
+  options.weight_by_information = a.weighted;
+  options.refine = a.refine;
+  options.refinement.solver =
+      a.refine_solver == "sweeps" ? RefineSolver::kSweeps : RefineSolver::kConjugateGradient;
+  options.refinement.max_iterations = a.refine_max_iterations;
+  options.refinement.relative_cost_tolerance = a.refine_tolerance;
+  options.refinement.max_sweeps = a.refine_max_sweeps;
+  if (a.refine_linear_tolerance >= 0.0) {
+    options.refinement.sweep_tolerance = a.refine_linear_tolerance;
+    options.refinement.cg_tolerance = a.refine_linear_tolerance;
+  }
+  options.refinement.gamma = a.refine_gamma;
+  options.validate();
+
+  // The reference: centralized Gauss-Newton from the chordal initialisation, in the same gauge
+  // (the anchor at its initial value, as the distributed solve holds it).
+  const auto t_central = std::chrono::steady_clock::now();
+  const Key anchor = GaugeAnchor(graph);
+  const auto anchor_it = initial.find(anchor);
+  const SE3 anchor_pose = anchor_it != initial.end() ? anchor_it->second : SE3();
+  const OptimizerResult central = Optimize(graph, ChordalInitialization(graph, anchor_pose));
+  const double central_seconds = Since(t_central);
+
+  DgsDriver driver(graph, initial, options);
+  if (!a.json) {
+    fmt::print("{}: {} variables, {} factors, {} robots (order {}); centralized GN {} after {} "
+               "iteration(s): cost {:.10g} ({:.3f} s)\n",
+               a.input, graph.keys().size(), graph.factors().size(), driver.numAgents(),
+               ToString(options.order), ToString(central.termination), central.iterations,
+               central.final_cost, central_seconds);
+    if (data.repaired_information > 0) {
+      fmt::print("note: {} information matrices read without their indefinite coupling\n",
+                 data.repaired_information);
+    }
+    std::int64_t bytes_so_far = 0;
+    DgsProgress progress;
+    progress.on_sweep = [&bytes_so_far](const DgsIterationStats& s) {
+      bytes_so_far += s.bytes;
+      std::string extra;
+      if (s.stage == DgsStage::kRefine) {
+        extra = s.residual > 0.0 ? fmt::format("  step {:3d}  cg residual {:.3e}", s.refine_step,
+                                               s.residual)
+                                 : fmt::format("  step {:3d}", s.refine_step);
+      }
+      fmt::print("{:<8} iteration {:5d}  max change {:.3e}  bytes {}{}\n", ToString(s.stage),
+                 s.iteration, s.max_change, bytes_so_far, extra);
+    };
+    progress.on_refine_step = [](const RefineStepSummary& s) {
+      fmt::print("refine   step {:3d}: {} sweeps{}, lambda {:g}, cost {:.10g} -> {:.10g} ({})\n",
+                 s.iteration, s.sweeps, s.linear_converged ? "" : " (max sweeps)", s.lambda,
+                 s.cost_before, s.cost_candidate, s.accepted ? "accepted" : "rejected");
+    };
+    driver.setProgress(std::move(progress));
+  }
+  driver.runRotationStage();
+  driver.runPoseStage();
+  const Values two_stage = driver.result().values;
+  const double two_stage_cost = graph.cost(two_stage);
+  if (a.refine) driver.runRefineStage();
+  const DgsResult r = driver.result();
+  const double final_cost = graph.cost(r.values);
+  const TrajectoryErrors errors = CompareEstimates(r.values, central.values);
+  const TrajectoryErrors two_stage_errors = CompareEstimates(two_stage, central.values);
+  const int iterations_refine = r.refine.sweeps;
+  const int iterations_total = r.rotation.iterations + r.pose.iterations + iterations_refine;
+  const double total_seconds = Since(t_start);
+
+  if (a.json) {
+    nlohmann::json j = {
+        {"input", a.input},
+        {"robots", driver.numAgents()},
+        {"variables", graph.keys().size()},
+        {"factors", graph.factors().size()},
+        {"repaired_information", data.repaired_information},
+        {"eta_rotation", a.eta_rotation},
+        {"eta_pose", a.eta_pose},
+        {"gamma", a.gamma},
+        {"order", a.order},
+        {"flagged_initialisation", !a.no_flagged},
+        {"weighted", a.weighted},
+        {"refine", a.refine},
+        {"two_stage_cost", two_stage_cost},
+        {"final_cost", final_cost},
+        {"centralized_cost", central.final_cost},
+        {"centralized_init", "chordal"},
+        {"centralized_iterations", central.iterations},
+        {"centralized_termination", ToString(central.termination)},
+        {"centralized_seconds", central_seconds},
+        {"two_stage_cost_ratio", two_stage_cost / central.final_cost},
+        {"final_cost_ratio", final_cost / central.final_cost},
+        {"iterations_rotation", r.rotation.iterations},
+        {"iterations_pose", r.pose.iterations},
+        {"iterations_refine", iterations_refine},
+        {"iterations_total", iterations_total},
+        {"termination_rotation", ToString(r.rotation.status)},
+        {"termination_pose", ToString(r.pose.status)},
+        {"termination_refine", ToString(r.refine.status)},
+        {"final_change_rotation", Number(r.rotation.final_change)},
+        {"final_change_pose", Number(r.pose.final_change)},
+        {"ate_poses", errors.poses.ate},
+        {"are_poses_deg", errors.poses.are_deg},
+        {"two_stage_ate_poses", two_stage_errors.poses.ate},
+        {"two_stage_are_poses_deg", two_stage_errors.poses.are_deg},
+        {"messages", r.messages},
+        {"bytes", r.bytes},
+        {"messages_rotation", r.rotation.messages},
+        {"bytes_rotation", r.rotation.bytes},
+        {"messages_pose", r.pose.messages},
+        {"bytes_pose", r.pose.bytes},
+        {"messages_refine", r.refine.messages},
+        {"bytes_refine", r.refine.bytes},
+        {"seconds", r.seconds},
+        {"seconds_rotation", StageSeconds(r, DgsStage::kRotation)},
+        {"seconds_pose", StageSeconds(r, DgsStage::kPose)},
+        {"seconds_refine", r.refine.seconds},
+        {"seconds_per_iteration", iterations_total > 0 ? r.seconds / iterations_total : 0.0},
+        {"total_seconds", total_seconds},
+    };
+    if (a.refine) {
+      j["refine_solver"] = ToString(options.refinement.solver);
+      j["refine_steps"] = r.refine.iterations;
+      j["refine_rejected_steps"] = r.refine.rejected;
+      j["refine_initial_cost"] = r.refine.initial_cost;  // as the robots' shares sum it
+      j["control_messages_refine"] = r.refine.control_messages;
+      j["control_bytes_refine"] = r.refine.control_bytes;
+    }
+    if (errors.objects.count > 0) {
+      j["ate_objects"] = errors.objects.ate;
+      j["are_objects_deg"] = errors.objects.are_deg;
+      j["objects"] = errors.objects.count;
+    }
+    fmt::print("{}\n", j.dump());
+  } else {
+    fmt::print("rotation: {} after {} sweep(s); pose: {} after {} sweep(s)", ToString(r.rotation.status),
+               r.rotation.iterations, ToString(r.pose.status), r.pose.iterations);
+    if (a.refine) {
+      fmt::print("; refine: {} after {} step(s), {} sweep(s)", ToString(r.refine.status),
+                 r.refine.iterations, r.refine.sweeps);
+    }
+    fmt::print("\n");
+    fmt::print("cost: two-stage {:.10g} ({:.6f} x centralized), final {:.10g} ({:.6f} x), "
+               "centralized GN {:.10g}\n",
+               two_stage_cost, two_stage_cost / central.final_cost, final_cost,
+               final_cost / central.final_cost, central.final_cost);
+    fmt::print("vs centralized GN (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses",
+               errors.poses.ate, errors.poses.are_deg, errors.poses.count);
+    if (errors.objects.count > 0) {
+      fmt::print("; objects ATE* {:.3e} m, ARE* {:.3e} deg over {}", errors.objects.ate,
+                 errors.objects.are_deg, errors.objects.count);
+    }
+    fmt::print("\ntraffic: {} messages, {} bytes; {:.3f} s ({:.3g} ms per sweep)\n", r.messages,
+               r.bytes, r.seconds, iterations_total > 0 ? 1e3 * r.seconds / iterations_total : 0.0);
+  }
+  return 0;
+}
+
+}  // namespace
+
+Runner RegisterDgs(CLI::App& app) {
+  auto args = std::make_shared<DgsArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "dgs",
+      "Distributed Gauss-Seidel (two-stage DGS, optional distributed refinement) over the robots "
+      "of a folder (0.g2o .. N-1.g2o) or of a file split into --robots N blocks");
+  sub->add_option("input", args->input, "g2o file or distributed-mapper folder")->required();
+  sub->add_option("--robots", args->robots,
+                  "split a single-robot file into N robots of contiguous pose blocks")
+      ->check(CLI::Range(1, kMaxMessageRobot + 1));
+  sub->add_option("--eta-rot", args->eta_rotation, "stage 1 stops when every change <= this")
+      ->capture_default_str();
+  sub->add_option("--eta-pose", args->eta_pose, "stage 2 stops when every change <= this")
+      ->capture_default_str();
+  sub->add_option("--gamma", args->gamma, "over-relaxation of the two stages, in (0, 2)")
+      ->capture_default_str();
+  sub->add_option("--order", args->order, "gs (Gauss-Seidel) or jacobi")
+      ->check(CLI::IsMember({"gs", "jacobi"}))
+      ->capture_default_str();
+  sub->add_option("--max-iter", args->max_iterations, "maximum sweeps per stage")
+      ->capture_default_str();
+  sub->add_flag("--no-flagged", args->no_flagged, "without flagged initialisation");
+  sub->add_flag("--weighted", args->weighted,
+                "weight the two stages by the information matrices (the reference: unit)");
+  sub->add_flag("--refine", args->refine,
+                "after the two stages, distributed Gauss-Newton on the SE(3) cost");
+  sub->add_option("--refine-solver", args->refine_solver,
+                  "linear steps by cg (conjugate gradients preconditioned by the sweeps) or "
+                  "sweeps (plain block Gauss-Seidel / Jacobi)")
+      ->check(CLI::IsMember({"cg", "sweeps"}))
+      ->capture_default_str();
+  sub->add_option("--refine-max-iter", args->refine_max_iterations,
+                  "maximum Gauss-Newton steps")
+      ->capture_default_str();
+  sub->add_option("--refine-tol", args->refine_tolerance,
+                  "stop when a step lowers the cost by at most this fraction")
+      ->capture_default_str();
+  sub->add_option("--refine-max-sweeps", args->refine_max_sweeps,
+                  "maximum sweeps per Gauss-Newton step")
+      ->capture_default_str();
+  sub->add_option("--refine-linear-tol", args->refine_linear_tolerance,
+                  "linear-step tolerance (cg: relative residual, default 1e-2; sweeps: change "
+                  "relative to the increment, default 1e-3)");
+  sub->add_option("--refine-gamma", args->refine_gamma,
+                  "over-relaxation of the refinement sweeps, in (0, 2)")
+      ->capture_default_str();
+  sub->add_flag("--objects", args->objects,
+                "upper-case Symbol keys are objects of robots 0-25 (not poses of robots 26-51)");
+  sub->add_flag("--drop-indefinite-coupling", args->drop_indefinite_coupling,
+                "read information matrices that only their rotation-translation coupling makes "
+                "indefinite (cubicle.g2o) without that coupling; the count is reported");
+  sub->add_flag("--json", args->json, "print one JSON object as the last line (no progress)");
+  return [args] { return RunDgsCommand(*args); };
+}
+
+}  // namespace moslam::cli

@@ -1,0 +1,264 @@
+// Robots as separate processes over Cyclone DDS on loopback (the real `moslam` binary; each test
+// its own DDS domain, 50..59): the team's result equals the in-process driver's; a robot killed
+// (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies for good
+// is noticed through liveliness and the others finish.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "moslam/distributed/dgs_driver.h"
+#include "moslam/io/g2o.h"
+#include "moslam/transport/dds_transport.h"
+#include "moslam/transport/dgs_node.h"
+#include "moslam/transport/robot_data.h"
+
+namespace moslam {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+std::string BlocksWorld(int robots) {
+  return std::string(MOSLAM_DATASETS_DIR) +
+         "/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/"
+         "blocks_world/" +
+         std::to_string(robots) + "robots";
+}
+
+fs::path FreshDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("moslam_team_test_" + name + "_" +
+                                                    std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// A child process running the moslam binary; its stdout comes through a pipe, its stderr goes
+// to a file.
+class Child {
+ public:
+  Child(const std::vector<std::string>& args, const std::string& cyclone_uri,
+        const fs::path& stderr_file) {
+    int fds[2];
+    if (::pipe(fds) != 0) throw std::runtime_error("pipe");
+    pid_ = ::fork();
+    if (pid_ < 0) throw std::runtime_error("fork");
+    if (pid_ == 0) {
+      ::dup2(fds[1], 1);
+      ::close(fds[0]);
+      ::close(fds[1]);
+      const int err = ::open(stderr_file.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      if (err >= 0) ::dup2(err, 2);
+      ::setenv("CYCLONEDDS_URI", cyclone_uri.c_str(), 1);
+      std::vector<char*> argv;
+      std::string binary = MOSLAM_BINARY;
+      argv.push_back(binary.data());
+      std::vector<std::string> copy = args;
+      for (std::string& s : copy) argv.push_back(s.data());
+      argv.push_back(nullptr);
+      ::execv(MOSLAM_BINARY, argv.data());
+      ::_exit(127);
+    }
+    ::close(fds[1]);
+    fd_ = fds[0];
+  }
+  ~Child() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      int status;
+      ::waitpid(pid_, &status, 0);
+    }
+    if (fd_ >= 0) ::close(fd_);
+  }
+
+  // Reads output until a line satisfies `pred` (true), end of output or the deadline (false).
+  bool waitForLine(const std::function<bool(const std::string&)>& pred, Clock::time_point deadline) {
+    while (true) {
+      const auto nl = buffer_.find('\n');
+      if (nl != std::string::npos) {
+        const std::string line = buffer_.substr(0, nl);
+        buffer_.erase(0, nl + 1);
+        output_ += line + "\n";
+        if (pred(line)) return true;
+        continue;
+      }
+      if (!readSome(deadline)) return false;
+    }
+  }
+
+  // Waits for the process to end (output closed), at most until the deadline (then kills it).
+  // Returns the exit code, 128 + signal, or -1 on timeout.
+  int wait(Clock::time_point deadline) {
+    while (readSome(deadline)) {
+    }
+    output_ += buffer_;
+    buffer_.clear();
+    int status = 0;
+    if (!eof_) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, &status, 0);
+      pid_ = -1;
+      return -1;
+    }
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+
+  void kill9() { ::kill(pid_, SIGKILL); }
+  const std::string& output() const { return output_; }
+
+ private:
+  // False at end of output or at the deadline.
+  bool readSome(Clock::time_point deadline) {
+    if (eof_) return false;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    if (left.count() <= 0) return false;
+    pollfd p{fd_, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) return false;
+    std::array<char, 4096> buf;
+    const ssize_t n = ::read(fd_, buf.data(), buf.size());
+    if (n <= 0) {
+      eof_ = true;
+      return false;
+    }
+    buffer_.append(buf.data(), static_cast<std::size_t>(n));
+    return true;
+  }
+
+  pid_t pid_ = -1;
+  int fd_ = -1;
+  bool eof_ = false;
+  std::string buffer_, output_;
+};
+
+std::vector<std::string> RobotArgs(int robot, const std::string& data, int domain,
+                                   const fs::path& out) {
+  return {"robot", "--robot", std::to_string(robot), "--data", data, "--domain",
+          std::to_string(domain), "--out", out.string(), "--progress", "--json",
+          "--join-timeout", "30", "--stall-timeout", "60"};
+}
+
+nlohmann::json LastJson(const std::string& output) {
+  std::istringstream in(output);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line[0] == '{') last = line;
+  }
+  return last.empty() ? nlohmann::json() : nlohmann::json::parse(last);
+}
+
+double MaxDifference(const Values& a, const Values& b) {
+  double worst = 0.0;
+  for (const auto& [k, x] : a) {
+    const auto it = b.find(k);
+    if (it == b.end()) return std::numeric_limits<double>::infinity();
+    worst = std::max(worst, (x.translation() - it->second.translation()).norm());
+    worst = std::max(worst, (x.rotation().matrix() - it->second.rotation().matrix()).norm());
+  }
+  return worst;
+}
+
+TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
+  const fs::path out = FreshDir("loopback");
+  const fs::path log = out / "team.log";
+  Child team({"team", "--data", BlocksWorld(4), "--robots", "4", "--domain", "50", "--out",
+              out.string(), "--timeout", "120", "--json"},
+             "", log);
+  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
+  const nlohmann::json j = LastJson(team.output());
+  ASSERT_TRUE(j.is_object()) << team.output();
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  EXPECT_NEAR(j["cost"].get<double>(), j["cost_in_process"].get<double>(), 1e-9);
+  EXPECT_EQ(j["rotation_rounds"], j["in_process_rotation_iterations"]);
+  EXPECT_EQ(j["pose_rounds"], j["in_process_pose_iterations"]);
+  // The same DGS messages cross the wire as in the in-process driver.
+  EXPECT_EQ(j["estimate_messages"], j["in_process_messages"]);
+  EXPECT_EQ(j["estimate_binary_bytes"], j["in_process_bytes"]);
+  for (const auto& r : j["per_robot"]) {
+    EXPECT_EQ(r["rejected_samples"].get<int>(), 0) << r.dump();
+    EXPECT_EQ(r["team"].size(), 4u);
+  }
+  fs::remove_all(out);
+}
+
+TEST(Team, ARobotKilledMidRunAndRestartedLosesNothing) {
+  const int domain = 51, n = 4, victim = 2;
+  const std::string data = BlocksWorld(n);
+  const std::string uri = LoopbackConfigXml(domain, n);
+  const fs::path out = FreshDir("restart");
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  std::vector<std::unique_ptr<Child>> robots;
+  for (int r = 0; r < n; ++r) {
+    robots.push_back(std::make_unique<Child>(
+        RobotArgs(r, data, domain, out / std::to_string(r)), uri, out / ("stderr" + std::to_string(r))));
+  }
+  // Kill the victim in the middle of the pose stage, then restart it with the same --out.
+  ASSERT_TRUE(robots[victim]->waitForLine(
+      [](const std::string& l) { return l.rfind("progress: pose 20 ", 0) == 0; }, deadline))
+      << robots[victim]->output();
+  robots[victim]->kill9();
+  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
+  robots[victim] = std::make_unique<Child>(RobotArgs(victim, data, domain, out / std::to_string(victim)),
+                                           uri, out / ("stderr" + std::to_string(victim)));
+  Values merged;
+  for (int r = 0; r < n; ++r) {
+    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
+    const nlohmann::json j = LastJson(robots[r]->output());
+    ASSERT_TRUE(j.is_object());
+    EXPECT_TRUE(j["left"].empty()) << j.dump();
+    if (r == victim) {
+      EXPECT_EQ(j["incarnation"].get<int>(), 1);
+      EXPECT_GE(j["replayed_rounds"].get<int>(), 20);
+    }
+    const Dataset result = ReadRobotG2o((out / std::to_string(r) / "result.g2o").string());
+    merged.insert(result.initial.begin(), result.initial.end());
+  }
+  const Dataset full = ReadG2oFolder(data);
+  const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(DgsNodeOptions{}));
+  EXPECT_EQ(merged.size(), reference.values.size());
+  EXPECT_LE(MaxDifference(merged, reference.values), 1e-9);
+  fs::remove_all(out);
+}
+
+TEST(Team, ARobotThatDiesForGoodIsNoticedAndTheOthersFinish) {
+  const int domain = 52, n = 4, victim = 3;
+  const std::string data = BlocksWorld(n);
+  const std::string uri = LoopbackConfigXml(domain, n);
+  const fs::path out = FreshDir("leave");
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  std::vector<std::unique_ptr<Child>> robots;
+  for (int r = 0; r < n; ++r) {
+    std::vector<std::string> args = RobotArgs(r, data, domain, out / std::to_string(r));
+    args.insert(args.end(), {"--leave-timeout", "1"});
+    robots.push_back(std::make_unique<Child>(args, uri, out / ("stderr" + std::to_string(r))));
+  }
+  ASSERT_TRUE(robots[victim]->waitForLine(
+      [](const std::string& l) { return l.rfind("progress: pose 5 ", 0) == 0; }, deadline));
+  robots[victim]->kill9();
+  for (int r = 0; r < n; ++r) {
+    if (r == victim) continue;
+    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
+    const nlohmann::json j = LastJson(robots[r]->output());
+    ASSERT_TRUE(j.is_object());
+    EXPECT_EQ(j["left"], nlohmann::json::array({victim})) << j.dump();
+    EXPECT_TRUE(fs::exists(out / std::to_string(r) / "result.g2o"));
+  }
+  fs::remove_all(out);
+}
+
+}  // namespace
+}  // namespace moslam

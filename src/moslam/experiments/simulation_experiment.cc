@@ -1,0 +1,499 @@
+#include "moslam/experiments/simulation_experiment.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <utility>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/dgs_driver.h"
+#include "moslam/metrics/metrics.h"
+#include "moslam/sim/sensing.h"
+#include "moslam/sim/world.h"
+#include "moslam/slam/multi_robot.h"
+#include "moslam/slam/rendezvous.h"
+#include "moslam/solver/initialization.h"
+#include "moslam/solver/optimizer.h"
+
+namespace moslam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double SecondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Every field of RunMetrics, for the mean and the JSON.
+const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
+  static const std::vector<std::pair<const char*, double RunMetrics::*>> fields = {
+      {"poses", &RunMetrics::poses},
+      {"landmarks", &RunMetrics::landmarks},
+      {"shared_objects", &RunMetrics::shared_objects},
+      {"rendezvous", &RunMetrics::rendezvous},
+      {"iterations_eta1", &RunMetrics::iterations_eta1},
+      {"cost_eta1", &RunMetrics::cost_eta1},
+      {"iterations_eta2", &RunMetrics::iterations_eta2},
+      {"cost_eta2", &RunMetrics::cost_eta2},
+      {"dgs_bytes_eta1", &RunMetrics::dgs_bytes_eta1},
+      {"dgs_bytes_eta2", &RunMetrics::dgs_bytes_eta2},
+      {"gn_cost", &RunMetrics::gn_cost},
+      {"gn_iterations", &RunMetrics::gn_iterations},
+      {"refined_cost", &RunMetrics::refined_cost},
+      {"refine_iterations", &RunMetrics::refine_iterations},
+      {"refine_bytes", &RunMetrics::refine_bytes},
+      {"ate_star_poses", &RunMetrics::ate_star_poses},
+      {"ate_star_landmarks", &RunMetrics::ate_star_landmarks},
+      {"are_star_poses", &RunMetrics::are_star_poses},
+      {"are_star_landmarks", &RunMetrics::are_star_landmarks},
+      {"gn_ate_poses", &RunMetrics::gn_ate_poses},
+      {"gn_ate_landmarks", &RunMetrics::gn_ate_landmarks},
+      {"gn_are_poses", &RunMetrics::gn_are_poses},
+      {"gn_are_landmarks", &RunMetrics::gn_are_landmarks},
+      {"dgs_ate_poses", &RunMetrics::dgs_ate_poses},
+      {"dgs_ate_landmarks", &RunMetrics::dgs_ate_landmarks},
+      {"dgs_are_poses", &RunMetrics::dgs_are_poses},
+      {"dgs_are_landmarks", &RunMetrics::dgs_are_landmarks},
+      {"intra_precision", &RunMetrics::intra_precision},
+      {"intra_recall", &RunMetrics::intra_recall},
+      {"inter_precision", &RunMetrics::inter_precision},
+      {"inter_recall", &RunMetrics::inter_recall},
+      {"rendezvous_bytes", &RunMetrics::rendezvous_bytes},
+      {"memory_pcd", &RunMetrics::memory_pcd},
+      {"memory_obj_formula", &RunMetrics::memory_obj_formula},
+      {"memory_obj_measured", &RunMetrics::memory_obj_measured},
+      {"comm_pcd", &RunMetrics::comm_pcd},
+      {"comm_obj_formula", &RunMetrics::comm_obj_formula},
+      {"comm_obj_measured", &RunMetrics::comm_obj_measured},
+      {"comm_dgs_per_robot", &RunMetrics::comm_dgs_per_robot},
+      {"seconds_slam", &RunMetrics::seconds_slam},
+      {"seconds_gn", &RunMetrics::seconds_gn},
+      {"seconds_dgs_eta1", &RunMetrics::seconds_dgs_eta1},
+      {"seconds_refine", &RunMetrics::seconds_refine},
+      {"seconds", &RunMetrics::seconds},
+  };
+  return fields;
+}
+
+// The joint graph with every factor's information replaced by `information`.
+PoseGraph WithInformation(const PoseGraph& graph, const Matrix6& information) {
+  PoseGraph out;
+  for (const auto& f : graph.factors()) {
+    out.add(RelativePoseFactor(f.a(), f.b(), f.measured(), information));
+  }
+  for (const auto& p : graph.priors()) out.add(p);
+  return out;
+}
+
+struct DgsRun {
+  Values values;
+  double iterations = 0, bytes = 0, seconds = 0;
+  double refined_cost = kNaN, refine_iterations = kNaN, refine_bytes = kNaN, refine_seconds = kNaN;
+};
+
+DgsRun RunDgsStages(const PoseGraph& graph, const Values& initial, double eta, bool refine) {
+  DgsOptions options;
+  options.eta_rotation = eta;
+  options.eta_pose = eta;
+  options.refine = refine;
+  const auto t0 = Clock::now();
+  DgsDriver driver(graph, initial, options);
+  const DgsStageReport rotation = driver.runRotationStage();
+  const DgsStageReport pose = driver.runPoseStage();
+  DgsRun run;
+  const DgsResult two_stage = driver.result();
+  run.values = two_stage.values;
+  run.iterations = rotation.iterations + pose.iterations;
+  run.bytes = static_cast<double>(two_stage.bytes);
+  run.seconds = SecondsSince(t0);
+  if (refine) {
+    const auto t1 = Clock::now();
+    const RefineReport report = driver.runRefineStage();
+    run.refined_cost = graph.cost(driver.result().values);
+    run.refine_iterations = report.iterations;
+    run.refine_bytes = static_cast<double>(report.bytes);
+    run.refine_seconds = SecondsSince(t1);
+  }
+  return run;
+}
+
+std::string Sci(double v) { return std::isfinite(v) ? fmt::format("{:.1e}", v) : "n/a"; }
+std::string Fix(double v, int digits = 1) {
+  return std::isfinite(v) ? fmt::format("{:.{}f}", v, digits) : "n/a";
+}
+std::string MB(double bytes) { return Sci(bytes / 1e6); }
+
+}  // namespace
+
+std::string ToString(InformationMode mode) {
+  return mode == InformationMode::kFixed ? "fixed" : "noise";
+}
+
+InformationMode InformationModeFromString(const std::string& text) {
+  if (text == "noise") return InformationMode::kNoise;
+  if (text == "fixed") return InformationMode::kFixed;
+  throw InvalidInputError("information mode must be 'noise' or 'fixed', got '" + text + "'");
+}
+
+TableKind TableKindFromString(const std::string& text) {
+  if (text == "accuracy") return TableKind::kAccuracy;
+  if (text == "association") return TableKind::kAssociation;
+  if (text == "memory") return TableKind::kMemory;
+  if (text == "scale") return TableKind::kScale;
+  throw InvalidInputError("table must be accuracy, association, memory or scale, got '" + text +
+                          "'");
+}
+
+void ExperimentConfig::validate() const {
+  if (scenario != "chairs25" && scenario != "house" && scenario != "generated") {
+    throw InvalidInputError("experiment: scenario must be chairs25, house or generated, got '" +
+                            scenario + "'");
+  }
+  if (robots < 1) {
+    throw InvalidInputError("experiment: robots must be at least 1, got " +
+                            std::to_string(robots));
+  }
+  if (runs < 1) {
+    throw InvalidInputError("experiment: runs must be at least 1, got " + std::to_string(runs));
+  }
+  if (!(sigma_rotation_deg >= 0.0) || !std::isfinite(sigma_rotation_deg)) {
+    throw InvalidInputError("experiment: sigma_rotation_deg must be finite and >= 0");
+  }
+  if (!(sigma_translation >= 0.0) || !std::isfinite(sigma_translation)) {
+    throw InvalidInputError("experiment: sigma_translation must be finite and >= 0");
+  }
+  if (poses_per_robot < 2) {
+    throw InvalidInputError("experiment: poses_per_robot must be at least 2, got " +
+                            std::to_string(poses_per_robot));
+  }
+  const PointCloudModel& p = point_cloud;
+  for (double v : {p.points_per_frame, p.bytes_per_point, p.points_per_object,
+                   p.bytes_per_object}) {
+    if (!(v > 0.0) || !std::isfinite(v)) {
+      throw InvalidInputError("experiment: point-cloud model values must be positive");
+    }
+  }
+}
+
+RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimates* estimates) {
+  config.validate();
+  const auto t0 = Clock::now();
+  const unsigned seed = config.seed + static_cast<unsigned>(run);
+  const World world = MakeScenarioWorld(config.scenario, seed, config.robots);
+
+  SimulationConfig sim;
+  sim.trajectory.num_robots = config.robots;
+  sim.trajectory.poses_per_robot = config.poses_per_robot;
+  sim.trajectory.seed = seed;
+  sim.sensing.seed = seed;
+  for (NoiseModel* n : {&sim.sensing.odometry, &sim.sensing.objects}) {
+    n->sigma_rotation_deg = config.sigma_rotation_deg;
+    n->sigma_translation = config.sigma_translation;
+  }
+  const SimulationData data = Simulate(world, sim);
+
+  const MultiRobotSlamConfig slam_config = MultiRobotSlamConfigForNoise(sim.sensing);
+  const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, slam_config);
+  JointProblem joint =
+      AssembleJointProblem(slam.robots, slam.shared, slam_config.rendezvous.lambda());
+  if (!joint.unanchored_robots.empty()) {
+    throw UnderdeterminedError(fmt::format(
+        "experiment {} with {} robots, seed {}: robot {} never linked to robot 0 through "
+        "rendezvous (try another seed or more poses per robot)",
+        config.scenario, config.robots, seed, joint.unanchored_robots.front()));
+  }
+  if (config.information == InformationMode::kFixed) {
+    NoiseModel paper;  // 5 deg, 0.2 m
+    joint.graph = WithInformation(joint.graph, paper.information(sim.sensing.information_sigma_floor));
+  }
+  RunMetrics m;
+  m.seconds_slam = slam.seconds;
+  m.poses = joint.num_poses;
+  m.landmarks = joint.num_landmarks;
+  m.shared_objects = joint.num_object_object;
+  m.rendezvous = static_cast<double>(slam.rendezvous.size());
+  m.intra_precision = slam.intra.precision();
+  m.intra_recall = slam.intra.recall();
+  m.inter_precision = slam.inter.precision();
+  m.inter_recall = slam.inter.recall();
+  m.rendezvous_bytes = static_cast<double>(slam.bytes);
+
+  // Centralized.
+  const auto t_gn = Clock::now();
+  const OptimizerResult gn = Optimize(joint.graph, ChordalInitialization(joint.graph));
+  m.seconds_gn = SecondsSince(t_gn);
+  m.gn_cost = gn.final_cost;
+  m.gn_iterations = gn.iterations;
+
+  // Distributed.
+  const DgsRun eta1 = RunDgsStages(joint.graph, joint.initial, 1e-1, config.refine);
+  const DgsRun eta2 = RunDgsStages(joint.graph, joint.initial, 1e-2, false);
+  m.iterations_eta1 = eta1.iterations;
+  m.cost_eta1 = joint.graph.cost(eta1.values);
+  m.dgs_bytes_eta1 = eta1.bytes;
+  m.seconds_dgs_eta1 = eta1.seconds;
+  m.iterations_eta2 = eta2.iterations;
+  m.cost_eta2 = joint.graph.cost(eta2.values);
+  m.dgs_bytes_eta2 = eta2.bytes;
+  m.refined_cost = eta1.refined_cost;
+  m.refine_iterations = eta1.refine_iterations;
+  m.refine_bytes = eta1.refine_bytes;
+  m.seconds_refine = eta1.refine_seconds;
+
+  const TrajectoryErrors star = CompareEstimates(eta1.values, gn.values);
+  m.ate_star_poses = star.poses.ate;
+  m.ate_star_landmarks = star.objects.ate;
+  m.are_star_poses = star.poses.are_deg;
+  m.are_star_landmarks = star.objects.are_deg;
+
+  const Values truth = JointGroundTruth(data, slam.robots);
+  const GroundTruthErrors gn_gt = CompareToGroundTruth(gn.values, truth);
+  const GroundTruthErrors dgs_gt = CompareToGroundTruth(eta1.values, truth);
+  m.gn_ate_poses = gn_gt.aligned.poses.ate;
+  m.gn_ate_landmarks = gn_gt.aligned.objects.ate;
+  m.gn_are_poses = gn_gt.aligned.poses.are_deg;
+  m.gn_are_landmarks = gn_gt.aligned.objects.are_deg;
+  m.dgs_ate_poses = dgs_gt.aligned.poses.ate;
+  m.dgs_ate_landmarks = dgs_gt.aligned.objects.ate;
+  m.dgs_are_poses = dgs_gt.aligned.poses.are_deg;
+  m.dgs_are_landmarks = dgs_gt.aligned.objects.are_deg;
+
+  // Table 3, per robot.
+  const PointCloudModel& pc = config.point_cloud;
+  const double kc = pc.points_per_frame * pc.bytes_per_point;
+  std::vector<double> sent(static_cast<std::size_t>(config.robots), 0.0);
+  std::vector<double> meetings(static_cast<std::size_t>(config.robots), 0.0);
+  for (const RendezvousRecord& r : slam.rendezvous) {
+    sent[static_cast<std::size_t>(r.event.alpha)] += static_cast<double>(r.bytes_alpha_to_beta);
+    sent[static_cast<std::size_t>(r.event.beta)] += static_cast<double>(r.bytes_beta_to_alpha);
+    meetings[static_cast<std::size_t>(r.event.alpha)] += 1.0;
+    meetings[static_cast<std::size_t>(r.event.beta)] += 1.0;
+  }
+  const double n = config.robots;
+  for (std::size_t r = 0; r < slam.robots.size(); ++r) {
+    const ObjectSlam& robot = slam.robots[r];
+    const double objects = static_cast<double>(robot.landmarks().size());
+    m.memory_pcd += robot.numPoses() * kc / n;
+    m.memory_obj_formula += objects * pc.points_per_object * pc.bytes_per_point / n;
+    m.memory_obj_measured +=
+        static_cast<double>(EncodeObjectMap(MakeObjectMapMessage(robot)).size()) / n;
+    m.comm_pcd += meetings[r] * kc / n;
+    m.comm_obj_formula += objects * pc.bytes_per_object / n;
+    m.comm_obj_measured += sent[r] / n;
+  }
+  m.comm_dgs_per_robot = m.dgs_bytes_eta1 / n;
+  m.seconds = SecondsSince(t0);
+
+  if (estimates != nullptr) {
+    estimates->ground_truth = truth;
+    estimates->centralized = gn.values;
+    estimates->dgs = eta1.values;
+    estimates->robots = config.robots;
+  }
+  return m;
+}
+
+RunMetrics MeanOf(const std::vector<RunMetrics>& runs) {
+  RunMetrics mean;
+  if (runs.empty()) return mean;
+  for (const auto& [name, field] : Fields()) {
+    double sum = 0.0;
+    for (const RunMetrics& r : runs) sum += r.*field;
+    mean.*field = sum / static_cast<double>(runs.size());
+  }
+  return mean;
+}
+
+ExperimentResult RunExperiment(const ExperimentConfig& config, RunEstimates* first_estimates) {
+  config.validate();
+  ExperimentResult result;
+  result.config = config;
+  for (int i = 0; i < config.runs; ++i) {
+    result.runs.push_back(RunSimulationOnce(config, i, i == 0 ? first_estimates : nullptr));
+  }
+  result.mean = MeanOf(result.runs);
+  return result;
+}
+
+std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, TableKind kind) {
+  std::string out;
+  auto row = [&out](const std::vector<std::string>& cells) {
+    out += "|";
+    for (const auto& c : cells) out += " " + c + " |";
+    out += "\n";
+  };
+  auto rule = [&out](std::size_t columns) {
+    out += "|";
+    for (std::size_t i = 0; i < columns; ++i) out += "---|";
+    out += "\n";
+  };
+  std::vector<std::string> head = {"Scenario", "Robots", "σR (deg)", "σt (m)"};
+  std::vector<std::string> extra;
+  switch (kind) {
+    case TableKind::kAccuracy:
+      extra = {"#Iter η=1e-1", "Cost η=1e-1", "#Iter η=1e-2", "Cost η=1e-2", "GN cost",
+               "Refined cost", "ATE* poses (m)", "ATE* lmks (m)", "ARE* poses (deg)",
+               "ARE* lmks (deg)"};
+      break;
+    case TableKind::kAssociation:
+      extra = {"Intra precision", "Intra recall", "Rendezvous precision", "Rendezvous recall",
+               "Shared objects", "GT ATE poses GN/DGS (m)", "GT ATE lmks GN/DGS (m)",
+               "GT ARE poses GN/DGS (deg)", "GT ARE lmks GN/DGS (deg)"};
+      break;
+    case TableKind::kMemory:
+      extra = {"Frames", "Objects", "Rendezvous", "Memory PCD (MB)", "Memory Obj (MB)",
+               "Memory Obj measured (MB)", "Comm. PCD (MB)", "Comm. Obj (MB)",
+               "Comm. Obj measured (MB)", "DGS traffic (MB)"};
+      break;
+    case TableKind::kScale:
+      extra = {"Poses", "Landmarks", "#Iter η=1e-1", "#Iter η=1e-2", "Cost η=1e-1 / GN",
+               "Cost η=1e-2 / GN", "Refined / GN", "Rendezvous bytes", "DGS bytes η=1e-1",
+               "Refine bytes", "Time SLAM / GN / DGS / refine (s)", "Time total (s)"};
+      break;
+  }
+  head.insert(head.end(), extra.begin(), extra.end());
+  row(head);
+  rule(head.size());
+  for (const ExperimentResult& r : results) {
+    const RunMetrics& m = r.mean;
+    const ExperimentConfig& c = r.config;
+    std::vector<std::string> cells = {c.scenario, std::to_string(c.robots),
+                                      Fix(c.sigma_rotation_deg, 0), Fix(c.sigma_translation, 2)};
+    const double robots = c.robots;
+    switch (kind) {
+      case TableKind::kAccuracy:
+        extra = {Fix(m.iterations_eta1), Fix(m.cost_eta1), Fix(m.iterations_eta2),
+                 Fix(m.cost_eta2), Fix(m.gn_cost), Fix(m.refined_cost), Sci(m.ate_star_poses),
+                 Sci(m.ate_star_landmarks), Sci(m.are_star_poses), Sci(m.are_star_landmarks)};
+        break;
+      case TableKind::kAssociation:
+        extra = {Fix(m.intra_precision, 3), Fix(m.intra_recall, 3), Fix(m.inter_precision, 3),
+                 Fix(m.inter_recall, 3), Fix(m.shared_objects),
+                 Sci(m.gn_ate_poses) + " / " + Sci(m.dgs_ate_poses),
+                 Sci(m.gn_ate_landmarks) + " / " + Sci(m.dgs_ate_landmarks),
+                 Sci(m.gn_are_poses) + " / " + Sci(m.dgs_are_poses),
+                 Sci(m.gn_are_landmarks) + " / " + Sci(m.dgs_are_landmarks)};
+        break;
+      case TableKind::kMemory:
+        extra = {Fix(m.poses / robots), Fix(m.landmarks / robots),
+                 Fix(2.0 * m.rendezvous / robots), MB(m.memory_pcd), MB(m.memory_obj_formula),
+                 MB(m.memory_obj_measured), MB(m.comm_pcd), MB(m.comm_obj_formula),
+                 MB(m.comm_obj_measured), MB(m.comm_dgs_per_robot)};
+        break;
+      case TableKind::kScale:
+        extra = {Fix(m.poses, 0), Fix(m.landmarks, 0), Fix(m.iterations_eta1),
+                 Fix(m.iterations_eta2), Fix(m.cost_eta1 / m.gn_cost, 4),
+                 Fix(m.cost_eta2 / m.gn_cost, 4), Fix(m.refined_cost / m.gn_cost, 6),
+                 Sci(m.rendezvous_bytes), Sci(m.dgs_bytes_eta1), Sci(m.refine_bytes),
+                 fmt::format("{} / {} / {} / {}", Fix(m.seconds_slam, 2), Fix(m.seconds_gn, 2),
+                             Fix(m.seconds_dgs_eta1, 2), Fix(m.seconds_refine, 2)),
+                 Fix(m.seconds, 2)};
+        break;
+    }
+    cells.insert(cells.end(), extra.begin(), extra.end());
+    row(cells);
+  }
+  return out;
+}
+
+std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
+  auto metrics = [](const RunMetrics& m) {
+    nlohmann::json j = nlohmann::json::object();
+    for (const auto& [name, field] : Fields()) {
+      const double v = m.*field;
+      j[name] = std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+    }
+    return j;
+  };
+  nlohmann::json rows = nlohmann::json::array();
+  for (const ExperimentResult& r : results) {
+    const ExperimentConfig& c = r.config;
+    nlohmann::json config = {{"scenario", c.scenario},
+                             {"robots", c.robots},
+                             {"runs", c.runs},
+                             {"seed", c.seed},
+                             {"sigma_rotation_deg", c.sigma_rotation_deg},
+                             {"sigma_translation", c.sigma_translation},
+                             {"information", ToString(c.information)},
+                             {"poses_per_robot", c.poses_per_robot},
+                             {"refine", c.refine},
+                             {"points_per_frame", c.point_cloud.points_per_frame},
+                             {"bytes_per_point", c.point_cloud.bytes_per_point},
+                             {"points_per_object", c.point_cloud.points_per_object},
+                             {"bytes_per_object", c.point_cloud.bytes_per_object}};
+    nlohmann::json runs = nlohmann::json::array();
+    for (const RunMetrics& m : r.runs) runs.push_back(metrics(m));
+    rows.push_back({{"config", config}, {"mean", metrics(r.mean)}, {"runs", runs}});
+  }
+  return nlohmann::json{{"rows", rows}}.dump();
+}
+
+std::string PlotSvg(const RunEstimates& e, const std::string& title) {
+  double min_x = std::numeric_limits<double>::infinity(), min_y = min_x;
+  double max_x = -min_x, max_y = -min_x;
+  for (const Values* v : {&e.centralized, &e.dgs}) {
+    for (const auto& [key, pose] : *v) {
+      const Vector3 t = pose.translation();
+      min_x = std::min(min_x, t.x());
+      max_x = std::max(max_x, t.x());
+      min_y = std::min(min_y, t.y());
+      max_y = std::max(max_y, t.y());
+    }
+  }
+  if (!std::isfinite(min_x)) {
+    min_x = min_y = 0.0;
+    max_x = max_y = 1.0;
+  }
+  const double margin = 40.0, width = 800.0;
+  const double span = std::max({max_x - min_x, max_y - min_y, 1e-6});
+  const double scale = (width - 2 * margin) / span;
+  const double height = (max_y - min_y) * scale + 2 * margin + 30.0;
+  auto px = [&](const Vector3& t) {
+    return fmt::format("{:.2f},{:.2f}", margin + (t.x() - min_x) * scale,
+                       height - margin - (t.y() - min_y) * scale);
+  };
+  static const char* kColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
+                                   "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"};
+  std::string svg = fmt::format(
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" "
+      "width=\"{:.0f}\" height=\"{:.0f}\" viewBox=\"0 0 {:.0f} {:.0f}\">\n"
+      "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+      "<text x=\"{:.0f}\" y=\"20\" font-family=\"sans-serif\" font-size=\"14\">{}</text>\n"
+      "<text x=\"{:.0f}\" y=\"36\" font-family=\"sans-serif\" font-size=\"11\">solid / filled: "
+      "centralized GN; dashed / open: DGS (eta 1e-1); one colour per robot; {:.1f} m across"
+      "</text>\n",
+      width, height, width, height, margin, title, margin, span);
+  for (int r = 0; r < e.robots; ++r) {
+    const char* colour = kColours[r % 10];
+    for (int pass = 0; pass < 2; ++pass) {
+      const Values& v = pass == 0 ? e.centralized : e.dgs;
+      std::string points;
+      for (const auto& [key, pose] : v) {
+        if (key.robot == r && key.isPose()) points += px(pose.translation()) + " ";
+      }
+      if (!points.empty()) points.pop_back();
+      svg += fmt::format(
+          "<polyline fill=\"none\" stroke=\"{}\" stroke-width=\"{}\"{} points=\"{}\"/>\n", colour,
+          pass == 0 ? "2" : "1.5", pass == 0 ? "" : " stroke-dasharray=\"6,4\" stroke-opacity=\"0.8\"",
+          points);
+      for (const auto& [key, pose] : v) {
+        if (key.robot != r || !key.isObject()) continue;
+        const std::string p = px(pose.translation());
+        const auto comma = p.find(',');
+        svg += fmt::format(
+            "<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"{}\" stroke-width=\"1.5\"/>\n",
+            p.substr(0, comma), p.substr(comma + 1), pass == 0 ? "3.5" : "6",
+            pass == 0 ? colour : "none", colour);
+      }
+    }
+  }
+  svg += "</svg>\n";
+  return svg;
+}
+
+}  // namespace moslam

@@ -1,0 +1,113 @@
+#include "moslam/experiments/simulation_experiment.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+
+ExperimentConfig Tiny() {
+  ExperimentConfig c;
+  c.scenario = "chairs25";
+  c.robots = 2;
+  c.runs = 1;
+  c.seed = 3;
+  c.poses_per_robot = 60;
+  return c;
+}
+
+TEST(SimulationExperiment, TinyRunIsFiniteAndDgsNoBetterThanGn) {
+  RunEstimates estimates;
+  const ExperimentResult r = RunExperiment(Tiny(), &estimates);
+  ASSERT_EQ(r.runs.size(), 1u);
+  const RunMetrics& m = r.runs[0];
+  for (double v : {m.cost_eta1, m.cost_eta2, m.gn_cost, m.refined_cost, m.ate_star_poses,
+                   m.ate_star_landmarks, m.are_star_poses, m.are_star_landmarks, m.gn_ate_poses,
+                   m.dgs_ate_poses, m.memory_obj_measured, m.comm_obj_measured}) {
+    EXPECT_TRUE(std::isfinite(v));
+  }
+  EXPECT_GE(m.cost_eta1, m.gn_cost * (1 - 1e-9));
+  EXPECT_GE(m.cost_eta2, m.gn_cost * (1 - 1e-9));
+  EXPECT_GE(m.refined_cost, m.gn_cost * (1 - 1e-9));
+  EXPECT_GT(m.iterations_eta1, 0.0);
+  EXPECT_GT(m.iterations_eta2, 0.0);
+  EXPECT_GT(m.rendezvous_bytes, 0.0);
+  EXPECT_GT(m.dgs_bytes_eta1, 0.0);
+  EXPECT_GT(m.dgs_bytes_eta2, 0.0);
+  EXPECT_GT(m.shared_objects, 0.0);
+  // The object map is orders of magnitude smaller than the point clouds (paper Table 3).
+  EXPECT_LT(m.memory_obj_measured * 100.0, m.memory_pcd);
+  EXPECT_EQ(estimates.robots, 2);
+  EXPECT_EQ(estimates.centralized.size(), estimates.dgs.size());
+  const std::string svg = PlotSvg(estimates, "tiny");
+  EXPECT_EQ(svg.rfind("<?xml", 0), 0u);
+  EXPECT_NE(svg.find("<polyline"), std::string::npos);
+  EXPECT_NE(svg.find("<circle"), std::string::npos);
+  EXPECT_NE(svg.find("</svg>"), std::string::npos);
+}
+
+TEST(SimulationExperiment, SameSeedSameNumbers) {
+  const RunMetrics a = RunSimulationOnce(Tiny(), 0);
+  const RunMetrics b = RunSimulationOnce(Tiny(), 0);
+  EXPECT_EQ(a.cost_eta1, b.cost_eta1);
+  EXPECT_EQ(a.cost_eta2, b.cost_eta2);
+  EXPECT_EQ(a.gn_cost, b.gn_cost);
+  EXPECT_EQ(a.refined_cost, b.refined_cost);
+  EXPECT_EQ(a.iterations_eta1, b.iterations_eta1);
+  EXPECT_EQ(a.ate_star_poses, b.ate_star_poses);
+  EXPECT_EQ(a.rendezvous_bytes, b.rendezvous_bytes);
+  EXPECT_EQ(a.dgs_bytes_eta1, b.dgs_bytes_eta1);
+  ExperimentConfig other = Tiny();
+  other.seed = 4;
+  EXPECT_NE(RunSimulationOnce(other, 0).gn_cost, a.gn_cost);
+}
+
+TEST(SimulationExperiment, TableFormattingAndJson) {
+  ExperimentResult r;
+  r.config = Tiny();
+  RunMetrics m;
+  m.iterations_eta1 = 5;
+  m.cost_eta1 = 166.64;
+  m.gn_cost = 160.9;
+  m.refined_cost = std::nan("");
+  m.ate_star_poses = 3.1e-3;
+  r.runs = {m, m};
+  r.mean = MeanOf(r.runs);
+  EXPECT_EQ(r.mean.cost_eta1, 166.64);
+  const std::string table = FormatMarkdownTable({r}, TableKind::kAccuracy);
+  EXPECT_NE(table.find("| chairs25 | 2 | 5 | 0.20 | 5.0 | 166.6 |"), std::string::npos) << table;
+  EXPECT_NE(table.find("| 160.9 | n/a | 3.1e-03 |"), std::string::npos) << table;
+  // Header, rule, one row.
+  int lines = 0;
+  for (char ch : table) lines += ch == '\n';
+  EXPECT_EQ(lines, 3);
+  for (TableKind k : {TableKind::kAssociation, TableKind::kMemory, TableKind::kScale}) {
+    EXPECT_NE(FormatMarkdownTable({r}, k).find("| chairs25 |"), std::string::npos);
+  }
+  const nlohmann::json j = nlohmann::json::parse(ResultsToJson({r}));
+  EXPECT_EQ(j["rows"].size(), 1u);
+  EXPECT_EQ(j["rows"][0]["config"]["robots"], 2);
+  EXPECT_DOUBLE_EQ(j["rows"][0]["mean"]["cost_eta1"].get<double>(), 166.64);
+  EXPECT_TRUE(j["rows"][0]["mean"]["refined_cost"].is_null());
+  EXPECT_EQ(j["rows"][0]["runs"].size(), 2u);
+}
+
+TEST(SimulationExperiment, RejectsBadConfig) {
+  ExperimentConfig c = Tiny();
+  c.scenario = "moon";
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = Tiny();
+  c.runs = 0;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  EXPECT_THROW(InformationModeFromString("unit"), InvalidInputError);
+  EXPECT_EQ(InformationModeFromString("fixed"), InformationMode::kFixed);
+  EXPECT_THROW(TableKindFromString("plots"), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam
