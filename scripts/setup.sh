@@ -10,7 +10,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libceres-dev            # independent cross-check in bench/ only
   clang libclang-rt-14-dev  # libFuzzer target for the g2o reader
-  python3-matplotlib      # plots in bench/ (README figures)
+  python3-matplotlib jq   # plots and tables of bench/ and scripts/ (README figures)
   cyclonedds-dev cyclonedds-tools libcycloneddsidl0  # robots as processes over DDS
   iproute2 iptables       # scripts/test-network.sh: namespaces, shaped links
 )

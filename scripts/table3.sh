@@ -7,40 +7,7 @@
 # MOSLAM (a built moslam binary: skips the build), RUNS (default 10), SEED (default 1). Extra arguments go to every `moslam simulate` call.
 set -euo pipefail
 
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-BUILD_DIR="${BUILD_DIR:-$ROOT/build-release}"
-RUNS="${RUNS:-10}"
-SEED="${SEED:-1}"
-if [[ -z "${MOSLAM:-}" ]]; then
-  if [[ ! -f "$BUILD_DIR/CMakeCache.txt" ]]; then
-    cmake_args=(-S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DMOSLAM_BUILD_BENCH=OFF)
-    command -v ninja >/dev/null && cmake_args+=(-G Ninja)
-    cmake "${cmake_args[@]}" >/dev/null
-  fi
-  cmake --build "$BUILD_DIR" --target moslam >/dev/null
-  MOSLAM="$BUILD_DIR/apps/moslam"
-fi
-mkdir -p "$ROOT/docs"
-
-# run NAME ARGS...: prints the Markdown of `moslam simulate ARGS --json`, keeps its JSON line.
-declare -a JSON_PARTS=()
-run() {
-  local name="$1"; shift
-  local out
-  out="$("$MOSLAM" simulate --runs "$RUNS" --seed "$SEED" "$@" --json)"
-  echo "### $name"
-  echo
-  echo "Command: \`moslam simulate --runs $RUNS --seed $SEED $*\`"
-  echo
-  echo "$out" | sed '$d'
-  echo
-  JSON_PARTS+=("$(echo "$out" | tail -n 1 | jq -c --arg name "$name" '{name: $name} + .')")
-}
-# finish FILE: writes the collected JSON objects as one array.
-finish() {
-  printf '%s\n' "${JSON_PARTS[@]}" | jq -s '.' > "$1"
-  echo "JSON: ${1#$ROOT/}"
-}
+source "$(dirname "${BASH_SOURCE[0]}")/lib/simulate-table.sh"
 
 
 for scenario in chairs25 house; do
