@@ -5,9 +5,22 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 
+#include "moslam/io/g2o.h"
+
 namespace moslam::cli {
 
 using Runner = std::function<int()>;
+
+// The g2o reading flags of every subcommand that reads g2o input: --objects and
+// --drop-indefinite-coupling, written into `options` (which must outlive the parse).
+inline void AddG2oReadFlags(CLI::App* sub, G2oReadOptions* options) {
+  sub->add_flag_callback(
+      "--objects", [options] { options->scheme = KeyScheme::kWithObjects; },
+      "upper-case Symbol keys are objects of robots 0-25 (not poses of robots 26-51)");
+  sub->add_flag("--drop-indefinite-coupling", options->drop_indefinite_coupling,
+                "read information matrices that only their rotation-translation coupling makes "
+                "indefinite (cubicle.g2o) without that coupling; the count is reported");
+}
 
 // `moslam solve <file.g2o | folder>`: centralized Gauss-Newton / LM.
 Runner RegisterSolve(CLI::App& app);

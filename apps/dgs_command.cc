@@ -39,8 +39,7 @@ struct DgsArgs {
   int refine_max_sweeps = 1000;
   double refine_linear_tolerance = -1.0;  // < 0: the solver's default
   double refine_gamma = 1.0;
-  bool objects = false;
-  bool drop_indefinite_coupling = false;
+  G2oReadOptions read;  // --objects, --drop-indefinite-coupling
   bool json = false;
 };
 
@@ -63,9 +62,7 @@ double StageSeconds(const DgsResult& r, DgsStage stage) {
 
 int RunDgsCommand(const DgsArgs& a) {
   const auto t_start = std::chrono::steady_clock::now();
-  G2oReadOptions read_options;
-  read_options.scheme = a.objects ? KeyScheme::kWithObjects : KeyScheme::kPosesOnly;
-  read_options.drop_indefinite_coupling = a.drop_indefinite_coupling;
+  const G2oReadOptions& read_options = a.read;
   const Dataset data = ReadG2o(a.input, read_options);
   PoseGraph graph = data.graph;
   Values initial = data.initial;
@@ -296,11 +293,7 @@ Runner RegisterDgs(CLI::App& app) {
   sub->add_option("--refine-gamma", args->refine_gamma,
                   "over-relaxation of the refinement sweeps, in (0, 2)")
       ->capture_default_str();
-  sub->add_flag("--objects", args->objects,
-                "upper-case Symbol keys are objects of robots 0-25 (not poses of robots 26-51)");
-  sub->add_flag("--drop-indefinite-coupling", args->drop_indefinite_coupling,
-                "read information matrices that only their rotation-translation coupling makes "
-                "indefinite (cubicle.g2o) without that coupling; the count is reported");
+  AddG2oReadFlags(sub, &args->read);
   sub->add_flag("--json", args->json, "print one JSON object as the last line (no progress)");
   return [args] { return RunDgsCommand(*args); };
 }

@@ -20,8 +20,7 @@ struct SolveArgs {
   std::string method = "lm";
   int max_iterations = 100;
   double relative_tolerance = 1e-10;
-  bool objects = false;
-  bool drop_indefinite_coupling = false;
+  G2oReadOptions read;  // --objects, --drop-indefinite-coupling
   std::string out;
   std::string tum_dir;
   bool json = false;
@@ -50,9 +49,7 @@ Values InitialEstimate(const Dataset& data, const std::string& how) {
 
 int RunSolve(const SolveArgs& a) {
   const auto t_start = std::chrono::steady_clock::now();
-  G2oReadOptions read_options;
-  read_options.scheme = a.objects ? KeyScheme::kWithObjects : KeyScheme::kPosesOnly;
-  read_options.drop_indefinite_coupling = a.drop_indefinite_coupling;
+  const G2oReadOptions& read_options = a.read;
   const Dataset data = ReadG2o(a.input, read_options);
   const double load_seconds = Since(t_start);
 
@@ -141,11 +138,7 @@ Runner RegisterSolve(CLI::App& app) {
   sub->add_option("--rel-tol", args->relative_tolerance, "stop when the cost drops by less than this fraction")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  sub->add_flag("--objects", args->objects,
-                "upper-case Symbol keys are objects of robots 0-25 (not poses of robots 26-51)");
-  sub->add_flag("--drop-indefinite-coupling", args->drop_indefinite_coupling,
-                "read information matrices that only their rotation-translation coupling makes "
-                "indefinite (cubicle.g2o) without that coupling; the count is reported");
+  AddG2oReadFlags(sub, &args->read);
   sub->add_option("--out", args->out, "write the estimate: a .g2o file, or a folder (ends with /)");
   sub->add_option("--tum", args->tum_dir, "write one TUM trajectory per robot into this folder");
   sub->add_flag("--json", args->json, "print one JSON object as the last line");
