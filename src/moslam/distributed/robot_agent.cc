@@ -174,24 +174,17 @@ RobotAgent::StageInbox& RobotAgent::inbox(DgsStage stage) {
 }
 
 void RobotAgent::startRotation() {
-  if (state_ != AgentState::kIdle) {
-    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
-                            ": startRotation() in state " + ToString(state_));
-  }
+  requireState(AgentState::kIdle, "startRotation()");
   x_.clear();
   for (const Key& k : unknowns_) x_.push_back(RowMajor(initial_.at(k).rotation().matrix()));
   state_ = AgentState::kRotation;
   prepareStage(DgsStage::kRotation);
   iteration_ = 0;
-  initialised_ = false;
-  last_change_ = std::numeric_limits<double>::infinity();
+  resetProgress();
 }
 
 void RobotAgent::startPose() {
-  if (state_ != AgentState::kRotation) {
-    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": startPose() in state " +
-                            ToString(state_));
-  }
+  requireState(AgentState::kRotation, "startPose()");
   relaxed_ = x_;
   R_hat_.clear();
   for (std::size_t i = 0; i < unknowns_.size(); ++i) {
@@ -209,15 +202,11 @@ void RobotAgent::startPose() {
   state_ = AgentState::kPose;
   prepareStage(DgsStage::kPose);
   iteration_ = 0;
-  initialised_ = false;
-  last_change_ = std::numeric_limits<double>::infinity();
+  resetProgress();
 }
 
 void RobotAgent::finish() {
-  if (state_ != AgentState::kPose) {
-    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": finish() in state " +
-                            ToString(state_));
-  }
+  requireState(AgentState::kPose, "finish()");
   state_ = AgentState::kDone;
 }
 
@@ -498,10 +487,19 @@ Values RobotAgent::estimate() const {
 }
 
 void RobotAgent::requireRefine(const char* what) const {
-  if (state_ != AgentState::kRefine) {
+  requireState(AgentState::kRefine, what, " (only during the refinement)");
+}
+
+void RobotAgent::requireState(AgentState expected, const char* what, const char* hint) const {
+  if (state_ != expected) {
     throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": " + what + " in state " +
-                            ToString(state_) + " (only during the refinement)");
+                            ToString(state_) + hint);
   }
+}
+
+void RobotAgent::resetProgress() {
+  initialised_ = false;
+  last_change_ = std::numeric_limits<double>::infinity();
 }
 
 void RobotAgent::startRefine() {
@@ -531,8 +529,7 @@ void RobotAgent::startRefine() {
   state_ = AgentState::kRefine;
   x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
   iteration_ = 0;
-  initialised_ = false;
-  last_change_ = std::numeric_limits<double>::infinity();
+  resetProgress();
 }
 
 const SE3* RobotAgent::knownPose(const Key& key) const {
@@ -612,8 +609,7 @@ void RobotAgent::beginStep(double lambda) {
   can_solve_ = true;
   x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
   inbox(DgsStage::kRefine).forget();  // the neighbours' increments of an earlier step
-  initialised_ = false;
-  last_change_ = std::numeric_limits<double>::infinity();
+  resetProgress();
 }
 
 Vector6 RobotAgent::ownIncrement(std::size_t i) const {
@@ -671,8 +667,7 @@ void RobotAgent::startPreconditioner() {
   }
   x_.assign(unknowns_.size(), Eigen::VectorXd::Zero(6));
   inbox(DgsStage::kRefine).forget();
-  initialised_ = false;
-  last_change_ = std::numeric_limits<double>::infinity();
+  resetProgress();
 }
 
 double RobotAgent::residualDot() const {

@@ -212,6 +212,10 @@ class RobotAgent {
   bool usable(const Separator& s, DgsStage stage) const;
   Eigen::MatrixXd neighbourValue(int slot, DgsStage stage) const;
   void requireRefine(const char* what) const;
+  // Throws InvalidInputError "<what> in state <state><hint>" unless the agent is in `expected`.
+  void requireState(AgentState expected, const char* what, const char* hint = "") const;
+  // Start of a stage or of a linear step: not yet solved, no change measured.
+  void resetProgress();
   // Which separators the current stage can use; false when some block is not anchored yet.
   bool solvable(DgsStage stage, std::vector<bool>& use) const;
   // Builds and factorizes the normal matrix (and G0_) unless cached for `use`.
