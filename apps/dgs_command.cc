@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "moslam/common/errors.h"
+#include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/messages.h"
 #include "moslam/distributed/partition.h"
@@ -27,6 +28,8 @@ struct DgsArgs {
   int robots = 0;  // 0: the robots the keys name
   double eta_rotation = 1e-2;
   double eta_pose = 1e-2;
+  std::string stopping = "change";
+  int stop_window = 10;
   double gamma = 1.0;
   std::string order = "gs";
   int max_iterations = 1000;
@@ -85,6 +88,8 @@ int RunDgsCommand(const DgsArgs& a) {
   DgsOptions options;
   options.eta_rotation = a.eta_rotation;
   options.eta_pose = a.eta_pose;
+  options.stopping = StageStoppingFromString(a.stopping);
+  options.error_bound_window = a.stop_window;
   options.gamma = a.gamma;
   options.order = a.order == "jacobi" ? SweepOrder::kJacobi : SweepOrder::kGaussSeidel;
   options.max_iterations = a.max_iterations;
@@ -146,6 +151,11 @@ int RunDgsCommand(const DgsArgs& a) {
   driver.runRotationStage();
   driver.runPoseStage();
   const Values two_stage = driver.result().values;
+  // The fixed point of the two stages, solved centrally: what DGS converges to (DGS.md).
+  TwoStageOptions two_stage_options;
+  two_stage_options.weight_by_information = a.weighted;
+  const Values central_two_stage = CentralizedTwoStage(graph, initial, two_stage_options).values;
+  const TrajectoryErrors to_fixed_point = CompareEstimates(two_stage, central_two_stage);
   const double two_stage_cost = graph.cost(two_stage);
   if (a.refine) driver.runRefineStage();
   const DgsResult r = driver.result();
@@ -192,6 +202,12 @@ int RunDgsCommand(const DgsArgs& a) {
         {"are_poses_deg", errors.poses.are_deg},
         {"two_stage_ate_poses", two_stage_errors.poses.ate},
         {"two_stage_are_poses_deg", two_stage_errors.poses.are_deg},
+        {"stopping", a.stopping},
+        {"final_error_bound_rotation", Number(r.rotation.final_error_bound)},
+        {"final_error_bound_pose", Number(r.pose.final_error_bound)},
+        {"centralized_two_stage_cost", graph.cost(central_two_stage)},
+        {"fixed_point_ate_poses", to_fixed_point.poses.ate},
+        {"fixed_point_are_poses_deg", to_fixed_point.poses.are_deg},
         {"messages", r.messages},
         {"bytes", r.bytes},
         {"messages_rotation", r.rotation.messages},
@@ -260,6 +276,17 @@ Runner RegisterDgs(CLI::App& app) {
   sub->add_option("--eta-rot", args->eta_rotation, "stage 1 stops when every change <= this")
       ->capture_default_str();
   sub->add_option("--eta-pose", args->eta_pose, "stage 2 stops when every change <= this")
+      ->capture_default_str();
+  sub->add_option("--stop", args->stopping,
+                  "what eta bounds: change (each robot's change per sweep, DGS.md) or "
+                  "error-bound (each robot's estimated distance to the fixed point, "
+                  "change * rho / (1 - rho))")
+      ->check(CLI::IsMember({"change", "error-bound"}))
+      ->capture_default_str();
+  sub->add_option("--stop-window", args->stop_window,
+                  "error-bound: rho is the largest ratio of successive changes over this many "
+                  "solves")
+      ->check(CLI::Range(1, 64))
       ->capture_default_str();
   sub->add_option("--gamma", args->gamma, "over-relaxation of the two stages, in (0, 2)")
       ->capture_default_str();

@@ -27,6 +27,10 @@ void DgsOptions::validate() const {
   if (!(gamma > 0.0 && gamma < 2.0)) {
     throw InvalidInputError("DGS options: gamma must be in (0, 2), got " + std::to_string(gamma));
   }
+  if (error_bound_window < 1 || error_bound_window > 64) {
+    throw InvalidInputError("DGS options: error_bound_window must be in [1, 64], got " +
+                            std::to_string(error_bound_window));
+  }
   if (max_iterations < 1) {
     throw InvalidInputError("DGS options: max_iterations must be at least 1, got " +
                             std::to_string(max_iterations));
@@ -304,20 +308,25 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     runSweeps(stage, stats, false);
     bool converged = true;
     int live_robots = 0;
+    double max_bound = 0.0;
     for (int r : order_) {
       if (!live(r)) continue;
       ++live_robots;
       const RobotAgent& a = *agents_.at(r);
-      const double change =
-          a.initialised() ? a.lastChange() : std::numeric_limits<double>::infinity();
+      constexpr double kInf = std::numeric_limits<double>::infinity();
+      const double change = a.initialised() ? a.lastChange() : kInf;
+      const double bound = a.initialised() ? a.errorBound(options_.error_bound_window) : kInf;
+      const double measure = options_.stopping == StageStopping::kChange ? change : bound;
       stats.max_change = std::max(stats.max_change, change);
-      converged = converged && a.initialised() && change <= eta;
+      max_bound = std::max(max_bound, bound);
+      converged = converged && a.initialised() && measure <= eta;
     }
     stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     record(stats);
     if (progress_.on_sweep) progress_.on_sweep(stats);
     report.iterations = it;
     report.final_change = stats.max_change;
+    report.final_error_bound = max_bound;
     if (converged && live_robots > 0) {
       report.status = StageStatus::kConverged;
       break;

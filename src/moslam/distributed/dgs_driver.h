@@ -11,7 +11,8 @@
 // each robot, in the robot order, solves once; Gauss-Seidel delivers its messages before the
 // next robot solves, Jacobi delivers all messages at the end of the sweep. The stage stops after
 // the first sweep in which every live robot has solved in the stage and changed by at most eta
-// (lastChange() <= eta), or after max_iterations sweeps. A robot that cannot solve yet (flagged
+// (lastChange() <= eta; with StageStopping::kErrorBound: errorBound() <= eta, dgs_types.h), or
+// after max_iterations sweeps. A robot that cannot solve yet (flagged
 // initialisation) sends nothing that sweep. The sweeps converge linearly, so the distance left to
 // the fixed point (the centralized two-stage estimate) is about eta * rho / (1 - rho) for a
 // per-sweep contraction rho; on blocks_world rho reaches 0.97 in stage 1 and 0.9996 in stage 2.
@@ -85,6 +86,10 @@ std::string ToString(RefineSolver solver);
 struct DgsOptions {
   double eta_rotation = 1e-2;  // stage 1 stops when every robot's change is <= this
   double eta_pose = 1e-2;      // stage 2 likewise
+  // What eta bounds (dgs_types.h): the change (DGS.md) or the estimated distance to the fixed
+  // point; the latter with ratios of changes over the last error_bound_window solves, in [1, 64].
+  StageStopping stopping = StageStopping::kChange;
+  int error_bound_window = 10;
   double gamma = 1.0;          // over-relaxation in (0, 2); 1: plain Gauss-Seidel / Jacobi
   SweepOrder order = SweepOrder::kGaussSeidel;
   int max_iterations = 1000;   // sweeps per stage
@@ -150,7 +155,8 @@ struct DgsStageReport {
   int iterations = 0;  // sweeps
   std::int64_t messages = 0;
   std::int64_t bytes = 0;
-  double final_change = 0.0;
+  double final_change = 0.0;       // the largest change of the last sweep
+  double final_error_bound = 0.0;  // the largest errorBound(window) of the last sweep
 };
 
 // One Gauss-Newton step of the refinement.

@@ -49,4 +49,15 @@ std::string ToString(SweepOrder order) {
   return order == SweepOrder::kGaussSeidel ? "gauss-seidel" : "jacobi";
 }
 
+std::string ToString(StageStopping stopping) {
+  return stopping == StageStopping::kChange ? "change" : "error-bound";
+}
+
+StageStopping StageStoppingFromString(const std::string& text) {
+  if (text == "change") return StageStopping::kChange;
+  if (text == "error-bound") return StageStopping::kErrorBound;
+  throw InvalidInputError("unknown stage stopping rule '" + text +
+                          "' (expected change or error-bound)");
+}
+
 }  // namespace moslam

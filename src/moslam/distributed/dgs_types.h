@@ -33,4 +33,24 @@ enum class SweepOrder {
 };
 std::string ToString(SweepOrder order);
 
+// When a stage (1 or 2) stops: after the first sweep in which every live robot has solved and its
+// stopping measure is at most eta.
+//   kChange      the measure is the robot's change ||x_new - x_old||_2 (shared/DGS.md, the
+//                paper). The sweeps contract linearly, so this stops about eta * rho / (1 - rho)
+//                from the fixed point (rho the per-sweep contraction: up to 0.9996 on
+//                blocks_world, where eta = 1e-6 leaves 6.8e-4 m).
+//   kErrorBound  the measure is the a-posteriori bound of a contraction with rate rho,
+//                ||x_k - x*|| <= rho / (1 - rho) ||x_k - x_{k-1}||, with the robot's own step
+//                ||x_k - x_{k-1}|| = gamma * change and rho estimated by the robot as the largest
+//                sqrt(c_k / c_{k-2}) of its changes c over its last `window` solves (two-solve
+//                ratios: Jacobi changes oscillate; +infinity until it has window + 2 solves in the
+//                stage, or while a ratio is >= 1). Asymptotically every
+//                robot's ratio tends to the spectral radius of the sweep, so this stops about eta
+//                from the fixed point. Beyond DGS.md; needs nothing more on the network (each robot
+//                still reports one number).
+enum class StageStopping { kChange, kErrorBound };
+std::string ToString(StageStopping stopping);
+// "change" | "error-bound"; throws InvalidInputError otherwise.
+StageStopping StageStoppingFromString(const std::string& text);
+
 }  // namespace moslam

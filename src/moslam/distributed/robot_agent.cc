@@ -24,6 +24,8 @@ void AgentOptions::validate() const {
 
 namespace {
 
+constexpr std::size_t kMaxWindow = 64;  // errorBound(): the longest window of change ratios
+
 int Find(std::vector<int>& parent, int i) {
   while (parent[i] != i) {
     parent[i] = parent[parent[i]];
@@ -423,6 +425,15 @@ bool RobotAgent::iterate() {
     x_[i] = (1.0 - gamma) * x_[i] + gamma * x_new;
   }
   last_change_ = std::sqrt(change2);
+  // A solve that changes nothing (no new neighbour value since the last one: Jacobi on two
+  // robots alternates) is not a step of the contraction: it is left out of the ratios.
+  if (last_change_ == 0.0) {
+    ++zero_changes_;
+  } else {
+    zero_changes_ = 0;
+    if (recent_changes_.size() == kMaxWindow + 2) recent_changes_.erase(recent_changes_.begin());
+    recent_changes_.push_back(last_change_);
+  }
   ++iteration_;
   initialised_ = true;
   return true;
@@ -497,9 +508,33 @@ void RobotAgent::requireState(AgentState expected, const char* what, const char*
   }
 }
 
+double RobotAgent::errorBound(int window) const {
+  if (window < 1 || window > static_cast<int>(kMaxWindow)) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": error-bound window must be in [1, " + std::to_string(kMaxWindow) +
+                            "], got " + std::to_string(window));
+  }
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  // Stationary: the last window + 2 solves changed nothing.
+  if (zero_changes_ >= window + 2) return 0.0;
+  const std::size_t n = recent_changes_.size();
+  if (n < static_cast<std::size_t>(window) + 2) return kInf;
+  // Two-solve ratios: Jacobi sweeps alternate between modes of eigenvalues +mu and -mu, so the
+  // change oscillates from solve to solve while c_k / c_{k-2} = mu^2 (Gauss-Seidel is monotone).
+  double rho = 0.0;
+  for (std::size_t k = n - static_cast<std::size_t>(window); k < n; ++k) {
+    rho = std::max(rho, std::sqrt(recent_changes_[k] / recent_changes_[k - 2]));
+  }
+  if (!(rho < 1.0)) return kInf;
+  const double gamma = state_ == AgentState::kRefine ? options_.refine_gamma : options_.gamma;
+  return gamma * recent_changes_.back() * rho / (1.0 - rho);
+}
+
 void RobotAgent::resetProgress() {
   initialised_ = false;
   last_change_ = std::numeric_limits<double>::infinity();
+  recent_changes_.clear();
+  zero_changes_ = 0;
 }
 
 void RobotAgent::startRefine() {

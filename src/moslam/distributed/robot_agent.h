@@ -174,6 +174,12 @@ class RobotAgent {
   // variable in stage 1, 6 in stage 2 and in a refinement step); +infinity before the first solve
   // of a stage (of a refinement step).
   double lastChange() const { return last_change_; }
+  // The a-posteriori distance bound of StageStopping::kErrorBound (dgs_types.h): gamma * c *
+  // rho / (1 - rho) over the stage's non-zero changes c (a solve that changes nothing had no new
+  // input and is skipped), c the last of them, rho the largest sqrt(c_k / c_{k-2}) over the last
+  // `window` of them; +infinity with fewer than window + 2 of them or a ratio >= 1; 0 when the
+  // last window + 2 solves changed nothing. window in [1, 64]; throws InvalidInputError otherwise.
+  double errorBound(int window) const;
 
   // The current estimate of the robot's variables: initial values (kIdle), projected rotations
   // with zero translation (kRotation), R_hat Exp(dtheta), t (kPose, kDone), the last accepted
@@ -255,6 +261,8 @@ class RobotAgent {
   int iteration_ = 0;
   bool initialised_ = false;
   double last_change_ = std::numeric_limits<double>::infinity();
+  std::vector<double> recent_changes_;  // the stage's last non-zero changes, oldest first (<= 66)
+  int zero_changes_ = 0;                // solves since the last non-zero change
   std::vector<Eigen::VectorXd> x_;              // per unknown, StageDimension of the stage
   std::vector<Eigen::VectorXd> relaxed_;        // stage-1 result kept for relaxedRotations()
   std::map<Key, Matrix3> R_hat_;                // stage-2 linearisation point (own + neighbours)
