@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -274,3 +275,48 @@ TEST(CliDgs, ObjectsAreReportedSeparately) {
 }
 
 }  // namespace
+
+// `moslam simulate`: one small run end to end, the documented JSON, the Fig. 4 plot, bad input.
+TEST(CliSimulate, RunsEndToEndWithJsonAndPlot) {
+  const fs::path svg = fs::temp_directory_path() / "moslam_cli_simulate.svg";
+  fs::remove(svg);
+  const CommandResult r = RunMoslam(
+      "simulate --scenario chairs25 --robots 2 --runs 2 --poses 30 --seed 3 --table all --json "
+      "--plot " + svg.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("| Robots"), std::string::npos) << r.out;  // the Markdown tables
+  const auto j = nlohmann::json::parse(LastLine(r.out));
+  ASSERT_EQ(j["rows"].size(), 1u);
+  const auto& row = j["rows"][0];
+  EXPECT_EQ(row["config"]["robots"], 2);
+  ASSERT_EQ(row["runs"].size(), 2u);
+  for (const auto& run : row["runs"]) {
+    for (const char* key : {"iterations_eta1", "cost_eta1", "iterations_eta2", "cost_eta2",
+                            "gn_cost", "refined_cost", "ate_star_poses", "are_star_poses",
+                            "ate_star_landmarks", "inter_precision", "rendezvous_bytes"}) {
+      ASSERT_TRUE(run.contains(key)) << key;
+    }
+    const double gn = run["gn_cost"].get<double>();
+    EXPECT_LE(run["refined_cost"].get<double>(), gn * (1.0 + 1e-4));
+    EXPECT_GE(run["cost_eta1"].get<double>(), gn * (1.0 - 1e-9));
+  }
+  std::ifstream in(svg);
+  std::string head((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(head.find("<svg"), std::string::npos);
+  fs::remove(svg);
+  // The same seed gives the same numbers.
+  const CommandResult again = RunMoslam(
+      "simulate --scenario chairs25 --robots 2 --runs 2 --poses 30 --seed 3 --json");
+  ASSERT_EQ(again.exit_code, 0) << again.out;
+  const auto k = nlohmann::json::parse(LastLine(again.out));
+  EXPECT_EQ(k["rows"][0]["runs"][1]["gn_cost"], row["runs"][1]["gn_cost"]);
+}
+
+TEST(CliSimulate, BadInputExitsOneWithAClearMessage) {
+  const CommandResult mismatch =
+      RunMoslam("simulate --robots 2 --runs 1 --sigma-rot 1 5 --sigma-trans 0.1");
+  EXPECT_EQ(mismatch.exit_code, 1) << mismatch.out;
+  EXPECT_NE(mismatch.out.find("--sigma-trans"), std::string::npos) << mismatch.out;
+  EXPECT_NE(RunMoslam("simulate --scenario mars").exit_code, 0);
+  EXPECT_NE(RunMoslam("simulate --robots 0").exit_code, 0);
+}
