@@ -29,11 +29,18 @@ Runner RegisterSolve(CLI::App& app);
 // distributed refinement), compared with centralized Gauss-Newton.
 Runner RegisterDgs(CLI::App& app);
 
-// `moslam robot --robot R --data <folder>`: one robot process, DGS over Cyclone DDS.
+// `moslam robot --robot R --data <folder> | --scenario <name>`: one robot process (a simulated
+// robot: object SLAM and rendezvous first), DGS over Cyclone DDS.
 Runner RegisterRobot(CLI::App& app);
-// `moslam team --data <folder> --robots N`: N robot processes on loopback, results collected.
+// `moslam team --data <folder> | --scenario <name> --robots N`: N robot processes on loopback,
+// results collected and compared with the in-process run.
 Runner RegisterTeam(CLI::App& app);
 // `moslam simulate --scenario chairs25 --robots 6`: simulated experiments (paper Tables 1-3).
 Runner RegisterSimulate(CLI::App& app);
+// `moslam render --scenario chairs25 --out DIR --format yolo|tum`: rendered RGB-D frames.
+Runner RegisterRender(CLI::App& app);
+// `moslam detect --model M (--image F | --data DIR)`: the object detector (src/moslam/detection)
+// on one image, or evaluated on a YOLO-layout dataset.
+Runner RegisterDetect(CLI::App& app);
 
 }  // namespace moslam::cli

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <thread>
 
 #include "commands.h"
@@ -23,6 +24,7 @@
 #include "moslam/transport/dds_transport.h"
 #include "moslam/transport/dgs_node.h"
 #include "moslam/transport/robot_data.h"
+#include "moslam/transport/robot_session.h"
 
 namespace moslam::cli {
 namespace {
@@ -88,9 +90,56 @@ std::vector<std::string> SolveArgs(const SolveFlags& f) {
 
 // ---- moslam robot ------------------------------------------------------------------------
 
+// The simulated scenario of `moslam robot --scenario` and `moslam team --scenario`.
+struct ScenarioFlags {
+  std::string name;  // --scenario; empty: not a scenario run
+  ScenarioSpec spec;
+  double rendezvous_timeout = 60.0;  // seconds
+  ScenarioSpec get() const {
+    ScenarioSpec s = spec;
+    s.scenario = name;
+    return s;
+  }
+};
+
+// `with_robots`: also --robots (moslam team has its own).
+void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
+  sub->add_option("--scenario", f.name,
+                  "Simulated scenario (chairs25 | house | generated): every process simulates it "
+                  "and keeps its own robot's measurements")
+      ->check(CLI::IsMember({"chairs25", "house", "generated"}));
+  if (with_robots) {
+    sub->add_option("--robots", f.spec.robots, "Robots of the scenario")->check(CLI::PositiveNumber);
+  }
+  sub->add_option("--seed", f.spec.seed, "Seed of the world, trajectories and noise");
+  sub->add_option("--sigma-rot", f.spec.sigma_rotation_deg, "Noise: rotation sigma (deg)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--sigma-trans", f.spec.sigma_translation, "Noise: translation sigma (m)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--poses", f.spec.poses_per_robot, "Poses per robot")->check(CLI::Range(2, 100000));
+  sub->add_option("--rendezvous-timeout", f.rendezvous_timeout,
+                  "Seconds to wait for the peer of a rendezvous")
+      ->check(CLI::PositiveNumber);
+}
+
+std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
+  return {"--scenario", f.name, "--robots", std::to_string(f.spec.robots), "--seed",
+          std::to_string(f.spec.seed), "--sigma-rot", fmt::format("{}", f.spec.sigma_rotation_deg),
+          "--sigma-trans", fmt::format("{}", f.spec.sigma_translation), "--poses",
+          std::to_string(f.spec.poses_per_robot), "--rendezvous-timeout",
+          fmt::format("{}", f.rendezvous_timeout)};
+}
+
+G2oReadOptions WithObjects() {
+  G2oReadOptions o;
+  o.scheme = KeyScheme::kWithObjects;
+  return o;
+}
+
 struct RobotArgs {
   int robot = 0;
   std::string data;
+  ScenarioFlags scenario;
   int domain = 0;
   std::string out;
   SolveFlags solve;
@@ -124,7 +173,83 @@ nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
   return j;
 }
 
+nlohmann::json SharedJson(const std::vector<SharedObject>& shared) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const SharedObject& o : shared) {
+    j.push_back({o.beta_object.robot, o.beta_object.index, o.alpha_object.robot,
+                 o.alpha_object.index});
+  }
+  return j;
+}
+
+// `moslam robot --scenario ...`: SLAM, rendezvous over DDS, DGS (transport/robot_session.h).
+int RunScenarioRobot(const RobotArgs& a) {
+  const ScenarioSpec spec = a.scenario.get();
+  if (a.robot >= spec.robots) {
+    throw InvalidInputError(fmt::format("robot: --robot {} but the scenario has {} robots (--robots)",
+                                        a.robot, spec.robots));
+  }
+  if (!a.out.empty() && spec.robots > kMaxRobotsWithObjects) {
+    throw InvalidInputError(fmt::format("robot: --out writes g2o files with objects, which hold "
+                                        "at most {} robots (--robots {})",
+                                        kMaxRobotsWithObjects, spec.robots));
+  }
+  RobotSessionOptions options;
+  options.slam = ScenarioSlamConfig(spec);
+  options.dgs = NodeOptions(a.solve);
+  options.dgs.state_dir = a.out;
+  options.rendezvous_timeout = Ms(a.scenario.rendezvous_timeout);
+  if (a.progress) {
+    options.dgs.on_round = [](const DgsNodeRound& r) {
+      fmt::print("progress: {} {} {}{}\n", ToString(r.stage), r.round, r.sent ? "sent" : "-",
+                 r.replayed ? " replayed" : "");
+      std::fflush(stdout);
+    };
+    options.on_rendezvous = [](const SessionRendezvous& r) {
+      fmt::print("rendezvous: step {} alpha {} beta {} shared {}{}\n", r.event.step, r.event.alpha,
+                 r.event.beta, r.new_shared, r.replayed ? " replayed" : "");
+      std::fflush(stdout);
+    };
+  }
+  DdsTransportOptions transport_options;
+  transport_options.domain = a.domain;
+  DdsTransport transport(a.robot, transport_options);
+  // Every process simulates the same scenario and keeps only its own slice.
+  RobotSession session(SliceForRobot(SimulateScenario(spec), a.robot), transport, options);
+  const RobotSessionResult r = session.run();
+  nlohmann::json j = Summary(a, r.dgs);
+  j["scenario"] = spec.scenario;
+  j["seed"] = spec.seed;
+  j["poses"] = r.poses;
+  j["landmarks"] = r.landmarks;
+  j["shared"] = SharedJson(r.shared);
+  nlohmann::json events = nlohmann::json::array();
+  for (const SessionRendezvous& e : r.rendezvous) {
+    events.push_back({{"step", e.event.step}, {"alpha", e.event.alpha}, {"beta", e.event.beta},
+                      {"objects_sent", e.objects_sent}, {"new_shared", e.new_shared},
+                      {"binary_bytes", e.binary_bytes}, {"replayed", e.replayed},
+                      {"seconds", e.seconds}});
+  }
+  j["rendezvous"] = events;
+  j["rendezvous_binary_bytes"] = r.rendezvous_binary_bytes;
+  j["rendezvous_dds_samples"] = r.rendezvous_transport.objects_sent;
+  j["rendezvous_dds_bytes"] = r.rendezvous_transport.objects_bytes;
+  j["slam_seconds"] = r.slam_seconds;
+  j["seconds"] = r.seconds;
+  if (!a.out.empty()) std::ofstream(fs::path(a.out) / "summary.json") << j.dump(2) << "\n";
+  fmt::print("robot {}: {} rendezvous, {} shared objects ({} B in-process encoding, {} B DDS "
+             "payload sent); DGS team {}, rotation {} rounds, pose {} rounds, {:.3f} s{}\n",
+             a.robot, r.rendezvous.size(), r.shared.size(), r.rendezvous_binary_bytes,
+             r.rendezvous_transport.objects_bytes, fmt::join(r.dgs.team, ","),
+             r.dgs.rotation_rounds, r.dgs.pose_rounds, r.seconds,
+             r.dgs.incarnation ? fmt::format(" (restart {})", r.dgs.incarnation) : "");
+  if (a.json) fmt::print("{}\n", j.dump());
+  return 0;
+}
+
 int RunRobot(const RobotArgs& a) {
+  if (!a.scenario.name.empty()) return RunScenarioRobot(a);
+  if (a.data.empty()) throw InvalidInputError("robot: give --data <folder> or --scenario <name>");
   const std::string file = RobotFile(a.data, a.robot);
   const Dataset data = ReadRobotG2o(file);
   DgsNodeOptions options = NodeOptions(a.solve);
@@ -158,6 +283,7 @@ int RunRobot(const RobotArgs& a) {
 
 struct TeamArgs {
   std::string data;
+  ScenarioFlags scenario;
   int robots = 0;
   int domain = 0;
   std::string out;
@@ -198,7 +324,214 @@ double MaxDifference(const Values& a, const Values& b) {
   return worst;
 }
 
+// Starts one process per argv (robot r: argvs[r], log in <out>/robot<r>/log.txt) on loopback
+// (LoopbackConfigXml), waits for them all (killing them at the timeout: exit code -1) and returns
+// their exit codes. `collect_only`: starts nothing, robot r counts as successful when
+// <out>/robot<r>/summary.json exists.
+std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>& argvs, int domain,
+                                     const fs::path& out, double timeout, bool collect_only) {
+  const int n = static_cast<int>(argvs.size());
+  std::map<int, int> exit_codes;
+  if (collect_only) {
+    for (int r = 0; r < n; ++r) {
+      exit_codes[r] = fs::exists(out / fmt::format("robot{}", r) / "summary.json") ? 0 : 1;
+    }
+    return exit_codes;
+  }
+  const std::string config = LoopbackConfigXml(domain, n);
+  ::setenv("CYCLONEDDS_URI", config.c_str(), 1);
+  const auto t0 = Clock::now();
+  std::map<pid_t, int> children;
+  for (int r = 0; r < n; ++r) {
+    const fs::path dir = out / fmt::format("robot{}", r);
+    fs::create_directories(dir);
+    children[Spawn(argvs[static_cast<std::size_t>(r)], dir / "log.txt")] = r;
+  }
+  const auto deadline = t0 + Ms(timeout);
+  while (exit_codes.size() < children.size()) {
+    int status = 0;
+    const pid_t pid = ::waitpid(-1, &status, WNOHANG);
+    if (pid > 0 && children.count(pid)) {
+      exit_codes[children[pid]] = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      continue;
+    }
+    if (Clock::now() > deadline) {
+      for (const auto& [p, r] : children) {
+        if (!exit_codes.count(r)) ::kill(p, SIGKILL);
+      }
+      for (const auto& [p, r] : children) {
+        if (!exit_codes.count(r)) {
+          ::waitpid(p, &status, 0);
+          exit_codes[r] = -1;
+        }
+      }
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return exit_codes;
+}
+
+// `moslam team --scenario ...`: the robots of a simulated scenario as processes, compared with
+// the in-process pipeline (RunMultiRobotObjectSlam, AssembleJointProblem, RunDgs in Jacobi order).
+int RunScenarioTeam(const TeamArgs& a) {
+  ScenarioFlags flags = a.scenario;
+  if (a.robots > 0) flags.spec.robots = a.robots;
+  const ScenarioSpec spec = flags.get();
+  spec.validate();
+  if (spec.robots > kMaxRobotsWithObjects) {
+    throw InvalidInputError(fmt::format("team: at most {} robots (results are g2o files with "
+                                        "objects), got --robots {}",
+                                        kMaxRobotsWithObjects, spec.robots));
+  }
+  const int n = spec.robots;
+  const fs::path out = a.out.empty() ? fs::temp_directory_path() /
+                                           fmt::format("moslam_team_{}", ::getpid())
+                                     : fs::path(a.out);
+  fs::create_directories(out);
+  std::vector<std::vector<std::string>> argvs;
+  for (int r = 0; r < n; ++r) {
+    std::vector<std::string> argv = {"moslam", "robot", "--robot", std::to_string(r), "--domain",
+                                     std::to_string(a.domain), "--out",
+                                     (out / fmt::format("robot{}", r)).string()};
+    for (const std::string& s : ScenarioArgs(flags)) argv.push_back(s);
+    for (const std::string& s : SolveArgs(a.solve)) argv.push_back(s);
+    argvs.push_back(argv);
+  }
+  const auto t0 = Clock::now();
+  std::map<int, int> exit_codes = RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
+  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+
+  // Collect.
+  Values merged;
+  std::set<std::vector<std::uint64_t>> shared;
+  nlohmann::json robots = nlohmann::json::array();
+  bool ok = true;
+  std::int64_t binary = 0, cdr = 0, status_bytes = 0, messages = 0, rdv_binary = 0, rdv_dds = 0,
+               rdv_samples = 0;
+  int rotation_rounds = 0, pose_rounds = 0, events = 0;
+  for (int r = 0; r < n; ++r) {
+    const fs::path dir = out / fmt::format("robot{}", r);
+    nlohmann::json j;
+    j["robot"] = r;
+    j["exit_code"] = exit_codes[r];
+    if (exit_codes[r] != 0 || !fs::exists(dir / "summary.json")) {
+      ok = false;
+      j["log"] = (dir / "log.txt").string();
+      robots.push_back(j);
+      continue;
+    }
+    std::ifstream in(dir / "summary.json");
+    const nlohmann::json s = nlohmann::json::parse(in);
+    j.update(s);
+    j.erase("shared");
+    robots.push_back(j);
+    const Dataset result = ReadRobotG2o((dir / "result.g2o").string(), WithObjects());
+    for (const auto& [k, x] : result.initial) {
+      if (k.robot == r) merged.emplace(k, x);
+    }
+    for (const auto& p : s["shared"]) shared.insert(p.get<std::vector<std::uint64_t>>());
+    binary += s["estimate_binary_bytes"].get<std::int64_t>();
+    cdr += s["dds_estimate_bytes"].get<std::int64_t>();
+    status_bytes += s["dds_status_bytes"].get<std::int64_t>();
+    messages += s["estimate_messages"].get<std::int64_t>();
+    rdv_binary += s["rendezvous_binary_bytes"].get<std::int64_t>();
+    rdv_dds += s["rendezvous_dds_bytes"].get<std::int64_t>();
+    rdv_samples += s["rendezvous_dds_samples"].get<std::int64_t>();
+    for (const auto& e : s["rendezvous"]) events += e["alpha"].get<int>() == r ? 1 : 0;
+    rotation_rounds = std::max(rotation_rounds, s["rotation_rounds"].get<int>());
+    pose_rounds = std::max(pose_rounds, s["pose_rounds"].get<int>());
+  }
+
+  nlohmann::json j;
+  j["scenario"] = spec.scenario;
+  j["robots"] = n;
+  j["seed"] = spec.seed;
+  j["poses_per_robot"] = spec.poses_per_robot;
+  j["domain"] = a.domain;
+  j["out"] = out.string();
+  j["seconds"] = seconds;
+  if (ok) {
+    // The in-process pipeline on the same scenario.
+    const SimulationData data = SimulateScenario(spec);
+    const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
+    const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, config);
+    const JointProblem joint =
+        AssembleJointProblem(slam.robots, slam.shared, config.rendezvous.lambda());
+    std::set<std::vector<std::uint64_t>> reference_shared;
+    for (const SharedObject& o : slam.shared) {
+      reference_shared.insert({static_cast<std::uint64_t>(o.beta_object.robot), o.beta_object.index,
+                               static_cast<std::uint64_t>(o.alpha_object.robot),
+                               o.alpha_object.index});
+    }
+    j["rendezvous_events"] = events;
+    j["in_process_rendezvous_events"] = slam.rendezvous.size();
+    j["shared_objects"] = shared.size();
+    j["in_process_shared_objects"] = slam.shared.size();
+    j["shared_objects_equal"] = shared == reference_shared;
+    j["rendezvous_binary_bytes"] = rdv_binary;
+    j["in_process_rendezvous_bytes"] = slam.bytes;
+    j["rendezvous_dds_samples"] = rdv_samples;
+    j["rendezvous_dds_bytes"] = rdv_dds;
+    if (!joint.unanchored_robots.empty()) {
+      ok = false;
+      fmt::print(stderr, "moslam: in-process reference: robot {} is not linked to robot 0\n",
+                 joint.unanchored_robots.front());
+    } else {
+      const DgsResult reference = RunDgs(joint.graph, joint.initial, DriverOptions(NodeOptions(a.solve)));
+      j["cost"] = joint.graph.cost(merged);
+      j["cost_in_process"] = joint.graph.cost(reference.values);
+      j["max_difference"] = MaxDifference(merged, reference.values);
+      j["variables"] = merged.size();
+      j["in_process_variables"] = reference.values.size();
+      j["rotation_rounds"] = rotation_rounds;
+      j["pose_rounds"] = pose_rounds;
+      j["in_process_rotation_iterations"] = reference.rotation.iterations;
+      j["in_process_pose_iterations"] = reference.pose.iterations;
+      j["estimate_messages"] = messages;
+      j["in_process_messages"] = reference.messages;
+      j["estimate_binary_bytes"] = binary;
+      j["in_process_bytes"] = reference.bytes;
+      j["dds_estimate_bytes"] = cdr;
+      j["dds_status_bytes"] = status_bytes;
+      const int rounds = rotation_rounds + pose_rounds;
+      j["dds_payload_bytes_per_round"] =
+          rounds ? static_cast<double>(cdr + status_bytes) / rounds : 0.0;
+      fmt::print("{} with {} robots (seed {}, {} poses each) as processes on loopback (domain {}): "
+                 "{:.2f} s\n",
+                 spec.scenario, n, spec.seed, spec.poses_per_robot, a.domain, seconds);
+      fmt::print("rendezvous: {} events, {} shared objects (in-process {}, {}), {} B in-process "
+                 "encoding (in-process run {} B), {} B DDS payload in {} samples\n",
+                 events, shared.size(), slam.shared.size(),
+                 shared == reference_shared ? "the same pairs" : "DIFFERENT pairs", rdv_binary,
+                 slam.bytes, rdv_dds, rdv_samples);
+      fmt::print("DGS: rotation {} rounds, pose {} rounds (in-process {}, {}); {} messages, {} B "
+                 "binary (in-process {}, {} B), {} B CDR payload, status {} B\n",
+                 rotation_rounds, pose_rounds, reference.rotation.iterations,
+                 reference.pose.iterations, messages, binary, reference.messages, reference.bytes,
+                 cdr, status_bytes);
+      fmt::print("cost F = {:.9g} (in-process {:.9g}), largest difference {:.3g}\n",
+                 j["cost"].get<double>(), j["cost_in_process"].get<double>(),
+                 j["max_difference"].get<double>());
+    }
+  } else {
+    for (const auto& r : robots) {
+      if (r["exit_code"] != 0) {
+        fmt::print(stderr, "moslam: robot {} failed (exit {}), see {}\n", r["robot"].get<int>(),
+                   r["exit_code"].get<int>(), r.value("log", std::string()));
+      }
+    }
+  }
+  j["ok"] = ok;
+  j["per_robot"] = robots;
+  fmt::print("results in {}\n", out.string());
+  if (a.json) fmt::print("{}\n", j.dump());
+  return ok ? 0 : 1;
+}
+
 int RunTeam(const TeamArgs& args) {
+  if (!args.scenario.name.empty()) return RunScenarioTeam(args);
+  if (args.data.empty()) throw InvalidInputError("team: give --data <folder | file> or --scenario <name>");
   TeamArgs a = args;
   const fs::path out = a.out.empty() ? fs::temp_directory_path() /
                                            fmt::format("moslam_team_{}", ::getpid())
@@ -223,46 +556,16 @@ int RunTeam(const TeamArgs& args) {
                                         "{}.g2o): every robot of the folder takes part",
                                         n, a.data, files, files - 1));
   }
-  const std::string config = LoopbackConfigXml(a.domain, n);
-  ::setenv("CYCLONEDDS_URI", config.c_str(), 1);
-
-  const auto t0 = Clock::now();
-  std::map<pid_t, int> children;
-  std::map<int, int> exit_codes;
-  for (int r = 0; r < n && a.collect_only; ++r) {
-    exit_codes[r] = fs::exists(out / fmt::format("robot{}", r) / "summary.json") ? 0 : 1;
-  }
-  for (int r = 0; r < n && !a.collect_only; ++r) {
-    const fs::path dir = out / fmt::format("robot{}", r);
-    fs::create_directories(dir);
+  std::vector<std::vector<std::string>> argvs;
+  for (int r = 0; r < n; ++r) {
     std::vector<std::string> argv = {"moslam", "robot", "--robot", std::to_string(r), "--data",
                                      a.data, "--domain", std::to_string(a.domain), "--out",
-                                     dir.string()};
+                                     (out / fmt::format("robot{}", r)).string()};
     for (const std::string& s : SolveArgs(a.solve)) argv.push_back(s);
-    children[Spawn(argv, dir / "log.txt")] = r;
+    argvs.push_back(argv);
   }
-  const auto deadline = t0 + Ms(a.timeout);
-  while (exit_codes.size() < children.size()) {
-    int status = 0;
-    const pid_t pid = ::waitpid(-1, &status, WNOHANG);
-    if (pid > 0 && children.count(pid)) {
-      exit_codes[children[pid]] = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      continue;
-    }
-    if (Clock::now() > deadline) {
-      for (const auto& [p, r] : children) {
-        if (!exit_codes.count(r)) ::kill(p, SIGKILL);
-      }
-      for (const auto& [p, r] : children) {
-        if (!exit_codes.count(r)) {
-          ::waitpid(p, &status, 0);
-          exit_codes[r] = -1;
-        }
-      }
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
+  const auto t0 = Clock::now();
+  std::map<int, int> exit_codes = RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 
   // Collect.
@@ -349,13 +652,16 @@ int RunTeam(const TeamArgs& args) {
 Runner RegisterRobot(CLI::App& app) {
   auto args = std::make_shared<RobotArgs>();
   CLI::App* sub = app.add_subcommand(
-      "robot", "One robot as a process: its g2o file, DGS with the others over Cyclone DDS");
+      "robot",
+      "One robot as a process: its g2o file (--data) or its part of a simulated scenario "
+      "(--scenario: object SLAM and rendezvous), DGS with the others over Cyclone DDS");
   sub->add_option("--robot", args->robot, "Robot id: reads <data>/<id>.g2o")
       ->required()
       ->check(CLI::Range(0, kMaxRobots - 1));
-  sub->add_option("--data", args->data, "Distributed-mapper folder (0.g2o .. N-1.g2o)")
-      ->required()
-      ->check(CLI::ExistingDirectory);
+  auto* data = sub->add_option("--data", args->data, "Distributed-mapper folder (0.g2o .. N-1.g2o)")
+                   ->check(CLI::ExistingDirectory);
+  AddScenarioFlags(sub, args->scenario, true);
+  data->excludes(sub->get_option("--scenario"));
   sub->add_option("--domain", args->domain, "DDS domain id (0..232)")->check(CLI::Range(0, 232));
   sub->add_option("--out", args->out,
                   "State directory: journal, estimate.g2o, result.g2o, summary.json (a restart "
@@ -370,11 +676,13 @@ Runner RegisterTeam(CLI::App& app) {
   auto args = std::make_shared<TeamArgs>();
   CLI::App* sub = app.add_subcommand(
       "team", "Start one `moslam robot` process per robot on loopback and collect the results");
-  sub->add_option("--data", args->data,
-                  "Distributed-mapper folder (0.g2o .. N-1.g2o), or one single-robot g2o file "
-                  "split into --robots contiguous blocks of poses (written to <out>/data)")
-      ->required()
-      ->check(CLI::ExistingPath);
+  auto* data = sub->add_option("--data", args->data,
+                               "Distributed-mapper folder (0.g2o .. N-1.g2o), or one single-robot "
+                               "g2o file split into --robots contiguous blocks of poses (written "
+                               "to <out>/data)")
+                   ->check(CLI::ExistingPath);
+  AddScenarioFlags(sub, args->scenario, false);
+  data->excludes(sub->get_option("--scenario"));
   sub->add_option("--robots", args->robots, "Number of robots (default: every file)")
       ->check(CLI::PositiveNumber);
   sub->add_flag("--prepare", args->prepare_only,

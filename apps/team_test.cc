@@ -1,7 +1,9 @@
 // Robots as separate processes over Cyclone DDS on loopback (the real `moslam` binary; each test
 // its own DDS domain, 50..59): the team's result equals the in-process driver's; a robot killed
 // (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies for good
-// is noticed through liveliness and the others finish.
+// is noticed through liveliness and the others finish. Simulated scenarios (--scenario): object
+// SLAM and rendezvous in each process give the in-process pipeline's shared objects and
+// estimate; robots killed in the rendezvous phase and in the DGS and restarted lose nothing.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -257,6 +259,108 @@ TEST(Team, ARobotThatDiesForGoodIsNoticedAndTheOthersFinish) {
     EXPECT_EQ(j["left"], nlohmann::json::array({victim})) << j.dump();
     EXPECT_TRUE(fs::exists(out / std::to_string(r) / "result.g2o"));
   }
+  fs::remove_all(out);
+}
+
+// ---- simulated scenarios ----------------------------------------------------------------------
+
+const std::vector<std::string> kScenario = {"--scenario", "chairs25", "--robots", "6", "--poses",
+                                            "40"};
+
+TEST(Team, AScenarioAsProcessesEqualsTheInProcessPipeline) {
+  const fs::path out = FreshDir("scenario");
+  std::vector<std::string> args = {"team", "--domain", "53", "--out", out.string(), "--timeout",
+                                   "120", "--json"};
+  args.insert(args.end(), kScenario.begin(), kScenario.end());
+  Child team(args, "", out / "team.log");
+  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
+  const nlohmann::json j = LastJson(team.output());
+  ASSERT_TRUE(j.is_object()) << team.output();
+  EXPECT_TRUE(j["ok"].get<bool>());
+  // The same rendezvous, the same shared objects, the same bytes in the in-process encoding.
+  EXPECT_EQ(j["rendezvous_events"], j["in_process_rendezvous_events"]);
+  EXPECT_GT(j["shared_objects"].get<int>(), 0);
+  EXPECT_EQ(j["shared_objects"], j["in_process_shared_objects"]);
+  EXPECT_TRUE(j["shared_objects_equal"].get<bool>());
+  EXPECT_EQ(j["rendezvous_binary_bytes"], j["in_process_rendezvous_bytes"]);
+  EXPECT_GT(j["rendezvous_dds_bytes"].get<int>(), 0);
+  // The same DGS and estimate.
+  EXPECT_EQ(j["variables"], j["in_process_variables"]);
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  EXPECT_NEAR(j["cost"].get<double>(), j["cost_in_process"].get<double>(), 1e-9);
+  EXPECT_EQ(j["rotation_rounds"], j["in_process_rotation_iterations"]);
+  EXPECT_EQ(j["pose_rounds"], j["in_process_pose_iterations"]);
+  EXPECT_EQ(j["estimate_binary_bytes"], j["in_process_bytes"]);
+  for (const auto& r : j["per_robot"]) {
+    EXPECT_EQ(r["rejected_samples"].get<int>(), 0) << r.dump();
+    EXPECT_EQ(r["team"].size(), 6u);
+  }
+  fs::remove_all(out);
+}
+
+TEST(Team, ScenarioRobotsKilledInTheRendezvousAndInTheDgsAndRestartedLoseNothing) {
+  const int domain = 54, n = 6;
+  const std::string uri = LoopbackConfigXml(domain, n);
+  const fs::path out = FreshDir("scenario_restart");
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  auto args = [&](int r) {
+    std::vector<std::string> a = {"robot", "--robot", std::to_string(r), "--domain",
+                                  std::to_string(domain), "--out",
+                                  (out / ("robot" + std::to_string(r))).string(), "--progress",
+                                  "--json", "--join-timeout", "30", "--stall-timeout", "60",
+                                  "--rendezvous-timeout", "30"};
+    a.insert(a.end(), kScenario.begin(), kScenario.end());
+    return a;
+  };
+  auto stderr_file = [&](int r) { return out / ("stderr" + std::to_string(r)); };
+  std::vector<std::unique_ptr<Child>> robots;
+  for (int r = 0; r < n; ++r) robots.push_back(std::make_unique<Child>(args(r), uri, stderr_file(r)));
+  // Robot 0 (alpha of its first rendezvous, step 0) is killed after its second rendezvous.
+  const int in_rendezvous = 0, in_dgs = 3;
+  int seen = 0;
+  ASSERT_TRUE(robots[in_rendezvous]->waitForLine(
+      [&](const std::string& l) { return l.rfind("rendezvous: ", 0) == 0 && ++seen == 2; },
+      deadline))
+      << robots[in_rendezvous]->output();
+  robots[in_rendezvous]->kill9();
+  EXPECT_EQ(robots[in_rendezvous]->wait(deadline), 128 + SIGKILL);
+  robots[in_rendezvous] = std::make_unique<Child>(args(in_rendezvous), uri, stderr_file(in_rendezvous));
+  // Robot 3 is killed in round 20 of the DGS rotation stage.
+  ASSERT_TRUE(robots[in_dgs]->waitForLine(
+      [](const std::string& l) { return l.rfind("progress: rotation 20 ", 0) == 0; }, deadline))
+      << robots[in_dgs]->output();
+  robots[in_dgs]->kill9();
+  EXPECT_EQ(robots[in_dgs]->wait(deadline), 128 + SIGKILL);
+  robots[in_dgs] = std::make_unique<Child>(args(in_dgs), uri, stderr_file(in_dgs));
+  for (int r = 0; r < n; ++r) {
+    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
+    const nlohmann::json j = LastJson(robots[r]->output());
+    ASSERT_TRUE(j.is_object());
+    EXPECT_TRUE(j["left"].empty()) << j.dump();
+    int replayed = 0;
+    for (const auto& e : j["rendezvous"]) replayed += e["replayed"].get<bool>() ? 1 : 0;
+    if (r == in_rendezvous) {
+      EXPECT_GE(replayed, 2) << j.dump();
+    }
+    if (r == in_dgs) {
+      EXPECT_EQ(replayed, static_cast<int>(j["rendezvous"].size()));  // all from the journal
+      EXPECT_EQ(j["incarnation"].get<int>(), 1);
+      EXPECT_GE(j["replayed_rounds"].get<int>(), 20);
+    }
+    if (r != in_rendezvous && r != in_dgs) {
+      EXPECT_EQ(replayed, 0);
+    }
+  }
+  // The results equal the in-process pipeline's.
+  std::vector<std::string> collect = {"team", "--out", out.string(), "--collect", "--json"};
+  collect.insert(collect.end(), kScenario.begin(), kScenario.end());
+  Child team(collect, "", out / "team.log");
+  ASSERT_EQ(team.wait(deadline), 0) << team.output();
+  const nlohmann::json j = LastJson(team.output());
+  ASSERT_TRUE(j.is_object()) << team.output();
+  EXPECT_TRUE(j["shared_objects_equal"].get<bool>());
+  EXPECT_EQ(j["variables"], j["in_process_variables"]);
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
   fs::remove_all(out);
 }
 

@@ -11,7 +11,14 @@
 #    egress: the team completes and equals the in-process driver (1e-9). Prints the time to
 #    solution and the bytes on the wire (veth counters: everything, discovery included) per DGS
 #    round, beside the DDS payload and the in-process binary byte count.
-# 2. cut: the same 3 robots at 100 kbit/s without random loss; robot 1's link is cut both ways
+# 2. scenario: the 3 robots of a simulated scenario (chairs25, MOSLAM_NET_POSES=30 poses each) on
+#    the same shaped links: object SLAM in each process, the rendezvous over DDS, then DGS; the
+#    team completes with the in-process pipeline's shared objects and estimate (1e-9). Prints the
+#    bytes on the wire of the rendezvous phase (until every robot started the DGS: discovery and
+#    the team join included) and per DGS round, the time to solution, and what sending point
+#    clouds instead would cost (paper Table 3: K = 640x480 points x C = 32 B per frame, every frame
+#    of alpha up to the rendezvous).
+# 3. cut: the same 3 robots at 100 kbit/s without random loss; robot 1's link is cut both ways
 #    for 8 s in the middle of the pose stage (longer than the 5 s participant lease: the peers
 #    see it gone, then back): the team completes, equal to the in-process result.
 # Skips (exit 77) unless root with `ip netns`, tc and iptables. Cleans up after itself (trap).
@@ -24,6 +31,7 @@ DATASETS=${MOSLAM_DATASETS_DIR:-$(realpath ../shared/datasets)}
 RATE=${MOSLAM_NET_RATE:-100kbit}
 LOSS=${MOSLAM_NET_LOSS:-0.01}
 NET_DATA=${MOSLAM_NET_DATA:-pgo/tinyGrid3D.g2o}  # single-robot file under $DATASETS, split in 3
+NET_POSES=${MOSLAM_NET_POSES:-30}                # poses per robot of the scenario case
 CUT_TEST=${MOSLAM_NET_CUT:-1}                    # 0: measure only (skip the cut test)
 HEARTBEAT=${MOSLAM_NET_HEARTBEAT:-500ms}         # Cyclone Internal/HeartbeatInterval
 N=3
@@ -118,6 +126,18 @@ start_robots() {  # start_robots <data> <domain> <out>
   done
 }
 
+start_scenario_robots() {  # start_scenario_robots <domain> <out>
+  local d=$1 out=$2
+  PIDS=()
+  for ((i = 0; i < N; i++)); do
+    mkdir -p "$out/robot$i"
+    ip netns exec "${TAG}r$i" env CYCLONEDDS_URI="$(config "$i" "$d")" \
+      "$MOSLAM" robot --robot "$i" "${SCENARIO[@]}" --domain "$d" --out "$out/robot$i" \
+      --progress --json >"$out/robot$i/stdout" 2>"$out/robot$i/log.txt" &
+    PIDS+=($!)
+  done
+}
+
 wait_robots() {  # every robot must exit 0
   local rc=0
   for i in "${!PIDS[@]}"; do
@@ -169,7 +189,69 @@ print(f"test-network: on the wire {wire} B in {packets} packets (all traffic, Et
       f"{j['in_process_bytes']} B ({j['in_process_bytes'] / rounds:.0f} B per round)")
 EOF
 
-# ---- 2. a cut link ----------------------------------------------------------------------------
+# ---- 2. a simulated scenario: rendezvous and DGS on the shaped links ------------------------
+SCENARIO=(--scenario chairs25 --robots "$N" --poses "$NET_POSES")
+OUT="$WORK/scenario"
+bytes0=$(tx_bytes); packets0=$(tx_packets); t0=$(date +%s.%N)
+start_scenario_robots 62 "$OUT"
+bytes_rdv=""
+while :; do  # the rendezvous phase ends when every robot has started the DGS
+  all=1
+  for ((i = 0; i < N; i++)); do
+    grep -q "^progress: rotation 0 " "$OUT/robot$i/stdout" 2>/dev/null || all=0
+  done
+  if ((all)); then
+    bytes_rdv=$(tx_bytes); packets_rdv=$(tx_packets); t_rdv=$(date +%s.%N); break
+  fi
+  running=0
+  for p in "${PIDS[@]}"; do kill -0 "$p" 2>/dev/null && running=1; done
+  ((running)) || break
+  sleep 0.1
+done
+wait_robots "$OUT"
+t1=$(date +%s.%N); bytes1=$(tx_bytes); packets1=$(tx_packets)
+[[ -n $bytes_rdv ]] || { echo "test-network: the robots never all reached the DGS" >&2; exit 1; }
+json=$("$MOSLAM" team "${SCENARIO[@]}" --out "$OUT" --collect --json | tail -1)
+python3 - "$json" "$OUT" "$t0" "$t_rdv" "$t1" "$bytes0" "$bytes_rdv" "$bytes1" "$packets0" \
+  "$packets_rdv" "$packets1" "$RATE" "$LOSS" <<'EOF'
+import glob, json, sys
+j = json.loads(sys.argv[1]); out = sys.argv[2]
+t0, t_rdv, t1 = map(float, sys.argv[3:6])
+b0, b_rdv, b1, p0, p_rdv, p1 = map(int, sys.argv[6:12])
+rate, loss = sys.argv[12], sys.argv[13]
+label = f"scenario chairs25, {j['robots']} robots x {j['poses_per_robot']} poses, {rate}, loss {loss}"
+assert j["ok"], f"{label}: a robot failed"
+assert j["shared_objects_equal"], f"{label}: shared objects differ from the in-process pipeline"
+assert j["max_difference"] <= 1e-9, f"{label}: differs from the in-process pipeline by {j['max_difference']}"
+events = j["rendezvous_events"]; rounds = j["rotation_rounds"] + j["pose_rounds"]
+print(f"test-network: {label}: OK, {events} rendezvous, {j['shared_objects']} shared objects "
+      f"(in-process {j['in_process_shared_objects']}, the same pairs), largest difference "
+      f"{j['max_difference']:.2g}, rounds {j['rotation_rounds']}+{j['pose_rounds']}")
+print(f"test-network: time to solution {t1 - t0:.1f} s (rendezvous phase {t_rdv - t0:.1f} s, "
+      f"DGS {t1 - t_rdv:.1f} s)")
+print(f"test-network: rendezvous phase on the wire {b_rdv - b0} B in {p_rdv - p0} packets "
+      f"({(b_rdv - b0) / events:.0f} B per rendezvous, discovery and join included); DDS payload "
+      f"{j['rendezvous_dds_bytes']} B in {j['rendezvous_dds_samples']} samples "
+      f"({j['rendezvous_dds_bytes'] / events:.0f} B per rendezvous); in-process encoding "
+      f"{j['in_process_rendezvous_bytes']} B ({j['in_process_rendezvous_bytes'] / events:.0f} B per rendezvous)")
+dgs_payload = j["dds_estimate_bytes"] + j["dds_status_bytes"]
+print(f"test-network: DGS on the wire {b1 - b_rdv} B in {p1 - p_rdv} packets "
+      f"({(b1 - b_rdv) / rounds:.0f} B per round); DDS payload {dgs_payload} B "
+      f"({dgs_payload / rounds:.0f} B per round); in-process binary {j['in_process_bytes']} B "
+      f"({j['in_process_bytes'] / rounds:.0f} B per round)")
+# Point clouds instead (paper Table 3): alpha sends every frame up to the rendezvous.
+K, C = 640 * 480, 32
+frames = 0
+for f in sorted(glob.glob(f"{out}/robot*/summary.json")):
+    s = json.load(open(f))
+    frames += sum(e["step"] + 1 for e in s["rendezvous"] if e["alpha"] == s["robot"])
+pcd = frames * K * C
+print(f"test-network: point clouds instead: {frames} frames x {K} points x {C} B = {pcd} B "
+      f"({pcd / events:.3g} B per rendezvous, {pcd / (b_rdv - b0):.3g}x the rendezvous phase on "
+      f"the wire; {pcd * 8 / 1e5:.0f} s at 100 kbit/s)")
+EOF
+
+# ---- 3. a cut link ----------------------------------------------------------------------------
 if [[ $CUT_TEST == 0 ]]; then echo "test-network: cut test skipped (MOSLAM_NET_CUT=0)"; exit 0; fi
 for ((i = 0; i < N; i++)); do  # the rate stays (a round takes ~0.2 s), no random loss
   ip netns exec "${TAG}r$i" iptables -F OUTPUT

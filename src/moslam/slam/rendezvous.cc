@@ -123,6 +123,17 @@ bool SharesPair(const SharedObject& s, int alpha, int beta) {
          (s.alpha_object.robot == beta && s.beta_object.robot == alpha);
 }
 
+// Landmark indices already shared between robots a and b (in either role), by owner.
+void TakenLandmarks(const std::vector<SharedObject>& shared, int a, int b,
+                    std::vector<std::uint32_t>* alpha_taken, std::vector<std::uint32_t>* beta_taken) {
+  for (const auto& s : shared) {
+    if (!SharesPair(s, a, b)) continue;
+    for (const Key& k : {s.alpha_object, s.beta_object}) {
+      (k.robot == a ? *alpha_taken : *beta_taken).push_back(static_cast<std::uint32_t>(k.index));
+    }
+  }
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> EncodeObjectMap(const ObjectMapMessage& message) {
@@ -390,20 +401,13 @@ RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
   out.objects_sent = static_cast<int>(sent.objects.size());
   const ObjectMapMessage received = DecodeObjectMap(wire1);
 
-  // Beta matches against its own map, excluding landmarks already shared with alpha.
-  std::vector<std::uint32_t> alpha_taken, beta_taken;
-  for (const auto& s : already_shared) {
-    if (!SharesPair(s, a, b)) continue;
-    for (const Key& k : {s.alpha_object, s.beta_object}) {
-      (k.robot == a ? alpha_taken : beta_taken).push_back(static_cast<std::uint32_t>(k.index));
-    }
-  }
-  const SE3 beta_T_alpha = world_T_beta0.inverse() * world_T_alpha0;
   SharedObjectsMessage reply;
-  reply.sender = b;
-  reply.receiver = a;
-  const std::vector<ObjectMapEntry> own = MakeObjectMapMessage(beta).objects;
   if (config.ground_truth_association) {
+    // Beta matches against its own map, excluding landmarks already shared with alpha.
+    std::vector<std::uint32_t> alpha_taken, beta_taken;
+    TakenLandmarks(already_shared, a, b, &alpha_taken, &beta_taken);
+    reply.sender = b;
+    reply.receiver = a;
     const std::set<std::uint32_t> at(alpha_taken.begin(), alpha_taken.end());
     std::set<std::uint32_t> bt(beta_taken.begin(), beta_taken.end());
     for (const auto& o : received.objects) {
@@ -418,15 +422,42 @@ RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
       }
     }
   } else {
-    const SE3 T = AlignObjectMaps(received, beta_T_alpha, own, config, alpha_taken, beta_taken);
-    reply.pairs = MatchObjectMaps(received, T, own, config.gate, alpha_taken, beta_taken);
+    reply = AnswerObjectMap(received, beta, world_T_alpha0, world_T_beta0, already_shared, config);
   }
 
   // Beta -> alpha: the shared-object list, through the wire; both add the factors.
   const std::vector<std::uint8_t> wire2 = EncodeSharedObjects(reply);
   out.bytes_beta_to_alpha = wire2.size();
-  for (const auto& [ka, kb] : DecodeSharedObjects(wire2).pairs) {
-    out.new_shared.push_back({Key::Object(b, kb), Key::Object(a, ka)});
+  out.new_shared = SharedObjectsOf(DecodeSharedObjects(wire2));
+  return out;
+}
+
+SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const ObjectSlam& beta,
+                                     const SE3& world_T_alpha0, const SE3& world_T_beta0,
+                                     const std::vector<SharedObject>& already_shared,
+                                     const RendezvousConfig& config) {
+  config.validate();
+  const int a = received.sender, b = beta.robot();
+  if (a == b) {
+    throw InvalidInputError("AnswerObjectMap: robot " + std::to_string(a) + " meets itself");
+  }
+  // Beta matches against its own map, excluding landmarks already shared with alpha.
+  std::vector<std::uint32_t> alpha_taken, beta_taken;
+  TakenLandmarks(already_shared, a, b, &alpha_taken, &beta_taken);
+  const SE3 beta_T_alpha = world_T_beta0.inverse() * world_T_alpha0;
+  SharedObjectsMessage reply;
+  reply.sender = b;
+  reply.receiver = a;
+  const std::vector<ObjectMapEntry> own = MakeObjectMapMessage(beta).objects;
+  const SE3 T = AlignObjectMaps(received, beta_T_alpha, own, config, alpha_taken, beta_taken);
+  reply.pairs = MatchObjectMaps(received, T, own, config.gate, alpha_taken, beta_taken);
+  return reply;
+}
+
+std::vector<SharedObject> SharedObjectsOf(const SharedObjectsMessage& answer) {
+  std::vector<SharedObject> out;
+  for (const auto& [ka, kb] : answer.pairs) {
+    out.push_back({Key::Object(answer.sender, kb), Key::Object(answer.receiver, ka)});
   }
   return out;
 }

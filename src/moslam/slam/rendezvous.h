@@ -119,6 +119,19 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> MatchObjectMaps(
     const std::vector<std::uint32_t>& alpha_taken = {},
     const std::vector<std::uint32_t>& beta_taken = {});
 
+// Beta's side of a rendezvous, without ground-truth association (RunRendezvous calls it; a robot
+// process calls it on the object map received over the network): matches `received` (alpha's
+// object map as decoded, i.e. with float32 poses) with beta's landmarks under AlignObjectMaps,
+// landmarks already shared between the two robots excluded, and returns the answer with the new
+// pairs. Throws InvalidInputError when alpha and beta are the same robot.
+SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const ObjectSlam& beta,
+                                     const SE3& world_T_alpha0, const SE3& world_T_beta0,
+                                     const std::vector<SharedObject>& already_shared,
+                                     const RendezvousConfig& config);
+
+// The shared objects an answer adds: {Key::Object(beta, l), Key::Object(alpha, k)} per pair.
+std::vector<SharedObject> SharedObjectsOf(const SharedObjectsMessage& answer);
+
 struct RendezvousOutcome {
   std::vector<SharedObject> new_shared;
   int objects_sent = 0;

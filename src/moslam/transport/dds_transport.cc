@@ -13,6 +13,7 @@
 #include "moslam/transport/dds_entities.h"
 #include "moslam/transport/idl/DgsEstimates.h"
 #include "moslam/transport/idl/ObjectList.h"
+#include "moslam/transport/idl/SharedObjects.h"
 #include "moslam/transport/idl/Status.h"
 
 namespace moslam {
@@ -31,6 +32,9 @@ std::string StatusTopicName() { return "rt/moslam/status"; }
 std::string ObjectsTopicName() { return "rt/moslam/objects"; }
 std::string EstimatesTopicName(int robot) {
   return "rt/moslam/robot" + std::to_string(robot) + "/dgs_estimates";
+}
+std::string SharedObjectsTopicName(int robot) {
+  return "rt/moslam/robot" + std::to_string(robot) + "/shared_objects";
 }
 
 int DiscoveryPort(int domain, int index) { return 7400 + 250 * domain + 10 + 2 * index; }
@@ -78,6 +82,8 @@ using EstimatesSample = moslam_msg_dds__DgsEstimates_;
 using StatusSample = moslam_msg_dds__Status_;
 using ObjectListSample = moslam_msg_dds__ObjectList_;
 using ObjectPoseSample = moslam_msg_dds__ObjectPose_;
+using SharedSample = moslam_msg_dds__SharedObjects_;
+using PairSample = moslam_msg_dds__ObjectPair_;
 
 // Wire key of a variable of the sender: (index << 1) | kind.
 std::uint64_t WireKey(const Key& k) { return k.index << 1 | static_cast<std::uint64_t>(k.kind); }
@@ -121,6 +127,7 @@ ObjectListPacket FromSample(const ObjectListSample& s) {
   ObjectListPacket p;
   p.robot = s.robot;
   p.revision = s.revision;
+  p.step = s.step;
   for (std::uint32_t i = 0; i < s.objects._length; ++i) {
     const ObjectPoseSample& o = s.objects._buffer[i];
     ObjectObservation ob;
@@ -142,6 +149,17 @@ ObjectListPacket FromSample(const ObjectListSample& s) {
   return p;
 }
 
+SharedObjectsPacket FromSample(const SharedSample& s) {
+  SharedObjectsPacket p;
+  p.sender = s.sender;
+  p.receiver = s.receiver;
+  p.step = s.step;
+  for (std::uint32_t i = 0; i < s.pairs._length; ++i) {
+    p.pairs.emplace_back(s.pairs._buffer[i].alpha, s.pairs._buffer[i].beta);
+  }
+  return p;
+}
+
 }  // namespace
 
 class DdsTransport::Impl {
@@ -157,16 +175,20 @@ class DdsTransport::Impl {
                        writer_qos_),
         inbox_topic_(participant_, moslam_msg_dds__DgsEstimates__desc, EstimatesTopicName(robot),
                      writer_qos_),
+        shared_topic_(participant_, moslam_msg_dds__SharedObjects__desc,
+                      SharedObjectsTopicName(robot), writer_qos_),
         status_writer_(participant_, status_topic_, writer_qos_),
         objects_writer_(participant_, objects_topic_, writer_qos_),
         status_reader_(participant_, status_topic_, reader_qos_),
         objects_reader_(participant_, objects_topic_, reader_qos_),
         inbox_reader_(participant_, inbox_topic_, reader_qos_),
+        shared_reader_(participant_, shared_topic_, reader_qos_),
         waitset_(participant_) {
     if (!options_.transport.log) options_.transport.log = StderrLog(robot_);
     waitset_.attach(status_reader_);
     waitset_.attach(objects_reader_);
     waitset_.attach(inbox_reader_);
+    waitset_.attach(shared_reader_);
   }
 
   void send(const EstimatesPacket& p) {
@@ -188,19 +210,39 @@ class DdsTransport::Impl {
                 static_cast<std::uint32_t>(p.message.values.size()),
                 const_cast<double*>(p.message.values.data()), false};
     std::lock_guard<std::mutex> lock(mutex_);
-    auto it = estimate_writers_.find(p.receiver);
-    if (it == estimate_writers_.end()) {
-      auto topic = std::make_unique<dds::Topic>(participant_, moslam_msg_dds__DgsEstimates__desc,
-                                                EstimatesTopicName(p.receiver), writer_qos_);
-      auto writer = std::make_unique<dds::Writer>(participant_, *topic, writer_qos_);
-      it = estimate_writers_.emplace(p.receiver, Outbox{std::move(topic), std::move(writer)}).first;
-    }
-    it->second.writer->write(&s);
+    outbox(estimate_writers_, moslam_msg_dds__DgsEstimates__desc, EstimatesTopicName(p.receiver),
+           p.receiver)
+        .write(&s);
     const std::int64_t bytes = CdrSize(moslam_msg_dds__DgsEstimates__desc, &s);
     ++stats_.sent_samples;
     stats_.sent_bytes += bytes;
     ++stats_.estimates_sent;
     stats_.estimates_bytes += bytes;
+  }
+
+  void send(const SharedObjectsPacket& p) {
+    const std::string why = CheckPacket(p, robot_, p.receiver, {});
+    if (!why.empty()) throw InvalidInputError("cannot send: " + why);
+    std::vector<PairSample> pairs(p.pairs.size());
+    for (std::size_t i = 0; i < p.pairs.size(); ++i) {
+      pairs[i].alpha = p.pairs[i].first;
+      pairs[i].beta = p.pairs[i].second;
+    }
+    SharedSample s{};
+    s.sender = static_cast<std::uint16_t>(robot_);
+    s.receiver = static_cast<std::uint16_t>(p.receiver);
+    s.step = p.step;
+    s.pairs = {static_cast<std::uint32_t>(pairs.size()), static_cast<std::uint32_t>(pairs.size()),
+               pairs.data(), false};
+    std::lock_guard<std::mutex> lock(mutex_);
+    outbox(shared_writers_, moslam_msg_dds__SharedObjects__desc, SharedObjectsTopicName(p.receiver),
+           p.receiver)
+        .write(&s);
+    const std::int64_t bytes = CdrSize(moslam_msg_dds__SharedObjects__desc, &s);
+    ++stats_.sent_samples;
+    stats_.sent_bytes += bytes;
+    ++stats_.objects_sent;
+    stats_.objects_bytes += bytes;
   }
 
   void publish(const StatusPacket& p) {
@@ -249,6 +291,7 @@ class DdsTransport::Impl {
     ObjectListSample s{};
     s.robot = static_cast<std::uint16_t>(robot_);
     s.revision = p.revision;
+    s.step = p.step;
     s.objects = {static_cast<std::uint32_t>(objects.size()),
                  static_cast<std::uint32_t>(objects.size()), objects.data(), false};
     std::lock_guard<std::mutex> lock(mutex_);
@@ -256,6 +299,8 @@ class DdsTransport::Impl {
     const std::int64_t bytes = CdrSize(moslam_msg_dds__ObjectList__desc, &s);
     ++stats_.sent_samples;
     stats_.sent_bytes += bytes;
+    ++stats_.objects_sent;
+    stats_.objects_bytes += bytes;
   }
 
   std::vector<Received> poll(std::chrono::milliseconds timeout) {
@@ -292,6 +337,18 @@ class DdsTransport::Impl {
     std::unique_ptr<dds::Topic> topic;
     std::unique_ptr<dds::Writer> writer;
   };
+
+  // The writer to robot `receiver`'s inbox topic `name`, created on first use (under mutex_).
+  dds::Writer& outbox(std::map<int, Outbox>& writers, const dds_topic_descriptor_t& type,
+                      const std::string& name, int receiver) {
+    auto it = writers.find(receiver);
+    if (it == writers.end()) {
+      auto topic = std::make_unique<dds::Topic>(participant_, type, name, writer_qos_);
+      auto writer = std::make_unique<dds::Writer>(participant_, *topic, writer_qos_);
+      it = writers.emplace(receiver, Outbox{std::move(topic), std::move(writer)}).first;
+    }
+    return *it->second.writer;
+  }
 
   // Validates and appends; rejected samples are counted and logged.
   void accept(std::vector<Received>& out, int sender, Packet packet, std::int64_t bytes) {
@@ -364,6 +421,15 @@ class DdsTransport::Impl {
         reject(fmt::format("object list from robot {}: {}", s.robot, e.what()));
       }
     });
+    shared_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+      if (!info.valid_data) return;
+      const auto& s = *static_cast<const SharedSample*>(data);
+      try {
+        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__SharedObjects__desc, &s));
+      } catch (const std::exception& e) {
+        reject(fmt::format("shared objects from robot {}: {}", s.sender, e.what()));
+      }
+    });
   }
 
   int robot_;
@@ -371,11 +437,11 @@ class DdsTransport::Impl {
   // Parents first: members are destroyed in reverse order.
   dds::Participant participant_;
   dds::Qos writer_qos_, reader_qos_;
-  dds::Topic status_topic_, objects_topic_, inbox_topic_;
+  dds::Topic status_topic_, objects_topic_, inbox_topic_, shared_topic_;
   dds::Writer status_writer_, objects_writer_;
-  dds::Reader status_reader_, objects_reader_, inbox_reader_;
+  dds::Reader status_reader_, objects_reader_, inbox_reader_, shared_reader_;
   dds::WaitSet waitset_;
-  std::map<int, Outbox> estimate_writers_;
+  std::map<int, Outbox> estimate_writers_, shared_writers_;
 
   mutable std::mutex mutex_;  // stats, known, alive, writers
   std::mutex poll_mutex_;
@@ -397,6 +463,7 @@ DdsTransport::~DdsTransport() = default;
 
 int DdsTransport::self() const { return impl_->robot(); }
 void DdsTransport::send(const EstimatesPacket& packet) { impl_->send(packet); }
+void DdsTransport::send(const SharedObjectsPacket& packet) { impl_->send(packet); }
 void DdsTransport::publish(const StatusPacket& packet) { impl_->publish(packet); }
 void DdsTransport::publish(const ObjectListPacket& packet) { impl_->publish(packet); }
 std::vector<Received> DdsTransport::poll(std::chrono::milliseconds timeout) {

@@ -4,6 +4,8 @@
 //   rt/moslam/objects                   moslam/msg/ObjectList   every robot
 //   rt/moslam/robot<R>/dgs_estimates    moslam/msg/DgsEstimates robot R's inbox: only R reads it,
 //                                                               so estimates go only to R
+//   rt/moslam/robot<R>/shared_objects   moslam/msg/SharedObjects robot R's inbox (rendezvous
+//                                                               answers to R's object lists)
 // QoS everywhere: reliable, transient-local (writers keep their last kTransportHistoryDepth
 // samples and replay them to readers that join late: a restarted robot catches up), readers
 // keep all, automatic liveliness with a lease (liveliness_lease). Liveliness is observed on the
@@ -47,6 +49,7 @@ class DdsTransport final : public Transport {
 
   int self() const override;
   void send(const EstimatesPacket& packet) override;
+  void send(const SharedObjectsPacket& packet) override;
   void publish(const StatusPacket& packet) override;
   void publish(const ObjectListPacket& packet) override;
   std::vector<Received> poll(std::chrono::milliseconds timeout) override;
@@ -64,6 +67,7 @@ class DdsTransport final : public Transport {
 std::string StatusTopicName();
 std::string ObjectsTopicName();
 std::string EstimatesTopicName(int robot);
+std::string SharedObjectsTopicName(int robot);
 
 // The unicast discovery port of participant index `index` on `domain` (Cyclone's default port
 // mapping: 7400 + 250 domain + 10 + 2 index).

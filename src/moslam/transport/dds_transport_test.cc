@@ -12,6 +12,7 @@
 #include "moslam/transport/dds_transport.h"
 #include "moslam/transport/idl/DgsEstimates.h"
 #include "moslam/transport/idl/ObjectList.h"
+#include "moslam/transport/idl/SharedObjects.h"
 #include "moslam/transport/idl/Status.h"
 
 namespace moslam {
@@ -89,27 +90,41 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   ObjectListPacket o;
   o.robot = 0;
   o.revision = 9;
+  o.step = 31;
   o.objects.push_back({4, "chair", SE3(SO3::Exp(Vector3(0.3, -0.2, 1.1)), Vector3(1, -2, 3.5))});
   o.objects.push_back({(std::uint64_t{1} << 56) - 1, std::string(64, 'x'), SE3()});
+  SharedObjectsPacket h;
+  h.sender = 0;
+  h.receiver = 1;
+  h.step = 31;
+  h.pairs = {{3, 7}, {(std::uint64_t{1} << 56) - 1, 0}};
   t0.send(e);
   t0.publish(s);
   t0.publish(o);
+  t0.send(h);
 
   std::vector<Received> got = PollUntil(t1, [](const std::vector<Received>& v) {
     int n = 0;
     for (const Received& r : v) n += std::holds_alternative<StatusPacket>(r.packet) ? 0 : 1;
-    return n >= 2 && v.size() >= 3;
+    return n >= 3 && v.size() >= 4;
   });
   const EstimatesPacket* ge = nullptr;
   const StatusPacket* gs = nullptr;
   const ObjectListPacket* go = nullptr;
+  const SharedObjectsPacket* gh = nullptr;
   for (const Received& r : got) {
+    if (auto* p = std::get_if<SharedObjectsPacket>(&r.packet)) gh = p;
     EXPECT_EQ(r.sender, 0);
     if (auto* p = std::get_if<EstimatesPacket>(&r.packet)) ge = p;
     if (auto* p = std::get_if<StatusPacket>(&r.packet)) gs = p;
     if (auto* p = std::get_if<ObjectListPacket>(&r.packet)) go = p;
   }
-  ASSERT_TRUE(ge && gs && go);
+  ASSERT_TRUE(ge && gs && go && gh);
+  EXPECT_EQ(gh->sender, 0);
+  EXPECT_EQ(gh->receiver, 1);
+  EXPECT_EQ(gh->step, 31u);
+  EXPECT_EQ(gh->pairs, h.pairs);
+  EXPECT_EQ(go->step, 31u);
   EXPECT_EQ(ge->receiver, 1);
   EXPECT_EQ(ge->round, 17u);
   EXPECT_EQ(ge->message.stage, e.message.stage);
@@ -139,6 +154,7 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   const TransportStats s0 = t0.stats(), s1 = t1.stats();
   EXPECT_EQ(s0.estimates_sent, 1);
   EXPECT_EQ(s0.estimates_bytes, 4 + 20 + 4 + 3 * 8 + 4 + 4 + 27 * 8);
+  EXPECT_EQ(s0.objects_sent, 2);  // the object list and the answer
   EXPECT_EQ(s0.sent_bytes, s1.received_bytes);
   EXPECT_EQ(s1.rejected, 0);
 }

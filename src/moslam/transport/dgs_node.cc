@@ -203,6 +203,10 @@ class DgsNode::Impl {
     agent_ = std::make_unique<RobotAgent>(robot_, subgraph_, initial_, anchor, ao);
     neighbours_ = agent_->neighbourRobots();
     neighbour_keys_ = agent_->neighbourVariables();
+    // Snapshots of a graph with object landmarks use the g2o key scheme with objects.
+    for (const Key& k : subgraph_.keys()) {
+      if (k.isObject()) g2o_options_.scheme = KeyScheme::kWithObjects;
+    }
     if (!options_.state_dir.empty()) {
       std::filesystem::create_directories(options_.state_dir);
       journal_ = std::make_unique<Journal>(
@@ -351,7 +355,7 @@ class DgsNode::Impl {
     last_snapshot_ = now;
     const std::filesystem::path dir(options_.state_dir);
     const auto tmp = dir / "estimate.g2o.tmp";
-    WriteG2oFile(tmp.string(), subgraph_, agent_->estimate());
+    WriteG2oFile(tmp.string(), subgraph_, agent_->estimate(), g2o_options_);
     std::filesystem::rename(tmp, dir / "estimate.g2o");
   }
 
@@ -360,7 +364,7 @@ class DgsNode::Impl {
     snapshot(true);
     const std::filesystem::path dir(options_.state_dir);
     const auto tmp = dir / "result.g2o.tmp";
-    WriteG2oFile(tmp.string(), subgraph_, agent_->estimate());
+    WriteG2oFile(tmp.string(), subgraph_, agent_->estimate(), g2o_options_);
     std::filesystem::rename(tmp, dir / "result.g2o");
   }
 
@@ -732,6 +736,7 @@ class DgsNode::Impl {
   std::set<int> neighbours_;
   std::set<Key> neighbour_keys_;
   std::unique_ptr<Journal> journal_;
+  G2oWriteOptions g2o_options_;
 
   std::set<int> team_, live_, left_, heard_;
   bool in_stage_ = false;

@@ -29,7 +29,8 @@
 // continues; the peers wait for it meanwhile (lock-step rounds), and their transports deliver
 // the recent history it missed. Snapshots: estimate.g2o (the robot's variables and subgraph, at
 // most once a second and at every stage end), result.g2o when done. A journal written for other
-// data or options is refused (InvalidInputError).
+// data or options is refused (InvalidInputError). Snapshots of a subgraph with object landmarks
+// are written with KeyScheme::kWithObjects (robots 0..25 only: io/g2o.h).
 #pragma once
 
 #include <chrono>

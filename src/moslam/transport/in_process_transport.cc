@@ -13,9 +13,17 @@ namespace moslam {
 
 namespace {
 
-// History slot of a packet: status and objects per sender, estimates per (sender, receiver).
+// History slot of a packet: status and objects per sender, estimates per (sender, receiver)
+// (slot = receiver), shared objects per (sender, receiver) (slot = kSharedTopic - receiver).
 constexpr int kStatusTopic = -1;
 constexpr int kObjectsTopic = -2;
+constexpr int kSharedTopic = -3;
+// The robot a history slot is addressed to, or -1 (every robot).
+int SlotReceiver(int topic) {
+  if (topic >= 0) return topic;
+  if (topic <= kSharedTopic) return kSharedTopic - topic;
+  return -1;
+}
 
 struct Delivery {
   int to = 0;
@@ -84,6 +92,11 @@ class InProcessTransport final : public Transport {
     if (!why.empty()) throw InvalidInputError("cannot send: " + why);
     transmit(packet, packet.receiver, packet.receiver);
   }
+  void send(const SharedObjectsPacket& packet) override {
+    const std::string why = CheckPacket(packet, robot_, packet.receiver, {});
+    if (!why.empty()) throw InvalidInputError("cannot send: " + why);
+    transmit(packet, kSharedTopic - packet.receiver, packet.receiver);
+  }
   void publish(const StatusPacket& packet) override {
     const std::string why = CheckPacket(packet, robot_, -1, {});
     if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
@@ -143,6 +156,9 @@ class InProcessTransport final : public Transport {
     } else if (std::holds_alternative<StatusPacket>(packet)) {
       ++stats_.status_sent;
       stats_.status_bytes += bytes;
+    } else {
+      ++stats_.objects_sent;
+      stats_.objects_bytes += bytes;
     }
     Received r{robot_, packet};
     state_->remember(robot_, topic, r);
@@ -184,7 +200,8 @@ std::unique_ptr<Transport> InProcessNetwork::connect(int robot, TransportOptions
   for (const auto& [slot, packets] : state_->history) {
     const auto [sender, topic] = slot;
     if (sender == robot) continue;
-    if (topic >= 0 && topic != robot) continue;
+    const int receiver = SlotReceiver(topic);
+    if (receiver >= 0 && receiver != robot) continue;
     for (const Received& r : packets) state_->deliver(robot, r);
   }
   return std::make_unique<InProcessTransport>(state_, robot, std::move(options));

@@ -76,6 +76,26 @@ std::string CheckObjects(const ObjectListPacket& p, int sender) {
   return {};
 }
 
+std::string CheckShared(const SharedObjectsPacket& p, int sender, int self) {
+  if (p.sender != sender) {
+    return fmt::format("shared objects claim sender {} but came from robot {}", p.sender, sender);
+  }
+  if (p.receiver != self) {
+    return fmt::format("shared objects addressed to robot {}, not to this robot", p.receiver);
+  }
+  if (p.pairs.size() > kMaxObjects) return "shared objects with too many pairs";
+  std::set<std::uint64_t> alpha, beta;
+  for (const auto& [a, b] : p.pairs) {
+    if (a > kMaxKeyIndex || b > kMaxKeyIndex) {
+      return fmt::format("shared object pair ({}, {}) out of range", a, b);
+    }
+    if (!alpha.insert(a).second || !beta.insert(b).second) {
+      return fmt::format("shared object pair ({}, {}) uses an object twice", a, b);
+    }
+  }
+  return {};
+}
+
 }  // namespace
 
 std::string ToString(RobotState state) {
@@ -106,6 +126,9 @@ std::string CheckPacket(const Packet& packet, int sender, int self, const std::s
   }
   if (const auto* e = std::get_if<EstimatesPacket>(&packet)) return CheckEstimates(*e, sender, self);
   if (const auto* s = std::get_if<StatusPacket>(&packet)) return CheckStatus(*s, sender);
+  if (const auto* h = std::get_if<SharedObjectsPacket>(&packet)) {
+    return CheckShared(*h, sender, self);
+  }
   return CheckObjects(std::get<ObjectListPacket>(packet), sender);
 }
 
@@ -119,8 +142,12 @@ std::int64_t BinarySize(const Packet& packet) {
     // neighbour count u16 + u16 each.
     return 2 + 4 + 3 + 8 + 8 + 2 + 2 * static_cast<std::int64_t>(s->neighbours.size());
   }
+  if (const auto* h = std::get_if<SharedObjectsPacket>(&packet)) {
+    // sender, receiver u16, step u32, count u32, two u64 ids per pair.
+    return 2 + 2 + 4 + 4 + 16 * static_cast<std::int64_t>(h->pairs.size());
+  }
   const auto& o = std::get<ObjectListPacket>(packet);
-  std::int64_t bytes = 2 + 4 + 4;  // robot, sequence, count
+  std::int64_t bytes = 2 + 4 + 4 + 4;  // robot, revision, step, count
   for (const ObjectObservation& ob : o.objects) {
     bytes += 8 + 1 + static_cast<std::int64_t>(ob.label.size()) + 7 * 8;
   }

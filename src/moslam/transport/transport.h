@@ -7,7 +7,10 @@
 //                    (topic rt/moslam/robot<R>/dgs_estimates: the receiver's inbox);
 //   StatusPacket     a robot's progress, to every robot (rt/moslam/status), after every round;
 //   ObjectListPacket the objects a robot shares at a rendezvous, label + pose each
-//                    (rt/moslam/objects).
+//                    (rt/moslam/objects: every robot in range);
+//   SharedObjectsPacket the answer to an object list: the pairs of shared objects found by the
+//                    robot that matched it (rt/moslam/robot<R>/shared_objects: the inbox of R,
+//                    the robot that sent the list).
 //
 // Delivery contract, met by both transports: reliable and in order per sender; a robot that
 // joins late (or restarts) still receives each sender's recent history (the last
@@ -27,6 +30,7 @@
 #include <limits>
 #include <set>
 #include <string>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -82,10 +86,20 @@ struct ObjectObservation {
 struct ObjectListPacket {
   int robot = 0;
   std::uint32_t revision = 0;  // increases with every list the robot publishes
+  std::uint32_t step = 0;      // time step (pose index) of the map: the rendezvous it is for
   std::vector<ObjectObservation> objects;
 };
 
-using Packet = std::variant<EstimatesPacket, StatusPacket, ObjectListPacket>;
+// Beta's answer to alpha's object list of `step`: (alpha object id, beta object id) per shared
+// object, each id at most once.
+struct SharedObjectsPacket {
+  int sender = 0;    // beta, who matched
+  int receiver = 0;  // alpha, who sent the list
+  std::uint32_t step = 0;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> pairs;
+};
+
+using Packet = std::variant<EstimatesPacket, StatusPacket, ObjectListPacket, SharedObjectsPacket>;
 
 struct Received {
   int sender = 0;
@@ -104,6 +118,8 @@ struct TransportStats {
   std::int64_t estimates_bytes = 0;
   std::int64_t status_sent = 0;
   std::int64_t status_bytes = 0;
+  std::int64_t objects_sent = 0;      // object lists and shared-object answers (rendezvous)
+  std::int64_t objects_bytes = 0;
 };
 
 struct TransportOptions {
@@ -119,6 +135,7 @@ class Transport {
   // Reliable send to packet.receiver. Throws InvalidInputError on a packet CheckPacket rejects
   // (the caller's bug: sender must be self()).
   virtual void send(const EstimatesPacket& packet) = 0;
+  virtual void send(const SharedObjectsPacket& packet) = 0;
   // To every robot. Throws InvalidInputError as send().
   virtual void publish(const StatusPacket& packet) = 0;
   virtual void publish(const ObjectListPacket& packet) = 0;
@@ -137,7 +154,8 @@ class Transport {
 // what EncodeMessage accepts. Status: state and stage in range, change >= 0 (+inf allowed),
 // neighbours distinct, increasing, without the robot itself. Objects: finite poses, unit
 // quaternions (checked before conversion, tolerance 1e-6), labels of 1..64 printable characters,
-// distinct ids < 2^56, at most kMaxObjects.
+// distinct ids < 2^56, at most kMaxObjects. Shared objects: addressed to `self`, at most
+// kMaxObjects pairs, ids < 2^56, no id twice on either side.
 std::string CheckPacket(const Packet& packet, int sender, int self, const std::set<int>& known);
 
 // Bytes of the binary encoding of a packet (messages.h for estimates; a comparable fixed-size

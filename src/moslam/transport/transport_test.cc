@@ -193,6 +193,27 @@ TEST(InProcessTransport, RefusesToSendInvalidPackets) {
   EXPECT_THROW(t0->publish(s), InvalidInputError);
 }
 
+TEST(InProcessTransport, DeliversSharedObjectsToTheReceiverOnlyAndChecksThem) {
+  InProcessNetwork net;
+  auto t0 = net.connect(0), t1 = net.connect(1), t2 = net.connect(2);
+  SharedObjectsPacket h;
+  h.sender = 0;
+  h.receiver = 1;
+  h.step = 4;
+  h.pairs = {{1, 2}, {3, 4}};
+  t0->send(h);
+  const auto got = PollFor(*t1, 1);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(std::get<SharedObjectsPacket>(got[0].packet).pairs, h.pairs);
+  EXPECT_TRUE(t2->poll(milliseconds(1)).empty());
+  EXPECT_EQ(t0->stats().objects_sent, 1);
+  h.pairs.push_back({1, 9});  // alpha object 1 twice
+  EXPECT_NE(CheckPacket(h, 0, 1, {}), "");
+  EXPECT_THROW(t0->send(h), InvalidInputError);
+  h.pairs = {{1, 2}};
+  EXPECT_NE(CheckPacket(h, 0, 2, {}), "");  // addressed to robot 1, received by robot 2
+}
+
 TEST(CheckPacket, AcceptsInfiniteChangeAndValidObjectLists) {
   StatusPacket s = Status(0, 1);
   s.change = std::numeric_limits<double>::infinity();

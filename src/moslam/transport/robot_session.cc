@@ -1,0 +1,582 @@
+#include "moslam/transport/robot_session.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <deque>
+#include <filesystem>
+#include <iterator>
+#include <map>
+#include <set>
+#include <utility>
+
+#include "moslam/common/errors.h"
+#include "moslam/sim/world.h"
+#include "moslam/slam/rendezvous.h"
+#include "moslam/transport/journal.h"
+
+namespace moslam {
+
+void ScenarioSpec::validate() const {
+  auto bad = [](const std::string& msg) { throw InvalidInputError("scenario: " + msg); };
+  if (scenario != "chairs25" && scenario != "house" && scenario != "generated") {
+    bad("scenario must be chairs25, house or generated, got '" + scenario + "'");
+  }
+  if (robots < 1 || robots > kMaxTransportRobot) {
+    bad("robots must be in [1, 65535], got " + std::to_string(robots));
+  }
+  if (!(sigma_rotation_deg >= 0.0) || !std::isfinite(sigma_rotation_deg)) {
+    bad("sigma_rotation_deg must be finite and >= 0");
+  }
+  if (!(sigma_translation >= 0.0) || !std::isfinite(sigma_translation)) {
+    bad("sigma_translation must be finite and >= 0");
+  }
+  if (poses_per_robot < 2) {
+    bad("poses_per_robot must be at least 2, got " + std::to_string(poses_per_robot));
+  }
+}
+
+namespace {
+
+SimulationConfig ScenarioSimulationConfig(const ScenarioSpec& spec) {
+  SimulationConfig sim;
+  sim.trajectory.num_robots = spec.robots;
+  sim.trajectory.poses_per_robot = spec.poses_per_robot;
+  sim.trajectory.seed = spec.seed;
+  sim.sensing.seed = spec.seed;
+  for (NoiseModel* n : {&sim.sensing.odometry, &sim.sensing.objects}) {
+    n->sigma_rotation_deg = spec.sigma_rotation_deg;
+    n->sigma_translation = spec.sigma_translation;
+  }
+  return sim;
+}
+
+}  // namespace
+
+SimulationData SimulateScenario(const ScenarioSpec& spec) {
+  spec.validate();
+  return Simulate(MakeScenarioWorld(spec.scenario, spec.seed, spec.robots),
+                  ScenarioSimulationConfig(spec));
+}
+
+MultiRobotSlamConfig ScenarioSlamConfig(const ScenarioSpec& spec) {
+  spec.validate();
+  return MultiRobotSlamConfigForNoise(ScenarioSimulationConfig(spec).sensing);
+}
+
+RobotScenarioData SliceForRobot(const SimulationData& data, int robot) {
+  if (robot < 0 || robot >= data.numRobots() ||
+      data.measurements.size() != data.trajectories.size()) {
+    throw InvalidInputError(fmt::format("SliceForRobot: robot {} is not one of the {} robots of "
+                                        "the simulation",
+                                        robot, data.numRobots()));
+  }
+  RobotScenarioData d;
+  d.robot = robot;
+  d.num_robots = data.numRobots();
+  d.measurements = data.measurements[static_cast<std::size_t>(robot)];
+  for (const Trajectory& t : data.trajectories) {
+    if (t.empty()) throw InvalidInputError("SliceForRobot: a robot has no pose");
+    d.initial_poses.push_back(t.front());
+  }
+  d.events = data.rendezvous;
+  return d;
+}
+
+void RobotSessionOptions::validate() const {
+  slam.validate();
+  dgs.validate();
+  if (slam.slam.ground_truth_association || slam.rendezvous.ground_truth_association) {
+    throw InvalidInputError(
+        "robot session: ground_truth_association is not available between processes (it reads "
+        "the other robot's landmarks)");
+  }
+  if (rendezvous_timeout.count() <= 0) {
+    throw InvalidInputError("robot session: rendezvous_timeout must be positive");
+  }
+}
+
+PoseGraph SessionSubgraph(const ObjectSlam& slam, const std::vector<SharedObject>& shared,
+                          const Matrix6& lambda) {
+  PoseGraph g = slam.graph();
+  for (const SharedObject& s : shared) g.add(ObjectObjectFactor(s, lambda));
+  return g;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'R', 'D', 'V', '1'};
+constexpr std::uint8_t kHeaderRecord = 1;
+constexpr std::uint8_t kEventRecord = 2;
+
+// Little-endian record bytes.
+class Record {
+ public:
+  Record& u8(std::uint8_t v) { return le(v, 1); }
+  Record& u16(std::uint16_t v) { return le(v, 2); }
+  Record& u32(std::uint32_t v) { return le(v, 4); }
+  Record& u64(std::uint64_t v) { return le(v, 8); }
+  std::vector<std::uint8_t>& data() { return b_; }
+
+ private:
+  Record& le(std::uint64_t v, int n) {
+    for (int i = 0; i < n; ++i) b_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+    return *this;
+  }
+  std::vector<std::uint8_t> b_;
+};
+
+class RecordReader {
+ public:
+  RecordReader(const std::vector<std::uint8_t>& b, std::string what)
+      : b_(b), what_(std::move(what)) {}
+  std::uint64_t le(int n) {
+    if (b_.size() - pos_ < static_cast<std::size_t>(n)) {
+      throw InvalidInputError(what_ + ": truncated rendezvous journal record");
+    }
+    std::uint64_t v = 0;
+    for (int i = 0; i < n; ++i) v |= std::uint64_t{b_[pos_ + static_cast<std::size_t>(i)]} << (8 * i);
+    pos_ += static_cast<std::size_t>(n);
+    return v;
+  }
+
+ private:
+  const std::vector<std::uint8_t>& b_;
+  std::string what_;
+  std::size_t pos_ = 0;
+};
+
+// FNV-1a over the robot's data and the options that change the rendezvous phase.
+class Fingerprint {
+ public:
+  void add(const void* data, std::size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < n; ++i) h_ = (h_ ^ p[i]) * 1099511628211ull;
+  }
+  void add(double v) { add(&v, sizeof v); }
+  void add(std::uint64_t v) { add(&v, sizeof v); }
+  void add(const std::string& s) {
+    add(static_cast<std::uint64_t>(s.size()));
+    add(s.data(), s.size());
+  }
+  void add(const SE3& x) {
+    for (int i = 0; i < 9; ++i) add(x.rotation().matrix()(i));
+    for (int i = 0; i < 3; ++i) add(x.translation()(i));
+  }
+  void add(const Matrix6& m) {
+    for (int i = 0; i < 36; ++i) add(m(i));
+  }
+  std::uint64_t value() const { return h_; }
+
+ private:
+  std::uint64_t h_ = 1469598103934665603ull;
+};
+
+std::uint64_t SessionFingerprint(const RobotScenarioData& d, const MultiRobotSlamConfig& c) {
+  Fingerprint f;
+  f.add(static_cast<std::uint64_t>(d.robot));
+  f.add(static_cast<std::uint64_t>(d.num_robots));
+  for (const OdometryReading& o : d.measurements.odometry) {
+    f.add(o.measurement);
+    f.add(o.information);
+  }
+  for (const auto& pose : d.measurements.detections) {
+    f.add(static_cast<std::uint64_t>(pose.size()));
+    for (const ObjectDetection& z : pose) {
+      f.add(z.label);
+      f.add(z.measurement);
+      f.add(z.information);
+    }
+  }
+  for (const SE3& x : d.initial_poses) f.add(x);
+  for (const RendezvousEvent& e : d.events) {
+    f.add(static_cast<std::uint64_t>(e.step) << 32 | static_cast<std::uint64_t>(e.alpha) << 16 |
+          static_cast<std::uint64_t>(e.beta));
+  }
+  for (const AssociationGate* g : {&c.slam.association, &c.rendezvous.gate}) {
+    f.add(g->sigma);
+    f.add(g->sigma_rotation_deg);
+    f.add(g->num_sigmas);
+  }
+  f.add(static_cast<std::uint64_t>(c.slam.update_every));
+  f.add(static_cast<std::uint64_t>(c.slam.iterations_per_update));
+  f.add(static_cast<std::uint64_t>(c.slam.localization_iterations));
+  f.add(static_cast<std::uint64_t>(c.final_iterations));
+  f.add(static_cast<std::uint64_t>(c.rendezvous.refine_alignment));
+  f.add(c.rendezvous.max_correction_m);
+  f.add(c.rendezvous.max_correction_deg);
+  f.add(static_cast<std::uint64_t>(c.rendezvous.min_inliers));
+  f.add(c.rendezvous.lambda());
+  return f.value();
+}
+
+// Hands the packets received during the rendezvous phase (DGS statuses and estimates of robots
+// that finished it first) to the DGS node before anything new.
+class PrefetchedTransport final : public Transport {
+ public:
+  PrefetchedTransport(Transport& inner, std::vector<Received> pending)
+      : inner_(inner), pending_(std::move(pending)) {}
+  int self() const override { return inner_.self(); }
+  void send(const EstimatesPacket& p) override { inner_.send(p); }
+  void send(const SharedObjectsPacket& p) override { inner_.send(p); }
+  void publish(const StatusPacket& p) override { inner_.publish(p); }
+  void publish(const ObjectListPacket& p) override { inner_.publish(p); }
+  std::vector<Received> poll(std::chrono::milliseconds timeout) override {
+    if (pending_.empty()) return inner_.poll(timeout);
+    std::vector<Received> out = std::move(pending_);
+    pending_.clear();
+    for (Received& r : inner_.poll(std::chrono::milliseconds(0))) out.push_back(std::move(r));
+    return out;
+  }
+  std::set<int> alive() const override { return inner_.alive(); }
+  void setKnownRobots(const std::set<int>& robots) override { inner_.setKnownRobots(robots); }
+  TransportStats stats() const override { return inner_.stats(); }
+
+ private:
+  Transport& inner_;
+  std::vector<Received> pending_;
+};
+
+using Pairs = std::vector<std::pair<std::uint32_t, std::uint32_t>>;
+
+}  // namespace
+
+class RobotSession::Impl {
+ public:
+  Impl(RobotScenarioData data, Transport& transport, RobotSessionOptions options)
+      : data_(std::move(data)), transport_(transport), options_(std::move(options)) {
+    options_.validate();
+    robot_ = data_.robot;
+    if (transport_.self() != robot_) {
+      throw InvalidInputError(fmt::format("robot session: robot {} given the transport of robot {}",
+                                          robot_, transport_.self()));
+    }
+    const int n = data_.num_robots, steps = data_.numSteps();
+    if (robot_ < 0 || robot_ >= n || static_cast<int>(data_.initial_poses.size()) != n ||
+        steps < 1 || static_cast<int>(data_.measurements.odometry.size()) != steps - 1) {
+      throw InvalidInputError(fmt::format("robot session: inconsistent data for robot {} of {}",
+                                          robot_, n));
+    }
+    for (std::size_t i = 0; i < data_.events.size(); ++i) {
+      const RendezvousEvent& e = data_.events[i];
+      if (e.alpha < 0 || e.alpha >= n || e.beta < 0 || e.beta >= n || e.alpha == e.beta ||
+          e.step < 0 || e.step >= steps || (i > 0 && e.step < data_.events[i - 1].step)) {
+        throw InvalidInputError(fmt::format(
+            "robot session: rendezvous event {} (step {}, robots {} and {}) does not fit the "
+            "scenario or is out of order",
+            i, e.step, e.alpha, e.beta));
+      }
+    }
+    if (!options_.log) {
+      const int r = robot_;
+      options_.log = [r](const std::string& text) {
+        fmt::print(stderr, "moslam robot {}: {}\n", r, text);
+        std::fflush(stderr);
+      };
+    }
+    if (!options_.dgs.state_dir.empty()) {
+      std::filesystem::create_directories(options_.dgs.state_dir);
+      journal_ = std::make_unique<Journal>(
+          (std::filesystem::path(options_.dgs.state_dir) / "rendezvous.bin").string());
+      restore();
+    }
+  }
+
+  RobotSessionResult run() {
+    if (ran_) throw InvalidInputError("robot session: run() is called once");
+    ran_ = true;
+    const auto t0 = Clock::now();
+    std::set<int> everyone;
+    for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
+    transport_.setKnownRobots(everyone);
+
+    ObjectSlam slam(robot_, options_.slam.slam);
+    const RobotMeasurements& m = data_.measurements;
+    std::size_t next = 0;
+    for (int t = 0; t < data_.numSteps(); ++t) {
+      const auto ti = static_cast<std::size_t>(t);
+      if (t == 0) {
+        slam.addFirstPose(m.detections[0]);
+      } else {
+        slam.addPose(m.odometry[ti - 1], m.detections[ti]);
+      }
+      std::vector<std::size_t> mine;
+      for (; next < data_.events.size() && data_.events[next].step == t; ++next) {
+        const RendezvousEvent& e = data_.events[next];
+        if (e.alpha == robot_ || e.beta == robot_) mine.push_back(next);
+      }
+      if (mine.empty()) continue;
+      // As RunMultiRobotObjectSlam: both robots refresh before an event (the later events of
+      // the same step find nothing new).
+      slam.refresh(options_.slam.slam.iterations_per_update);
+      bool list_published = false;
+      for (std::size_t index : mine) {
+        const RendezvousEvent& e = data_.events[index];
+        SessionRendezvous rec;
+        rec.event = e;
+        rec.alpha = e.alpha == robot_;
+        const auto te = Clock::now();
+        Pairs pairs;
+        if (rec.alpha) {
+          const ObjectMapMessage map = MakeObjectMapMessage(slam);
+          rec.objects_sent = static_cast<int>(map.objects.size());
+          rec.binary_bytes = static_cast<std::int64_t>(EncodeObjectMap(map).size());
+        }
+        const auto journaled = journaled_.find(index);
+        if (journaled != journaled_.end()) {
+          pairs = journaled->second;
+          rec.replayed = true;
+          if (!rec.alpha) sendAnswer(e, pairs);  // the old process may have died before it left
+        } else if (rec.alpha) {
+          if (!list_published) {
+            publishList(slam, t);
+            list_published = true;
+          }
+          pairs = awaitAnswer(e, slam);
+          record(index, pairs);
+        } else {
+          const ObjectMapMessage received = awaitList(e);
+          const SharedObjectsMessage answer = AnswerObjectMap(
+              received, slam, data_.initial_poses[static_cast<std::size_t>(e.alpha)],
+              data_.initial_poses[static_cast<std::size_t>(e.beta)], shared_, options_.slam.rendezvous);
+          pairs = answer.pairs;
+          sendAnswer(e, pairs);
+          record(index, pairs);
+        }
+        SharedObjectsMessage answer;
+        answer.sender = e.beta;
+        answer.receiver = e.alpha;
+        answer.pairs = pairs;
+        if (!rec.alpha) rec.binary_bytes = static_cast<std::int64_t>(EncodeSharedObjects(answer).size());
+        const std::vector<SharedObject> added = SharedObjectsOf(answer);
+        shared_.insert(shared_.end(), added.begin(), added.end());
+        rec.new_shared = static_cast<int>(added.size());
+        rec.seconds = std::chrono::duration<double>(Clock::now() - te).count();
+        result_.rendezvous_binary_bytes += rec.binary_bytes;
+        result_.rendezvous.push_back(rec);
+        if (options_.on_rendezvous) options_.on_rendezvous(rec);
+      }
+      // Lists of this step or earlier are no longer needed (the others' events included).
+      for (auto it = lists_.begin(); it != lists_.end();) {
+        it = it->first.second <= static_cast<std::uint32_t>(t) ? lists_.erase(it) : std::next(it);
+      }
+    }
+    slam.optimize(options_.slam.final_iterations);
+    result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    result_.rendezvous_transport = transport_.stats();
+    result_.shared = shared_;
+    result_.subgraph = SessionSubgraph(slam, shared_, options_.slam.rendezvous.lambda());
+    result_.initial = slam.estimate();
+    result_.poses = slam.numPoses();
+    result_.landmarks = static_cast<int>(slam.landmarks().size());
+
+    PrefetchedTransport dgs_transport(transport_, std::move(pending_));
+    pending_.clear();
+    DgsNode node(robot_, result_.subgraph, result_.initial, dgs_transport, options_.dgs);
+    result_.dgs = node.run();
+    result_.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    return result_;
+  }
+
+ private:
+  // ---- journal ------------------------------------------------------------------------------
+  void restore() {
+    const std::uint64_t fingerprint = SessionFingerprint(data_, options_.slam);
+    const auto& records = journal_->records();
+    if (records.empty()) {
+      Record r;
+      r.u8(kHeaderRecord);
+      for (char c : kJournalMagic) r.u8(static_cast<std::uint8_t>(c));
+      r.u16(static_cast<std::uint16_t>(robot_)).u64(fingerprint);
+      journal_->append(r.data());
+      return;
+    }
+    const std::string what = journal_->path();
+    for (std::size_t i = 0; i < records.size(); ++i) {
+      RecordReader p(records[i], what);
+      const auto type = static_cast<std::uint8_t>(p.le(1));
+      if (i == 0) {
+        char magic[8];
+        for (char& c : magic) c = static_cast<char>(p.le(1));
+        const auto robot = static_cast<int>(p.le(2));
+        const std::uint64_t fp = p.le(8);
+        if (type != kHeaderRecord || std::memcmp(magic, kJournalMagic, 8) != 0 ||
+            robot != robot_ || fp != fingerprint) {
+          throw InvalidInputError("state directory " + options_.dgs.state_dir +
+                                  " holds the rendezvous journal of another run (other robot, "
+                                  "scenario or options): remove it or choose another --out");
+        }
+        continue;
+      }
+      if (type != kEventRecord) {
+        throw InvalidInputError(what + ": unknown rendezvous journal record type " +
+                                std::to_string(type));
+      }
+      const auto index = static_cast<std::size_t>(p.le(4));
+      const auto count = static_cast<std::uint32_t>(p.le(4));
+      if (index >= data_.events.size()) throw InvalidInputError(what + ": event out of range");
+      Pairs pairs;
+      for (std::uint32_t k = 0; k < count; ++k) {
+        const auto a = static_cast<std::uint32_t>(p.le(4));
+        const auto b = static_cast<std::uint32_t>(p.le(4));
+        pairs.emplace_back(a, b);
+      }
+      journaled_[index] = std::move(pairs);
+    }
+    if (!journaled_.empty()) {
+      options_.log(fmt::format("restart: {} rendezvous taken from {}", journaled_.size(), what));
+    }
+  }
+
+  void record(std::size_t index, const Pairs& pairs) {
+    if (!journal_) return;
+    Record r;
+    r.u8(kEventRecord).u32(static_cast<std::uint32_t>(index)).u32(static_cast<std::uint32_t>(pairs.size()));
+    for (const auto& [a, b] : pairs) r.u32(a).u32(b);
+    journal_->append(r.data());
+  }
+
+  // ---- messages -----------------------------------------------------------------------------
+  void publishList(const ObjectSlam& slam, int step) {
+    ObjectListPacket p;
+    p.robot = robot_;
+    p.revision = ++revision_;
+    p.step = static_cast<std::uint32_t>(step);
+    for (const ObjectMapEntry& o : MakeObjectMapMessage(slam).objects) {
+      p.objects.push_back({o.landmark, o.label, o.pose});
+    }
+    transport_.publish(p);
+  }
+
+  void sendAnswer(const RendezvousEvent& e, const Pairs& pairs) {
+    SharedObjectsPacket p;
+    p.sender = robot_;
+    p.receiver = e.alpha;
+    p.step = static_cast<std::uint32_t>(e.step);
+    for (const auto& [a, b] : pairs) p.pairs.emplace_back(a, b);
+    transport_.send(p);
+  }
+
+  void ingest(std::vector<Received> packets) {
+    for (Received& r : packets) {
+      if (auto* list = std::get_if<ObjectListPacket>(&r.packet)) {
+        lists_[std::make_pair(r.sender, list->step)].push_back(std::move(*list));
+      } else if (auto* answer = std::get_if<SharedObjectsPacket>(&r.packet)) {
+        answers_[std::make_pair(r.sender, answer->step)].push_back(std::move(*answer));
+      } else {
+        pending_.push_back(std::move(r));
+      }
+    }
+  }
+
+  // Polls until `ready()` or the rendezvous timeout.
+  template <typename Ready>
+  void waitFor(const RendezvousEvent& e, const char* what, Ready ready) {
+    const auto deadline = Clock::now() + options_.rendezvous_timeout;
+    while (!ready()) {
+      if (Clock::now() > deadline) {
+        throw Error(fmt::format("robot {}: no {} from robot {} for the rendezvous of step {} "
+                                "within {} ms (not started, gone, or out of reach)",
+                                robot_, what, e.alpha == robot_ ? e.beta : e.alpha, e.step,
+                                options_.rendezvous_timeout.count()));
+      }
+      ingest(transport_.poll(std::chrono::milliseconds(100)));
+    }
+  }
+
+  // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
+  ObjectMapMessage awaitList(const RendezvousEvent& e) {
+    const auto key = std::make_pair(e.alpha, static_cast<std::uint32_t>(e.step));
+    ObjectMapMessage received;
+    waitFor(e, "object list", [&]() {
+      const auto it = lists_.find(key);
+      if (it == lists_.end() || it->second.empty()) return false;
+      ObjectMapMessage m;
+      m.sender = e.alpha;
+      try {
+        for (const ObjectObservation& o : it->second.front().objects) {
+          if (o.id > 0xFFFFFFFFu) throw InvalidInputError(fmt::format("object id {} exceeds 32 bits", o.id));
+          m.objects.push_back({static_cast<std::uint32_t>(o.id), o.label, o.pose});
+        }
+        received = DecodeObjectMap(EncodeObjectMap(m));
+        return true;
+      } catch (const InvalidInputError& err) {
+        options_.log(fmt::format("rejected: object list of robot {} for step {}: {}", e.alpha,
+                                 e.step, err.what()));
+        it->second.pop_front();  // a duplicate (restart) may follow
+        return false;
+      }
+    });
+    return received;
+  }
+
+  // Beta's answer to this robot's list of the event's step; answers naming landmarks this robot
+  // does not have, or already shared with beta, are rejected.
+  Pairs awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
+    const auto key = std::make_pair(e.beta, static_cast<std::uint32_t>(e.step));
+    std::set<std::uint64_t> mine_taken, theirs_taken;
+    for (const SharedObject& s : shared_) {
+      for (const auto& [own, other] : {std::make_pair(s.alpha_object, s.beta_object),
+                                       std::make_pair(s.beta_object, s.alpha_object)}) {
+        if (own.robot == robot_ && other.robot == e.beta) {
+          mine_taken.insert(own.index);
+          theirs_taken.insert(other.index);
+        }
+      }
+    }
+    Pairs pairs;
+    waitFor(e, "shared-object answer", [&]() {
+      const auto it = answers_.find(key);
+      if (it == answers_.end() || it->second.empty()) return false;
+      const SharedObjectsPacket& answer = it->second.front();
+      std::string why;
+      for (const auto& [a, b] : answer.pairs) {
+        if (a >= slam.landmarks().size()) {
+          why = fmt::format("names object {} of this robot, which has {}", a, slam.landmarks().size());
+        } else if (b > 0xFFFFFFFFu) {
+          why = fmt::format("object id {} exceeds 32 bits", b);
+        } else if (mine_taken.count(a) || theirs_taken.count(b)) {
+          why = fmt::format("pair ({}, {}) uses an object already shared between the two", a, b);
+        }
+        if (!why.empty()) break;
+      }
+      if (!why.empty()) {
+        options_.log(fmt::format("rejected: shared objects of robot {} for step {}: {}", e.beta,
+                                 e.step, why));
+        it->second.pop_front();
+        return false;
+      }
+      for (const auto& [a, b] : answer.pairs) {
+        pairs.emplace_back(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+      }
+      answers_.erase(it);
+      return true;
+    });
+    return pairs;
+  }
+
+  RobotScenarioData data_;
+  Transport& transport_;
+  RobotSessionOptions options_;
+  int robot_ = 0;
+  bool ran_ = false;
+  std::unique_ptr<Journal> journal_;
+  std::map<std::size_t, Pairs> journaled_;  // event index -> pairs
+  std::uint32_t revision_ = 0;
+  std::vector<SharedObject> shared_;
+  // Received, by (sender, step), in arrival order (duplicates after a restart are identical).
+  std::map<std::pair<int, std::uint32_t>, std::deque<ObjectListPacket>> lists_;
+  std::map<std::pair<int, std::uint32_t>, std::deque<SharedObjectsPacket>> answers_;
+  std::vector<Received> pending_;  // DGS packets
+  RobotSessionResult result_;
+};
+
+RobotSession::RobotSession(RobotScenarioData data, Transport& transport, RobotSessionOptions options)
+    : impl_(std::make_unique<Impl>(std::move(data), transport, std::move(options))) {}
+RobotSession::~RobotSession() = default;
+RobotSessionResult RobotSession::run() { return impl_->run(); }
+
+}  // namespace moslam

@@ -1,0 +1,146 @@
+// One robot of a simulated scenario as its own process: its object SLAM, its rendezvous over a
+// Transport, then its part of the team's distributed solve (DgsNode). The multi-robot pipeline of
+// slam/multi_robot.h (RunMultiRobotObjectSlam + AssembleJointProblem + RunDgs in Jacobi order),
+// split so that each robot runs only its own part and learns the others' only from the messages
+// it receives.
+//
+// Data: every process simulates the same seeded scenario (SimulateScenario) and keeps only its
+// slice (SliceForRobot): its own odometry and detections, the known initial poses of all robots
+// (used only to match object maps at a rendezvous, as in-process) and the scenario's rendezvous
+// events. The event list stands for "the radios are in range": a process does not detect its
+// peers by distance, it meets the peer named by the event at the event's time step, and the
+// exchange waits (up to rendezvous_timeout) until that peer answers.
+//
+// Per time step t the robot adds pose t to its ObjectSlam; when it takes part in events at t it
+// refreshes its estimate (as RunMultiRobotObjectSlam does before an event) and then, for each of
+// its events in the list's order:
+//   alpha: its object list (landmark index, label, pose in its own frame; one ObjectListPacket of
+//          step t, published once per step on the shared objects topic) is answered by beta with
+//          a SharedObjectsPacket of step t: the pairs it adds;
+//   beta:  waits for alpha's list of step t, rounds the poses to float32 exactly as the
+//          in-process message encoding does (EncodeObjectMap / DecodeObjectMap), matches with
+//          AnswerObjectMap (slam/rendezvous.h, the in-process code) and sends the answer.
+// Both add one object-object factor per pair (ObjectObjectFactor). After the last step: the
+// final Gauss-Newton iterations, then DgsNode on the robot's subgraph (its odometry and
+// object-pose factors, then its object-object factors in the order found) from its own
+// estimate. The result equals the in-process pipeline's (same shared objects, same DGS
+// estimate: the tests check 1e-9).
+//
+// Faults. Received packets are validated by the transport (unknown robots, malformed content);
+// the session also rejects (logs and ignores) answers naming objects this robot does not have
+// and lists that the in-process encoding refuses. A peer that does not answer within
+// rendezvous_timeout makes the robot fail (moslam::Error): the exchange is not skipped, since
+// skipping would change the result.
+// Restart (state_dir): the rendezvous phase is deterministic given the answers, so the journal
+// `rendezvous.bin` (journal.h) records only each finished event's pairs. A restarted process
+// re-runs its SLAM from its measurements, takes finished events from the journal without
+// waiting, re-sends the answers it gave as beta (the old process may have died before they left)
+// and continues; the DGS phase has its own journal (dgs_node.h). Packets of the DGS protocol
+// that arrive during the rendezvous phase are kept and handed to the DGS node.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "moslam/sim/sensing.h"
+#include "moslam/slam/multi_robot.h"
+#include "moslam/transport/dgs_node.h"
+#include "moslam/transport/transport.h"
+
+namespace moslam {
+
+// A simulated scenario, built as the experiments build run 0 of a config
+// (experiments/simulation_experiment.h): the world of `scenario` with `seed`, `robots`
+// trajectories of `poses_per_robot` poses, odometry and object noise (sigma_rotation_deg,
+// sigma_translation), rendezvous by range; SLAM gates and Lambda from the noise
+// (MultiRobotSlamConfigForNoise).
+struct ScenarioSpec {
+  std::string scenario = "chairs25";  // chairs25 | house | generated
+  int robots = 6;
+  unsigned seed = 1;
+  double sigma_rotation_deg = 5.0;
+  double sigma_translation = 0.2;  // m
+  int poses_per_robot = 100;
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+};
+
+SimulationData SimulateScenario(const ScenarioSpec& spec);
+MultiRobotSlamConfig ScenarioSlamConfig(const ScenarioSpec& spec);
+
+// What one robot process keeps of a simulation.
+struct RobotScenarioData {
+  int robot = 0;
+  int num_robots = 0;
+  RobotMeasurements measurements;       // its own
+  std::vector<SE3> initial_poses;       // world_T_{r,0} of every robot r (known initial poses)
+  std::vector<RendezvousEvent> events;  // every event of the scenario, ordered by step
+  int numSteps() const { return static_cast<int>(measurements.detections.size()); }
+};
+
+// Throws InvalidInputError when `robot` is not one of the simulation's robots.
+RobotScenarioData SliceForRobot(const SimulationData& data, int robot);
+
+struct SessionRendezvous {
+  RendezvousEvent event;
+  bool alpha = false;  // this robot's role
+  int objects_sent = 0;          // alpha's landmarks in the list
+  int new_shared = 0;            // pairs the event added
+  std::int64_t binary_bytes = 0;  // in-process encoding of what this robot sent for it
+  bool replayed = false;         // taken from the journal
+  double seconds = 0.0;          // waiting for the peer
+};
+
+struct RobotSessionOptions {
+  MultiRobotSlamConfig slam;
+  DgsNodeOptions dgs;  // dgs.state_dir also holds rendezvous.bin
+  std::chrono::milliseconds rendezvous_timeout{60000};  // per event
+  std::function<void(const std::string&)> log;          // default: stderr
+  std::function<void(const SessionRendezvous&)> on_rendezvous;  // after each event
+  // Throws InvalidInputError naming the first bad field (ground-truth association cannot cross
+  // the network: it reads the other robot's landmarks).
+  void validate() const;
+};
+
+struct RobotSessionResult {
+  std::vector<SessionRendezvous> rendezvous;  // this robot's events, in order
+  std::vector<SharedObject> shared;           // pairs involving this robot, in the order found
+  PoseGraph subgraph;                         // what the DGS ran on
+  Values initial;                             // its own estimate after the SLAM
+  int poses = 0;
+  int landmarks = 0;
+  std::int64_t rendezvous_binary_bytes = 0;   // sum of binary_bytes
+  TransportStats rendezvous_transport;        // counters when the rendezvous phase ended
+  double slam_seconds = 0.0;                  // SLAM and rendezvous phase
+  DgsNodeResult dgs;
+  double seconds = 0.0;
+};
+
+// The subgraph of one robot in the joint problem: its graph, then one object-object factor per
+// shared object (AssembleJointProblem's factors touching the robot, in the same order).
+PoseGraph SessionSubgraph(const ObjectSlam& slam, const std::vector<SharedObject>& shared,
+                          const Matrix6& lambda);
+
+class RobotSession {
+ public:
+  // Throws InvalidInputError on bad options, a transport of another robot or inconsistent data;
+  // opening the state directory: as DgsNode.
+  RobotSession(RobotScenarioData data, Transport& transport, RobotSessionOptions options);
+  ~RobotSession();
+  RobotSession(const RobotSession&) = delete;
+  RobotSession& operator=(const RobotSession&) = delete;
+
+  // Runs SLAM, rendezvous and DGS, once. Throws moslam::Error on a timeout (a peer that never
+  // answers, the DGS errors of DgsNode::run) and InvalidInputError on a journal of another run.
+  RobotSessionResult run();
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace moslam

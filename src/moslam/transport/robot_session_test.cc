@@ -1,0 +1,304 @@
+// Robot sessions (robot_session.h) as threads over the in-process transport: the rendezvous
+// exchange and the DGS give the in-process pipeline's result (RunMultiRobotObjectSlam,
+// AssembleJointProblem, RunDgs in Jacobi order); forged object lists and answers are rejected and
+// logged; a robot that crashes in the rendezvous phase and restarts from its journal loses
+// nothing. Between processes over DDS: apps/team_test.cc.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <limits>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/dgs_driver.h"
+#include "moslam/transport/in_process_transport.h"
+#include "moslam/transport/robot_session.h"
+
+namespace moslam {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::milliseconds;
+
+// Three robots, 40 poses: a few rendezvous, every robot linked to robot 0.
+ScenarioSpec Small() {
+  ScenarioSpec s;
+  s.scenario = "chairs25";
+  s.robots = 3;
+  s.poses_per_robot = 40;
+  s.seed = 1;
+  return s;
+}
+
+struct Reference {
+  MultiRobotSlamResult slam;
+  JointProblem joint;
+  DgsResult dgs;
+  std::set<std::vector<std::uint64_t>> shared;
+};
+
+std::vector<std::uint64_t> Tuple(const SharedObject& o) {
+  return {static_cast<std::uint64_t>(o.beta_object.robot), o.beta_object.index,
+          static_cast<std::uint64_t>(o.alpha_object.robot), o.alpha_object.index};
+}
+
+Reference InProcess(const ScenarioSpec& spec, const SimulationData& data) {
+  Reference r;
+  const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
+  r.slam = RunMultiRobotObjectSlam(data, config);
+  r.joint = AssembleJointProblem(r.slam.robots, r.slam.shared, config.rendezvous.lambda());
+  r.dgs = RunDgs(r.joint.graph, r.joint.initial, DriverOptions(DgsNodeOptions{}));
+  for (const SharedObject& o : r.slam.shared) r.shared.insert(Tuple(o));
+  return r;
+}
+
+double MaxDifference(const Values& a, const Values& b) {
+  double worst = 0.0;
+  for (const auto& [k, x] : b) {
+    const auto it = a.find(k);
+    if (it == a.end()) return std::numeric_limits<double>::infinity();
+    worst = std::max(worst, (x.translation() - it->second.translation()).norm());
+    worst = std::max(worst, (x.rotation().matrix() - it->second.rotation().matrix()).norm());
+  }
+  return worst;
+}
+
+class Log {
+ public:
+  std::function<void(const std::string&)> sink() {
+    return [this](const std::string& s) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      lines_.push_back(s);
+    };
+  }
+  bool contains(const std::string& text) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const std::string& l : lines_) {
+      if (l.find(text) != std::string::npos) return true;
+    }
+    return false;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<std::string> lines_;
+};
+
+RobotSessionOptions Options(const ScenarioSpec& spec, Log& log, const std::string& state_dir = {}) {
+  RobotSessionOptions o;
+  o.slam = ScenarioSlamConfig(spec);
+  o.dgs.join_timeout = milliseconds(20000);
+  o.dgs.stall_timeout = milliseconds(20000);
+  o.dgs.finish_timeout = milliseconds(5000);
+  o.dgs.state_dir = state_dir;
+  o.rendezvous_timeout = milliseconds(20000);
+  o.log = log.sink();
+  return o;
+}
+
+// Checks a team's results against the in-process pipeline.
+void ExpectEqualToInProcess(const std::vector<RobotSessionResult>& results, const Reference& ref) {
+  std::set<std::vector<std::uint64_t>> shared;
+  Values merged;
+  std::int64_t bytes = 0;
+  std::size_t alpha_events = 0;
+  for (std::size_t r = 0; r < results.size(); ++r) {
+    for (const SharedObject& o : results[r].shared) shared.insert(Tuple(o));
+    for (const auto& [k, x] : results[r].dgs.estimate) merged.emplace(k, x);
+    bytes += results[r].rendezvous_binary_bytes;
+    for (const SessionRendezvous& e : results[r].rendezvous) alpha_events += e.alpha ? 1 : 0;
+  }
+  EXPECT_EQ(alpha_events, ref.slam.rendezvous.size());
+  EXPECT_EQ(shared, ref.shared);
+  EXPECT_EQ(bytes, ref.slam.bytes);  // the same messages, in the in-process encoding
+  EXPECT_EQ(merged.size(), ref.dgs.values.size());
+  EXPECT_LE(MaxDifference(merged, ref.dgs.values), 1e-9);
+}
+
+TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
+  const ScenarioSpec spec = Small();
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  ASSERT_TRUE(ref.joint.unanchored_robots.empty());
+  ASSERT_GE(ref.slam.rendezvous.size(), 2u);
+  ASSERT_GE(ref.slam.shared.size(), 3u);
+
+  InProcessNetwork net;
+  Log log;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+  std::vector<std::string> errors(results.size());
+  std::vector<std::thread> threads;
+  for (int r = 0; r < spec.robots; ++r) {
+    threads.emplace_back([&, r]() {
+      try {
+        RobotSession session(SliceForRobot(data, r), *transports[static_cast<std::size_t>(r)],
+                             Options(spec, log));
+        results[static_cast<std::size_t>(r)] = session.run();
+      } catch (const std::exception& e) {
+        errors[static_cast<std::size_t>(r)] = e.what();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& e : errors) ASSERT_EQ(e, "");
+  ExpectEqualToInProcess(results, ref);
+  for (const RobotSessionResult& r : results) {
+    EXPECT_EQ(r.rendezvous_transport.rejected, 0);
+    // Object lists and answers crossed the transport (bytes counted as such).
+    if (!r.rendezvous.empty()) {
+      EXPECT_GT(r.rendezvous_transport.objects_bytes, 0);
+    }
+  }
+}
+
+TEST(RobotSession, RejectsAndLogsForgedObjectListsAndAnswersWithoutCrashing) {
+  const ScenarioSpec spec = Small();
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  ASSERT_FALSE(data.rendezvous.empty());
+  const RendezvousEvent e = data.rendezvous.front();
+  const auto step = static_cast<std::uint32_t>(e.step);
+
+  InProcessNetwork net;
+  Log log;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+  // Waiting in the inboxes before the real messages of the first rendezvous.
+  ObjectListPacket unknown;
+  unknown.robot = 7;  // not a robot of the scenario
+  unknown.step = step;
+  unknown.objects.push_back({0, "chair", SE3()});
+  net.inject(7, e.beta, unknown);
+  ObjectListPacket nan;
+  nan.robot = e.alpha;
+  nan.step = step;
+  nan.objects.push_back(
+      {0, "chair", SE3(SO3(), Vector3(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0))});
+  net.inject(e.alpha, e.beta, nan);
+  ObjectListPacket wide = nan;
+  wide.objects = {{std::uint64_t{1} << 40, "chair", SE3()}};  // valid DDS id, not a landmark index
+  net.inject(e.alpha, e.beta, wide);
+  SharedObjectsPacket forged;
+  forged.sender = e.beta;
+  forged.receiver = e.alpha;
+  forged.step = step;
+  forged.pairs = {{100000, 0}};  // an object the alpha robot does not have
+  net.inject(e.beta, e.alpha, forged);
+
+  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+  std::vector<std::string> errors(results.size());
+  std::vector<std::thread> threads;
+  for (int r = 0; r < spec.robots; ++r) {
+    threads.emplace_back([&, r]() {
+      try {
+        RobotSession session(SliceForRobot(data, r), *transports[static_cast<std::size_t>(r)],
+                             Options(spec, log));
+        results[static_cast<std::size_t>(r)] = session.run();
+      } catch (const std::exception& ex) {
+        errors[static_cast<std::size_t>(r)] = ex.what();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& err : errors) ASSERT_EQ(err, "");
+  ExpectEqualToInProcess(results, ref);
+  EXPECT_TRUE(log.contains("unknown robot 7"));
+  EXPECT_TRUE(log.contains("non-finite"));
+  EXPECT_TRUE(log.contains("exceeds 32 bits"));
+  EXPECT_TRUE(log.contains("names object 100000"));
+  EXPECT_EQ(results[static_cast<std::size_t>(e.beta)].rendezvous_transport.rejected, 2);
+}
+
+TEST(RobotSession, ARobotThatCrashesInTheRendezvousPhaseAndRestartsLosesNothing) {
+  const ScenarioSpec spec = Small();
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  // The victim: the robot with the most events; it crashes after its second one.
+  std::vector<int> events(static_cast<std::size_t>(spec.robots), 0);
+  for (const RendezvousEvent& e : data.rendezvous) {
+    ++events[static_cast<std::size_t>(e.alpha)];
+    ++events[static_cast<std::size_t>(e.beta)];
+  }
+  const int victim = static_cast<int>(std::max_element(events.begin(), events.end()) - events.begin());
+  ASSERT_GE(events[static_cast<std::size_t>(victim)], 3);
+  const fs::path dir = fs::temp_directory_path() /
+                       ("moslam_session_restart_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+  fs::remove_all(dir);
+
+  InProcessNetwork net;
+  Log log;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+  std::vector<std::string> errors(results.size());
+  struct Crash {};
+  std::vector<std::thread> threads;
+  for (int r = 0; r < spec.robots; ++r) {
+    threads.emplace_back([&, r]() {
+      const auto ri = static_cast<std::size_t>(r);
+      const std::string state = (dir / std::to_string(r)).string();
+      try {
+        RobotSessionOptions o = Options(spec, log, state);
+        if (r == victim) {
+          int seen = 0;
+          o.on_rendezvous = [&seen](const SessionRendezvous&) {
+            if (++seen == 2) throw Crash{};
+          };
+          try {
+            RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+            session.run();
+            errors[ri] = "the victim did not crash";
+            return;
+          } catch (const Crash&) {
+          }
+          transports[ri].reset();  // the process is gone
+          transports[ri] = net.connect(r, {log.sink()});  // restarted: receives the history
+          o.on_rendezvous = nullptr;
+        }
+        RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+        results[ri] = session.run();
+      } catch (const std::exception& ex) {
+        errors[ri] = ex.what();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& err : errors) ASSERT_EQ(err, "");
+  ExpectEqualToInProcess(results, ref);
+  const auto& replayed = results[static_cast<std::size_t>(victim)].rendezvous;
+  ASSERT_GE(replayed.size(), 3u);
+  EXPECT_TRUE(replayed[0].replayed && replayed[1].replayed);
+  EXPECT_FALSE(replayed[2].replayed);
+  EXPECT_TRUE(log.contains("restart: 2 rendezvous taken from"));
+  fs::remove_all(dir);
+}
+
+TEST(RobotSession, ValidatesItsInputs) {
+  ScenarioSpec bad = Small();
+  bad.scenario = "moon";
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  bad = Small();
+  bad.poses_per_robot = 1;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  const SimulationData data = SimulateScenario(Small());
+  EXPECT_THROW(SliceForRobot(data, 3), InvalidInputError);
+  InProcessNetwork net;
+  auto t1 = net.connect(1);
+  Log log;
+  EXPECT_THROW(RobotSession(SliceForRobot(data, 0), *t1, Options(Small(), log)),
+               InvalidInputError);  // another robot's transport
+  RobotSessionOptions o = Options(Small(), log);
+  o.slam.rendezvous.ground_truth_association = true;
+  EXPECT_THROW(RobotSession(SliceForRobot(data, 1), *t1, o), InvalidInputError);
+  o = Options(Small(), log);
+  o.rendezvous_timeout = milliseconds(0);
+  EXPECT_THROW(o.validate(), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam
