@@ -1,0 +1,145 @@
+#include "moslam/render/tum_sequence.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "moslam/common/errors.h"
+#include "moslam/render/renderer.h"
+
+namespace moslam {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path FreshDir(const std::string& name) {
+  const fs::path d = fs::path(testing::TempDir()) / ("moslam_tum_" + name);
+  fs::remove_all(d);
+  return d;
+}
+
+void WriteFile(const fs::path& p, const std::string& text) {
+  std::ofstream f(p);
+  f << text;
+}
+
+TEST(TumSequence, WriteReadRoundTrip) {
+  const fs::path dir = FreshDir("roundtrip");
+  RenderConfig rc;
+  rc.intrinsics = PinholeIntrinsics::FromHorizontalFov(160, 120, 60.0);
+  const Renderer r(MakeHouseWorld(), rc);
+  std::vector<RenderedFrame> frames;
+  {
+    TumSequenceWriter w(dir.string(), rc.intrinsics);
+    for (int i = 0; i < 3; ++i) {
+      const SE3 body(SO3::Exp(Vector3(0.0, 0.0, 0.3 * i)), Vector3(1.5 + 0.5 * i, 1.5, 0.5));
+      frames.push_back(r.render(body, static_cast<std::uint64_t>(i), 100.0 + 0.5 * i));
+      w.add(frames.back().rgbd, frames.back().world_T_camera);
+    }
+    w.close();
+    EXPECT_EQ(w.size(), 3);
+  }
+  const TumSequence s = ReadTumSequence(dir.string());
+  ASSERT_EQ(s.frames.size(), 3u);
+  EXPECT_EQ(s.intrinsics.width, 160);
+  EXPECT_DOUBLE_EQ(s.intrinsics.fx, rc.intrinsics.fx);
+  EXPECT_DOUBLE_EQ(s.depth_scale, 5000.0);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_NEAR(s.frames[i].rgb_timestamp, 100.0 + 0.5 * static_cast<double>(i), 1e-9);
+    ASSERT_TRUE(s.frames[i].world_T_camera.has_value());
+    const SE3 d = s.frames[i].world_T_camera->between(frames[i].world_T_camera);
+    EXPECT_LT(SE3::Log(d).norm(), 1e-8);
+    const RgbdFrame f = LoadTumFrame(s, i);
+    EXPECT_EQ(cv::norm(f.rgb, frames[i].rgbd.rgb, cv::NORM_INF), 0.0);
+    // Depth: 1/5000 m units, so within half a unit (plus float rounding) of what was written.
+    cv::Mat diff;
+    cv::absdiff(f.depth, frames[i].rgbd.depth, diff);
+    double max_diff = 0.0;
+    cv::minMaxLoc(diff, nullptr, &max_diff);
+    EXPECT_LE(max_diff, 0.5 / 5000.0 + 1e-6);
+    EXPECT_EQ(cv::countNonZero(f.depth == 0.0f), cv::countNonZero(frames[i].rgbd.depth == 0.0f));
+  }
+  EXPECT_THROW(LoadTumFrame(s, 3), InvalidInputError);
+}
+
+// A hand-written sequence: association by nearest timestamp within the tolerance.
+fs::path HandWritten(const std::string& name, const std::string& rgb, const std::string& depth) {
+  const fs::path dir = FreshDir(name);
+  fs::create_directories(dir);
+  WriteFile(dir / "camera.txt", "# fx fy cx cy width height depth_scale\n525 525 319.5 239.5 640 480 5000\n");
+  WriteFile(dir / "rgb.txt", rgb);
+  WriteFile(dir / "depth.txt", depth);
+  return dir;
+}
+
+TEST(TumSequence, AssociatesByNearestTimestamp) {
+  const std::string header = "# color images\n# file: 'x'\n# timestamp filename\n";
+  const fs::path dir = HandWritten(
+      "assoc", header + "1.000 rgb/1.png\n2.000 rgb/2.png\n3.000 rgb/3.png\n",
+      header + "1.010 depth/a.png\n1.990 depth/b.png\n2.004 depth/c.png\n3.5 depth/d.png\n");
+  const TumSequence s = ReadTumSequence(dir.string());
+  ASSERT_EQ(s.frames.size(), 2u);  // 3.0 has no depth within 0.02 s
+  EXPECT_EQ(s.frames[0].depth_file, "depth/a.png");
+  EXPECT_EQ(s.frames[1].depth_file, "depth/c.png");  // nearer than b
+  EXPECT_FALSE(s.frames[0].world_T_camera.has_value());  // no groundtruth.txt
+  TumReadOptions wide;
+  wide.max_time_difference = 0.6;
+  EXPECT_EQ(ReadTumSequence(dir.string(), wide).frames.size(), 3u);
+}
+
+TEST(TumSequence, MalformedLinesAreRejectedWithFileAndLine) {
+  const std::string header = "# color images\n# file: 'x'\n# timestamp filename\n";
+  const fs::path dir = HandWritten("bad", header + "1.0 rgb/1.png\n2.0x rgb/2.png\n",
+                                   header + "1.0 depth/1.png\n");
+  try {
+    ReadTumSequence(dir.string());
+    FAIL() << "no throw";
+  } catch (const InvalidInputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("rgb.txt:5"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("2.0x"), std::string::npos) << msg;
+  }
+  WriteFile(dir / "rgb.txt", header + "1.0 rgb/1.png extra\n");
+  EXPECT_THROW(ReadTumSequence(dir.string()), InvalidInputError);
+  WriteFile(dir / "rgb.txt", header + "1.0 rgb/1.png\n");
+  WriteFile(dir / "groundtruth.txt", "# gt\n1.0 0 0 0 0 0 0 0\n");
+  try {
+    ReadTumSequence(dir.string());
+    FAIL() << "no throw";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("groundtruth.txt:2"), std::string::npos) << e.what();
+  }
+  fs::remove(dir / "groundtruth.txt");
+  WriteFile(dir / "camera.txt", "525 525 319.5 239.5 640 480\n");
+  try {
+    ReadTumSequence(dir.string());
+    FAIL() << "no throw";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("camera.txt:1"), std::string::npos) << e.what();
+  }
+  fs::remove(dir / "camera.txt");
+  EXPECT_THROW(ReadTumSequence(dir.string()), InvalidInputError);  // no intrinsics at all
+  TumReadOptions o;
+  o.intrinsics = PinholeIntrinsics::FromHorizontalFov(640, 480, 60.0);
+  EXPECT_EQ(ReadTumSequence(dir.string(), o).frames.size(), 1u);
+  EXPECT_THROW(LoadTumFrame(ReadTumSequence(dir.string(), o), 0), InvalidInputError);  // no PNG
+}
+
+TEST(TumSequence, WriterRejectsMismatchedFrames) {
+  const fs::path dir = FreshDir("writer");
+  const auto k = PinholeIntrinsics::FromHorizontalFov(32, 24, 60.0);
+  TumSequenceWriter w(dir.string(), k);
+  RgbdFrame f;
+  f.rgb = cv::Mat(24, 32, CV_8UC3, cv::Scalar(1, 2, 3));
+  f.depth = cv::Mat(24, 32, CV_32FC1, cv::Scalar(1.0f));
+  f.timestamp = 1.0;
+  w.add(f, SE3());
+  EXPECT_THROW(w.add(f, SE3()), InvalidInputError);  // same timestamp
+  f.timestamp = 2.0;
+  f.depth = cv::Mat(10, 10, CV_32FC1, cv::Scalar(1.0f));
+  EXPECT_THROW(w.add(f, SE3()), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam
