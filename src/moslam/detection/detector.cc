@@ -1,0 +1,345 @@
+#include "moslam/detection/detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <opencv2/dnn.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <utility>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+
+bool FileReadable(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return in.good();
+}
+
+std::string ShapeString(const cv::Mat& m) {
+  std::ostringstream s;
+  s << "[";
+  for (int i = 0; i < m.dims; ++i) s << (i ? ", " : "") << m.size[i];
+  s << "]";
+  return s.str();
+}
+
+// A box before non-maximum suppression, in network input pixels.
+struct Candidate {
+  cv::Rect2d box;
+  float score = 0.0f;
+  int class_id = 0;
+};
+
+// Index and value of the largest of n probabilities starting at p (stride between values).
+std::pair<int, float> BestClass(const float* p, int n, std::size_t stride) {
+  int best = 0;
+  float best_value = p[0];
+  for (int c = 1; c < n; ++c) {
+    const float v = p[static_cast<std::size_t>(c) * stride];
+    if (v > best_value) {
+      best_value = v;
+      best = c;
+    }
+  }
+  return {best, best_value};
+}
+
+void Push(std::vector<Candidate>& out, double cx, double cy, double w, double h, float score,
+          int class_id, float threshold) {
+  if (!std::isfinite(score) || score < threshold) return;
+  if (!std::isfinite(cx) || !std::isfinite(cy) || !std::isfinite(w) || !std::isfinite(h)) return;
+  if (w <= 0.0 || h <= 0.0) return;
+  out.push_back({cv::Rect2d(cx - 0.5 * w, cy - 0.5 * h, w, h), score, class_id});
+}
+
+// How the image was mapped onto the network input: net = image * scale + pad.
+struct InputMapping {
+  double scale_x = 1.0, scale_y = 1.0;
+  double pad_x = 0.0, pad_y = 0.0;
+};
+
+}  // namespace
+
+DetectorOutputFormat ParseDetectorOutputFormat(const std::string& name) {
+  if (name == "moslam") return DetectorOutputFormat::kMoslam;
+  if (name == "yolov5") return DetectorOutputFormat::kYolov5;
+  if (name == "darknet") return DetectorOutputFormat::kDarknet;
+  throw InvalidInputError("detector format '" + name +
+                          "' is unknown (expected moslam, yolov5 or darknet)");
+}
+
+std::string ToString(DetectorOutputFormat format) {
+  switch (format) {
+    case DetectorOutputFormat::kMoslam:
+      return "moslam";
+    case DetectorOutputFormat::kYolov5:
+      return "yolov5";
+    case DetectorOutputFormat::kDarknet:
+      return "darknet";
+  }
+  return "unknown";
+}
+
+void DetectorConfig::validate() const {
+  if (model_path.empty()) throw InvalidInputError("DetectorConfig.model_path is empty");
+  if (format == DetectorOutputFormat::kDarknet && darknet_cfg_path.empty()) {
+    throw InvalidInputError("DetectorConfig.darknet_cfg_path is empty (needed by format darknet)");
+  }
+  if (class_names.empty() && class_names_file.empty()) {
+    throw InvalidInputError(
+        "DetectorConfig.class_names is empty and class_names_file is not set (give one)");
+  }
+  if (!class_names.empty() && !class_names_file.empty()) {
+    throw InvalidInputError(
+        "DetectorConfig.class_names and class_names_file are both set (give only one)");
+  }
+  for (std::size_t i = 0; i < class_names.size(); ++i) {
+    if (class_names[i].empty()) {
+      throw InvalidInputError("DetectorConfig.class_names[" + std::to_string(i) + "] is empty");
+    }
+  }
+  if (input_width <= 0) throw InvalidInputError("DetectorConfig.input_width must be positive");
+  if (input_height <= 0) throw InvalidInputError("DetectorConfig.input_height must be positive");
+  if (!(confidence_threshold >= 0.0f && confidence_threshold <= 1.0f)) {
+    throw InvalidInputError("DetectorConfig.confidence_threshold must be in [0, 1]");
+  }
+  if (!(nms_iou_threshold >= 0.0f && nms_iou_threshold <= 1.0f)) {
+    throw InvalidInputError("DetectorConfig.nms_iou_threshold must be in [0, 1]");
+  }
+}
+
+std::vector<std::string> ReadClassNames(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InvalidInputError("cannot read class names file '" + path + "'");
+  std::vector<std::string> names;
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto first = line.find_first_not_of(" \t\r\n");
+    if (first == std::string::npos) continue;
+    const auto last = line.find_last_not_of(" \t\r\n");
+    names.push_back(line.substr(first, last - first + 1));
+  }
+  if (names.empty()) throw InvalidInputError("class names file '" + path + "' holds no name");
+  return names;
+}
+
+struct Detector::Impl {
+  DetectorConfig config;
+  std::vector<std::string> names;
+  cv::dnn::Net net;
+  std::vector<std::string> output_names;
+
+  int numClasses() const { return static_cast<int>(names.size()); }
+
+  void load() {
+    if (!FileReadable(config.model_path)) {
+      throw InvalidInputError("detector model file '" + config.model_path +
+                              "' does not exist or cannot be read");
+    }
+    try {
+      if (config.format == DetectorOutputFormat::kDarknet) {
+        if (!FileReadable(config.darknet_cfg_path)) {
+          throw InvalidInputError("Darknet cfg file '" + config.darknet_cfg_path +
+                                  "' does not exist or cannot be read");
+        }
+        net = cv::dnn::readNetFromDarknet(config.darknet_cfg_path, config.model_path);
+      } else {
+        net = cv::dnn::readNetFromONNX(config.model_path);
+      }
+    } catch (const cv::Exception& e) {
+      throw InvalidInputError("cannot load detector model '" + config.model_path +
+                              "' (format " + ToString(config.format) + "): " + e.what());
+    }
+    if (net.empty()) {
+      throw InvalidInputError("detector model '" + config.model_path + "' holds no network");
+    }
+    net.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
+    net.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
+    output_names = net.getUnconnectedOutLayersNames();
+  }
+
+  cv::Mat preprocess(const cv::Mat& bgr, InputMapping& mapping) const {
+    const int W = config.input_width, H = config.input_height;
+    const double w = bgr.cols, h = bgr.rows;
+    if (config.resize_mode == ResizeMode::kStretch) {
+      mapping.scale_x = W / w;
+      mapping.scale_y = H / h;
+      return cv::dnn::blobFromImage(bgr, 1.0 / 255.0, cv::Size(W, H), cv::Scalar(), true, false,
+                                    CV_32F);
+    }
+    const double s = std::min(W / w, H / h);
+    const int nw = std::clamp(static_cast<int>(std::lround(w * s)), 1, W);
+    const int nh = std::clamp(static_cast<int>(std::lround(h * s)), 1, H);
+    cv::Mat resized;
+    cv::resize(bgr, resized, cv::Size(nw, nh), 0, 0, cv::INTER_LINEAR);
+    const int left = (W - nw) / 2, top = (H - nh) / 2;
+    cv::Mat padded;
+    cv::copyMakeBorder(resized, padded, top, H - nh - top, left, W - nw - left,
+                       cv::BORDER_CONSTANT, cv::Scalar(114, 114, 114));
+    mapping.scale_x = nw / w;
+    mapping.scale_y = nh / h;
+    mapping.pad_x = left;
+    mapping.pad_y = top;
+    return cv::dnn::blobFromImage(padded, 1.0 / 255.0, cv::Size(), cv::Scalar(), true, false,
+                                  CV_32F);
+  }
+
+  [[noreturn]] void badShape(std::size_t i, const cv::Mat& out, const std::string& expected) const {
+    throw InvalidInputError("detector model '" + config.model_path + "': output '" +
+                            (i < output_names.size() ? output_names[i] : std::to_string(i)) +
+                            "' has shape " + ShapeString(out) + ", but format " +
+                            ToString(config.format) + " with " + std::to_string(numClasses()) +
+                            " classes expects " + expected);
+  }
+
+  void decodeMoslam(std::size_t i, const cv::Mat& out, std::vector<Candidate>& cands) const {
+    const int C = numClasses();
+    if (out.dims != 4 || out.size[0] != 1 || out.size[1] != 5 + C || out.type() != CV_32F) {
+      badShape(i, out, "[1, " + std::to_string(5 + C) + ", Gh, Gw] float");
+    }
+    const int gh = out.size[2], gw = out.size[3];
+    const std::size_t plane = static_cast<std::size_t>(gh) * static_cast<std::size_t>(gw);
+    const float* data = out.ptr<float>();
+    const double W = config.input_width, H = config.input_height;
+    for (int gy = 0; gy < gh; ++gy) {
+      for (int gx = 0; gx < gw; ++gx) {
+        const float* p = data + static_cast<std::size_t>(gy) * static_cast<std::size_t>(gw) +
+                         static_cast<std::size_t>(gx);
+        const float objectness = p[4 * plane];
+        const auto [cls, prob] = BestClass(p + 5 * plane, C, plane);
+        const double cx = (gx + static_cast<double>(p[0])) * W / gw;
+        const double cy = (gy + static_cast<double>(p[plane])) * H / gh;
+        Push(cands, cx, cy, p[2 * plane] * W, p[3 * plane] * H, objectness * prob, cls,
+             config.confidence_threshold);
+      }
+    }
+  }
+
+  void decodeRows(std::size_t i, const cv::Mat& out, std::vector<Candidate>& cands) const {
+    const int C = numClasses();
+    int rows = 0;
+    if (config.format == DetectorOutputFormat::kYolov5 && out.dims == 3 && out.size[0] == 1 &&
+        out.size[2] == 5 + C) {
+      rows = out.size[1];
+    } else if (out.dims == 2 && out.size[1] == 5 + C) {
+      rows = out.size[0];
+    } else {
+      badShape(i, out,
+               config.format == DetectorOutputFormat::kYolov5
+                   ? "[1, N, " + std::to_string(5 + C) + "] or [N, " + std::to_string(5 + C) + "]"
+                   : "[N, " + std::to_string(5 + C) + "]");
+    }
+    if (out.type() != CV_32F) badShape(i, out, "a float tensor");
+    const float* data = out.ptr<float>();
+    const bool darknet = config.format == DetectorOutputFormat::kDarknet;
+    const double sx = darknet ? config.input_width : 1.0;
+    const double sy = darknet ? config.input_height : 1.0;
+    for (int r = 0; r < rows; ++r) {
+      const float* p = data + static_cast<std::size_t>(r) * static_cast<std::size_t>(5 + C);
+      const auto [cls, prob] = BestClass(p + 5, C, 1);
+      const float score = darknet ? prob : p[4] * prob;
+      Push(cands, p[0] * sx, p[1] * sy, p[2] * sx, p[3] * sy, score, cls,
+           config.confidence_threshold);
+    }
+  }
+
+  std::vector<Detection> detect(const cv::Mat& image) {
+    if (image.empty()) throw InvalidInputError("Detector::detect: the image is empty");
+    cv::Mat bgr;
+    if (image.type() == CV_8UC3) {
+      bgr = image;
+    } else if (image.type() == CV_8UC1) {
+      cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+    } else {
+      throw InvalidInputError("Detector::detect: the image must be CV_8UC3 (BGR) or CV_8UC1");
+    }
+    InputMapping mapping;
+    const cv::Mat blob = preprocess(bgr, mapping);
+    std::vector<cv::Mat> outs;
+    try {
+      net.setInput(blob);
+      net.forward(outs, output_names);
+    } catch (const cv::Exception& e) {
+      throw Error("detector model '" + config.model_path + "' failed to run on a " +
+                  std::to_string(config.input_width) + "x" + std::to_string(config.input_height) +
+                  " input (is the configured input size right for this model?): " + e.what());
+    }
+    std::vector<Candidate> cands;
+    for (std::size_t i = 0; i < outs.size(); ++i) {
+      if (config.format == DetectorOutputFormat::kMoslam) {
+        decodeMoslam(i, outs[i], cands);
+      } else {
+        decodeRows(i, outs[i], cands);
+      }
+    }
+
+    // Per-class NMS on boxes in image pixels, clipped to the image.
+    const cv::Rect2d frame(0.0, 0.0, bgr.cols, bgr.rows);
+    std::map<int, std::vector<std::size_t>> by_class;
+    std::vector<cv::Rect2d> boxes(cands.size());
+    for (std::size_t k = 0; k < cands.size(); ++k) {
+      const cv::Rect2d& b = cands[k].box;
+      boxes[k] = cv::Rect2d((b.x - mapping.pad_x) / mapping.scale_x,
+                            (b.y - mapping.pad_y) / mapping.scale_y, b.width / mapping.scale_x,
+                            b.height / mapping.scale_y) &
+                 frame;
+      if (boxes[k].width > 0.0 && boxes[k].height > 0.0) by_class[cands[k].class_id].push_back(k);
+    }
+    std::vector<Detection> detections;
+    for (const auto& [cls, members] : by_class) {
+      std::vector<cv::Rect2d> class_boxes;
+      std::vector<float> class_scores;
+      for (std::size_t k : members) {
+        class_boxes.push_back(boxes[k]);
+        class_scores.push_back(cands[k].score);
+      }
+      std::vector<int> keep;
+      cv::dnn::NMSBoxes(class_boxes, class_scores, config.confidence_threshold,
+                        config.nms_iou_threshold, keep);
+      for (int j : keep) {
+        const std::size_t k = members[static_cast<std::size_t>(j)];
+        Detection d;
+        d.class_id = cls;
+        d.label = names[static_cast<std::size_t>(cls)];
+        d.confidence = cands[k].score;
+        d.box = cv::Rect2f(static_cast<float>(boxes[k].x), static_cast<float>(boxes[k].y),
+                           static_cast<float>(boxes[k].width),
+                           static_cast<float>(boxes[k].height));
+        detections.push_back(std::move(d));
+      }
+    }
+    std::stable_sort(detections.begin(), detections.end(),
+                     [](const Detection& a, const Detection& b) {
+                       return a.confidence > b.confidence;
+                     });
+    return detections;
+  }
+};
+
+Detector::Detector(DetectorConfig config) : impl_(std::make_unique<Impl>()) {
+  config.validate();
+  impl_->config = std::move(config);
+  impl_->names = impl_->config.class_names.empty()
+                     ? ReadClassNames(impl_->config.class_names_file)
+                     : impl_->config.class_names;
+  impl_->load();
+  // One run on a blank image: a model whose output does not fit the format fails here, at load.
+  impl_->detect(cv::Mat(impl_->config.input_height, impl_->config.input_width, CV_8UC3,
+                        cv::Scalar(0, 0, 0)));
+}
+
+Detector::~Detector() = default;
+Detector::Detector(Detector&&) noexcept = default;
+Detector& Detector::operator=(Detector&&) noexcept = default;
+
+std::vector<Detection> Detector::detect(const cv::Mat& bgr) { return impl_->detect(bgr); }
+
+const DetectorConfig& Detector::config() const { return impl_->config; }
+
+const std::vector<std::string>& Detector::classNames() const { return impl_->names; }
+
+}  // namespace moslam

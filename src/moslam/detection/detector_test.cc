@@ -1,0 +1,212 @@
+#include "moslam/detection/detector.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <opencv2/imgproc.hpp>
+#include <string>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+
+// testdata/make_tiny_models.py documents the two models and their constant outputs.
+const std::string kTestData = MOSLAM_DETECTION_TESTDATA_DIR;
+
+DetectorConfig TinyConfig(DetectorOutputFormat format) {
+  DetectorConfig c;
+  c.format = format;
+  c.model_path = kTestData + (format == DetectorOutputFormat::kMoslam ? "/tiny_moslam.onnx"
+                                                                      : "/tiny_yolov5.onnx");
+  c.class_names = {"chair", "table"};
+  c.input_width = 8;
+  c.input_height = 8;
+  return c;
+}
+
+// An image of side 8 * k whose quarters have the intensities 255 (top left), 204 (top right),
+// 153 (bottom left) and 51 (bottom right): objectness 1.0, 0.8, 0.6, 0.2 in tiny_moslam.onnx.
+cv::Mat Quadrants(int k) {
+  cv::Mat img(8 * k, 8 * k, CV_8UC3);
+  const int h = 4 * k;
+  img(cv::Rect(0, 0, h, h)).setTo(cv::Scalar::all(255));
+  img(cv::Rect(h, 0, h, h)).setTo(cv::Scalar::all(204));
+  img(cv::Rect(0, h, h, h)).setTo(cv::Scalar::all(153));
+  img(cv::Rect(h, h, h, h)).setTo(cv::Scalar::all(51));
+  return img;
+}
+
+void ExpectDetection(const Detection& d, int class_id, const std::string& label, float score,
+                     cv::Rect2f box) {
+  EXPECT_EQ(d.class_id, class_id);
+  EXPECT_EQ(d.label, label);
+  EXPECT_NEAR(d.confidence, score, 1e-5f);
+  EXPECT_NEAR(d.box.x, box.x, 1e-4f);
+  EXPECT_NEAR(d.box.y, box.y, 1e-4f);
+  EXPECT_NEAR(d.box.width, box.width, 1e-4f);
+  EXPECT_NEAR(d.box.height, box.height, 1e-4f);
+}
+
+TEST(DetectorMoslam, DecodesGridThresholdsAndRunsPerClassNms) {
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
+  c.nms_iou_threshold = 0.3f;
+  Detector detector(c);
+  const auto d = detector.detect(Quadrants(1));
+  // Cell (0,1) (score 0.64, IoU 0.6 with cell (0,0)) is suppressed; cell (1,0) overlaps cell
+  // (0,0) with IoU 1/3 > 0.3 but is another class; cell (1,1) scores 0.18 < 0.3.
+  ASSERT_EQ(d.size(), 2u);
+  ExpectDetection(d[0], 0, "chair", 0.9f, {1, 0, 4, 4});
+  ExpectDetection(d[1], 1, "table", 0.42f, {1, 2, 4, 4});
+}
+
+TEST(DetectorMoslam, LooserNmsAndLowerThresholdKeepMore) {
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
+  c.nms_iou_threshold = 0.7f;
+  c.confidence_threshold = 0.1f;
+  Detector detector(c);
+  const auto d = detector.detect(Quadrants(1));
+  ASSERT_EQ(d.size(), 4u);
+  ExpectDetection(d[0], 0, "chair", 0.9f, {1, 0, 4, 4});
+  ExpectDetection(d[1], 0, "chair", 0.64f, {2, 0, 4, 4});
+  ExpectDetection(d[2], 1, "table", 0.42f, {1, 2, 4, 4});
+  ExpectDetection(d[3], 1, "table", 0.18f, {5, 5, 2, 2});
+}
+
+TEST(DetectorMoslam, BoxesAreInInputImagePixels) {
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
+  c.nms_iou_threshold = 0.3f;
+  Detector detector(c);
+  const auto d = detector.detect(Quadrants(2));  // 16x16, stretched to 8x8
+  ASSERT_EQ(d.size(), 2u);
+  ExpectDetection(d[0], 0, "chair", 0.9f, {2, 0, 8, 8});
+  ExpectDetection(d[1], 1, "table", 0.42f, {2, 4, 8, 8});
+  // A black image: objectness 0 everywhere, nothing detected.
+  EXPECT_TRUE(detector.detect(cv::Mat::zeros(8, 8, CV_8UC3)).empty());
+}
+
+TEST(DetectorYolov5, DecodesRowsThresholdsAndNms) {
+  Detector detector(TinyConfig(DetectorOutputFormat::kYolov5));
+  const auto d = detector.detect(Quadrants(1));
+  // Row 1 (0.56, IoU 0.78 with row 0) suppressed; row 3 scores 0.25 < 0.3.
+  ASSERT_EQ(d.size(), 2u);
+  ExpectDetection(d[0], 0, "chair", 0.81f, {2, 2, 4, 4});
+  ExpectDetection(d[1], 1, "table", 0.4f, {1, 5, 2, 2});
+}
+
+TEST(DetectorYolov5, StretchAndLetterboxMapBackToTheImage) {
+  const cv::Mat wide(8, 16, CV_8UC3, cv::Scalar::all(90));  // 16 wide, 8 high
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kYolov5);
+  {
+    Detector detector(c);
+    const auto d = detector.detect(wide);
+    ASSERT_EQ(d.size(), 2u);
+    ExpectDetection(d[0], 0, "chair", 0.81f, {4, 2, 8, 4});
+    ExpectDetection(d[1], 1, "table", 0.4f, {2, 5, 4, 2});
+  }
+  c.resize_mode = ResizeMode::kLetterbox;  // scale 0.5, 2 rows of padding above and below
+  Detector detector(c);
+  const auto d = detector.detect(wide);
+  ASSERT_EQ(d.size(), 2u);
+  ExpectDetection(d[0], 0, "chair", 0.81f, {4, 0, 8, 8});
+  ExpectDetection(d[1], 1, "table", 0.4f, {2, 6, 4, 2});  // (2, 6, 4, 4) clipped at row 8
+}
+
+TEST(DetectorConfigTest, ValidateNamesTheBadField) {
+  const DetectorConfig good = TinyConfig(DetectorOutputFormat::kMoslam);
+  EXPECT_NO_THROW(good.validate());
+  auto expect_bad = [&](auto change, const std::string& field) {
+    DetectorConfig c = good;
+    change(c);
+    try {
+      c.validate();
+      ADD_FAILURE() << "no exception for " << field;
+    } catch (const InvalidInputError& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  expect_bad([](DetectorConfig& c) { c.model_path.clear(); }, "model_path");
+  expect_bad([](DetectorConfig& c) { c.class_names.clear(); }, "class_names");
+  expect_bad([](DetectorConfig& c) { c.class_names_file = "x.txt"; }, "class_names_file");
+  expect_bad([](DetectorConfig& c) { c.class_names[1].clear(); }, "class_names[1]");
+  expect_bad([](DetectorConfig& c) { c.input_width = 0; }, "input_width");
+  expect_bad([](DetectorConfig& c) { c.input_height = -8; }, "input_height");
+  expect_bad([](DetectorConfig& c) { c.confidence_threshold = 1.5f; }, "confidence_threshold");
+  expect_bad([](DetectorConfig& c) { c.nms_iou_threshold = -0.1f; }, "nms_iou_threshold");
+  expect_bad([](DetectorConfig& c) { c.format = DetectorOutputFormat::kDarknet; },
+             "darknet_cfg_path");
+  EXPECT_EQ(ParseDetectorOutputFormat("yolov5"), DetectorOutputFormat::kYolov5);
+  EXPECT_EQ(ToString(ParseDetectorOutputFormat("darknet")), "darknet");
+  EXPECT_THROW(ParseDetectorOutputFormat("yolo"), InvalidInputError);
+}
+
+TEST(DetectorLoad, ClassNamesFromFile) {
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
+  c.class_names.clear();
+  c.class_names_file = kTestData + "/tiny_classes.txt";
+  Detector detector(c);
+  EXPECT_EQ(detector.classNames(), (std::vector<std::string>{"chair", "table"}));
+  c.class_names_file = kTestData + "/no_such_classes.txt";
+  EXPECT_THROW(Detector{c}, InvalidInputError);
+}
+
+TEST(DetectorLoad, MissingOrUnreadableModelIsATypedError) {
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
+  c.model_path = kTestData + "/no_such_model.onnx";
+  try {
+    Detector detector(c);
+    ADD_FAILURE() << "no exception";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no_such_model.onnx"), std::string::npos);
+  }
+  c.model_path = ::testing::TempDir() + "/moslam_not_a_model.onnx";
+  std::ofstream(c.model_path) << "this is not an ONNX protobuf\n";
+  EXPECT_THROW(Detector{c}, InvalidInputError);
+}
+
+TEST(DetectorLoad, OutputShapeThatDoesNotFitIsATypedError) {
+  // Three classes for a 2-class grid: 7 channels, 8 expected.
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
+  c.class_names = {"chair", "table", "sofa"};
+  try {
+    Detector detector(c);
+    ADD_FAILURE() << "no exception";
+  } catch (const InvalidInputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("[1, 7, 2, 2]"), std::string::npos) << what;
+    EXPECT_NE(what.find("[1, 8, Gh, Gw]"), std::string::npos) << what;
+  }
+  // A yolov5 [1, N, 7] output read as a moslam grid, and the grid read as yolov5 rows.
+  DetectorConfig y = TinyConfig(DetectorOutputFormat::kYolov5);
+  y.format = DetectorOutputFormat::kMoslam;
+  EXPECT_THROW(Detector{y}, InvalidInputError);
+  DetectorConfig m = TinyConfig(DetectorOutputFormat::kMoslam);
+  m.format = DetectorOutputFormat::kYolov5;
+  EXPECT_THROW(Detector{m}, InvalidInputError);
+}
+
+TEST(DetectorDetect, RejectsBadImages) {
+  Detector detector(TinyConfig(DetectorOutputFormat::kMoslam));
+  EXPECT_THROW(detector.detect(cv::Mat()), InvalidInputError);
+  EXPECT_THROW(detector.detect(cv::Mat::zeros(8, 8, CV_32FC1)), InvalidInputError);
+  EXPECT_NO_THROW(detector.detect(cv::Mat::zeros(8, 8, CV_8UC1)));
+}
+
+TEST(DetectorTrainedModel, CommittedModelLoadsWithItsClasses) {
+  // models/detector/moslam_yolo.onnx (training/train_detector.py): 13 classes, 320x240 input,
+  // a [1, 18, 30, 40] grid. Loading runs it once and checks the output shape.
+  DetectorConfig c;
+  c.model_path = std::string(MOSLAM_DETECTOR_MODEL_DIR) + "/moslam_yolo.onnx";
+  c.class_names_file = std::string(MOSLAM_DETECTOR_MODEL_DIR) + "/classes.txt";
+  Detector detector(c);
+  ASSERT_EQ(detector.classNames().size(), 13u);
+  EXPECT_EQ(detector.classNames().front(), "chair");
+  for (const Detection& d : detector.detect(cv::Mat(240, 320, CV_8UC3, cv::Scalar(90, 90, 90)))) {
+    EXPECT_GE(d.confidence, 0.3f);
+    EXPECT_GE(d.box.x, 0.0f);
+    EXPECT_LE(d.box.x + d.box.width, 320.0f + 1e-3f);
+  }
+}
+
+}  // namespace
+}  // namespace moslam

@@ -1,0 +1,76 @@
+#include "moslam/detection/yolo_dataset.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+namespace fs = std::filesystem;
+
+fs::path MakeDataset(const std::string& name) {
+  const fs::path root = fs::path(::testing::TempDir()) / name;
+  fs::remove_all(root);
+  fs::create_directories(root / "images");
+  fs::create_directories(root / "labels");
+  std::ofstream(root / "classes.txt") << "chair\ntable\n";
+  const cv::Mat img(20, 40, CV_8UC3, cv::Scalar::all(0));
+  cv::imwrite((root / "images" / "b.png").string(), img);
+  cv::imwrite((root / "images" / "a.png").string(), img);
+  std::ofstream(root / "labels" / "a.txt") << "1 0.5 0.25 0.5 0.5\n\n0 0.1 0.1 0.2 0.2\n";
+  return root;
+}
+
+TEST(YoloDataset, ReadsImagesLabelsAndClasses) {
+  const fs::path root = MakeDataset("moslam_yolo_ok");
+  const YoloDataset data = ReadYoloDataset(root.string());
+  EXPECT_EQ(data.class_names, (std::vector<std::string>{"chair", "table"}));
+  ASSERT_EQ(data.samples.size(), 2u);
+  EXPECT_EQ(fs::path(data.samples[0].image_path).filename(), "a.png");
+  ASSERT_EQ(data.samples[0].labels.size(), 2u);
+  EXPECT_TRUE(data.samples[1].labels.empty());  // b has no label file: no objects
+  const GroundTruthBox g = data.samples[0].labels[0].toPixels(40, 20);
+  EXPECT_EQ(g.class_id, 1);
+  EXPECT_FLOAT_EQ(g.box.x, 10.0f);
+  EXPECT_FLOAT_EQ(g.box.y, 0.0f);
+  EXPECT_FLOAT_EQ(g.box.width, 20.0f);
+  EXPECT_FLOAT_EQ(g.box.height, 10.0f);
+}
+
+TEST(YoloDataset, MalformedLabelNamesFileAndLine) {
+  const fs::path root = MakeDataset("moslam_yolo_bad");
+  const std::string label = (root / "labels" / "a.txt").string();
+  auto expect_error = [&](const std::string& content, const std::string& what) {
+    std::ofstream(label) << content;
+    try {
+      ReadYoloDataset(root.string());
+      ADD_FAILURE() << "no exception for " << content;
+    } catch (const InvalidInputError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("a.txt:2:"), std::string::npos) << msg;
+      EXPECT_NE(msg.find(what), std::string::npos) << msg;
+    }
+  };
+  expect_error("0 0.5 0.5 0.1 0.1\n0 0.5 0.5 0.1\n", "expected");
+  expect_error("0 0.5 0.5 0.1 0.1\n2 0.5 0.5 0.1 0.1\n", "class id");
+  expect_error("0 0.5 0.5 0.1 0.1\n0 1.5 0.5 0.1 0.1\n", "[0, 1]");
+  expect_error("0 0.5 0.5 0.1 0.1\n0 0.5 0.5 0.0 0.1\n", "positive");
+  expect_error("0 0.5 0.5 0.1 0.1\n0 0.5 0.5 0.1 0.1 7\n", "expected");
+}
+
+TEST(YoloDataset, MissingPartsAreTypedErrors) {
+  EXPECT_THROW(ReadYoloDataset("/nonexistent/moslam/dataset"), InvalidInputError);
+  const fs::path root = MakeDataset("moslam_yolo_missing");
+  fs::remove(root / "classes.txt");
+  EXPECT_THROW(ReadYoloDataset(root.string()), InvalidInputError);
+  const fs::path root2 = MakeDataset("moslam_yolo_empty");
+  for (const auto& e : fs::directory_iterator(root2 / "images")) fs::remove(e.path());
+  EXPECT_THROW(ReadYoloDataset(root2.string()), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam
