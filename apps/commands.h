@@ -42,5 +42,7 @@ Runner RegisterRender(CLI::App& app);
 // `moslam detect --model M (--image F | --data DIR)`: the object detector (src/moslam/detection)
 // on one image, or evaluated on a YOLO-layout dataset.
 Runner RegisterDetect(CLI::App& app);
+// `moslam perceive <sequence dir>`: the front-end on a TUM RGB-D layout sequence.
+Runner RegisterPerceive(CLI::App& app);
 
 }  // namespace moslam::cli

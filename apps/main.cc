@@ -19,6 +19,9 @@ int main(int argc, char** argv) {
   add(moslam::cli::RegisterRobot(app));
   add(moslam::cli::RegisterTeam(app));
   add(moslam::cli::RegisterSimulate(app));
+  add(moslam::cli::RegisterRender(app));
+  add(moslam::cli::RegisterDetect(app));
+  add(moslam::cli::RegisterPerceive(app));
 
   try {
     app.parse(argc, argv);

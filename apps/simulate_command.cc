@@ -2,8 +2,13 @@
 //
 //   moslam simulate --scenario chairs25 --robots 2 4 6 --runs 10 --seed 1
 //                   [--sigma-rot 1 5 --sigma-trans 0.1 0.1] [--information noise|fixed]
-//                   [--table accuracy|association|memory|scale|all ...] [--json] [--plot FILE.svg]
+//                   [--table accuracy|association|memory|scale|perception|all ...] [--json]
+//                   [--plot FILE.svg] [--perception sampled|rendered [--model M.onnx]
+//                   [--classes classes.txt] [--templates DIR] [--perceive-every K]]
 //
+// --perception rendered: the object measurements come from the front-end (detector, PCL
+// segmentation, PFHRGB + SAC-IA + GICP) run on rendered RGB-D frames of every K-th pose
+// (perception/rendered_sensing.h), with the committed detector by default.
 // One row per (robots, noise pair): --robots and the noise pairs (--sigma-rot[i], --sigma-trans[i])
 // are crossed. Prints Markdown tables; with --json the last line is one JSON object
 // (ResultsToJson). --plot writes the Fig. 4 style SVG of run 0 of the first row.
@@ -18,6 +23,7 @@
 #include "commands.h"
 #include "moslam/common/errors.h"
 #include "moslam/experiments/simulation_experiment.h"
+#include "moslam/perception/rendered_sensing.h"
 
 namespace moslam::cli {
 
@@ -35,6 +41,11 @@ struct SimulateArgs {
   std::vector<std::string> table{"all"};
   bool json = false;
   std::string plot;
+  std::string perception = "sampled";
+  std::string model = std::string(MOSLAM_MODELS_DIR) + "/detector/moslam_yolo.onnx";
+  std::string classes = std::string(MOSLAM_MODELS_DIR) + "/detector/classes.txt";
+  std::string templates;
+  int perceive_every = 1;
 };
 }  // namespace
 
@@ -60,10 +71,24 @@ Runner RegisterSimulate(CLI::App& app) {
   sub->add_option("--poses", args->poses, "poses per robot")->check(CLI::Range(2, 100000));
   sub->add_flag("--no-refine", args->no_refine, "skip the DGS refinement stage");
   sub->add_option("--table", args->table,
-                  "table(s) to print: accuracy | association | memory | scale | all")
-      ->check(CLI::IsMember({"accuracy", "association", "memory", "scale", "all"}));
+                  "table(s) to print: accuracy | association | memory | scale | perception | all")
+      ->check(CLI::IsMember({"accuracy", "association", "memory", "scale", "perception", "all"}));
   sub->add_flag("--json", args->json, "print the results as one JSON object on the last line");
   sub->add_option("--plot", args->plot, "write an SVG of run 0 of the first row (Fig. 4)");
+  sub->add_option("--perception", args->perception,
+                  "object measurements: sampled (Gaussian noise) or rendered (the front-end on "
+                  "rendered RGB-D frames)")
+      ->check(CLI::IsMember({"sampled", "rendered"}))
+      ->capture_default_str();
+  sub->add_option("--model", args->model, "rendered: detector ONNX model")->capture_default_str();
+  sub->add_option("--classes", args->classes, "rendered: detector class names, one per line")
+      ->capture_default_str();
+  sub->add_option("--templates", args->templates,
+                  "rendered: folder of <label>.pcd templates replacing the built-in models");
+  sub->add_option("--perceive-every", args->perceive_every,
+                  "rendered: perceive every K-th pose (the others have no object measurement)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
 
   return [args]() -> int {
     const SimulateArgs& a = *args;
@@ -72,6 +97,15 @@ Runner RegisterSimulate(CLI::App& app) {
           "simulate: --sigma-rot has {} values but --sigma-trans has {}: give one of each per "
           "noise row",
           a.sigma_rot.size(), a.sigma_trans.size()));
+    }
+    std::shared_ptr<RenderedSensingConfig> rendered;
+    if (a.perception == "rendered") {
+      rendered = std::make_shared<RenderedSensingConfig>();
+      rendered->perception.detector.model_path = a.model;
+      rendered->perception.detector.class_names_file = a.classes;
+      rendered->perception.templates_dir = a.templates;
+      rendered->every = a.perceive_every;
+      rendered->validate();
     }
     std::vector<ExperimentResult> results;
     RunEstimates first;
@@ -87,6 +121,7 @@ Runner RegisterSimulate(CLI::App& app) {
         c.information = InformationModeFromString(a.information);
         c.poses_per_robot = a.poses;
         c.refine = !a.no_refine;
+        c.rendered = rendered;
         results.push_back(RunExperiment(c, results.empty() ? &first : nullptr));
       }
     }
@@ -94,11 +129,15 @@ Runner RegisterSimulate(CLI::App& app) {
         {"accuracy", TableKind::kAccuracy},
         {"association", TableKind::kAssociation},
         {"memory", TableKind::kMemory},
-        {"scale", TableKind::kScale}};
+        {"scale", TableKind::kScale},
+        {"perception", TableKind::kPerception}};
     bool first_table = true;
     for (const auto& [name, kind] : tables) {
-      const bool wanted = std::find(a.table.begin(), a.table.end(), name) != a.table.end() ||
-                          std::find(a.table.begin(), a.table.end(), "all") != a.table.end();
+      // "all" includes the perception table only when there was perception.
+      const bool all = std::find(a.table.begin(), a.table.end(), "all") != a.table.end() &&
+                       (kind != TableKind::kPerception || rendered);
+      const bool wanted =
+          all || std::find(a.table.begin(), a.table.end(), name) != a.table.end();
       if (!wanted) continue;
       if (!first_table) fmt::print("\n");
       first_table = false;

@@ -13,6 +13,7 @@ PACKAGES=(
   python3-matplotlib jq   # plots and tables of bench/ and scripts/ (README figures)
   cyclonedds-dev cyclonedds-tools libcycloneddsidl0  # robots as processes over DDS
   iproute2 iptables       # scripts/test-network.sh: namespaces, shaped links
+  libopencv-dev libpcl-dev  # perception front-end: images, DNN detector, PCL registration
 )
 
 missing=()

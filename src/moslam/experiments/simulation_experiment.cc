@@ -7,11 +7,13 @@
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <utility>
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_driver.h"
+#include "moslam/perception/rendered_sensing.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/sim/sensing.h"
 #include "moslam/sim/world.h"
@@ -73,6 +75,20 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"comm_obj_formula", &RunMetrics::comm_obj_formula},
       {"comm_obj_measured", &RunMetrics::comm_obj_measured},
       {"comm_dgs_per_robot", &RunMetrics::comm_dgs_per_robot},
+      {"perception_frames", &RunMetrics::perception_frames},
+      {"perception_detections", &RunMetrics::perception_detections},
+      {"perception_true_detections", &RunMetrics::perception_true_detections},
+      {"perception_accepted", &RunMetrics::perception_accepted},
+      {"perception_accepted_true", &RunMetrics::perception_accepted_true},
+      {"perception_rejected_inliers", &RunMetrics::perception_rejected_inliers},
+      {"perception_rejected_inliers_false", &RunMetrics::perception_rejected_inliers_false},
+      {"perception_median_error_m", &RunMetrics::perception_median_error_m},
+      {"perception_median_error_deg", &RunMetrics::perception_median_error_deg},
+      {"perception_ms_render", &RunMetrics::perception_ms_render},
+      {"perception_ms_detect", &RunMetrics::perception_ms_detect},
+      {"perception_ms_segment", &RunMetrics::perception_ms_segment},
+      {"perception_ms_register", &RunMetrics::perception_ms_register},
+      {"perception_pcd_bytes", &RunMetrics::perception_pcd_bytes},
       {"seconds_slam", &RunMetrics::seconds_slam},
       {"seconds_gn", &RunMetrics::seconds_gn},
       {"seconds_dgs_eta1", &RunMetrics::seconds_dgs_eta1},
@@ -147,8 +163,9 @@ TableKind TableKindFromString(const std::string& text) {
   if (text == "association") return TableKind::kAssociation;
   if (text == "memory") return TableKind::kMemory;
   if (text == "scale") return TableKind::kScale;
-  throw InvalidInputError("table must be accuracy, association, memory or scale, got '" + text +
-                          "'");
+  if (text == "perception") return TableKind::kPerception;
+  throw InvalidInputError(
+      "table must be accuracy, association, memory, scale or perception, got '" + text + "'");
 }
 
 void ExperimentConfig::validate() const {
@@ -197,7 +214,9 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     n->sigma_rotation_deg = config.sigma_rotation_deg;
     n->sigma_translation = config.sigma_translation;
   }
-  const SimulationData data = Simulate(world, sim);
+  SimulationData data = Simulate(world, sim);
+  std::optional<RenderedSensingStats> perceived;
+  if (config.rendered) perceived = PerceiveSimulation(data, *config.rendered);
 
   const MultiRobotSlamConfig slam_config = MultiRobotSlamConfigForNoise(sim.sensing);
   const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, slam_config);
@@ -214,6 +233,25 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     joint.graph = WithInformation(joint.graph, paper.information(sim.sensing.information_sigma_floor));
   }
   RunMetrics m;
+  if (perceived) {
+    const RenderedSensingStats& p = *perceived;
+    const double frames = std::max(1, p.frames);
+    m.perception_frames = p.frames;
+    m.perception_detections = p.detections;
+    m.perception_true_detections = p.true_detections;
+    m.perception_accepted = p.accepted;
+    m.perception_accepted_true = p.accepted_true;
+    m.perception_rejected_inliers = p.rejected_inliers;
+    m.perception_rejected_inliers_false = p.rejected_inliers_false;
+    m.perception_median_error_m = p.medianTranslationError();
+    m.perception_median_error_deg = p.medianRotationErrorDeg();
+    m.perception_ms_render = p.render_ms / frames;
+    m.perception_ms_detect = p.times.detect / frames;
+    m.perception_ms_segment = (p.times.prepare + p.times.segment) / frames;
+    m.perception_ms_register = p.times.register_ / frames;
+    m.perception_pcd_bytes = static_cast<double>(p.valid_depth_points) *
+                             config.point_cloud.bytes_per_point / config.robots;
+  }
   m.seconds_slam = slam.seconds;
   m.poses = joint.num_poses;
   m.landmarks = joint.num_landmarks;
@@ -359,6 +397,13 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
                "Cost η=1e-2 / GN", "Refined / GN", "Rendezvous bytes", "DGS bytes η=1e-1",
                "Refine bytes", "Time SLAM / GN / DGS / refine (s)", "Time total (s)"};
       break;
+    case TableKind::kPerception:
+      extra = {"Frames", "Detections", "True detections", "Accepted (true)",
+               "Rejected by the 12-inlier gate (false det.)", "Median pose error (cm / deg)",
+               "ms/frame render / detect / segment / register",
+               "Point clouds of the frames (MB/robot)", "Object map measured (MB/robot)",
+               "GN cost", "Refined cost", "ATE* poses (m)"};
+      break;
   }
   head.insert(head.end(), extra.begin(), extra.end());
   row(head);
@@ -398,6 +443,20 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
                              Fix(m.seconds_dgs_eta1, 2), Fix(m.seconds_refine, 2)),
                  Fix(m.seconds, 2)};
         break;
+      case TableKind::kPerception:
+        extra = {Fix(m.perception_frames), Fix(m.perception_detections),
+                 Fix(m.perception_true_detections),
+                 Fix(m.perception_accepted) + " (" + Fix(m.perception_accepted_true) + ")",
+                 Fix(m.perception_rejected_inliers) + " (" +
+                     Fix(m.perception_rejected_inliers_false) + ")",
+                 Fix(100.0 * m.perception_median_error_m, 1) + " / " +
+                     Fix(m.perception_median_error_deg, 1),
+                 fmt::format("{} / {} / {} / {}", Fix(m.perception_ms_render, 0),
+                             Fix(m.perception_ms_detect, 0), Fix(m.perception_ms_segment, 0),
+                             Fix(m.perception_ms_register, 0)),
+                 MB(m.perception_pcd_bytes), MB(m.memory_obj_measured), Fix(m.gn_cost),
+                 Fix(m.refined_cost), Sci(m.ate_star_poses)};
+        break;
     }
     cells.insert(cells.end(), extra.begin(), extra.end());
     row(cells);
@@ -426,6 +485,7 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"information", ToString(c.information)},
                              {"poses_per_robot", c.poses_per_robot},
                              {"refine", c.refine},
+                             {"perception", c.rendered ? "rendered" : "sampled"},
                              {"points_per_frame", c.point_cloud.points_per_frame},
                              {"bytes_per_point", c.point_cloud.bytes_per_point},
                              {"points_per_object", c.point_cloud.points_per_object},

@@ -45,12 +45,16 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "moslam/graph/pose_graph.h"
 
 namespace moslam {
+
+struct RenderedSensingConfig;  // perception/rendered_sensing.h
 
 enum class InformationMode { kNoise, kFixed };
 std::string ToString(InformationMode mode);
@@ -75,12 +79,16 @@ struct ExperimentConfig {
   int poses_per_robot = 100;
   bool refine = true;                // run the DGS refinement (refined cost)
   PointCloudModel point_cloud;
+  // Object measurements by the perception front-end on rendered frames
+  // (perception/rendered_sensing.h) instead of sampled ones; null: sampled (sim/sensing.h).
+  std::shared_ptr<const RenderedSensingConfig> rendered;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
 
 // Everything measured in one run (or, in ExperimentResult::mean, averaged over the runs).
 struct RunMetrics {
+  static constexpr double kNotRun = std::numeric_limits<double>::quiet_NaN();
   double poses = 0, landmarks = 0, shared_objects = 0, rendezvous = 0;
   // DGS, eta = 1e-1 and 1e-2: sweeps (rotation + pose) and cost; bytes of the DGS messages.
   double iterations_eta1 = 0, cost_eta1 = 0, iterations_eta2 = 0, cost_eta2 = 0;
@@ -100,6 +108,20 @@ struct RunMetrics {
   // Table 3, per robot (bytes), averaged over the robots.
   double memory_pcd = 0, memory_obj_formula = 0, memory_obj_measured = 0;
   double comm_pcd = 0, comm_obj_formula = 0, comm_obj_measured = 0, comm_dgs_per_robot = 0;
+  // Perception on rendered frames (ExperimentConfig::rendered; NaN with sampled measurements):
+  // frames perceived, detections, true ones (IoU >= 0.5 with a same-label object), accepted
+  // registrations (and true ones), rejections by the 12-inlier gate (and false detections among
+  // them), median pose error of the accepted true ones, milliseconds per frame per stage.
+  double perception_frames = kNotRun, perception_detections = kNotRun,
+         perception_true_detections = kNotRun, perception_accepted = kNotRun,
+         perception_accepted_true = kNotRun, perception_rejected_inliers = kNotRun,
+         perception_rejected_inliers_false = kNotRun, perception_median_error_m = kNotRun,
+         perception_median_error_deg = kNotRun, perception_ms_render = kNotRun,
+         perception_ms_detect = kNotRun, perception_ms_segment = kNotRun,
+         perception_ms_register = kNotRun;
+  // Per robot: the point clouds of the perceived frames (valid depth points x
+  // PointCloudModel::bytes_per_point), against memory_obj_measured (the object map).
+  double perception_pcd_bytes = kNotRun;
   // Wall time (s).
   double seconds_slam = 0, seconds_gn = 0, seconds_dgs_eta1 = 0, seconds_refine = 0, seconds = 0;
 };
@@ -125,8 +147,9 @@ ExperimentResult RunExperiment(const ExperimentConfig& config,
 
 RunMetrics MeanOf(const std::vector<RunMetrics>& runs);
 
-enum class TableKind { kAccuracy, kAssociation, kMemory, kScale };
-// "accuracy" | "association" | "memory" | "scale"; throws InvalidInputError otherwise.
+enum class TableKind { kAccuracy, kAssociation, kMemory, kScale, kPerception };
+// "accuracy" | "association" | "memory" | "scale" | "perception"; throws InvalidInputError
+// otherwise.
 TableKind TableKindFromString(const std::string& text);
 
 // One Markdown table, one row per result (its mean), with a header for `kind`.

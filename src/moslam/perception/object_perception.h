@@ -1,0 +1,109 @@
+// The perception front-end as one stage chain (paper Section 2.1): an RGB-D frame in, object-pose
+// measurements out.
+//
+//   detect    Detector (detection/detector.h): YOLO-style boxes, class probability >= 0.3, NMS;
+//   segment   PrepareSegmentation once per frame, SegmentObject per box
+//             (pose_estimation/segmentation.h): the object's points, scene planes removed;
+//   register  RegisterTemplate (pose_estimation/registration.h) against the template of the
+//             box's class: PFHRGB + SAC-IA, rejected with fewer than 12 inlier correspondences,
+//             refined by GICP; camera_T_object and an information matrix.
+// An accepted object becomes the measurement x_i^-1 o_k = BodyFromCamera() * camera_T_object
+// (render/rgbd.h: the camera at the body origin looking along body x) with the registration's
+// information (tangent order (w, v), CONVENTIONS.md).
+//
+// Templates: one per class the detector knows and `classes` describes, built once, when the
+// class is first detected (a template takes 1-3 s: model sampling, visibility, PFHRGB), from the
+// class's procedural model (render/object_models.h, SampleVisibleSurface at template_spacing), or
+// read from `templates_dir`/<label>.pcd when that file exists (your own scanned models; format in
+// pose_estimation/object_template.h). A detected class without a template is reported (status
+// kNoTemplate), never registered.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "moslam/detection/detector.h"
+#include "moslam/pose_estimation/object_template.h"
+#include "moslam/pose_estimation/registration.h"
+#include "moslam/pose_estimation/segmentation.h"
+#include "moslam/render/rgbd.h"
+#include "moslam/sim/sensing.h"
+#include "moslam/sim/world.h"
+
+namespace moslam {
+
+struct PerceptionConfig {
+  DetectorConfig detector;
+  SegmentationConfig segmentation;
+  RegistrationConfig registration;  // registration.features: the templates' feature parameters
+  double template_spacing = 0.01;   // m between samples of a class model
+  unsigned template_seed = 1;
+  std::string templates_dir;        // optional <label>.pcd overrides
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+};
+
+enum class PerceptionStatus {
+  kAccepted,          // registered: a measurement
+  kNoTemplate,        // the detected class has no template
+  kSegmentationFailed,
+  kTooFewPoints,      // registration: too few points after voxelling
+  kTooFewInliers,     // registration: the 12-inlier gate
+  kGicpFailed,
+  kColourMismatch,    // registration: the best pose's colours disagree with the template's
+  kShapeMismatch,     // registration: the best pose's points do not lie on the template
+};
+const char* ToString(PerceptionStatus status);
+
+struct PerceivedObject {
+  Detection detection;
+  PerceptionStatus status = PerceptionStatus::kNoTemplate;
+  SegmentationResult segmentation;  // its segment cloud is dropped (nullptr) to keep this small
+  RegistrationResult registration;  // meaningful once segmentation succeeded
+  SE3 body_T_object;                // the measurement x_i^-1 o_k (accepted only)
+  bool accepted() const { return status == PerceptionStatus::kAccepted; }
+};
+
+struct StageTimes {  // milliseconds
+  double detect = 0.0;
+  double prepare = 0.0;   // normals + planes of the frame
+  double segment = 0.0;   // all boxes
+  double register_ = 0.0; // all boxes
+  double total() const { return detect + prepare + segment + register_; }
+};
+
+struct FramePerception {
+  std::vector<PerceivedObject> objects;  // one per detection, in detection order
+  StageTimes times;
+};
+
+class ObjectPerception {
+ public:
+  // Loads the detector. Throws InvalidInputError on a bad config or an unreadable model; an
+  // unreadable template file throws from perceive() / findTemplate() when its class is needed.
+  ObjectPerception(const PerceptionConfig& config, const std::vector<ObjectClass>& classes);
+
+  // Runs the chain on one frame. Throws InvalidInputError when the frame is inconsistent with
+  // its intrinsics.
+  FramePerception perceive(const RgbdFrame& frame);
+
+  const PerceptionConfig& config() const { return config_; }
+  // The template of a class, built on first use; nullptr when the class has none.
+  const ObjectTemplate* findTemplate(const std::string& label);
+  // Time spent building templates so far.
+  double templateSeconds() const { return template_seconds_; }
+
+ private:
+  PerceptionConfig config_;
+  std::vector<ObjectClass> classes_;
+  Detector detector_;
+  std::map<std::string, std::optional<ObjectTemplate>> templates_;  // nullopt: class has none
+  double template_seconds_ = 0.0;
+};
+
+// The accepted objects as SLAM measurements (sim/sensing.h; object_id = -1: unknown).
+std::vector<ObjectDetection> ToObjectDetections(const FramePerception& frame);
+
+}  // namespace moslam

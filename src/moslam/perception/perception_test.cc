@@ -1,0 +1,116 @@
+// The front-end chain on rendered frames, with the committed detector model.
+#include "moslam/perception/object_perception.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <string>
+
+#include "moslam/common/errors.h"
+#include "moslam/perception/rendered_sensing.h"
+#include "moslam/render/renderer.h"
+
+namespace moslam {
+namespace {
+
+PerceptionConfig CommittedModel() {
+  PerceptionConfig c;
+  c.detector.model_path = std::string(MOSLAM_MODELS_DIR) + "/detector/moslam_yolo.onnx";
+  c.detector.class_names_file = std::string(MOSLAM_MODELS_DIR) + "/detector/classes.txt";
+  return c;
+}
+
+// One object of `label` at (x, 0) with yaw `yaw`, on the floor; the robot at the origin looking
+// along +x at the simulation's camera height.
+World OneObject(const std::string& label, double x, double yaw) {
+  World w;
+  w.name = "one";
+  w.classes = StandardObjectClasses();
+  ObjectInstance o;
+  o.id = 7;
+  o.label = label;
+  const double half_height = 0.5 * w.findClass(label)->extent.z();
+  o.pose = SE3(SO3::Exp(Vector3(0.0, 0.0, yaw)), Vector3(x, 0.0, half_height));
+  w.objects.push_back(o);
+  return w;
+}
+
+const SE3 kBody(SO3(), Vector3(0.0, 0.0, 0.5));
+
+TEST(Perception, RecoversTheChairPoseFromARenderedFrame) {
+  const World w = OneObject("chair", 2.0, 0.6);
+  const Renderer renderer(w, RenderConfig{});
+  const RenderedFrame frame = renderer.render(kBody, 1);
+  ASSERT_EQ(frame.objects.size(), 1u);
+  ObjectPerception perception(CommittedModel(), w.classes);
+  const FramePerception seen = perception.perceive(frame.rgbd);
+  ASSERT_EQ(seen.objects.size(), 1u);
+  const PerceivedObject& o = seen.objects.front();
+  EXPECT_EQ(o.detection.label, "chair");
+  EXPECT_GE(o.detection.confidence, 0.3f);
+  EXPECT_GE(BoxIou(o.detection.box, cv::Rect2f(frame.objects.front().box)), 0.5);
+  ASSERT_TRUE(o.accepted()) << ToString(o.status) << ", inliers " << o.registration.inliers;
+  EXPECT_GE(o.registration.inliers, 12);
+  // The measurement x^-1 o in the body frame against the truth.
+  const SE3 truth = kBody.inverse() * w.objects.front().pose;
+  EXPECT_LT((o.body_T_object.translation() - truth.translation()).norm(), 0.05);
+  EXPECT_LT(SO3::Log(truth.rotation().inverse() * o.body_T_object.rotation()).norm(),
+            5.0 * M_PI / 180.0);
+  // The information is symmetric positive definite.
+  const Matrix6 info = o.registration.information;
+  EXPECT_LT((info - info.transpose()).norm(), 1e-9 * info.norm());
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Matrix6>(info).eigenvalues().minCoeff(), 0.0);
+  // The SLAM measurement carries it.
+  const std::vector<ObjectDetection> m = ToObjectDetections(seen);
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m.front().label, "chair");
+  EXPECT_EQ(m.front().object_id, -1);
+  EXPECT_GT(seen.times.register_, 0.0);
+}
+
+TEST(Perception, AnEmptyRoomGivesNoMeasurement) {
+  World w = OneObject("chair", 2.0, 0.0);
+  w.objects.clear();
+  const Renderer renderer(w, RenderConfig{});
+  ObjectPerception perception(CommittedModel(), w.classes);
+  const FramePerception seen = perception.perceive(renderer.render(kBody, 2).rgbd);
+  EXPECT_TRUE(ToObjectDetections(seen).empty());
+}
+
+TEST(Perception, ADetectedClassWithoutTemplateIsReportedNotRegistered) {
+  const World w = OneObject("chair", 2.0, 0.6);
+  const Renderer renderer(w, RenderConfig{});
+  // No class description for "chair": no template can be built for it.
+  std::vector<ObjectClass> classes;
+  for (const ObjectClass& c : StandardObjectClasses()) {
+    if (c.label != "chair") classes.push_back(c);
+  }
+  ObjectPerception perception(CommittedModel(), classes);
+  EXPECT_EQ(perception.findTemplate("chair"), nullptr);
+  EXPECT_NE(perception.findTemplate("sofa"), nullptr);
+  const FramePerception seen = perception.perceive(renderer.render(kBody, 1).rgbd);
+  ASSERT_FALSE(seen.objects.empty());
+  EXPECT_EQ(seen.objects.front().status, PerceptionStatus::kNoTemplate);
+  EXPECT_TRUE(ToObjectDetections(seen).empty());
+}
+
+TEST(Perception, ValidatesItsConfig) {
+  PerceptionConfig c = CommittedModel();
+  c.template_spacing = 0.0;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = CommittedModel();
+  c.templates_dir = "/nonexistent/templates";
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = CommittedModel();
+  c.detector.model_path = "/nonexistent/model.onnx";
+  EXPECT_THROW(ObjectPerception(c, StandardObjectClasses()), InvalidInputError);
+  RenderedSensingConfig r;
+  r.perception = CommittedModel();
+  r.every = 0;
+  EXPECT_THROW(r.validate(), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam

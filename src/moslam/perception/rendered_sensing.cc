@@ -1,0 +1,117 @@
+#include "moslam/perception/rendered_sensing.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+
+constexpr double kRadToDeg = 57.29577951308232;
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  double m = v[mid];
+  if (v.size() % 2 == 0) {
+    m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid)));
+  }
+  return m;
+}
+
+}  // namespace
+
+void RenderedSensingConfig::validate() const {
+  render.validate();
+  perception.validate();
+  if (every < 1) throw InvalidInputError("RenderedSensingConfig: every must be >= 1");
+}
+
+double RenderedSensingStats::medianTranslationError() const { return Median(translation_errors); }
+double RenderedSensingStats::medianRotationErrorDeg() const { return Median(rotation_errors_deg); }
+
+RenderedSensingStats PerceiveSimulation(SimulationData& data,
+                                        const RenderedSensingConfig& config) {
+  config.validate();
+  if (data.measurements.size() != data.trajectories.size()) {
+    throw InvalidInputError("PerceiveSimulation: the simulation has " +
+                            std::to_string(data.measurements.size()) + " measurement sets for " +
+                            std::to_string(data.trajectories.size()) + " robots");
+  }
+  const Renderer renderer(data.world, config.render);
+  ObjectPerception perception(config.perception, data.world.classes);
+  RenderedSensingStats stats;
+  stats.template_seconds = perception.templateSeconds();
+
+  for (int r = 0; r < data.numRobots(); ++r) {
+    RobotMeasurements& m = data.measurements[static_cast<std::size_t>(r)];
+    const Trajectory& trajectory = data.trajectories[static_cast<std::size_t>(r)];
+    m.detections.assign(trajectory.size(), {});
+    for (std::size_t i = 0; i < trajectory.size(); i += static_cast<std::size_t>(config.every)) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const std::uint64_t key = static_cast<std::uint64_t>(r) * 1000000u + i;
+      const RenderedFrame frame = renderer.render(trajectory[i], key, static_cast<double>(i));
+      stats.render_ms += std::chrono::duration<double, std::milli>(
+                             std::chrono::steady_clock::now() - t0)
+                             .count();
+      const FramePerception seen = perception.perceive(frame.rgbd);
+      ++stats.frames;
+      stats.valid_depth_points += cv::countNonZero(frame.rgbd.depth > 0.0f);
+      stats.times.detect += seen.times.detect;
+      stats.times.prepare += seen.times.prepare;
+      stats.times.segment += seen.times.segment;
+      stats.times.register_ += seen.times.register_;
+      for (const PerceivedObject& o : seen.objects) {
+        ++stats.detections;
+        const VisibleObject* truth = nullptr;
+        double best = 0.5;
+        for (const VisibleObject& v : frame.objects) {
+          if (v.label != o.detection.label) continue;
+          const double iou = BoxIou(o.detection.box, cv::Rect2f(v.box));
+          if (iou >= best) {
+            best = iou;
+            truth = &v;
+          }
+        }
+        if (truth) ++stats.true_detections;
+        switch (o.status) {
+          case PerceptionStatus::kAccepted:
+            break;
+          case PerceptionStatus::kTooFewInliers:
+            ++stats.rejected_inliers;
+            if (!truth) ++stats.rejected_inliers_false;
+            continue;
+          case PerceptionStatus::kSegmentationFailed:
+            ++stats.segmentation_failed;
+            continue;
+          default:
+            ++stats.other_rejected;
+            continue;
+        }
+        ++stats.accepted;
+        ObjectDetection d;
+        d.label = o.detection.label;
+        d.measurement = o.body_T_object;
+        d.information = o.registration.information;
+        if (truth) {
+          ++stats.accepted_true;
+          d.object_id = truth->id;
+          const SE3& est = o.registration.camera_T_object;
+          stats.translation_errors.push_back(
+              (est.translation() - truth->camera_T_object.translation()).norm());
+          stats.rotation_errors_deg.push_back(
+              SO3::Log(truth->camera_T_object.rotation().inverse() * est.rotation()).norm() *
+              kRadToDeg);
+        }
+        m.detections[i].push_back(std::move(d));
+      }
+    }
+  }
+  return stats;
+}
+
+}  // namespace moslam

@@ -1,0 +1,56 @@
+// Object measurements of a simulation made by the real front-end on rendered frames
+// (`moslam simulate --perception rendered`), instead of sampled with Gaussian noise.
+//
+// For every robot and every `every`-th pose, the renderer (render/renderer.h) draws the RGB-D
+// frame its camera sees (frame key robot * 1e6 + pose: seeded, reproducible) and
+// ObjectPerception (object_perception.h) turns it into object-pose measurements, which replace
+// the sampled detections of that pose (other poses get none). Odometry stays as simulated.
+//
+// Evaluation against the renderer's ground truth: a detection is TRUE when its box overlaps the
+// visible-pixel box of a rendered object of the same label with IoU >= 0.5 (the most overlapping
+// one); its measurement then carries that object's id (ObjectDetection::object_id, used only by
+// the association statistics), and, when accepted, its pose error against the true
+// camera_T_object is recorded: translation |t - t*| and rotation angle of R*^T R.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "moslam/detection/evaluation.h"  // BoxIou
+#include "moslam/perception/object_perception.h"
+#include "moslam/render/renderer.h"
+#include "moslam/sim/sensing.h"
+
+namespace moslam {
+
+struct RenderedSensingConfig {
+  RenderConfig render;
+  PerceptionConfig perception;
+  int every = 1;  // perceive every `every`-th pose (1: all)
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+};
+
+struct RenderedSensingStats {
+  int frames = 0;
+  std::int64_t valid_depth_points = 0;     // pixels with a depth return, over the frames
+  int detections = 0, true_detections = 0;  // true: IoU >= 0.5 with a same-label object
+  int accepted = 0, accepted_true = 0;
+  int rejected_inliers = 0, rejected_inliers_false = 0;  // the 12-inlier gate, and how many of
+                                                         // those were false detections
+  int segmentation_failed = 0, other_rejected = 0;
+  std::vector<double> translation_errors;  // m, accepted true detections
+  std::vector<double> rotation_errors_deg;
+  StageTimes times;                        // summed over the frames
+  double render_ms = 0.0;
+  double template_seconds = 0.0;
+  // Medians of the errors (NaN when empty).
+  double medianTranslationError() const;
+  double medianRotationErrorDeg() const;
+};
+
+// Replaces data.measurements[r].detections by the front-end's on rendered frames. Throws
+// InvalidInputError on a bad config or data without measurements.
+RenderedSensingStats PerceiveSimulation(SimulationData& data, const RenderedSensingConfig& config);
+
+}  // namespace moslam

@@ -1,0 +1,57 @@
+// Shared point-cloud preprocessing and PFHRGB features of segments and templates. The PFHRGB,
+// SAC-IA and GICP template instantiations all live in registration.cc (one heavy translation
+// unit, shared/notes/frontend.md pitfall 4); this header only declares.
+#pragma once
+
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include "moslam/geometry/se3.h"
+
+namespace moslam {
+
+using FeaturePoint = pcl::PointXYZRGBNormal;  // xyz (m), rgb, unit normal
+using FeatureCloud = pcl::PointCloud<FeaturePoint>;
+using PfhrgbCloud = pcl::PointCloud<pcl::PFHRGBSignature250>;
+
+// The preprocessing and descriptor parameters. A template and the segments matched to it must
+// use the same values (Register checks).
+struct FeatureConfig {
+  double voxel_size = 0.015;     // m, pcl::VoxelGrid leaf (shared/notes: 1-1.5 cm)
+  double normal_radius = 0.03;   // m, segment normals (pcl::NormalEstimation)
+  double feature_radius = 0.05;  // m, PFHRGB neighbourhood (cost ~ neighbours^2)
+  // PFHRGB is computed at keypoints, the centroids of a coarser voxel grid of this leaf, over the
+  // voxel_size cloud as search surface; SAC-IA and the inlier gate run on the keypoints, GICP on
+  // the voxel_size cloud. 0 = a keypoint at every voxel_size point.
+  double keypoint_voxel = 0.03;  // m
+
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+  bool operator==(const FeatureConfig& o) const {
+    return voxel_size == o.voxel_size && normal_radius == o.normal_radius &&
+           feature_radius == o.feature_radius && keypoint_voxel == o.keypoint_voxel;
+  }
+};
+
+namespace pose_detail {
+
+// pcl::VoxelGrid (centroid of xyz, rgb and normal; normals renormalised). With
+// `drop_degenerate_normals`, voxels whose input normals cancel (mean normal shorter than 0.1:
+// both sides of a thin part, internal faces) are dropped.
+FeatureCloud::Ptr VoxelDownsample(const FeatureCloud& cloud, double leaf,
+                                  bool drop_degenerate_normals = false);
+
+// pcl::NormalEstimation within `radius`, normals flipped towards `viewpoint`.
+void EstimateNormals(FeatureCloud& cloud, double radius, const Vector3& viewpoint);
+
+// The keypoints of `surface` (a copy of it if keypoint_voxel == 0).
+FeatureCloud::Ptr Keypoints(const FeatureCloud& surface, double keypoint_voxel);
+
+// pcl::PFHRGBEstimation at `keypoints` within `radius` over `surface` (which carries the normals);
+// then removes the keypoints (and their features) whose descriptor is not finite, so
+// keypoints[i] <-> features[i] stays aligned.
+PfhrgbCloud::Ptr ComputePfhrgb(const FeatureCloud::Ptr& surface, FeatureCloud::Ptr& keypoints,
+                               double radius);
+
+}  // namespace pose_detail
+}  // namespace moslam

@@ -1,0 +1,184 @@
+// Object pose from a segment: PFHRGB features + SAC-IA initial alignment, an inlier gate
+// (>= 12 agreeing feature correspondences, the paper's check), then GICP refinement.
+//
+// Frames: the segment is in the camera optical frame (z forward, x right, y down), the template
+// in the object frame (centre, x forward, z up); metres. The result is camera_T_object
+// (p_camera = camera_T_object * p_object). The robot's object-pose measurement x_i^-1 o_k is
+// BodyFromCamera() * camera_T_object (ObjectMeasurementInBody).
+//
+// Stages (times in RegistrationResult::times):
+//   prepare : voxel the segment (FeatureConfig::voxel_size), normals (normal_radius, flipped
+//             towards the camera), keypoints (keypoint_voxel, at most max_segment_keypoints),
+//             PFHRGB at the keypoints
+//             (feature_radius); fewer than min_segment_points points or min_inliers keypoints ->
+//             kTooFewPoints;
+//   sac_ia  : pcl::SampleConsensusInitialAlignment, segment keypoints -> template keypoints, with
+//             sac_iterations, sac_correspondence_randomness, sac_min_sample_distance and
+//             sac_max_correspondence_distance; srand(seed) first (PCL draws with rand()), so a
+//             call is deterministic but not thread-safe against other rand() users;
+//   gate    : each segment keypoint's nearest template feature (PFHRGB L2) is a correspondence;
+//             it is an INLIER if the SAC-IA transform maps the segment point within
+//             inlier_distance of the template point (RegistrationResult::inliers). With
+//             gate_refined_pose (default), a segment failing this still goes through gicp/score,
+//             and the inliers are counted again under the final pose (refined_inliers): the gate
+//             passes if either count reaches min_inliers (SAC-IA often returns a flip of tables
+//             and sofas, whose correct half turn has the inliers). Otherwise kTooFewInliers;
+//   gicp    : pcl::GeneralizedIterativeClosestPoint (voxel_size clouds), segment -> the template
+//             points whose outward normals face the camera at the initial pose (back faces
+//             removed), run from each SYMMETRY HYPOTHESIS (below); kGicpFailed if no run converges
+//             to a finite transform;
+//   score   : each converged GICP pose is scored (AGREEMENT RULE below) and the best kept;
+//             kShapeMismatch if its geometric agreement is below min_geometric_agreement, else
+//             kColourMismatch if its colour agreement is below min_colour_agreement.
+//
+// Symmetry hypotheses (against the 180-degree flips of PFHRGB + SAC-IA, notes/frontend.md
+// pitfall 6, which pass the inlier gate): hypothesis 0 is the SAC-IA pose; then, for each
+// j = 1 .. symmetry_turns - 1, the SAC-IA pose turned by 360 j / symmetry_turns degrees about the
+// object's z axis (a flip matches the segment to the wrong side of the object, so its centre is
+// off by up to the object's size; measured 0.46 m on rendered chairs), three times:
+//   index 3j - 2: about the vertical axis through the object origin;
+//   index 3j - 1: about the vertical line through the segment's centroid (object frame);
+//   index 3j    : as 3j - 1, then shifted horizontally so that the segment's centroid lands on
+//                 the centroid of the template points facing the camera at that pose.
+// symmetry_turns = 2 (default) gives 4 hypotheses (half turn), 4 gives 10 (quarter turns), 1
+// disables them. Each costs one GICP (~0.1-0.3 s on ~2500 segment points).
+//
+// Agreement rule (RegistrationResult::score, geometric_agreement, colour_agreement): with the
+// segment points y_i mapped into the object frame by the pose and T the template points facing
+// the camera at that pose,
+//   geometric(i) : some t in T lies within score_distance of y_i;
+//   colour(i)    : one of those t has chromaticity within colour_tolerance (L2) of y_i's, where
+//                  chromaticity(r, g, b) = (r + k, g + k, b + k) / (r + g + b + 3k),
+//                  k = chroma_dark_offset (8-bit units). Chromaticity is invariant to the
+//                  brightness scaling of Lambert shading and of the models' brightness gradient;
+//                  k pulls dark, noisy pixels towards grey;
+//   geometric_agreement = #geometric / N,  colour_agreement = #(geometric and colour) / #geometric,
+//   score = #(geometric and colour) / N   (N = voxelled segment points).
+// The hypothesis with the highest score wins (ties: the lower index). A flip that still wins is
+// caught by its shape or colour: geometric_agreement < min_geometric_agreement -> kShapeMismatch,
+// else colour_agreement < min_colour_agreement -> kColourMismatch (pose and scores filled, no
+// information). Both thresholds were chosen on rendered chairs (measure_pose_estimation, seeds 1
+// and 2): correct poses had geometric 0.90-1.00 and colour 0.71-0.97, flips colour 0.48-0.60 or
+// geometric 0.83. RefinePose runs the same hypotheses, score and colour gate from
+// its initial pose instead of the SAC-IA pose (symmetry_turns = 1 to refine that pose alone).
+//
+// Information matrix (6x6, tangent order (w, v): rotation first, shared/CONVENTIONS.md), for a
+// right perturbation camera_T_object * Exp(xi) (the same xi perturbs the body-frame measurement
+// BodyFromCamera() * camera_T_object on the right). RULE: point-to-plane Fisher information of the
+// final alignment, deflated for correlated points, plus a model-error floor:
+//   for each voxelled segment point y_i (in the object frame after GICP) whose nearest GICP-target
+//   point q_i (normal n_i) is within gicp_max_correspondence_distance:
+//     J_i = [ (n_i x y_i)^T , -n_i^T ]   (d n_i.(y_i - q_i) / d xi),   H = sum J_i^T J_i;
+//   s^2 = max(mean squared point-to-plane residual, information_sigma_point^2);
+//   Sigma = ( H / s^2 * min(1, information_max_effective_points / N) + 1e-6 I )^-1
+//           + diag(sigma_rotation_floor^2 I3, sigma_translation_floor^2 I3);
+//   information = Sigma^-1 (symmetric positive definite; directions the segment does not
+//   constrain, e.g. sliding along a flat face, get ~1e-6 information).
+#pragma once
+
+#include <string>
+
+#include "moslam/geometry/se3.h"
+#include "moslam/pose_estimation/object_template.h"
+#include "moslam/pose_estimation/organized_cloud.h"
+
+namespace moslam {
+
+struct RegistrationConfig {
+  FeatureConfig features;  // must equal the template's (checked)
+  // SAC-IA.
+  int sac_iterations = 1000;  // 500 accepted 2/8 rendered chair views, 1000 5/8 (measured)
+  int sac_correspondence_randomness = 5;   // k nearest template features to draw from
+  double sac_min_sample_distance = 0.05;   // m between the 3 sampled segment points
+  double sac_max_correspondence_distance = 0.05;  // m, truncation of SAC-IA's error
+  unsigned seed = 1;
+  // Inlier gate (paper: 12).
+  double inlier_distance = 0.05;  // m; 0.04 accepted 5/16 rendered chair views, 0.05 13/16
+  int min_inliers = 12;
+  bool gate_refined_pose = true;  // also count the inliers under the refined pose (see above)
+  int min_segment_points = 30;    // after voxelling; fewer -> kTooFewPoints
+  // Cap on segment keypoints (evenly strided subset beyond it; 0 = no cap): PFHRGB and SAC-IA
+  // cost grow linearly with it (a sofa segment had ~2500 keypoints, 6.6 s CPU uncapped).
+  int max_segment_keypoints = 1000;
+  // GICP.
+  int gicp_max_iterations = 30;
+  double gicp_max_correspondence_distance = 0.05;  // m
+  double gicp_transformation_epsilon = 1e-6;
+  // Symmetry hypotheses and agreement rule (see the header comment).
+  int symmetry_turns = 2;              // 1 = SAC-IA pose only, 2 = + half turn, 4 = + quarter turns
+  double score_distance = 0.025;       // m, geometric agreement radius
+  double colour_tolerance = 0.05;      // chromaticity L2 distance
+  double chroma_dark_offset = 10.0;    // 8-bit units
+  double min_geometric_agreement = 0.85;  // below -> kShapeMismatch
+  double min_colour_agreement = 0.6;   // below -> kColourMismatch
+  // Information matrix rule (see the header comment).
+  double information_sigma_point = 0.005;           // m
+  double information_max_effective_points = 50.0;
+  double sigma_rotation_floor_deg = 2.0;
+  double sigma_translation_floor = 0.02;             // m
+
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+};
+
+enum class RegistrationStatus {
+  kAccepted,
+  kTooFewPoints,
+  kTooFewInliers,
+  kGicpFailed,
+  kColourMismatch,  // the best pose's colour_agreement < min_colour_agreement
+  kShapeMismatch,   // the best pose's geometric_agreement < min_geometric_agreement
+};
+const char* ToString(RegistrationStatus status);
+
+struct RegistrationTimes {  // milliseconds
+  double prepare = 0.0;     // voxel + normals + PFHRGB of the segment
+  double sac_ia = 0.0;
+  double gate = 0.0;
+  double gicp = 0.0;         // every hypothesis' GICP and its score
+  double information = 0.0;
+  double total() const { return prepare + sac_ia + gate + gicp + information; }
+};
+
+struct RegistrationResult {
+  RegistrationStatus status = RegistrationStatus::kTooFewPoints;
+  SE3 camera_T_object;            // valid if kAccepted (SAC-IA's estimate if kGicpFailed or
+                                  // kTooFewInliers, the rejected best pose if k*Mismatch)
+  SE3 sac_camera_T_object;        // SAC-IA's estimate (diagnostics)
+  int segment_points = 0;         // after voxelling (voxel_size), with a normal
+  int segment_keypoints = 0;      // with a finite PFHRGB descriptor
+  int correspondences = 0;        // feature correspondences examined by the gate
+  int inliers = 0;                // of those, agreeing under the SAC-IA transform
+  int refined_inliers = -1;       // of those, agreeing under the final pose (-1: no GICP ran)
+  double sac_fitness = 0.0;       // PCL's fitness score after SAC-IA (mean squared NN dist, m^2)
+  double fitness = 0.0;           // PCL's fitness score after GICP (m^2), winning hypothesis
+  int hypotheses = 0;             // symmetry hypotheses refined by GICP
+  int hypothesis = -1;            // the winner (0 = SAC-IA pose; header comment for the others)
+  // Agreement rule of the header comment, winning hypothesis (also filled when the refined pose
+  // failed the inlier gate: kTooFewInliers with refined_inliers >= 0).
+  double score = 0.0;
+  double geometric_agreement = 0.0;
+  double colour_agreement = 0.0;
+  Matrix6 information = Matrix6::Zero();  // valid if kAccepted
+  RegistrationTimes times;
+  bool accepted() const { return status == RegistrationStatus::kAccepted; }
+};
+
+// Registers the template to a segment (camera frame). Throws InvalidInputError on an invalid
+// config, an empty template, or a template built with a different FeatureConfig; every other
+// outcome is a status.
+RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectTemplate& tmpl,
+                                    const RegistrationConfig& config);
+
+// GICP refinement (and the information matrix) alone, from an initial camera_T_object (e.g. a
+// predicted pose when tracking). Status kAccepted, kTooFewPoints, kGicpFailed, kShapeMismatch or
+// kColourMismatch; inliers and correspondences are 0 (no feature stage); the symmetry hypotheses
+// (symmetry_turns) are turns of the initial pose.
+RegistrationResult RefinePose(const OrganizedCloud& segment, const ObjectTemplate& tmpl,
+                              const SE3& initial_camera_T_object,
+                              const RegistrationConfig& config);
+
+// x_i^-1 o_k: the object's pose in the robot body frame = BodyFromCamera() * camera_T_object.
+SE3 ObjectMeasurementInBody(const SE3& camera_T_object);
+
+}  // namespace moslam

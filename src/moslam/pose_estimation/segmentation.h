@@ -1,0 +1,127 @@
+// Object segmentation in an organized RGB-D cloud: the points of the object inside one detection
+// box, with the floor, walls and other scene structure removed.
+//
+// Pipeline (PCL organized-cloud tools), per frame then per box:
+//   PrepareSegmentation (once per frame):
+//     1. normals by pcl::IntegralImageNormalEstimation (COVARIANCE_MATRIX);
+//     2. planes by pcl::OrganizedMultiPlaneSegmentation (each plane: coefficients n.p + d = 0 in
+//        the camera frame, inlier indices, and the pixel bounding box of its inliers).
+//   SegmentObject (per box):
+//     3. STRUCTURE RULE: a plane is scene structure (its inliers are removed) if
+//          (a) more than `structural_outside_fraction` of its inliers lie outside the box grown
+//              by `box_margin_fraction` of its size on each side (floor, walls, a neighbouring
+//              table: they extend well beyond the object's box), or
+//          (b) `drop_floor` and it is horizontal (normal within `floor_max_tilt_deg` of
+//              `up_in_camera`) at floor height (its height below the camera is within
+//              `floor_height_tolerance` of `camera_height`).
+//        Any other plane (a table top, a sofa seat, a chair back, mostly inside the box) is kept
+//        as part of the object. A structural plane removes its inliers and, inside the grown box,
+//        the points within plane_distance_threshold of it that are not plane inliers only
+//        because their normals are unreliable (edges, contact lines): for a floor (b), every such
+//        point (nothing lies beneath the floor); for an (a) plane, those whose integral-image
+//        normal is invalid or within structure_normal_tolerance_deg of the plane's normal (so an
+//        extended neighbouring plane does not slice the object).
+//     4. connected components (pcl::OrganizedConnectedComponentSegmentation with
+//        pcl::EuclideanClusterComparator, threshold `cluster_distance`) over the valid,
+//        non-structure points inside the grown box; the comparator's label cloud marks these
+//        points 0 and every other point 1, and its "exclude labels" set is {0} (PCL joins only
+//        points whose labels are IN that set).
+//     5. the object is the component with the most points inside the (original) box; components
+//        within `tie_ratio` of the best count are ties, won by the nearest (smallest mean z).
+//        The segment keeps the winner's points in the grown box.
+//
+// Units: metres, camera optical frame (z forward, x right, y down); boxes in pixels
+// (x = column of the left edge, y = row of the top edge, width, height).
+#pragma once
+
+#include <pcl/ModelCoefficients.h>
+#include <pcl/PointIndices.h>
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "moslam/pose_estimation/organized_cloud.h"
+
+namespace moslam {
+
+struct SegmentationConfig {
+  // Integral-image normals.
+  float normal_max_depth_change_factor = 0.02f;  // m; depth jumps larger than this break normals
+  float normal_smoothing_size = 10.0f;           // pixels
+  // Multi-plane segmentation.
+  int min_plane_inliers = 600;              // points (for 320x240; ~4x for 640x480)
+  double plane_angular_threshold_deg = 3.0;  // normals of one plane agree to this
+  double plane_distance_threshold = 0.02;    // m
+  double plane_max_curvature = 0.01;         // points curvier than this are not plane seeds
+  // Structure rule (see the header comment).
+  double box_margin_fraction = 0.1;          // of the box width/height, each side
+  double structural_outside_fraction = 0.5;  // (a)
+  bool drop_floor = true;                    // (b)
+  Vector3 up_in_camera = Vector3(0.0, -1.0, 0.0);  // unit "up" in the camera frame (level camera)
+  double camera_height = 0.5;                // m above the floor (sim/robots.h camera height)
+  double floor_height_tolerance = 0.1;       // m
+  double floor_max_tilt_deg = 10.0;
+  double structure_normal_tolerance_deg = 20.0;  // near-plane points joined to an (a) plane
+  // Clustering and selection.
+  float cluster_distance = 0.05f;  // m between neighbouring pixels of one object
+  int min_segment_points = 50;     // points of the chosen component inside the box
+  double tie_ratio = 0.9;          // in (0, 1]
+
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+};
+
+// A plane found in the frame.
+struct ScenePlane {
+  Eigen::Vector4d coefficients;  // (n, d), |n| = 1, n.p + d = 0 for p on the plane (camera frame)
+  std::vector<int> inliers;      // indices into the organized cloud
+};
+
+// Per-frame intermediate results shared by all boxes of the frame.
+struct PreparedFrame {
+  OrganizedCloud::ConstPtr cloud;
+  pcl::PointCloud<pcl::Normal>::ConstPtr normals;
+  std::vector<ScenePlane> planes;
+  double normals_ms = 0.0;
+  double planes_ms = 0.0;
+};
+
+enum class SegmentationStatus {
+  kOk,
+  kEmptyBox,      // the box misses the image or holds no valid depth
+  kTooFewPoints,  // fewer than min_segment_points non-structure points in the box
+  kNoCluster,     // no component has min_segment_points points in the box
+};
+const char* ToString(SegmentationStatus status);
+
+struct SegmentationResult {
+  SegmentationStatus status = SegmentationStatus::kEmptyBox;
+  OrganizedCloud::Ptr segment;  // unorganized, camera frame; empty unless status == kOk
+  std::vector<int> indices;     // of the segment's points in the organized cloud
+  int valid_points_in_box = 0;  // finite points inside the box
+  int structure_points_in_box = 0;  // of those, removed as scene structure
+  int planes_dropped = 0;
+  int components = 0;           // components considered (with >= 1 point in the box)
+  double time_ms = 0.0;         // this call (not PrepareSegmentation)
+};
+
+// Normals and planes of an organized cloud (throws InvalidInputError if the cloud is not
+// organized or the config is invalid).
+PreparedFrame PrepareSegmentation(const OrganizedCloud::ConstPtr& cloud,
+                                  const SegmentationConfig& config);
+
+// The object's points in `box` (pixels). Never throws on a box outside the image (status
+// kEmptyBox); throws InvalidInputError on an invalid config or a non-finite box.
+SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& box,
+                                 const SegmentationConfig& config);
+
+// Why a plane is (or is not) scene structure for a box (rule of the header comment).
+enum class PlaneRole { kObject, kFloor, kOutsideBox };
+PlaneRole ClassifyPlane(const ScenePlane& plane, std::size_t cloud_width, const cv::Rect2f& box,
+                        const SegmentationConfig& config);
+// True if plane `plane` is scene structure for `box` (ClassifyPlane != kObject).
+bool IsStructuralPlane(const ScenePlane& plane, std::size_t cloud_width, const cv::Rect2f& box,
+                       const SegmentationConfig& config);
+
+}  // namespace moslam

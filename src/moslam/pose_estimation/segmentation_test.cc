@@ -1,0 +1,130 @@
+#include "moslam/pose_estimation/segmentation.h"
+
+#include <gtest/gtest.h>
+
+#include "moslam/common/errors.h"
+#include "moslam/pose_estimation/test_shapes.h"
+
+namespace moslam {
+namespace {
+
+// Camera 0.5 m above the floor, a 0.5 x 0.8 x 0.5 m box standing on the floor 1.5-2.0 m ahead,
+// optionally a wall at 3 m. In pixels the box's front face spans about u 133-186, v 88-173.
+const test::Box3 kObject{Vector3(-0.25, -0.3, 1.5), Vector3(0.25, 0.5, 2.0)};
+const cv::Rect2f kBox(128.0f, 82.0f, 64.0f, 96.0f);
+
+bool IsObjectColour(const OrganizedPoint& p) { return p.r == 200 && p.g == 30 && p.b == 30; }
+
+int CountObjectPixels(const OrganizedCloud& cloud) {
+  int n = 0;
+  for (const auto& p : cloud.points) n += IsObjectColour(p) ? 1 : 0;
+  return n;
+}
+
+TEST(Segmentation, IsolatesTheObjectFromFloorAndWall) {
+  const PinholeIntrinsics K;
+  // With the floor rule (b), and without it (the floor then goes by rule (a)).
+  for (const auto& [wall_z, drop_floor] : {std::pair{0.0, true}, std::pair{3.0, true},
+                                           std::pair{3.0, false}}) {
+    SCOPED_TRACE(wall_z);
+    SCOPED_TRACE(drop_floor);
+    const RgbdFrame f = test::FloorAndBoxFrame(K, 0.5, kObject, wall_z);
+    SegmentationConfig config;
+    config.drop_floor = drop_floor;
+    const PreparedFrame prepared = PrepareSegmentation(MakeOrganizedCloud(f), config);
+    ASSERT_GE(prepared.planes.size(), 1u);
+    const SegmentationResult r = SegmentObject(prepared, kBox, config);
+    ASSERT_EQ(r.status, SegmentationStatus::kOk) << ToString(r.status);
+    ASSERT_TRUE(r.segment);
+    EXPECT_EQ(r.segment->size(), r.indices.size());
+    EXPECT_GE(r.planes_dropped, 1);
+    int not_object = 0;
+    for (const auto& p : r.segment->points) not_object += IsObjectColour(p) ? 0 : 1;
+    if (drop_floor) {
+      EXPECT_EQ(not_object, 0);  // no floor or wall points
+    } else {
+      // Without the floor rule, the floor goes by rule (a): inliers and near-plane points with
+      // invalid or floor-like normals; a few contact-line pixels with mixed normals may stay.
+      EXPECT_LE(not_object, 0.005 * static_cast<double>(r.segment->size()));
+    }
+    const int object_pixels = CountObjectPixels(*prepared.cloud);
+    EXPECT_GE(static_cast<double>(r.segment->size()), 0.95 * object_pixels);
+    EXPECT_LE(static_cast<int>(r.segment->size()) - not_object, object_pixels);
+  }
+}
+
+TEST(Segmentation, ReportsEmptyBoxesAndTooFewPoints) {
+  const PinholeIntrinsics K;
+  const RgbdFrame f = test::FloorAndBoxFrame(K, 0.5, kObject);
+  const SegmentationConfig config;
+  const PreparedFrame prepared = PrepareSegmentation(MakeOrganizedCloud(f), config);
+  // Outside the image.
+  EXPECT_EQ(SegmentObject(prepared, cv::Rect2f(400, 10, 20, 20), config).status,
+            SegmentationStatus::kEmptyBox);
+  // Inside the image but above the horizon (no return).
+  EXPECT_EQ(SegmentObject(prepared, cv::Rect2f(10, 10, 40, 30), config).status,
+            SegmentationStatus::kEmptyBox);
+  // Only floor: it is structure, so nothing is left.
+  const SegmentationResult floor = SegmentObject(prepared, cv::Rect2f(10, 200, 60, 30), config);
+  EXPECT_EQ(floor.status, SegmentationStatus::kTooFewPoints);
+  EXPECT_GT(floor.valid_points_in_box, 1000);
+  EXPECT_EQ(floor.structure_points_in_box, floor.valid_points_in_box);
+  EXPECT_THROW(SegmentObject(prepared, cv::Rect2f(0, 0, -1, 5), config), InvalidInputError);
+}
+
+TEST(Segmentation, StructureRuleKeepsPlanesInsideTheBox) {
+  SegmentationConfig config;
+  const std::size_t width = 320;
+  auto plane_over = [&](int u0, int u1, int v0, int v1, Eigen::Vector4d coefficients) {
+    ScenePlane p;
+    p.coefficients = coefficients;
+    for (int v = v0; v < v1; ++v)
+      for (int u = u0; u < u1; ++u) p.inliers.push_back(v * static_cast<int>(width) + u);
+    return p;
+  };
+  const cv::Rect2f box(100, 100, 50, 50);
+  // A horizontal table top 0.25 m below the camera (0.25 m above the floor), inside the box.
+  const ScenePlane table = plane_over(105, 145, 110, 130, Eigen::Vector4d(0, -1, 0, 0.25));
+  EXPECT_FALSE(IsStructuralPlane(table, width, box, config));
+  // The same plane at floor height (0.5 m below the camera) is the floor.
+  const ScenePlane floor_patch = plane_over(105, 145, 110, 130, Eigen::Vector4d(0, 1, 0, -0.5));
+  EXPECT_TRUE(IsStructuralPlane(floor_patch, width, box, config));
+  config.drop_floor = false;
+  EXPECT_FALSE(IsStructuralPlane(floor_patch, width, box, config));
+  // A vertical plane that extends well beyond the box (a wall).
+  const ScenePlane wall = plane_over(0, 320, 0, 100, Eigen::Vector4d(0, 0, -1, 3.0));
+  EXPECT_TRUE(IsStructuralPlane(wall, width, box, config));
+}
+
+TEST(Segmentation, ConfigValidationNamesTheField) {
+  auto expect_bad = [](SegmentationConfig c, const std::string& field) {
+    try {
+      c.validate();
+      ADD_FAILURE() << "accepted a bad " << field;
+    } catch (const InvalidInputError& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  EXPECT_NO_THROW(SegmentationConfig{}.validate());
+  SegmentationConfig c;
+  c.min_plane_inliers = 0;
+  expect_bad(c, "min_plane_inliers");
+  c = {};
+  c.structural_outside_fraction = 1.0;
+  expect_bad(c, "structural_outside_fraction");
+  c = {};
+  c.up_in_camera = Vector3(0, 2, 0);
+  expect_bad(c, "up_in_camera");
+  c = {};
+  c.cluster_distance = 0.0f;
+  expect_bad(c, "cluster_distance");
+  c = {};
+  c.tie_ratio = 1.5;
+  expect_bad(c, "tie_ratio");
+  c = {};
+  c.plane_angular_threshold_deg = 95.0;
+  expect_bad(c, "plane_angular_threshold_deg");
+}
+
+}  // namespace
+}  // namespace moslam
