@@ -1,6 +1,8 @@
 // `moslam detect`: runs the object detector (src/moslam/detection) on one image, or evaluates
 // it on a dataset in the YOLO layout (precision / recall at the threshold, AP per class,
-// mAP@0.5, time per frame).
+// mAP@0.5, time per frame). With --data, the strict metrics (labels only) are always printed;
+// when DIR/ignore/ exists (datasets of `moslam render --format yolo`), the metrics with those
+// ignore regions (detection/evaluation.h) are printed after them (JSON: "with_ignore").
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -113,6 +115,47 @@ int RunOnImage(const DetectArgs& a) {
   return 0;
 }
 
+nlohmann::json MetricsJson(const DetectionMetrics& m) {
+  nlohmann::json j = {{"frames", m.frames},
+                      {"ground_truths", m.ground_truths},
+                      {"true_positives", m.true_positives},
+                      {"false_positives", m.false_positives},
+                      {"ignored_detections", m.ignored_detections},
+                      {"ignore_boxes", m.ignore_boxes},
+                      {"precision", m.precision},
+                      {"recall", m.recall},
+                      {"map50", m.mean_average_precision},
+                      {"per_class", nlohmann::json::array()}};
+  for (const ClassMetrics& c : m.per_class) {
+    j["per_class"].push_back({{"label", c.label},
+                              {"ground_truths", c.ground_truths},
+                              {"true_positives", c.true_positives},
+                              {"false_positives", c.false_positives},
+                              {"ignored_detections", c.ignored_detections},
+                              {"precision", c.precision},
+                              {"recall", c.recall},
+                              {"ap50", c.average_precision}});
+  }
+  return j;
+}
+
+void PrintMetrics(const DetectionMetrics& m, bool ignored_column) {
+  fmt::print("{:<14} {:>6} {:>6} {:>6} {:>9} {:>7} {:>7}{}\n", "class", "gt", "tp", "fp",
+             "precision", "recall", "AP@0.5", ignored_column ? "  ignored" : "");
+  auto row = [&](const std::string& label, int gt, int tp, int fp, double p, double r, double ap,
+                 int ign, const char* tail) {
+    fmt::print("{:<14} {:>6} {:>6} {:>6} {:>9.3f} {:>7.3f} {:>7.3f}{}{}\n", label, gt, tp, fp, p,
+               r, ap, ignored_column ? fmt::format(" {:>8}", ign) : "", tail);
+  };
+  for (const ClassMetrics& c : m.per_class) {
+    if (c.ground_truths == 0 && c.true_positives + c.false_positives == 0) continue;
+    row(c.label, c.ground_truths, c.true_positives, c.false_positives, c.precision, c.recall,
+        c.average_precision, c.ignored_detections, "");
+  }
+  row("all", m.ground_truths, m.true_positives, m.false_positives, m.precision, m.recall,
+      m.mean_average_precision, m.ignored_detections, " (mAP)");
+}
+
 int RunOnDataset(const DetectArgs& a) {
   const YoloDataset data = ReadYoloDataset(a.data);
   // Detections down to 0.01 enter the AP; precision and recall count those >= --threshold
@@ -125,7 +168,8 @@ int RunOnDataset(const DetectArgs& a) {
   EvaluationOptions eo;
   eo.iou_threshold = a.iou;
   eo.confidence_threshold = a.threshold;
-  DetectionEvaluator evaluator(data.class_names, eo);
+  DetectionEvaluator evaluator(data.class_names, eo);    // strict: labels only
+  DetectionEvaluator with_ignore(data.class_names, eo);  // plus DIR/ignore/ regions
   if (!a.annotate.empty()) std::filesystem::create_directories(a.annotate);
   std::vector<double> times;
   for (const YoloSample& s : data.samples) {
@@ -135,7 +179,10 @@ int RunOnDataset(const DetectArgs& a) {
     times.push_back(MsSince(t0));
     std::vector<GroundTruthBox> gt;
     for (const YoloLabel& l : s.labels) gt.push_back(l.toPixels(img.cols, img.rows));
+    std::vector<GroundTruthBox> ignore;
+    for (const YoloLabel& l : s.ignore) ignore.push_back(l.toPixels(img.cols, img.rows));
     evaluator.addFrame(dets, gt);
+    with_ignore.addFrame(dets, gt, ignore);
     if (!a.annotate.empty()) {
       dets.erase(std::remove_if(dets.begin(), dets.end(),
                                 [&](const Detection& d) { return d.confidence < a.threshold; }),
@@ -146,6 +193,7 @@ int RunOnDataset(const DetectArgs& a) {
     }
   }
   const DetectionMetrics m = evaluator.compute();
+  const DetectionMetrics mi = with_ignore.compute();
   std::vector<double> sorted = times;
   std::sort(sorted.begin(), sorted.end());
   double mean = 0.0;
@@ -153,43 +201,28 @@ int RunOnDataset(const DetectArgs& a) {
   mean /= static_cast<double>(times.size());
   const double median = sorted[sorted.size() / 2];
   if (a.json) {
-    nlohmann::json j = {{"data", a.data},
-                        {"model", a.model},
-                        {"frames", m.frames},
-                        {"threshold", a.threshold},
-                        {"iou", a.iou},
-                        {"ground_truths", m.ground_truths},
-                        {"true_positives", m.true_positives},
-                        {"false_positives", m.false_positives},
-                        {"precision", m.precision},
-                        {"recall", m.recall},
-                        {"map50", m.mean_average_precision},
-                        {"ms_per_frame_mean", mean},
-                        {"ms_per_frame_median", median},
-                        {"per_class", nlohmann::json::array()}};
-    for (const ClassMetrics& c : m.per_class) {
-      j["per_class"].push_back({{"label", c.label},
-                                {"ground_truths", c.ground_truths},
-                                {"true_positives", c.true_positives},
-                                {"false_positives", c.false_positives},
-                                {"precision", c.precision},
-                                {"recall", c.recall},
-                                {"ap50", c.average_precision}});
-    }
+    nlohmann::json j = MetricsJson(m);
+    j["data"] = a.data;
+    j["model"] = a.model;
+    j["threshold"] = a.threshold;
+    j["iou"] = a.iou;
+    j["ms_per_frame_mean"] = mean;
+    j["ms_per_frame_median"] = median;
+    if (data.has_ignore) j["with_ignore"] = MetricsJson(mi);
     fmt::print("{}\n", j.dump());
     return 0;
   }
   fmt::print("{}: {} frames, threshold {:.2f}, IoU {:.2f}\n", a.data, m.frames, a.threshold, a.iou);
-  fmt::print("{:<14} {:>6} {:>6} {:>6} {:>9} {:>7} {:>7}\n", "class", "gt", "tp", "fp",
-             "precision", "recall", "AP@0.5");
-  for (const ClassMetrics& c : m.per_class) {
-    if (c.ground_truths == 0 && c.true_positives + c.false_positives == 0) continue;
-    fmt::print("{:<14} {:>6} {:>6} {:>6} {:>9.3f} {:>7.3f} {:>7.3f}\n", c.label, c.ground_truths,
-               c.true_positives, c.false_positives, c.precision, c.recall, c.average_precision);
+  fmt::print("strict (every detection that matches no label is a false positive):\n");
+  PrintMetrics(m, false);
+  if (data.has_ignore) {
+    fmt::print("with ignore regions ({} boxes of visible, unlabelled objects in {}/ignore; a "
+               "detection on one is dropped, VOC 'difficult' style):\n",
+               mi.ignore_boxes, a.data);
+    PrintMetrics(mi, true);
+  } else {
+    fmt::print("(no {}/ignore folder: strict metrics only)\n", a.data);
   }
-  fmt::print("{:<14} {:>6} {:>6} {:>6} {:>9.3f} {:>7.3f} {:>7.3f} (mAP)\n", "all", m.ground_truths,
-             m.true_positives, m.false_positives, m.precision, m.recall,
-             m.mean_average_precision);
   fmt::print("time per frame: mean {:.2f} ms, median {:.2f} ms (detect only, 1 thread unless "
              "OpenCV uses more)\n",
              mean, median);
@@ -224,7 +257,8 @@ Runner RegisterDetect(CLI::App& app) {
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   auto* data = sub->add_option("--data", args->data,
-                               "evaluate on a dataset: DIR/classes.txt, images/, labels/");
+                               "evaluate on a dataset: DIR/classes.txt, images/, labels/ "
+                               "(and ignore/, then both strict and with-ignore metrics)");
   auto* image = sub->add_option("--image", args->image, "detect on one image");
   data->excludes(image);
   sub->add_option("--annotate", args->annotate,

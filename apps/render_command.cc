@@ -5,7 +5,7 @@
 //                 [--first-index I] [--hfov DEG] [--min-pixels 150] [--min-labels 0]
 //                 [--no-noise] [--no-walls]
 //
-// yolo: a detector training set (render/dataset_export.h): DIR/images, DIR/labels,
+// yolo: a detector training set (render/dataset_export.h): DIR/images, DIR/labels, DIR/ignore,
 //       DIR/classes.txt; the viewpoint is jittered (--yaw-jitter 10 deg, --pitch-jitter 3 deg,
 //       --height-jitter 0.05 m by default) and the room colours vary with the seed. Runs with
 //       different --first-index append to the same DIR.
@@ -105,6 +105,8 @@ int Run(const RenderArgs& a) {
                                s.labels_per_class[c]);
     }
     fmt::print("labels per class: {}\n", per_class);
+    fmt::print("{} visible objects not labelled (ignore regions) written to {}/ignore\n",
+               s.ignored, a.out);
     fmt::print("render {:.2f} ms/frame, total (with PNG writing) {:.2f} ms/frame\n",
                1e3 * s.render_seconds / std::max(1, s.frames),
                1e3 * s.total_seconds / std::max(1, s.frames));

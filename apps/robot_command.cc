@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <thread>
@@ -328,6 +329,20 @@ double MaxDifference(const Values& a, const Values& b) {
 // (LoopbackConfigXml), waits for them all (killing them at the timeout: exit code -1) and returns
 // their exit codes. `collect_only`: starts nothing, robot r counts as successful when
 // <out>/robot<r>/summary.json exists.
+// Robot r's summary.json from its output folder `dir`, or nullopt when it exited non-zero or
+// wrote none. `entry` gets the robot, its exit code and, on failure, the path of its log.
+std::optional<nlohmann::json> ReadRobotSummary(const fs::path& dir, int r, int exit_code,
+                                               nlohmann::json* entry) {
+  (*entry)["robot"] = r;
+  (*entry)["exit_code"] = exit_code;
+  if (exit_code != 0 || !fs::exists(dir / "summary.json")) {
+    (*entry)["log"] = (dir / "log.txt").string();
+    return std::nullopt;
+  }
+  std::ifstream in(dir / "summary.json");
+  return nlohmann::json::parse(in);
+}
+
 std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>& argvs, int domain,
                                      const fs::path& out, double timeout, bool collect_only) {
   const int n = static_cast<int>(argvs.size());
@@ -413,16 +428,13 @@ int RunScenarioTeam(const TeamArgs& a) {
   for (int r = 0; r < n; ++r) {
     const fs::path dir = out / fmt::format("robot{}", r);
     nlohmann::json j;
-    j["robot"] = r;
-    j["exit_code"] = exit_codes[r];
-    if (exit_codes[r] != 0 || !fs::exists(dir / "summary.json")) {
+    const std::optional<nlohmann::json> summary = ReadRobotSummary(dir, r, exit_codes[r], &j);
+    if (!summary) {
       ok = false;
-      j["log"] = (dir / "log.txt").string();
       robots.push_back(j);
       continue;
     }
-    std::ifstream in(dir / "summary.json");
-    const nlohmann::json s = nlohmann::json::parse(in);
+    const nlohmann::json& s = *summary;
     j.update(s);
     j.erase("shared");
     robots.push_back(j);
@@ -577,16 +589,13 @@ int RunTeam(const TeamArgs& args) {
   for (int r = 0; r < n; ++r) {
     const fs::path dir = out / fmt::format("robot{}", r);
     nlohmann::json j;
-    j["robot"] = r;
-    j["exit_code"] = exit_codes[r];
-    if (exit_codes[r] != 0 || !fs::exists(dir / "summary.json")) {
+    const std::optional<nlohmann::json> summary = ReadRobotSummary(dir, r, exit_codes[r], &j);
+    if (!summary) {
       ok = false;
-      j["log"] = (dir / "log.txt").string();
       robots.push_back(j);
       continue;
     }
-    std::ifstream in(dir / "summary.json");
-    const nlohmann::json s = nlohmann::json::parse(in);
+    const nlohmann::json& s = *summary;
     j.update(s);
     robots.push_back(j);
     const Dataset result = ReadRobotG2o((dir / "result.g2o").string());

@@ -56,10 +56,12 @@ DetectionEvaluator::DetectionEvaluator(std::vector<std::string> class_names,
   if (names_.empty()) throw InvalidInputError("DetectionEvaluator: the class list is empty");
   scored_.resize(names_.size());
   ground_truths_.assign(names_.size(), 0);
+  ignored_.assign(names_.size(), 0);
 }
 
 void DetectionEvaluator::addFrame(const std::vector<Detection>& detections,
-                                  const std::vector<GroundTruthBox>& ground_truth) {
+                                  const std::vector<GroundTruthBox>& ground_truth,
+                                  const std::vector<GroundTruthBox>& ignore) {
   const int num_classes = static_cast<int>(names_.size());
   for (const Detection& d : detections) {
     if (d.class_id < 0 || d.class_id >= num_classes) {
@@ -76,6 +78,14 @@ void DetectionEvaluator::addFrame(const std::vector<Detection>& detections,
     }
     ++ground_truths_[static_cast<std::size_t>(g.class_id)];
   }
+  for (const GroundTruthBox& g : ignore) {
+    if (g.class_id < 0 || g.class_id >= num_classes) {
+      throw InvalidInputError("DetectionEvaluator: ignore-box class id " +
+                              std::to_string(g.class_id) + " is outside [0, " +
+                              std::to_string(num_classes) + ")");
+    }
+  }
+  ignore_boxes_ += static_cast<int>(ignore.size());
   std::vector<std::size_t> order(detections.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
@@ -96,6 +106,14 @@ void DetectionEvaluator::addFrame(const std::vector<Detection>& detections,
     }
     const bool tp = best < ground_truth.size() && best_iou >= options_.iou_threshold;
     if (tp) taken[best] = true;
+    if (!tp && std::any_of(ignore.begin(), ignore.end(), [&](const GroundTruthBox& g) {
+          return g.class_id == d.class_id && BoxIou(d.box, g.box) >= options_.iou_threshold;
+        })) {
+      if (d.confidence >= options_.confidence_threshold) {
+        ++ignored_[static_cast<std::size_t>(d.class_id)];
+      }
+      continue;  // on an ignore region: neither a true nor a false positive
+    }
     scored_[static_cast<std::size_t>(d.class_id)].push_back({d.confidence, tp});
   }
   ++frames_;
@@ -104,6 +122,7 @@ void DetectionEvaluator::addFrame(const std::vector<Detection>& detections,
 DetectionMetrics DetectionEvaluator::compute() const {
   DetectionMetrics m;
   m.frames = frames_;
+  m.ignore_boxes = ignore_boxes_;
   double ap_sum = 0.0;
   int ap_classes = 0;
   for (std::size_t c = 0; c < names_.size(); ++c) {
@@ -114,6 +133,7 @@ DetectionMetrics DetectionEvaluator::compute() const {
     cm.class_id = static_cast<int>(c);
     cm.label = names_[c];
     cm.ground_truths = ground_truths_[c];
+    cm.ignored_detections = ignored_[c];
     std::vector<bool> tp_flags;
     tp_flags.reserve(s.size());
     for (const Scored& x : s) {
@@ -135,6 +155,7 @@ DetectionMetrics DetectionEvaluator::compute() const {
     m.ground_truths += cm.ground_truths;
     m.true_positives += cm.true_positives;
     m.false_positives += cm.false_positives;
+    m.ignored_detections += cm.ignored_detections;
     m.per_class.push_back(cm);
   }
   const int detected = m.true_positives + m.false_positives;

@@ -7,6 +7,15 @@
 // positive); otherwise they are false positives. Each ground-truth box is matched at most once,
 // so duplicates of one object count as false positives. Boxes are in pixels (any consistent
 // unit); IoU is area(intersection) / area(union).
+//
+// Ignore regions (optional, PASCAL VOC `difficult` / COCO `iscrowd` style): boxes of objects that
+// are visible but deliberately not labelled (e.g. too small or mostly outside the image; see
+// DIR/ignore/ in detection/yolo_dataset.h). A detection that matches no ground-truth box but
+// overlaps an ignore box of its class with IoU >= iou_threshold is dropped: neither a true nor a
+// false positive, in precision, recall and AP alike. Ground-truth matching comes first, so an
+// ignore box never takes a detection a ground-truth box would take; one ignore box may absorb
+// several detections (as in VOC and COCO); ignore boxes never count as misses. Without ignore
+// boxes the metrics are the strict ones.
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -36,6 +45,7 @@ struct ClassMetrics {
   // At confidence >= confidence_threshold:
   int true_positives = 0;
   int false_positives = 0;
+  int ignored_detections = 0;  // dropped on an ignore box (neither tp nor fp)
   double precision = 0.0;  // tp / (tp + fp); 0 when there is no detection
   double recall = 0.0;     // tp / ground_truths; 0 when there is no ground truth
   // Over all detections given (whatever their confidence); 0 when there is no ground truth.
@@ -49,6 +59,8 @@ struct DetectionMetrics {
   int ground_truths = 0;
   int true_positives = 0;
   int false_positives = 0;
+  int ignored_detections = 0;
+  int ignore_boxes = 0;  // given to addFrame, all frames
   double precision = 0.0;
   double recall = 0.0;
   // Mean of average_precision over the classes that have at least one ground-truth box.
@@ -70,9 +82,11 @@ class DetectionEvaluator {
   // Throws InvalidInputError for bad options or an empty class list.
   DetectionEvaluator(std::vector<std::string> class_names, EvaluationOptions options = {});
 
-  // One frame. Throws InvalidInputError if a class id is outside [0, number of classes).
+  // One frame, with optional ignore boxes (see above). Throws InvalidInputError if a class id is
+  // outside [0, number of classes).
   void addFrame(const std::vector<Detection>& detections,
-                const std::vector<GroundTruthBox>& ground_truth);
+                const std::vector<GroundTruthBox>& ground_truth,
+                const std::vector<GroundTruthBox>& ignore = {});
 
   DetectionMetrics compute() const;
 
@@ -86,6 +100,8 @@ class DetectionEvaluator {
   int frames_ = 0;
   std::vector<std::vector<Scored>> scored_;  // per class
   std::vector<int> ground_truths_;           // per class
+  std::vector<int> ignored_;                 // per class, at confidence >= threshold
+  int ignore_boxes_ = 0;
 };
 
 }  // namespace moslam

@@ -87,6 +87,65 @@ TEST(DetectionEvaluator, FramesAreMatchedSeparatelyAndIouThresholdIsInclusive) {
   EXPECT_DOUBLE_EQ(m.mean_average_precision, 0.5);
 }
 
+TEST(DetectionEvaluator, DetectionOnAnIgnoreBoxIsDroppedElsewhereStillAFalsePositive) {
+  const std::vector<GroundTruthBox> gt = {{0, {0, 0, 10, 10}}};
+  const std::vector<GroundTruthBox> ignore = {{0, {50, 0, 10, 10}}};
+  const std::vector<Detection> dets = {
+      Det(0, 0.95f, {51, 0, 10, 10}),  // on the ignore box (IoU 0.82): dropped
+      Det(0, 0.9f, {0, 0, 10, 10}),    // TP
+      Det(0, 0.7f, {100, 0, 10, 10}),  // on nothing: FP
+      Det(0, 0.1f, {50, 0, 10, 10}),   // below the threshold, on the ignore box: not in the AP
+      Det(1, 0.8f, {50, 0, 10, 10}),   // a table on the ignored chair: other class, FP
+      Det(0, 0.6f, {55, 0, 10, 10}),   // IoU 1/3 with the ignore box: FP
+  };
+  DetectionEvaluator strict({"chair", "table"});
+  strict.addFrame(dets, gt);
+  DetectionEvaluator with_ignore({"chair", "table"});
+  with_ignore.addFrame(dets, gt, ignore);
+
+  const DetectionMetrics s = strict.compute();
+  EXPECT_EQ(s.per_class[0].true_positives, 1);
+  EXPECT_EQ(s.per_class[0].false_positives, 3);
+  EXPECT_EQ(s.per_class[0].ignored_detections, 0);
+  EXPECT_EQ(s.ignore_boxes, 0);
+  // 0.95 FP, 0.9 TP, ...: AP 1/2.
+  EXPECT_DOUBLE_EQ(s.per_class[0].average_precision, 0.5);
+
+  const DetectionMetrics m = with_ignore.compute();
+  EXPECT_EQ(m.ignore_boxes, 1);
+  const ClassMetrics& chair = m.per_class[0];
+  EXPECT_EQ(chair.ground_truths, 1);  // the ignore box is not an object to find
+  EXPECT_EQ(chair.true_positives, 1);
+  EXPECT_EQ(chair.false_positives, 2);
+  EXPECT_EQ(chair.ignored_detections, 1);  // the 0.1 one is below the threshold
+  EXPECT_NEAR(chair.precision, 1.0 / 3.0, 1e-12);
+  EXPECT_DOUBLE_EQ(chair.recall, 1.0);
+  // 0.9 TP first: AP 1.
+  EXPECT_DOUBLE_EQ(chair.average_precision, 1.0);
+  EXPECT_EQ(m.per_class[1].false_positives, 1);
+  EXPECT_EQ(m.per_class[1].ignored_detections, 0);
+  EXPECT_EQ(m.true_positives, 1);
+  EXPECT_EQ(m.false_positives, 3);
+  EXPECT_EQ(m.ignored_detections, 1);
+  EXPECT_DOUBLE_EQ(m.precision, 0.25);
+}
+
+TEST(DetectionEvaluator, GroundTruthMatchTakesPrecedenceOverAnIgnoreBox) {
+  DetectionEvaluator eval({"chair"});
+  // An ignore box on the same spot as a labelled chair: the detection is the chair's TP.
+  eval.addFrame({Det(0, 0.9f, {0, 0, 10, 10})}, {{0, {0, 0, 10, 10}}}, {{0, {0, 0, 10, 10}}});
+  // An ignore box alone with no detection is no miss.
+  eval.addFrame({}, {}, {{0, {0, 0, 10, 10}}});
+  const DetectionMetrics m = eval.compute();
+  EXPECT_EQ(m.ignore_boxes, 2);
+  EXPECT_EQ(m.ground_truths, 1);
+  EXPECT_EQ(m.true_positives, 1);
+  EXPECT_EQ(m.false_positives, 0);
+  EXPECT_EQ(m.ignored_detections, 0);
+  EXPECT_DOUBLE_EQ(m.recall, 1.0);
+  EXPECT_DOUBLE_EQ(m.mean_average_precision, 1.0);
+}
+
 TEST(DetectionEvaluator, RejectsBadInput) {
   EvaluationOptions bad;
   bad.iou_threshold = 0.0f;
@@ -98,6 +157,7 @@ TEST(DetectionEvaluator, RejectsBadInput) {
   DetectionEvaluator eval({"chair"});
   EXPECT_THROW(eval.addFrame({Det(1, 0.9f, {0, 0, 1, 1})}, {}), InvalidInputError);
   EXPECT_THROW(eval.addFrame({}, {{-1, {0, 0, 1, 1}}}), InvalidInputError);
+  EXPECT_THROW(eval.addFrame({}, {}, {{1, {0, 0, 1, 1}}}), InvalidInputError);
 }
 
 }  // namespace

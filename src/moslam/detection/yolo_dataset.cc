@@ -76,11 +76,16 @@ YoloDataset ReadYoloDataset(const std::string& dir) {
   }
   if (files.empty()) throw InvalidInputError("dataset '" + dir + "': images/ holds no image");
   std::sort(files.begin(), files.end());
+  data.has_ignore = fs::is_directory(root / "ignore");
   for (const fs::path& f : files) {
     YoloSample s;
     s.image_path = f.string();
     s.label_path = (root / "labels" / f.stem()).string() + ".txt";
     if (fs::exists(s.label_path)) s.labels = ReadYoloLabels(s.label_path, num_classes);
+    const std::string ignore_path = (root / "ignore" / f.stem()).string() + ".txt";
+    if (data.has_ignore && fs::exists(ignore_path)) {
+      s.ignore = ReadYoloLabels(ignore_path, num_classes);
+    }
     data.samples.push_back(std::move(s));
   }
   return data;

@@ -5,6 +5,10 @@
 //   DIR/labels/NAME.txt    one object per line: `class_id cx cy w h`, the box centre and size
 //                          as fractions of the image width and height, in [0, 1]; a missing or
 //                          empty label file means an image without objects.
+//   DIR/ignore/NAME.txt    optional, same format: visible objects that are deliberately not
+//                          labelled (too small, mostly outside the image), for evaluation as
+//                          ignore regions (detection/evaluation.h). Written by
+//                          `moslam render --format yolo`; other YOLO datasets simply lack it.
 #pragma once
 
 #include <string>
@@ -26,11 +30,13 @@ struct YoloSample {
   std::string image_path;
   std::string label_path;  // may not exist (no objects)
   std::vector<YoloLabel> labels;
+  std::vector<YoloLabel> ignore;  // from DIR/ignore/NAME.txt when it exists
 };
 
 struct YoloDataset {
   std::vector<std::string> class_names;
   std::vector<YoloSample> samples;  // sorted by image file name
+  bool has_ignore = false;          // DIR/ignore/ exists
 };
 
 // Reads one label file. Throws InvalidInputError naming the file and line for a malformed line
@@ -39,7 +45,7 @@ struct YoloDataset {
 std::vector<YoloLabel> ReadYoloLabels(const std::string& path, int num_classes);
 
 // Reads DIR (layout above). Throws InvalidInputError if DIR, classes.txt or images/ is missing,
-// images/ holds no image, or a label file is malformed.
+// images/ holds no image, or a label or ignore file is malformed.
 YoloDataset ReadYoloDataset(const std::string& dir);
 
 }  // namespace moslam

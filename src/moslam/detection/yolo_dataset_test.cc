@@ -41,6 +41,32 @@ TEST(YoloDataset, ReadsImagesLabelsAndClasses) {
   EXPECT_FLOAT_EQ(g.box.height, 10.0f);
 }
 
+TEST(YoloDataset, ReadsIgnoreBoxesWhenTheFolderExists) {
+  const fs::path root = MakeDataset("moslam_yolo_ignore");
+  EXPECT_FALSE(ReadYoloDataset(root.string()).has_ignore);
+  fs::create_directories(root / "ignore");
+  std::ofstream(root / "ignore" / "b.txt") << "0 0.5 0.5 0.25 0.5\n";
+  const YoloDataset data = ReadYoloDataset(root.string());
+  EXPECT_TRUE(data.has_ignore);
+  ASSERT_EQ(data.samples.size(), 2u);
+  EXPECT_TRUE(data.samples[0].ignore.empty());  // a has no ignore file
+  EXPECT_EQ(data.samples[0].labels.size(), 2u);
+  ASSERT_EQ(data.samples[1].ignore.size(), 1u);
+  EXPECT_TRUE(data.samples[1].labels.empty());
+  const GroundTruthBox g = data.samples[1].ignore[0].toPixels(40, 20);
+  EXPECT_EQ(g.class_id, 0);
+  EXPECT_FLOAT_EQ(g.box.x, 15.0f);
+  EXPECT_FLOAT_EQ(g.box.width, 10.0f);
+  // A malformed ignore file is an error naming it.
+  std::ofstream(root / "ignore" / "b.txt") << "0 0.5 0.5 0.25\n";
+  try {
+    ReadYoloDataset(root.string());
+    ADD_FAILURE() << "no exception";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("ignore/b.txt:1:"), std::string::npos) << e.what();
+  }
+}
+
 TEST(YoloDataset, MalformedLabelNamesFileAndLine) {
   const fs::path root = MakeDataset("moslam_yolo_bad");
   const std::string label = (root / "labels" / "a.txt").string();

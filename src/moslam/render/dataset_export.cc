@@ -97,24 +97,48 @@ void YoloLabelConfig::validate() const {
   }
 }
 
-std::vector<std::string> YoloLabelLines(const RenderedFrame& frame,
-                                        const std::vector<ObjectClass>& classes,
-                                        const YoloLabelConfig& config) {
+namespace {
+
+// Lines of the standard-class objects that pass (labelled = true) or fail (labelled = false)
+// the label filters.
+std::vector<std::string> BoxLines(const RenderedFrame& frame,
+                                  const std::vector<ObjectClass>& classes,
+                                  const YoloLabelConfig& config, bool labelled) {
   config.validate();
   const double W = frame.rgbd.intrinsics.width, H = frame.rgbd.intrinsics.height;
   std::vector<std::string> lines;
   for (const VisibleObject& o : frame.objects) {
     const int c = ClassIndex(classes, o.label);
-    if (c < 0 || o.visible_pixels < config.min_visible_pixels ||
-        o.in_image_fraction < config.min_in_image_fraction) {
-      continue;
-    }
+    if (c < 0 || o.box.width <= 0 || o.box.height <= 0) continue;
+    const bool passes = o.visible_pixels >= config.min_visible_pixels &&
+                        o.in_image_fraction >= config.min_in_image_fraction;
+    if (passes != labelled) continue;
     // Pixel (u, v) covers [u, u + 1) x [v, v + 1) in these normalised coordinates.
     const double cx = (o.box.x + 0.5 * o.box.width) / W, cy = (o.box.y + 0.5 * o.box.height) / H;
     lines.push_back(fmt::format("{} {:.6f} {:.6f} {:.6f} {:.6f}", c, cx, cy, o.box.width / W,
                                 o.box.height / H));
   }
   return lines;
+}
+
+void WriteLines(const std::string& path, const std::vector<std::string>& lines) {
+  std::ofstream f(path);
+  for (const auto& l : lines) f << l << "\n";
+  if (!f) throw Error("cannot write '" + path + "'");
+}
+
+}  // namespace
+
+std::vector<std::string> YoloLabelLines(const RenderedFrame& frame,
+                                        const std::vector<ObjectClass>& classes,
+                                        const YoloLabelConfig& config) {
+  return BoxLines(frame, classes, config, true);
+}
+
+std::vector<std::string> YoloIgnoreLines(const RenderedFrame& frame,
+                                         const std::vector<ObjectClass>& classes,
+                                         const YoloLabelConfig& config) {
+  return BoxLines(frame, classes, config, false);
 }
 
 YoloExportSummary ExportYoloDataset(const Renderer& renderer, const ScenarioViews& views,
@@ -131,7 +155,10 @@ YoloExportSummary ExportYoloDataset(const Renderer& renderer, const ScenarioView
   std::error_code ec;
   fs::create_directories(fs::path(dir) / "images", ec);
   fs::create_directories(fs::path(dir) / "labels", ec);
-  if (ec) throw Error("cannot create '" + dir + "/images' and '/labels': " + ec.message());
+  if (!ec) fs::create_directories(fs::path(dir) / "ignore", ec);
+  if (ec) {
+    throw Error("cannot create '" + dir + "/images', '/labels' and '/ignore': " + ec.message());
+  }
   const std::vector<ObjectClass> classes = StandardObjectClasses();
   {
     std::ofstream f(fs::path(dir) / "classes.txt");
@@ -160,14 +187,14 @@ YoloExportSummary ExportYoloDataset(const Renderer& renderer, const ScenarioView
     const std::string name = fmt::format("{:06d}", index);
     const std::string image = (fs::path(dir) / "images" / (name + ".png")).string();
     if (!cv::imwrite(image, frame.rgbd.rgb)) throw Error("cannot write '" + image + "'");
-    const std::string label_path = (fs::path(dir) / "labels" / (name + ".txt")).string();
-    std::ofstream f(label_path);
+    WriteLines((fs::path(dir) / "labels" / (name + ".txt")).string(), lines);
     for (const auto& l : lines) {
-      f << l << "\n";
       ++s.labels;
       ++s.labels_per_class[static_cast<std::size_t>(std::stoi(l.substr(0, l.find(' '))))];
     }
-    if (!f) throw Error("cannot write '" + label_path + "'");
+    const auto ignore_lines = YoloIgnoreLines(frame, classes, labels);
+    WriteLines((fs::path(dir) / "ignore" / (name + ".txt")).string(), ignore_lines);
+    s.ignored += static_cast<int>(ignore_lines.size());
     nlohmann::json objects = nlohmann::json::array();
     for (const auto& o : frame.objects) {
       nlohmann::json j = PoseJson(o.camera_T_object);

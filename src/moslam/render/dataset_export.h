@@ -6,6 +6,12 @@
 //   DIR/labels/NNNNNN.txt   one line per labelled object: "class_id cx cy w h", the box of its
 //                           visible pixels normalised by the image width/height (all in [0, 1]);
 //                           an empty file when no object qualifies
+//   DIR/ignore/NNNNNN.txt   same line format: every visible object of a standard class that is
+//                           NOT labelled (too few visible pixels or mostly outside the image),
+//                           with the box of its visible pixels; an empty file when there is none.
+//                           Evaluators use them as "ignore" regions (PASCAL VOC `difficult`,
+//                           COCO `iscrowd`): a detection on such an object is neither a true nor a
+//                           false positive (detection/evaluation.h). Training ignores this folder.
 //   DIR/classes.txt         the class labels, one per line, line i = class_id i
 //                           (the order of StandardObjectClasses())
 //   DIR/frames_NNNNNN-MMMMMM.json  what made each frame of one export run (scenario, seed,
@@ -69,10 +75,16 @@ std::vector<std::string> YoloLabelLines(const RenderedFrame& frame,
                                         const std::vector<ObjectClass>& classes,
                                         const YoloLabelConfig& config);
 
+// The ignore lines of one frame: the standard-class objects YoloLabelLines leaves out, same format.
+std::vector<std::string> YoloIgnoreLines(const RenderedFrame& frame,
+                                         const std::vector<ObjectClass>& classes,
+                                         const YoloLabelConfig& config);
+
 struct YoloExportSummary {
   int frames = 0;          // written
   int skipped_frames = 0;  // views with fewer than min_labels_per_frame labels
   int labels = 0;
+  int ignored = 0;  // lines written to DIR/ignore/
   std::vector<int> labels_per_class;  // indexed like StandardObjectClasses()
   double render_seconds = 0.0;        // time inside Renderer::render
   double total_seconds = 0.0;

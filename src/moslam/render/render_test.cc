@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <opencv2/imgproc.hpp>
@@ -214,15 +215,26 @@ TEST(YoloLabels, LinesAreInRangeAndFollowTheFilters) {
   const Renderer r(views.world, RenderConfig());
   const auto classes = StandardObjectClasses();
   YoloLabelConfig lc;
-  int total = 0;
+  int total = 0, total_ignore = 0;
   for (std::size_t i = 0; i < views.views.size(); ++i) {
     const RenderedFrame f = r.render(views.views[i].world_T_body, i);
     const auto lines = YoloLabelLines(f, classes, lc);
-    int expected = 0;
+    const auto ignore = YoloIgnoreLines(f, classes, lc);
+    int expected = 0, expected_ignore = 0;
     for (const auto& o : f.objects) {
-      expected += o.visible_pixels >= lc.min_visible_pixels && o.in_image_fraction >= 0.5;
+      const bool labelled =
+          o.visible_pixels >= lc.min_visible_pixels && o.in_image_fraction >= 0.5;
+      expected += labelled;
+      const bool standard = std::any_of(classes.begin(), classes.end(),
+                                        [&](const ObjectClass& c) { return c.label == o.label; });
+      expected_ignore += standard && !labelled;
     }
     EXPECT_EQ(static_cast<int>(lines.size()), expected);
+    EXPECT_EQ(static_cast<int>(ignore.size()), expected_ignore);
+    total_ignore += static_cast<int>(ignore.size());
+    for (const auto& l : ignore) {  // disjoint from the labels
+      EXPECT_EQ(std::find(lines.begin(), lines.end(), l), lines.end()) << l;
+    }
     for (const auto& l : lines) {
       std::istringstream s(l);
       int c = -1;
@@ -240,6 +252,7 @@ TEST(YoloLabels, LinesAreInRangeAndFollowTheFilters) {
     total += static_cast<int>(lines.size());
   }
   EXPECT_GT(total, 5);
+  EXPECT_GT(total_ignore, 0);  // small and border-cut objects exist in these views
   lc.min_visible_pixels = 0;
   EXPECT_THROW(lc.validate(), InvalidInputError);
 }
