@@ -17,6 +17,7 @@
 #include "moslam/distributed/robot_agent.h"
 #include "moslam/io/g2o.h"
 #include "moslam/transport/journal.h"
+#include "moslam/transport/record_bytes.h"
 
 namespace moslam {
 
@@ -60,91 +61,9 @@ enum class RecordType : std::uint8_t {
   kDone = 7,      // finished
 };
 
-class Bytes {
- public:
-  Bytes& u8(std::uint8_t v) {
-    b_.push_back(v);
-    return *this;
-  }
-  Bytes& u16(std::uint16_t v) { return le(v, 2); }
-  Bytes& u32(std::uint32_t v) { return le(v, 4); }
-  Bytes& u64(std::uint64_t v) { return le(v, 8); }
-  Bytes& raw(const std::vector<std::uint8_t>& v) {
-    u32(static_cast<std::uint32_t>(v.size()));
-    b_.insert(b_.end(), v.begin(), v.end());
-    return *this;
-  }
-  std::vector<std::uint8_t>& data() { return b_; }
-
- private:
-  Bytes& le(std::uint64_t v, int n) {
-    for (int i = 0; i < n; ++i) b_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
-    return *this;
-  }
-  std::vector<std::uint8_t> b_;
-};
-
-class Parse {
- public:
-  Parse(const std::vector<std::uint8_t>& b, const std::string& what) : b_(b), what_(what) {}
-  std::uint8_t u8() { return static_cast<std::uint8_t>(le(1)); }
-  std::uint16_t u16() { return static_cast<std::uint16_t>(le(2)); }
-  std::uint32_t u32() { return static_cast<std::uint32_t>(le(4)); }
-  std::uint64_t u64() { return le(8); }
-  std::vector<std::uint8_t> raw() {
-    const std::uint32_t n = u32();
-    need(n);
-    std::vector<std::uint8_t> v(b_.begin() + static_cast<std::ptrdiff_t>(pos_),
-                                b_.begin() + static_cast<std::ptrdiff_t>(pos_ + n));
-    pos_ += n;
-    return v;
-  }
-  bool atEnd() const { return pos_ == b_.size(); }
-
- private:
-  void need(std::size_t n) const {
-    if (b_.size() - pos_ < n) throw InvalidInputError(what_ + ": truncated journal record");
-  }
-  std::uint64_t le(int n) {
-    need(static_cast<std::size_t>(n));
-    std::uint64_t v = 0;
-    for (int i = 0; i < n; ++i) v |= std::uint64_t{b_[pos_ + static_cast<std::size_t>(i)]} << (8 * i);
-    pos_ += static_cast<std::size_t>(n);
-    return v;
-  }
-  const std::vector<std::uint8_t>& b_;
-  std::string what_;
-  std::size_t pos_ = 0;
-};
-
-// FNV-1a over the robot, the options that change the result, the subgraph and the initial
-// values of the robot's variables: a journal is only replayed for the run that wrote it.
-class Fingerprint {
- public:
-  void add(const void* data, std::size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (std::size_t i = 0; i < n; ++i) h_ = (h_ ^ p[i]) * 1099511628211ull;
-  }
-  void add(double v) { add(&v, sizeof v); }
-  void add(std::uint64_t v) { add(&v, sizeof v); }
-  void add(const Key& k) {
-    add(static_cast<std::uint64_t>(k.robot));
-    add(static_cast<std::uint64_t>(k.kind));
-    add(k.index);
-  }
-  void add(const SE3& x) {
-    const Matrix3& R = x.rotation().matrix();
-    for (int i = 0; i < 9; ++i) add(R(i));
-    for (int i = 0; i < 3; ++i) add(x.translation()(i));
-  }
-  void add(const Matrix6& m) {
-    for (int i = 0; i < 36; ++i) add(m(i));
-  }
-  std::uint64_t value() const { return h_; }
-
- private:
-  std::uint64_t h_ = 1469598103934665603ull;
-};
+using transport_detail::Fingerprint;
+using Bytes = transport_detail::RecordWriter;
+using Parse = transport_detail::RecordReader;
 
 std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initial,
                              const DgsNodeOptions& o) {

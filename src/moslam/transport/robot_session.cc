@@ -16,6 +16,7 @@
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/journal.h"
+#include "moslam/transport/record_bytes.h"
 
 namespace moslam {
 
@@ -112,68 +113,9 @@ constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'R', 'D', 'V', '1'};
 constexpr std::uint8_t kHeaderRecord = 1;
 constexpr std::uint8_t kEventRecord = 2;
 
-// Little-endian record bytes.
-class Record {
- public:
-  Record& u8(std::uint8_t v) { return le(v, 1); }
-  Record& u16(std::uint16_t v) { return le(v, 2); }
-  Record& u32(std::uint32_t v) { return le(v, 4); }
-  Record& u64(std::uint64_t v) { return le(v, 8); }
-  std::vector<std::uint8_t>& data() { return b_; }
-
- private:
-  Record& le(std::uint64_t v, int n) {
-    for (int i = 0; i < n; ++i) b_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
-    return *this;
-  }
-  std::vector<std::uint8_t> b_;
-};
-
-class RecordReader {
- public:
-  RecordReader(const std::vector<std::uint8_t>& b, std::string what)
-      : b_(b), what_(std::move(what)) {}
-  std::uint64_t le(int n) {
-    if (b_.size() - pos_ < static_cast<std::size_t>(n)) {
-      throw InvalidInputError(what_ + ": truncated rendezvous journal record");
-    }
-    std::uint64_t v = 0;
-    for (int i = 0; i < n; ++i) v |= std::uint64_t{b_[pos_ + static_cast<std::size_t>(i)]} << (8 * i);
-    pos_ += static_cast<std::size_t>(n);
-    return v;
-  }
-
- private:
-  const std::vector<std::uint8_t>& b_;
-  std::string what_;
-  std::size_t pos_ = 0;
-};
-
-// FNV-1a over the robot's data and the options that change the rendezvous phase.
-class Fingerprint {
- public:
-  void add(const void* data, std::size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (std::size_t i = 0; i < n; ++i) h_ = (h_ ^ p[i]) * 1099511628211ull;
-  }
-  void add(double v) { add(&v, sizeof v); }
-  void add(std::uint64_t v) { add(&v, sizeof v); }
-  void add(const std::string& s) {
-    add(static_cast<std::uint64_t>(s.size()));
-    add(s.data(), s.size());
-  }
-  void add(const SE3& x) {
-    for (int i = 0; i < 9; ++i) add(x.rotation().matrix()(i));
-    for (int i = 0; i < 3; ++i) add(x.translation()(i));
-  }
-  void add(const Matrix6& m) {
-    for (int i = 0; i < 36; ++i) add(m(i));
-  }
-  std::uint64_t value() const { return h_; }
-
- private:
-  std::uint64_t h_ = 1469598103934665603ull;
-};
+using transport_detail::Fingerprint;
+using transport_detail::RecordReader;
+using Record = transport_detail::RecordWriter;
 
 std::uint64_t SessionFingerprint(const RobotScenarioData& d, const MultiRobotSlamConfig& c) {
   Fingerprint f;
@@ -397,12 +339,12 @@ class RobotSession::Impl {
     const std::string what = journal_->path();
     for (std::size_t i = 0; i < records.size(); ++i) {
       RecordReader p(records[i], what);
-      const auto type = static_cast<std::uint8_t>(p.le(1));
+      const auto type = static_cast<std::uint8_t>(p.u8());
       if (i == 0) {
         char magic[8];
-        for (char& c : magic) c = static_cast<char>(p.le(1));
-        const auto robot = static_cast<int>(p.le(2));
-        const std::uint64_t fp = p.le(8);
+        for (char& c : magic) c = static_cast<char>(p.u8());
+        const auto robot = static_cast<int>(p.u16());
+        const std::uint64_t fp = p.u64();
         if (type != kHeaderRecord || std::memcmp(magic, kJournalMagic, 8) != 0 ||
             robot != robot_ || fp != fingerprint) {
           throw InvalidInputError("state directory " + options_.dgs.state_dir +
@@ -415,13 +357,13 @@ class RobotSession::Impl {
         throw InvalidInputError(what + ": unknown rendezvous journal record type " +
                                 std::to_string(type));
       }
-      const auto index = static_cast<std::size_t>(p.le(4));
-      const auto count = static_cast<std::uint32_t>(p.le(4));
+      const auto index = static_cast<std::size_t>(p.u32());
+      const auto count = static_cast<std::uint32_t>(p.u32());
       if (index >= data_.events.size()) throw InvalidInputError(what + ": event out of range");
       Pairs pairs;
       for (std::uint32_t k = 0; k < count; ++k) {
-        const auto a = static_cast<std::uint32_t>(p.le(4));
-        const auto b = static_cast<std::uint32_t>(p.le(4));
+        const auto a = static_cast<std::uint32_t>(p.u32());
+        const auto b = static_cast<std::uint32_t>(p.u32());
         pairs.emplace_back(a, b);
       }
       journaled_[index] = std::move(pairs);
