@@ -13,20 +13,11 @@
 # /usr/bin/python3, which has matplotlib from python3-matplotlib).
 set -euo pipefail
 
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-BUILD_DIR="${BUILD_DIR:-$ROOT/build-bench-dgs}"
+BUILD_DIR="${BUILD_DIR:-$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/build-bench-dgs}"
+source "$(dirname "${BASH_SOURCE[0]}")/lib/moslam.sh"
 DATASETS="${MOSLAM_DATASETS_DIR:-$ROOT/../shared/datasets}"
 PYTHON="${PYTHON:-/usr/bin/python3}"
 BLOCKS="$DATASETS/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/blocks_world"
-
-if [[ -z "${MOSLAM:-}" ]]; then
-  cmake_args=(-S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DMOSLAM_BUILD_BENCH=OFF
-              -DMOSLAM_BUILD_TESTS=OFF)
-  command -v ninja >/dev/null && [[ ! -f "$BUILD_DIR/CMakeCache.txt" ]] && cmake_args+=(-G Ninja)
-  cmake "${cmake_args[@]}" >/dev/null
-  cmake --build "$BUILD_DIR" --target moslam
-  MOSLAM="$BUILD_DIR/apps/moslam"
-fi
 mkdir -p "$BUILD_DIR"
 
 selected() {  # selected NAME: whether the dataset was asked for (all when no arguments)

@@ -2,19 +2,9 @@
 # binary and provides run (one `moslam simulate` table, Markdown printed, JSON kept) and finish.
 # Environment: BUILD_DIR (default build-release), MOSLAM (a built binary: skips the build),
 # RUNS (default 10), SEED (default 1).
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-BUILD_DIR="${BUILD_DIR:-$ROOT/build-release}"
+source "$(dirname "${BASH_SOURCE[0]}")/moslam.sh"
 RUNS="${RUNS:-10}"
 SEED="${SEED:-1}"
-if [[ -z "${MOSLAM:-}" ]]; then
-  if [[ ! -f "$BUILD_DIR/CMakeCache.txt" ]]; then
-    cmake_args=(-S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DMOSLAM_BUILD_BENCH=OFF)
-    command -v ninja >/dev/null && cmake_args+=(-G Ninja)
-    cmake "${cmake_args[@]}" >/dev/null
-  fi
-  cmake --build "$BUILD_DIR" --target moslam >/dev/null
-  MOSLAM="$BUILD_DIR/apps/moslam"
-fi
 mkdir -p "$ROOT/docs"
 
 # run NAME ARGS...: prints the Markdown of `moslam simulate ARGS --json`, keeps its JSON line.
