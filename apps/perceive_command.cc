@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <pcl/console/print.h>
 #include <string>
 #include <vector>
 
@@ -106,6 +107,8 @@ class Progress {
 };
 
 int RunPerceive(const PerceiveArgs& a) {
+  // SAC-IA warns on stderr for every relaxed sample distance; the statuses say what matters.
+  pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
   const TumSequence sequence = ReadTumSequence(a.sequence);
   std::optional<World> world;
   if (!a.world.empty()) world = LoadWorld(a.world);

@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include <pcl/console/print.h>
+
 #include "commands.h"
 #include "moslam/common/errors.h"
 #include "moslam/experiments/simulation_experiment.h"
@@ -100,6 +102,7 @@ Runner RegisterSimulate(CLI::App& app) {
     }
     std::shared_ptr<RenderedSensingConfig> rendered;
     if (a.perception == "rendered") {
+      pcl::console::setVerbosityLevel(pcl::console::L_ERROR);  // SAC-IA's per-sample warnings
       rendered = std::make_shared<RenderedSensingConfig>();
       rendered->perception.detector.model_path = a.model;
       rendered->perception.detector.class_names_file = a.classes;
