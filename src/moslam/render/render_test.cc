@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <fmt/core.h>
+#include <fstream>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
@@ -255,6 +258,44 @@ TEST(YoloLabels, LinesAreInRangeAndFollowTheFilters) {
   EXPECT_GT(total_ignore, 0);  // small and border-cut objects exist in these views
   lc.min_visible_pixels = 0;
   EXPECT_THROW(lc.validate(), InvalidInputError);
+}
+
+TEST(YoloExport, WritesLabelsAndIgnoreFilesPerFrame) {
+  ScenarioViewsConfig vc;
+  vc.scenario = "house";
+  vc.num_robots = 1;
+  vc.poses_per_robot = 6;
+  vc.seed = 2;
+  const ScenarioViews views = MakeScenarioViews(vc);
+  const Renderer r(views.world, RenderConfig());
+  const std::filesystem::path dir =
+      std::filesystem::path(::testing::TempDir()) / "moslam_yolo_export_ignore";
+  std::filesystem::remove_all(dir);
+  YoloLabelConfig lc;
+  lc.min_visible_pixels = 5000;  // few labels, so most visible objects become ignore lines
+  const YoloExportSummary s = ExportYoloDataset(r, views, dir.string(), 7, lc);
+  ASSERT_EQ(s.frames, 6);
+  const auto classes = StandardObjectClasses();
+  auto read = [](const std::filesystem::path& p) {
+    std::vector<std::string> lines;
+    std::ifstream f(p);
+    EXPECT_TRUE(f.good()) << p;
+    for (std::string l; std::getline(f, l);) lines.push_back(l);
+    return lines;
+  };
+  int ignored = 0;
+  for (int i = 0; i < s.frames; ++i) {
+    const std::string name = fmt::format("{:06d}.txt", 7 + i);
+    const RenderedFrame f = r.render(views.views[static_cast<std::size_t>(i)].world_T_body,
+                                     static_cast<std::uint64_t>(7 + i));
+    EXPECT_EQ(read(dir / "labels" / name), YoloLabelLines(f, classes, lc));
+    const auto ignore = read(dir / "ignore" / name);
+    EXPECT_EQ(ignore, YoloIgnoreLines(f, classes, lc));
+    ignored += static_cast<int>(ignore.size());
+  }
+  EXPECT_EQ(ignored, s.ignored);
+  EXPECT_GT(s.ignored, 0);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(ScenarioViews, JitterStaysWithinItsBounds) {
