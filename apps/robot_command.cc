@@ -331,18 +331,6 @@ double MaxDifference(const Values& a, const Values& b) {
 // <out>/robot<r>/summary.json exists.
 // Robot r's summary.json from its output folder `dir`, or nullopt when it exited non-zero or
 // wrote none. `entry` gets the robot, its exit code and, on failure, the path of its log.
-std::optional<nlohmann::json> ReadRobotSummary(const fs::path& dir, int r, int exit_code,
-                                               nlohmann::json* entry) {
-  (*entry)["robot"] = r;
-  (*entry)["exit_code"] = exit_code;
-  if (exit_code != 0 || !fs::exists(dir / "summary.json")) {
-    (*entry)["log"] = (dir / "log.txt").string();
-    return std::nullopt;
-  }
-  std::ifstream in(dir / "summary.json");
-  return nlohmann::json::parse(in);
-}
-
 std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>& argvs, int domain,
                                      const fs::path& out, double timeout, bool collect_only) {
   const int n = static_cast<int>(argvs.size());
@@ -389,6 +377,94 @@ std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>
 
 // `moslam team --scenario ...`: the robots of a simulated scenario as processes, compared with
 // the in-process pipeline (RunMultiRobotObjectSlam, AssembleJointProblem, RunDgs in Jacobi order).
+// What `team` reads back from the robot folders <out>/robot<R>/ after the processes ended.
+struct TeamResults {
+  bool ok = true;  // every robot exited 0 and wrote its summary
+  nlohmann::json per_robot = nlohmann::json::array();  // robot, exit_code, log or the summary
+  std::map<int, nlohmann::json> summaries;             // robot -> summary, those that finished
+  Values merged;  // each finished robot's own variables, from its result.g2o
+  std::int64_t binary = 0, cdr = 0, status_bytes = 0, messages = 0;
+  int rotation_rounds = 0, pose_rounds = 0;
+};
+
+// Reads every robot's summary.json and result.g2o. Scenario robots also write objects and the
+// estimates of their neighbours' variables in result.g2o (only their own are merged) and the
+// shared-object pairs in their summary (left out of per_robot).
+TeamResults CollectTeam(const fs::path& out, int n, std::map<int, int>& exit_codes,
+                        bool scenario) {
+  TeamResults t;
+  for (int r = 0; r < n; ++r) {
+    const fs::path dir = out / fmt::format("robot{}", r);
+    nlohmann::json entry = {{"robot", r}, {"exit_code", exit_codes[r]}};
+    if (exit_codes[r] != 0 || !fs::exists(dir / "summary.json")) {
+      t.ok = false;
+      entry["log"] = (dir / "log.txt").string();
+      t.per_robot.push_back(entry);
+      continue;
+    }
+    std::ifstream in(dir / "summary.json");
+    const nlohmann::json s = nlohmann::json::parse(in);
+    entry.update(s);
+    entry.erase("shared");
+    t.per_robot.push_back(entry);
+    const Dataset result = ReadRobotG2o((dir / "result.g2o").string(),
+                                        scenario ? WithObjects() : G2oReadOptions{});
+    for (const auto& [k, x] : result.initial) {
+      if (!scenario || k.robot == r) t.merged.emplace(k, x);
+    }
+    t.binary += s["estimate_binary_bytes"].get<std::int64_t>();
+    t.cdr += s["dds_estimate_bytes"].get<std::int64_t>();
+    t.status_bytes += s["dds_status_bytes"].get<std::int64_t>();
+    t.messages += s["estimate_messages"].get<std::int64_t>();
+    t.rotation_rounds = std::max(t.rotation_rounds, s["rotation_rounds"].get<int>());
+    t.pose_rounds = std::max(t.pose_rounds, s["pose_rounds"].get<int>());
+    t.summaries[r] = s;
+  }
+  return t;
+}
+
+// The team's estimate against the in-process driver's on the same graph: JSON fields and the
+// DGS line of the report.
+void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const DgsResult& reference,
+                          nlohmann::json& j) {
+  j["cost"] = graph.cost(t.merged);
+  j["cost_in_process"] = graph.cost(reference.values);
+  j["max_difference"] = MaxDifference(t.merged, reference.values);
+  j["variables"] = t.merged.size();
+  j["in_process_variables"] = reference.values.size();
+  j["rotation_rounds"] = t.rotation_rounds;
+  j["pose_rounds"] = t.pose_rounds;
+  j["in_process_rotation_iterations"] = reference.rotation.iterations;
+  j["in_process_pose_iterations"] = reference.pose.iterations;
+  j["estimate_messages"] = t.messages;
+  j["in_process_messages"] = reference.messages;
+  j["estimate_binary_bytes"] = t.binary;
+  j["in_process_bytes"] = reference.bytes;
+  j["dds_estimate_bytes"] = t.cdr;
+  j["dds_status_bytes"] = t.status_bytes;
+  const int rounds = t.rotation_rounds + t.pose_rounds;
+  j["dds_payload_bytes_per_round"] =
+      rounds ? static_cast<double>(t.cdr + t.status_bytes) / rounds : 0.0;
+  fmt::print("DGS: rotation {} rounds, pose {} rounds (in-process {}, {}); {} messages, {} B "
+             "binary (in-process {}, {} B), {} B CDR payload, status {} B\n",
+             t.rotation_rounds, t.pose_rounds, reference.rotation.iterations,
+             reference.pose.iterations, t.messages, t.binary, reference.messages, reference.bytes,
+             t.cdr, t.status_bytes);
+  fmt::print("cost F = {:.9g} (in-process {:.9g}), largest difference {:.3g}\n",
+             j["cost"].get<double>(), j["cost_in_process"].get<double>(),
+             j["max_difference"].get<double>());
+}
+
+void ReportFailedRobots(const nlohmann::json& per_robot) {
+  for (const auto& r : per_robot) {
+    if (r["exit_code"] != 0) {
+      fmt::print(stderr, "moslam: robot {} failed (exit {}), see {}\n", r["robot"].get<int>(),
+                 r["exit_code"].get<int>(), r.value("log", std::string()));
+    }
+  }
+}
+
+
 int RunScenarioTeam(const TeamArgs& a) {
   ScenarioFlags flags = a.scenario;
   if (a.robots > 0) flags.spec.robots = a.robots;
@@ -417,42 +493,17 @@ int RunScenarioTeam(const TeamArgs& a) {
   std::map<int, int> exit_codes = RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 
-  // Collect.
-  Values merged;
+  const TeamResults t = CollectTeam(out, n, exit_codes, true);
+  bool ok = t.ok;
   std::set<std::vector<std::uint64_t>> shared;
-  nlohmann::json robots = nlohmann::json::array();
-  bool ok = true;
-  std::int64_t binary = 0, cdr = 0, status_bytes = 0, messages = 0, rdv_binary = 0, rdv_dds = 0,
-               rdv_samples = 0;
-  int rotation_rounds = 0, pose_rounds = 0, events = 0;
-  for (int r = 0; r < n; ++r) {
-    const fs::path dir = out / fmt::format("robot{}", r);
-    nlohmann::json j;
-    const std::optional<nlohmann::json> summary = ReadRobotSummary(dir, r, exit_codes[r], &j);
-    if (!summary) {
-      ok = false;
-      robots.push_back(j);
-      continue;
-    }
-    const nlohmann::json& s = *summary;
-    j.update(s);
-    j.erase("shared");
-    robots.push_back(j);
-    const Dataset result = ReadRobotG2o((dir / "result.g2o").string(), WithObjects());
-    for (const auto& [k, x] : result.initial) {
-      if (k.robot == r) merged.emplace(k, x);
-    }
+  std::int64_t rdv_binary = 0, rdv_dds = 0, rdv_samples = 0;
+  int events = 0;
+  for (const auto& [r, s] : t.summaries) {
     for (const auto& p : s["shared"]) shared.insert(p.get<std::vector<std::uint64_t>>());
-    binary += s["estimate_binary_bytes"].get<std::int64_t>();
-    cdr += s["dds_estimate_bytes"].get<std::int64_t>();
-    status_bytes += s["dds_status_bytes"].get<std::int64_t>();
-    messages += s["estimate_messages"].get<std::int64_t>();
     rdv_binary += s["rendezvous_binary_bytes"].get<std::int64_t>();
     rdv_dds += s["rendezvous_dds_bytes"].get<std::int64_t>();
     rdv_samples += s["rendezvous_dds_samples"].get<std::int64_t>();
     for (const auto& e : s["rendezvous"]) events += e["alpha"].get<int>() == r ? 1 : 0;
-    rotation_rounds = std::max(rotation_rounds, s["rotation_rounds"].get<int>());
-    pose_rounds = std::max(pose_rounds, s["pose_rounds"].get<int>());
   }
 
   nlohmann::json j;
@@ -490,25 +541,6 @@ int RunScenarioTeam(const TeamArgs& a) {
       fmt::print(stderr, "moslam: in-process reference: robot {} is not linked to robot 0\n",
                  joint.unanchored_robots.front());
     } else {
-      const DgsResult reference = RunDgs(joint.graph, joint.initial, DriverOptions(NodeOptions(a.solve)));
-      j["cost"] = joint.graph.cost(merged);
-      j["cost_in_process"] = joint.graph.cost(reference.values);
-      j["max_difference"] = MaxDifference(merged, reference.values);
-      j["variables"] = merged.size();
-      j["in_process_variables"] = reference.values.size();
-      j["rotation_rounds"] = rotation_rounds;
-      j["pose_rounds"] = pose_rounds;
-      j["in_process_rotation_iterations"] = reference.rotation.iterations;
-      j["in_process_pose_iterations"] = reference.pose.iterations;
-      j["estimate_messages"] = messages;
-      j["in_process_messages"] = reference.messages;
-      j["estimate_binary_bytes"] = binary;
-      j["in_process_bytes"] = reference.bytes;
-      j["dds_estimate_bytes"] = cdr;
-      j["dds_status_bytes"] = status_bytes;
-      const int rounds = rotation_rounds + pose_rounds;
-      j["dds_payload_bytes_per_round"] =
-          rounds ? static_cast<double>(cdr + status_bytes) / rounds : 0.0;
       fmt::print("{} with {} robots (seed {}, {} poses each) as processes on loopback (domain {}): "
                  "{:.2f} s\n",
                  spec.scenario, n, spec.seed, spec.poses_per_robot, a.domain, seconds);
@@ -517,25 +549,15 @@ int RunScenarioTeam(const TeamArgs& a) {
                  events, shared.size(), slam.shared.size(),
                  shared == reference_shared ? "the same pairs" : "DIFFERENT pairs", rdv_binary,
                  slam.bytes, rdv_dds, rdv_samples);
-      fmt::print("DGS: rotation {} rounds, pose {} rounds (in-process {}, {}); {} messages, {} B "
-                 "binary (in-process {}, {} B), {} B CDR payload, status {} B\n",
-                 rotation_rounds, pose_rounds, reference.rotation.iterations,
-                 reference.pose.iterations, messages, binary, reference.messages, reference.bytes,
-                 cdr, status_bytes);
-      fmt::print("cost F = {:.9g} (in-process {:.9g}), largest difference {:.3g}\n",
-                 j["cost"].get<double>(), j["cost_in_process"].get<double>(),
-                 j["max_difference"].get<double>());
+      const DgsResult reference =
+          RunDgs(joint.graph, joint.initial, DriverOptions(NodeOptions(a.solve)));
+      CompareWithInProcess(t, joint.graph, reference, j);
     }
   } else {
-    for (const auto& r : robots) {
-      if (r["exit_code"] != 0) {
-        fmt::print(stderr, "moslam: robot {} failed (exit {}), see {}\n", r["robot"].get<int>(),
-                   r["exit_code"].get<int>(), r.value("log", std::string()));
-      }
-    }
+    ReportFailedRobots(t.per_robot);
   }
   j["ok"] = ok;
-  j["per_robot"] = robots;
+  j["per_robot"] = t.per_robot;
   fmt::print("results in {}\n", out.string());
   if (a.json) fmt::print("{}\n", j.dump());
   return ok ? 0 : 1;
@@ -580,80 +602,27 @@ int RunTeam(const TeamArgs& args) {
   std::map<int, int> exit_codes = RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 
-  // Collect.
-  Values merged;
-  nlohmann::json robots = nlohmann::json::array();
-  bool ok = true;
-  std::int64_t binary = 0, cdr = 0, status_bytes = 0, messages = 0;
-  int rotation_rounds = 0, pose_rounds = 0;
-  for (int r = 0; r < n; ++r) {
-    const fs::path dir = out / fmt::format("robot{}", r);
-    nlohmann::json j;
-    const std::optional<nlohmann::json> summary = ReadRobotSummary(dir, r, exit_codes[r], &j);
-    if (!summary) {
-      ok = false;
-      robots.push_back(j);
-      continue;
-    }
-    const nlohmann::json& s = *summary;
-    j.update(s);
-    robots.push_back(j);
-    const Dataset result = ReadRobotG2o((dir / "result.g2o").string());
-    merged.insert(result.initial.begin(), result.initial.end());
-    binary += s["estimate_binary_bytes"].get<std::int64_t>();
-    cdr += s["dds_estimate_bytes"].get<std::int64_t>();
-    status_bytes += s["dds_status_bytes"].get<std::int64_t>();
-    messages += s["estimate_messages"].get<std::int64_t>();
-    rotation_rounds = std::max(rotation_rounds, s["rotation_rounds"].get<int>());
-    pose_rounds = std::max(pose_rounds, s["pose_rounds"].get<int>());
-  }
+  const TeamResults t = CollectTeam(out, n, exit_codes, false);
 
   nlohmann::json j;
   j["robots"] = n;
   j["domain"] = a.domain;
   j["out"] = out.string();
   j["seconds"] = seconds;
-  j["ok"] = ok;
-  j["per_robot"] = robots;
-  if (ok) {
+  j["ok"] = t.ok;
+  j["per_robot"] = t.per_robot;
+  if (t.ok) {
     const Dataset full = ReadG2oFolder(a.data);
-    const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(NodeOptions(a.solve)));
-    j["cost"] = full.graph.cost(merged);
-    j["cost_in_process"] = full.graph.cost(reference.values);
-    j["max_difference"] = MaxDifference(merged, reference.values);
-    j["rotation_rounds"] = rotation_rounds;
-    j["pose_rounds"] = pose_rounds;
-    j["in_process_rotation_iterations"] = reference.rotation.iterations;
-    j["in_process_pose_iterations"] = reference.pose.iterations;
-    j["estimate_messages"] = messages;
-    j["in_process_messages"] = reference.messages;
-    j["estimate_binary_bytes"] = binary;
-    j["in_process_bytes"] = reference.bytes;
-    j["dds_estimate_bytes"] = cdr;
-    j["dds_status_bytes"] = status_bytes;
-    const int rounds = rotation_rounds + pose_rounds;
-    j["dds_payload_bytes_per_round"] = rounds ? static_cast<double>(cdr + status_bytes) / rounds : 0.0;
-    fmt::print("team of {} on loopback (domain {}): {:.2f} s, rotation {} rounds, pose {} rounds "
-               "(in-process driver: {}, {})\n",
-               n, a.domain, seconds, rotation_rounds, pose_rounds, reference.rotation.iterations,
-               reference.pose.iterations);
-    fmt::print("cost F = {:.9g} (in-process {:.9g}), largest difference {:.3g}\n",
-               j["cost"].get<double>(), j["cost_in_process"].get<double>(),
-               j["max_difference"].get<double>());
-    fmt::print("DGS estimates: {} messages, {} B binary (in-process {} messages, {} B), {} B CDR "
-               "payload; status {} B\n",
-               messages, binary, reference.messages, reference.bytes, cdr, status_bytes);
+    fmt::print("team of {} on loopback (domain {}): {:.2f} s\n", n, a.domain, seconds);
+    const DgsResult reference =
+        RunDgs(full.graph, full.initial, DriverOptions(NodeOptions(a.solve)));
+    CompareWithInProcess(t, full.graph, reference, j);
   } else {
-    for (const auto& r : robots) {
-      if (r["exit_code"] != 0) {
-        fmt::print(stderr, "moslam: robot {} failed (exit {}), see {}\n", r["robot"].get<int>(),
-                   r["exit_code"].get<int>(), r.value("log", std::string()));
-      }
-    }
+    ReportFailedRobots(t.per_robot);
   }
   fmt::print("results in {}\n", out.string());
   if (a.json) fmt::print("{}\n", j.dump());
-  return ok ? 0 : 1;
+  return t.ok ? 0 : 1;
 }
 
 }  // namespace
