@@ -31,6 +31,7 @@ struct DetectArgs {
   bool letterbox = false;
   float threshold = 0.3f;
   float nms = 0.45f;
+  bool agnostic_nms = false;
   float iou = 0.5f;
   std::string data;
   std::string image;
@@ -70,6 +71,7 @@ DetectorConfig MakeConfig(const DetectArgs& a, float threshold) {
   c.resize_mode = a.letterbox ? ResizeMode::kLetterbox : ResizeMode::kStretch;
   c.confidence_threshold = threshold;
   c.nms_iou_threshold = a.nms;
+  c.class_agnostic_nms = a.agnostic_nms;
   return c;
 }
 
@@ -250,9 +252,11 @@ Runner RegisterDetect(CLI::App& app) {
   sub->add_option("--threshold", args->threshold, "score threshold (objectness x class prob.)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
-  sub->add_option("--nms", args->nms, "per-class NMS IoU threshold")
+  sub->add_option("--nms", args->nms, "NMS IoU threshold")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  sub->add_flag("--agnostic-nms", args->agnostic_nms,
+                "NMS over all boxes whatever their class (default: per class)");
   sub->add_option("--iou", args->iou, "IoU for a detection to match a ground-truth box")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();

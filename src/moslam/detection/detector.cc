@@ -277,7 +277,7 @@ struct Detector::Impl {
       }
     }
 
-    // Per-class NMS on boxes in image pixels, clipped to the image.
+    // NMS per class (or over all boxes: one group) on boxes in image pixels, clipped to the image.
     const cv::Rect2d frame(0.0, 0.0, bgr.cols, bgr.rows);
     std::map<int, std::vector<std::size_t>> by_class;
     std::vector<cv::Rect2d> boxes(cands.size());
@@ -287,10 +287,12 @@ struct Detector::Impl {
                             (b.y - mapping.pad_y) / mapping.scale_y, b.width / mapping.scale_x,
                             b.height / mapping.scale_y) &
                  frame;
-      if (boxes[k].width > 0.0 && boxes[k].height > 0.0) by_class[cands[k].class_id].push_back(k);
+      if (boxes[k].width > 0.0 && boxes[k].height > 0.0) {
+        by_class[config.class_agnostic_nms ? 0 : cands[k].class_id].push_back(k);
+      }
     }
     std::vector<Detection> detections;
-    for (const auto& [cls, members] : by_class) {
+    for (const auto& [group, members] : by_class) {
       std::vector<cv::Rect2d> class_boxes;
       std::vector<float> class_scores;
       for (std::size_t k : members) {
@@ -303,8 +305,8 @@ struct Detector::Impl {
       for (int j : keep) {
         const std::size_t k = members[static_cast<std::size_t>(j)];
         Detection d;
-        d.class_id = cls;
-        d.label = names[static_cast<std::size_t>(cls)];
+        d.class_id = cands[k].class_id;
+        d.label = names[static_cast<std::size_t>(d.class_id)];
         d.confidence = cands[k].score;
         d.box = cv::Rect2f(static_cast<float>(boxes[k].x), static_cast<float>(boxes[k].y),
                            static_cast<float>(boxes[k].width),

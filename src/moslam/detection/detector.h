@@ -9,7 +9,9 @@
 //   clipped to the image.
 //   Score of a box = objectness x class probability of its best class; boxes with a score below
 //   confidence_threshold are dropped (0.3, the paper's class probability threshold), then
-//   non-maximum suppression runs per class (cv::dnn::NMSBoxes). A box keeps only its best class.
+//   non-maximum suppression runs per class (cv::dnn::NMSBoxes), or over all boxes whatever their
+//   class when class_agnostic_nms is set (YOLOv5's --agnostic-nms). A box keeps only its best
+//   class.
 //
 // Supported network outputs (DetectorConfig::format):
 //   kMoslam  the project's grid head (training/train_detector.py): one or more outputs of shape
@@ -67,6 +69,10 @@ struct DetectorConfig {
   ResizeMode resize_mode = ResizeMode::kStretch;
   float confidence_threshold = 0.3f;  // on objectness x class probability (paper: 0.3)
   float nms_iou_threshold = 0.45f;    // boxes of one class overlapping more than this are merged
+  // NMS over all boxes: of two boxes overlapping more than nms_iou_threshold only the higher
+  // score survives even when their classes differ (one object seen as two classes by
+  // neighbouring cells gives one detection, not a true and a false one).
+  bool class_agnostic_nms = false;
 
   // Throws InvalidInputError naming the first bad field: empty model_path, missing cfg for
   // kDarknet, no class names or both sources, non-positive input size, thresholds outside

@@ -60,6 +60,22 @@ TEST(DetectorMoslam, DecodesGridThresholdsAndRunsPerClassNms) {
   ExpectDetection(d[1], 1, "table", 0.42f, {1, 2, 4, 4});
 }
 
+TEST(DetectorMoslam, ClassAgnosticNmsSuppressesAcrossClasses) {
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
+  c.nms_iou_threshold = 0.3f;
+  c.class_agnostic_nms = true;
+  Detector detector(c);
+  const auto d = detector.detect(Quadrants(1));
+  // The table of cell (1,0) overlaps the chair of cell (0,0) with IoU 1/3 > 0.3: suppressed now.
+  ASSERT_EQ(d.size(), 1u);
+  ExpectDetection(d[0], 0, "chair", 0.9f, {1, 0, 4, 4});
+  // Below its IoU the table survives with its own class.
+  c.nms_iou_threshold = 0.4f;
+  const auto kept = Detector(c).detect(Quadrants(1));
+  ASSERT_EQ(kept.size(), 2u);
+  ExpectDetection(kept[1], 1, "table", 0.42f, {1, 2, 4, 4});
+}
+
 TEST(DetectorMoslam, LooserNmsAndLowerThresholdKeepMore) {
   DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
   c.nms_iou_threshold = 0.7f;
