@@ -307,11 +307,7 @@ void RobotAgent::prepareStage(DgsStage stage) {
     // Stage 2 needs the neighbour's rotation; without one the separator stays unusable.
     if (!rotation && R_hat_.count(sep.foreign) == 0) continue;
     build(sep.factor);
-    const LinearTerm& t = terms_[sep.factor];
-    const bool own_is_a = factors_[sep.factor].a() == sep.own;
-    const Eigen::MatrixXd& A_own = own_is_a ? t.A_a : t.A_b;
-    const Eigen::MatrixXd& A_foreign = own_is_a ? t.A_b : t.A_a;
-    coupling_[s] = A_own.transpose() * t.W * A_foreign;
+    coupling_[s] = couplingBlock(sep);
   }
   prior_terms_.clear();
   for (const PriorFactor& p : priors_) {
@@ -320,6 +316,14 @@ void RobotAgent::prepareStage(DgsStage stage) {
   }
   cached_use_.clear();
   factorized_ = false;
+}
+
+Eigen::MatrixXd RobotAgent::couplingBlock(const Separator& sep) const {
+  const LinearTerm& t = terms_[sep.factor];
+  const bool own_is_a = factors_[sep.factor].a() == sep.own;
+  const Eigen::MatrixXd& A_own = own_is_a ? t.A_a : t.A_b;
+  const Eigen::MatrixXd& A_foreign = own_is_a ? t.A_b : t.A_a;
+  return A_own.transpose() * t.W * A_foreign;
 }
 
 bool RobotAgent::solvable(DgsStage stage, std::vector<bool>& use) const {
@@ -606,11 +610,7 @@ void RobotAgent::linearizeRefine() {
     const Separator& sep = separators_[s];
     if (!pose_known_[static_cast<std::size_t>(sep.slot)]) continue;  // never received: left out
     build(sep.factor);
-    const LinearTerm& t = terms_[sep.factor];
-    const bool own_is_a = factors_[sep.factor].a() == sep.own;
-    const Eigen::MatrixXd& A_own = own_is_a ? t.A_a : t.A_b;
-    const Eigen::MatrixXd& A_foreign = own_is_a ? t.A_b : t.A_a;
-    coupling_[s] = A_own.transpose() * t.W * A_foreign;
+    coupling_[s] = couplingBlock(sep);
   }
   prior_terms_.clear();
   for (const PriorFactor& p : priors_) {

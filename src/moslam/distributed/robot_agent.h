@@ -217,6 +217,8 @@ class RobotAgent {
   StageInbox& inbox(DgsStage stage);
   bool usable(const Separator& s, DgsStage stage) const;
   Eigen::MatrixXd neighbourValue(int slot, DgsStage stage) const;
+  // A_own^T W A_foreign of a separator whose linear term (terms_[sep.factor]) is built.
+  Eigen::MatrixXd couplingBlock(const Separator& sep) const;
   void requireRefine(const char* what) const;
   // Throws InvalidInputError "<what> in state <state><hint>" unless the agent is in `expected`.
   void requireState(AgentState expected, const char* what, const char* hint = "") const;
