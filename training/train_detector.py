@@ -370,6 +370,8 @@ def main():
     ap.add_argument("--moslam", help="moslam binary: check OpenCV DNN against torch after export")
     ap.add_argument("--report", help="write the training summary (JSON) here")
     ap.add_argument("--save-weights", help="also save the torch state_dict here")
+    ap.add_argument("--init-weights", help="start from this state_dict (--save-weights of an "
+                    "earlier run with the same --width): a warm restart of the schedule")
     args = ap.parse_args()
 
     torch.set_num_threads(1)
@@ -392,6 +394,9 @@ def main():
           f"{time.time() - t0:.1f} s", flush=True)
 
     model = Net(nc, args.width)
+    if args.init_weights:
+        model.load_state_dict(torch.load(args.init_weights))
+        print(f"initialised from {args.init_weights}", flush=True)
     params = sum(p.numel() for p in model.parameters())
     print(f"model: {params} parameters, grid {width // STRIDE}x{height // STRIDE}", flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=5e-4)
@@ -434,7 +439,8 @@ def main():
     classes_path = os.path.join(os.path.dirname(os.path.abspath(args.out)), "classes.txt")
     with open(classes_path, "w") as f:
         f.write("\n".join(classes) + "\n")
-    summary = dict(train=args.train, val=args.val, images=len(images), classes=classes,
+    summary = dict(train=args.train, val=args.val, init_weights=args.init_weights,
+                   images=len(images), classes=classes,
                    input_size=[width, height], parameters=params, steps=step, batch=args.batch,
                    seed=args.seed, train_seconds=round(train_seconds, 1),
                    onnx_bytes=os.path.getsize(args.out), identity_nodes_removed=removed)
