@@ -8,38 +8,35 @@ M=${MOSLAM:-build/apps/moslam}
 TRAIN=${1:-data/detector/train}
 HELD=${2:-data/detector/heldout}
 VAL=${3:-data/detector/val}
-C="--width 320 --height 240 --format yolo --min-labels 1"
-# Training: generated worlds seeds 1-16, house trajectories 1-12, chairs25 1-10 (index blocks of
-# 1000; seeds 1-8 / 1-6 / 1-5 were the first training set, the others were added at 30000+).
-for s in 1 2 3 4 5 6 7 8; do
-  $M render --scenario generated --robots 12 --poses 80 --frames-per-robot 40 --seed $s $C --out $TRAIN --first-index $(( (s-1)*1000 ))
-done
-for s in 1 2 3 4 5 6; do
-  $M render --scenario house --robots 6 --poses 60 --frames-per-robot 30 --seed $s $C --out $TRAIN --first-index $(( 10000 + (s-1)*1000 ))
-done
-for s in 1 2 3 4 5; do
-  $M render --scenario chairs25 --robots 6 --poses 40 --frames-per-robot 20 --seed $s $C --out $TRAIN --first-index $(( 20000 + (s-1)*1000 ))
-done
-for s in 9 10 11 12 13 14 15 16; do
-  $M render --scenario generated --robots 12 --poses 80 --frames-per-robot 40 --seed $s $C --out $TRAIN --first-index $(( 30000 + (s-9)*1000 ))
-done
-for s in 7 8 9 10 11 12; do
-  $M render --scenario house --robots 6 --poses 60 --frames-per-robot 30 --seed $s $C --out $TRAIN --first-index $(( 40000 + (s-7)*1000 ))
-done
-for s in 6 7 8 9 10; do
-  $M render --scenario chairs25 --robots 6 --poses 40 --frames-per-robot 20 --seed $s $C --out $TRAIN --first-index $(( 50000 + (s-6)*1000 ))
-done
+
+# render OUT SCENARIO ROBOTS POSES FRAMES_PER_ROBOT FIRST_INDEX SEED...: one index block of 1000
+# frames per seed, from FIRST_INDEX on.
+render() {
+  local out=$1 scenario=$2 robots=$3 poses=$4 frames=$5 index=$6
+  shift 6
+  for seed in "$@"; do
+    "$M" render --scenario "$scenario" --robots "$robots" --poses "$poses" \
+      --frames-per-robot "$frames" --seed "$seed" --width 320 --height 240 --format yolo \
+      --min-labels 1 --out "$out" --first-index "$index"
+    index=$(( index + 1000 ))
+  done
+}
+
+# Training: generated worlds seeds 1-16, house trajectories 1-12, chairs25 1-10 (seeds 1-8 / 1-6
+# / 1-5 were the first training set, the others were added at 30000+).
+render "$TRAIN" generated 12 80 40     0 1 2 3 4 5 6 7 8
+render "$TRAIN" house      6 60 30 10000 1 2 3 4 5 6
+render "$TRAIN" chairs25   6 40 20 20000 1 2 3 4 5
+render "$TRAIN" generated 12 80 40 30000 9 10 11 12 13 14 15 16
+render "$TRAIN" house      6 60 30 40000 7 8 9 10 11 12
+render "$TRAIN" chairs25   6 40 20 50000 6 7 8 9 10
 # Held-out (the reported numbers): seeds 101-102 (new generated worlds, new chairs25 yaws; house =
 # same layout, new trajectories, colours and noise).
-for s in 101 102; do
-  $M render --scenario generated --robots 12 --poses 80 --frames-per-robot 40 --seed $s $C --out $HELD --first-index $(( (s-101)*1000 ))
-done
-$M render --scenario house --robots 6 --poses 60 --frames-per-robot 30 --seed 101 $C --out $HELD --first-index 10000
-$M render --scenario chairs25 --robots 6 --poses 40 --frames-per-robot 20 --seed 101 $C --out $HELD --first-index 20000
+render "$HELD" generated 12 80 40     0 101 102
+render "$HELD" house      6 60 30 10000 101
+render "$HELD" chairs25   6 40 20 20000 101
 # Model selection (choosing between training runs; never reported as the result): seeds 201-202.
-for s in 201 202; do
-  $M render --scenario generated --robots 12 --poses 80 --frames-per-robot 40 --seed $s $C --out $VAL --first-index $(( (s-201)*1000 ))
-done
-$M render --scenario house --robots 6 --poses 60 --frames-per-robot 30 --seed 201 $C --out $VAL --first-index 10000
-$M render --scenario chairs25 --robots 6 --poses 40 --frames-per-robot 20 --seed 201 $C --out $VAL --first-index 20000
-echo "train: $(ls $TRAIN/images | wc -l) images, held-out: $(ls $HELD/images | wc -l), val: $(ls $VAL/images | wc -l)"
+render "$VAL" generated 12 80 40     0 201 202
+render "$VAL" house      6 60 30 10000 201
+render "$VAL" chairs25   6 40 20 20000 201
+echo "train: $(ls "$TRAIN"/images | wc -l) images, held-out: $(ls "$HELD"/images | wc -l), val: $(ls "$VAL"/images | wc -l)"
