@@ -329,8 +329,6 @@ double MaxDifference(const Values& a, const Values& b) {
 // (LoopbackConfigXml), waits for them all (killing them at the timeout: exit code -1) and returns
 // their exit codes. `collect_only`: starts nothing, robot r counts as successful when
 // <out>/robot<r>/summary.json exists.
-// Robot r's summary.json from its output folder `dir`, or nullopt when it exited non-zero or
-// wrote none. `entry` gets the robot, its exit code and, on failure, the path of its log.
 std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>& argvs, int domain,
                                      const fs::path& out, double timeout, bool collect_only) {
   const int n = static_cast<int>(argvs.size());
@@ -375,8 +373,6 @@ std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>
   return exit_codes;
 }
 
-// `moslam team --scenario ...`: the robots of a simulated scenario as processes, compared with
-// the in-process pipeline (RunMultiRobotObjectSlam, AssembleJointProblem, RunDgs in Jacobi order).
 // What `team` reads back from the robot folders <out>/robot<R>/ after the processes ended.
 struct TeamResults {
   bool ok = true;  // every robot exited 0 and wrote its summary
@@ -390,13 +386,15 @@ struct TeamResults {
 // Reads every robot's summary.json and result.g2o. Scenario robots also write objects and the
 // estimates of their neighbours' variables in result.g2o (only their own are merged) and the
 // shared-object pairs in their summary (left out of per_robot).
-TeamResults CollectTeam(const fs::path& out, int n, std::map<int, int>& exit_codes,
+TeamResults CollectTeam(const fs::path& out, int n, const std::map<int, int>& exit_codes,
                         bool scenario) {
   TeamResults t;
   for (int r = 0; r < n; ++r) {
     const fs::path dir = out / fmt::format("robot{}", r);
-    nlohmann::json entry = {{"robot", r}, {"exit_code", exit_codes[r]}};
-    if (exit_codes[r] != 0 || !fs::exists(dir / "summary.json")) {
+    const auto code = exit_codes.find(r);
+    const int exit_code = code == exit_codes.end() ? 0 : code->second;
+    nlohmann::json entry = {{"robot", r}, {"exit_code", exit_code}};
+    if (exit_code != 0 || !fs::exists(dir / "summary.json")) {
       t.ok = false;
       entry["log"] = (dir / "log.txt").string();
       t.per_robot.push_back(entry);
@@ -464,7 +462,8 @@ void ReportFailedRobots(const nlohmann::json& per_robot) {
   }
 }
 
-
+// `moslam team --scenario ...`: the robots of a simulated scenario as processes, compared with
+// the in-process pipeline (RunMultiRobotObjectSlam, AssembleJointProblem, RunDgs in Jacobi order).
 int RunScenarioTeam(const TeamArgs& a) {
   ScenarioFlags flags = a.scenario;
   if (a.robots > 0) flags.spec.robots = a.robots;
@@ -490,7 +489,8 @@ int RunScenarioTeam(const TeamArgs& a) {
     argvs.push_back(argv);
   }
   const auto t0 = Clock::now();
-  std::map<int, int> exit_codes = RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
+  const std::map<int, int> exit_codes =
+      RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 
   const TeamResults t = CollectTeam(out, n, exit_codes, true);
@@ -599,7 +599,8 @@ int RunTeam(const TeamArgs& args) {
     argvs.push_back(argv);
   }
   const auto t0 = Clock::now();
-  std::map<int, int> exit_codes = RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
+  const std::map<int, int> exit_codes =
+      RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 
   const TeamResults t = CollectTeam(out, n, exit_codes, false);
