@@ -22,6 +22,7 @@
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/partition.h"
 #include "moslam/io/g2o.h"
+#include "moslam/metrics/metrics.h"
 #include "moslam/transport/dds_transport.h"
 #include "moslam/transport/dgs_node.h"
 #include "moslam/transport/robot_data.h"
@@ -314,17 +315,6 @@ pid_t Spawn(const std::vector<std::string>& args, const fs::path& log) {
   return pid;
 }
 
-double MaxDifference(const Values& a, const Values& b) {
-  double worst = 0.0;
-  for (const auto& [k, x] : b) {
-    const auto it = a.find(k);
-    if (it == a.end()) return std::numeric_limits<double>::infinity();
-    worst = std::max(worst, (x.translation() - it->second.translation()).norm());
-    worst = std::max(worst, (x.rotation().matrix() - it->second.rotation().matrix()).norm());
-  }
-  return worst;
-}
-
 // Starts one process per argv (robot r: argvs[r], log in <out>/robot<r>/log.txt) on loopback
 // (LoopbackConfigXml), waits for them all (killing them at the timeout: exit code -1) and returns
 // their exit codes. `collect_only`: starts nothing, robot r counts as successful when
@@ -381,6 +371,7 @@ struct TeamResults {
   Values merged;  // each finished robot's own variables, from its result.g2o
   std::int64_t binary = 0, cdr = 0, status_bytes = 0, messages = 0;
   int rotation_rounds = 0, pose_rounds = 0;
+  double seconds = 0.0;  // from starting the processes to the last one ending
 };
 
 // Reads every robot's summary.json and result.g2o. Scenario robots also write objects and the
@@ -421,13 +412,35 @@ TeamResults CollectTeam(const fs::path& out, int n, const std::map<int, int>& ex
   return t;
 }
 
+// Runs `moslam robot` for robots 0 .. n-1 (each with its --robot, --domain and --out
+// <out>/robot<R>, then `source`: what the robot solves, and the solve flags) and collects them.
+TeamResults RunTeamProcesses(const TeamArgs& a, const fs::path& out, int n,
+                             const std::vector<std::string>& source, bool scenario) {
+  std::vector<std::vector<std::string>> argvs;
+  for (int r = 0; r < n; ++r) {
+    std::vector<std::string> argv = {"moslam", "robot", "--robot", std::to_string(r), "--domain",
+                                     std::to_string(a.domain), "--out",
+                                     (out / fmt::format("robot{}", r)).string()};
+    argv.insert(argv.end(), source.begin(), source.end());
+    for (const std::string& s : SolveArgs(a.solve)) argv.push_back(s);
+    argvs.push_back(argv);
+  }
+  const auto t0 = Clock::now();
+  const std::map<int, int> exit_codes =
+      RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
+  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  TeamResults t = CollectTeam(out, n, exit_codes, scenario);
+  t.seconds = seconds;
+  return t;
+}
+
 // The team's estimate against the in-process driver's on the same graph: JSON fields and the
 // DGS line of the report.
 void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const DgsResult& reference,
                           nlohmann::json& j) {
   j["cost"] = graph.cost(t.merged);
   j["cost_in_process"] = graph.cost(reference.values);
-  j["max_difference"] = MaxDifference(t.merged, reference.values);
+  j["max_difference"] = MaxPoseDifference(t.merged, reference.values);
   j["variables"] = t.merged.size();
   j["in_process_variables"] = reference.values.size();
   j["rotation_rounds"] = t.rotation_rounds;
@@ -479,21 +492,7 @@ int RunScenarioTeam(const TeamArgs& a) {
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
   fs::create_directories(out);
-  std::vector<std::vector<std::string>> argvs;
-  for (int r = 0; r < n; ++r) {
-    std::vector<std::string> argv = {"moslam", "robot", "--robot", std::to_string(r), "--domain",
-                                     std::to_string(a.domain), "--out",
-                                     (out / fmt::format("robot{}", r)).string()};
-    for (const std::string& s : ScenarioArgs(flags)) argv.push_back(s);
-    for (const std::string& s : SolveArgs(a.solve)) argv.push_back(s);
-    argvs.push_back(argv);
-  }
-  const auto t0 = Clock::now();
-  const std::map<int, int> exit_codes =
-      RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
-  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-
-  const TeamResults t = CollectTeam(out, n, exit_codes, true);
+  const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
   bool ok = t.ok;
   std::set<std::vector<std::uint64_t>> shared;
   std::int64_t rdv_binary = 0, rdv_dds = 0, rdv_samples = 0;
@@ -513,7 +512,7 @@ int RunScenarioTeam(const TeamArgs& a) {
   j["poses_per_robot"] = spec.poses_per_robot;
   j["domain"] = a.domain;
   j["out"] = out.string();
-  j["seconds"] = seconds;
+  j["seconds"] = t.seconds;
   if (ok) {
     // The in-process pipeline on the same scenario.
     const SimulationData data = SimulateScenario(spec);
@@ -543,7 +542,7 @@ int RunScenarioTeam(const TeamArgs& a) {
     } else {
       fmt::print("{} with {} robots (seed {}, {} poses each) as processes on loopback (domain {}): "
                  "{:.2f} s\n",
-                 spec.scenario, n, spec.seed, spec.poses_per_robot, a.domain, seconds);
+                 spec.scenario, n, spec.seed, spec.poses_per_robot, a.domain, t.seconds);
       fmt::print("rendezvous: {} events, {} shared objects (in-process {}, {}), {} B in-process "
                  "encoding (in-process run {} B), {} B DDS payload in {} samples\n",
                  events, shared.size(), slam.shared.size(),
@@ -590,31 +589,18 @@ int RunTeam(const TeamArgs& args) {
                                         "{}.g2o): every robot of the folder takes part",
                                         n, a.data, files, files - 1));
   }
-  std::vector<std::vector<std::string>> argvs;
-  for (int r = 0; r < n; ++r) {
-    std::vector<std::string> argv = {"moslam", "robot", "--robot", std::to_string(r), "--data",
-                                     a.data, "--domain", std::to_string(a.domain), "--out",
-                                     (out / fmt::format("robot{}", r)).string()};
-    for (const std::string& s : SolveArgs(a.solve)) argv.push_back(s);
-    argvs.push_back(argv);
-  }
-  const auto t0 = Clock::now();
-  const std::map<int, int> exit_codes =
-      RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
-  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-
-  const TeamResults t = CollectTeam(out, n, exit_codes, false);
+  const TeamResults t = RunTeamProcesses(a, out, n, {"--data", a.data}, false);
 
   nlohmann::json j;
   j["robots"] = n;
   j["domain"] = a.domain;
   j["out"] = out.string();
-  j["seconds"] = seconds;
+  j["seconds"] = t.seconds;
   j["ok"] = t.ok;
   j["per_robot"] = t.per_robot;
   if (t.ok) {
     const Dataset full = ReadG2oFolder(a.data);
-    fmt::print("team of {} on loopback (domain {}): {:.2f} s\n", n, a.domain, seconds);
+    fmt::print("team of {} on loopback (domain {}): {:.2f} s\n", n, a.domain, t.seconds);
     const DgsResult reference =
         RunDgs(full.graph, full.initial, DriverOptions(NodeOptions(a.solve)));
     CompareWithInProcess(t, full.graph, reference, j);

@@ -22,6 +22,7 @@
 
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/io/g2o.h"
+#include "moslam/metrics/metrics.h"
 #include "moslam/transport/dds_transport.h"
 #include "moslam/transport/dgs_node.h"
 #include "moslam/transport/robot_data.h"
@@ -162,17 +163,6 @@ nlohmann::json LastJson(const std::string& output) {
   return last.empty() ? nlohmann::json() : nlohmann::json::parse(last);
 }
 
-double MaxDifference(const Values& a, const Values& b) {
-  double worst = 0.0;
-  for (const auto& [k, x] : a) {
-    const auto it = b.find(k);
-    if (it == b.end()) return std::numeric_limits<double>::infinity();
-    worst = std::max(worst, (x.translation() - it->second.translation()).norm());
-    worst = std::max(worst, (x.rotation().matrix() - it->second.rotation().matrix()).norm());
-  }
-  return worst;
-}
-
 TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
   const fs::path out = FreshDir("loopback");
   const fs::path log = out / "team.log";
@@ -232,7 +222,7 @@ TEST(Team, ARobotKilledMidRunAndRestartedLosesNothing) {
   const Dataset full = ReadG2oFolder(data);
   const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(DgsNodeOptions{}));
   EXPECT_EQ(merged.size(), reference.values.size());
-  EXPECT_LE(MaxDifference(merged, reference.values), 1e-9);
+  EXPECT_LE(MaxPoseDifference(reference.values, merged), 1e-9);
   fs::remove_all(out);
 }
 

@@ -1,6 +1,8 @@
 #include "moslam/metrics/metrics.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include <Eigen/LU>
@@ -118,6 +120,17 @@ Values TransformValues(const SE3& T, const Values& values) {
   Values out;
   for (const auto& [key, x] : values) out.emplace_hint(out.end(), key, T * x);
   return out;
+}
+
+double MaxPoseDifference(const Values& estimate, const Values& reference) {
+  double worst = 0.0;
+  for (const auto& [key, r] : reference) {
+    const auto it = estimate.find(key);
+    if (it == estimate.end()) return std::numeric_limits<double>::infinity();
+    worst = std::max(worst, (it->second.translation() - r.translation()).norm());
+    worst = std::max(worst, (it->second.rotation().matrix() - r.rotation().matrix()).norm());
+  }
+  return worst;
 }
 
 GroundTruthErrors CompareToGroundTruth(const Values& estimate, const Values& ground_truth) {

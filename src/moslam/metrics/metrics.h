@@ -53,6 +53,11 @@ SE3 AlignRigid(const std::vector<Vector3>& source, const std::vector<Vector3>& t
 // x -> T * x for every variable.
 Values TransformValues(const SE3& T, const Values& values);
 
+// The largest difference between two estimates of the same variables, over the keys of
+// `reference`: max over keys of ||t_e - t_r|| (m) and ||R_e - R_r||_F; +infinity when `estimate`
+// lacks one of those keys. For checking that two solvers reached the same estimate.
+double MaxPoseDifference(const Values& estimate, const Values& reference);
+
 struct GroundTruthErrors {
   TrajectoryErrors aligned;    // after the rigid alignment (what evo_ape --align reports)
   TrajectoryErrors unaligned;  // same as CompareEstimates(estimate, ground_truth)

@@ -306,5 +306,25 @@ TEST(CompareToGroundTruth, PropagatesMissingKeysAndTooFewPoses) {
   EXPECT_THROW(CompareToGroundTruth(two, two), UnderdeterminedError);
 }
 
+TEST(MaxPoseDifference, LargestTranslationOrRotationGapOverTheReferenceKeys) {
+  const Values reference{{Key::Pose(0, 0), SE3()},
+                         {Key::Pose(0, 1), SE3(SO3(), Vector3(1, 0, 0))}};
+  EXPECT_EQ(MaxPoseDifference(reference, reference), 0.0);
+  Values estimate = reference;
+  estimate[Key::Pose(0, 1)] = SE3(SO3(), Vector3(1, 0.25, 0));
+  EXPECT_NEAR(MaxPoseDifference(estimate, reference), 0.25, 1e-15);
+  // A 0.1 rad turn (||R - I||_F = 2 sqrt(2) sin(0.05) = 0.141) stays below the 0.25 m gap.
+  estimate[Key::Pose(0, 0)] = SE3(SO3::Exp(Vector3(0, 0, 0.1)), Vector3::Zero());
+  EXPECT_NEAR(MaxPoseDifference(estimate, reference), 0.25, 1e-15);
+  estimate[Key::Pose(0, 0)] = SE3(SO3::Exp(Vector3(0, 0, 0.5)), Vector3::Zero());
+  EXPECT_NEAR(MaxPoseDifference(estimate, reference), 2.0 * std::sqrt(2.0) * std::sin(0.25),
+              1e-12);
+  // Only the reference's keys count; one missing from the estimate is an infinite gap.
+  estimate[Key::Object(0, 0)] = SE3(SO3(), Vector3(9, 9, 9));
+  EXPECT_NEAR(MaxPoseDifference(estimate, reference), 2.0 * std::sqrt(2.0) * std::sin(0.25),
+              1e-12);
+  EXPECT_EQ(MaxPoseDifference(reference, estimate), std::numeric_limits<double>::infinity());
+}
+
 }  // namespace
 }  // namespace moslam

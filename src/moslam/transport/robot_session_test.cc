@@ -14,6 +14,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_driver.h"
+#include "moslam/metrics/metrics.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/robot_session.h"
 
@@ -53,17 +54,6 @@ Reference InProcess(const ScenarioSpec& spec, const SimulationData& data) {
   r.dgs = RunDgs(r.joint.graph, r.joint.initial, DriverOptions(DgsNodeOptions{}));
   for (const SharedObject& o : r.slam.shared) r.shared.insert(Tuple(o));
   return r;
-}
-
-double MaxDifference(const Values& a, const Values& b) {
-  double worst = 0.0;
-  for (const auto& [k, x] : b) {
-    const auto it = a.find(k);
-    if (it == a.end()) return std::numeric_limits<double>::infinity();
-    worst = std::max(worst, (x.translation() - it->second.translation()).norm());
-    worst = std::max(worst, (x.rotation().matrix() - it->second.rotation().matrix()).norm());
-  }
-  return worst;
 }
 
 class Log {
@@ -115,7 +105,7 @@ void ExpectEqualToInProcess(const std::vector<RobotSessionResult>& results, cons
   EXPECT_EQ(shared, ref.shared);
   EXPECT_EQ(bytes, ref.slam.bytes);  // the same messages, in the in-process encoding
   EXPECT_EQ(merged.size(), ref.dgs.values.size());
-  EXPECT_LE(MaxDifference(merged, ref.dgs.values), 1e-9);
+  EXPECT_LE(MaxPoseDifference(merged, ref.dgs.values), 1e-9);
 }
 
 TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
