@@ -16,16 +16,6 @@ PACKAGES=(
   libopencv-dev libpcl-dev  # perception front-end: images, DNN detector, PCL registration
 )
 
-missing=()
-for p in "${PACKAGES[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-
-if ((${#missing[@]})); then
-  SUDO=""
-  [[ $(id -u) -ne 0 ]] && SUDO="sudo"
-  export DEBIAN_FRONTEND=noninteractive
-  $SUDO apt-get update -q
-  $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
-fi
+source "$(dirname "${BASH_SOURCE[0]}")/lib/debian-packages.sh"
+install_debian_packages "${PACKAGES[@]}"
 echo "setup: all ${#PACKAGES[@]} dependency packages present"
