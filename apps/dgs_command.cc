@@ -35,6 +35,7 @@ struct DgsArgs {
   int max_iterations = 1000;
   bool no_flagged = false;
   bool weighted = false;
+  bool coarse = false;
   bool refine = false;
   std::string refine_solver = "cg";
   int refine_max_iterations = 100;
@@ -95,6 +96,7 @@ int RunDgsCommand(const DgsArgs& a) {
   options.max_iterations = a.max_iterations;
   options.flagged_initialisation = !a.no_flagged;
   options.weight_by_information = a.weighted;
+  options.coarse_correction = a.coarse;
   options.refine = a.refine;
   options.refinement.solver =
       a.refine_solver == "sweeps" ? RefineSolver::kSweeps : RefineSolver::kConjugateGradient;
@@ -179,6 +181,8 @@ int RunDgsCommand(const DgsArgs& a) {
         {"order", a.order},
         {"flagged_initialisation", !a.no_flagged},
         {"weighted", a.weighted},
+        {"coarse", a.coarse},
+        {"coarse_corrections", r.rotation.coarse_corrections + r.pose.coarse_corrections},
         {"refine", a.refine},
         {"two_stage_cost", two_stage_cost},
         {"final_cost", final_cost},
@@ -298,6 +302,9 @@ Runner RegisterDgs(CLI::App& app) {
   sub->add_flag("--no-flagged", args->no_flagged, "without flagged initialisation");
   sub->add_flag("--weighted", args->weighted,
                 "weight the two stages by the information matrices (the reference: unit)");
+  sub->add_flag("--coarse", args->coarse,
+                "two-level DGS: after each sweep a coarse correction of every robot's motion "
+                "as a whole, solved by one coordinator robot");
   sub->add_flag("--refine", args->refine,
                 "after the two stages, distributed Gauss-Newton on the SE(3) cost");
   sub->add_option("--refine-solver", args->refine_solver,

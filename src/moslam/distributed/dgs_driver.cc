@@ -1,5 +1,7 @@
 #include "moslam/distributed/dgs_driver.h"
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -331,7 +333,112 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
       report.status = StageStatus::kConverged;
       break;
     }
+    if (options_.coarse_correction) {
+      DgsIterationStats coarse;
+      coarse.stage = stage;
+      coarse.iteration = it;
+      if (coarseCorrection(stage, it, coarse)) ++report.coarse_corrections;
+      report.messages += coarse.messages;
+      report.bytes += coarse.bytes;
+      result_.messages += coarse.messages;
+      result_.bytes += coarse.bytes;
+      result_.history.back().messages += coarse.messages;
+      result_.history.back().bytes += coarse.bytes;
+    }
   }
+}
+
+namespace {
+
+std::vector<double> Flatten(const Eigen::MatrixXd& m) {
+  return std::vector<double>(m.data(), m.data() + m.size());
+}
+
+Eigen::MatrixXd Unflatten(const std::vector<double>& v, int rows, int cols) {
+  return Eigen::Map<const Eigen::MatrixXd>(v.data(), rows, cols);
+}
+
+}  // namespace
+
+CoarseMessage DgsDriver::sendCoarse(const CoarseMessage& m, int to, DgsIterationStats& stats) {
+  const std::vector<std::uint8_t> bytes = EncodeCoarseMessage(m);
+  if (m.sender == to) return m;  // the coordinator's own share: no network
+  ++stats.messages;
+  stats.bytes += static_cast<std::int64_t>(bytes.size());
+  return DecodeCoarseMessage(bytes);
+}
+
+bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStats& stats) {
+  std::vector<int> robots;
+  std::set<int> absent;
+  for (const auto& [r, agent] : agents_) {
+    if (!live(r)) absent.insert(r);
+  }
+  for (int r : order_) {
+    if (!live(r)) continue;
+    if (!agents_.at(r)->coarseReady(absent)) return false;
+    robots.push_back(r);
+  }
+  if (robots.empty()) return false;
+  const int k = stage == DgsStage::kRotation ? 3 : 6;
+  const int ncols = stage == DgsStage::kRotation ? 3 : 1;
+  std::map<int, Eigen::Index> index;
+  for (std::size_t i = 0; i < robots.size(); ++i) {
+    index[robots[i]] = static_cast<Eigen::Index>(i) * k;
+  }
+  const Eigen::Index K = static_cast<Eigen::Index>(robots.size()) * k;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(K, K), B(K, ncols);
+  const int c = coordinator();
+  // Every robot sends its rows to the coordinator.
+  for (int r : robots) {
+    const CoarseShare share = agents_.at(r)->coarseShare();
+    CoarseMessage m;
+    m.kind = CoarseKind::kShare;
+    m.stage = stage;
+    m.sender = r;
+    m.iteration = static_cast<std::uint32_t>(iteration);
+    m.k = k;
+    m.ncols = ncols;
+    m.diagonal = Flatten(share.diagonal);
+    m.residual = Flatten(share.residual);
+    for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, Flatten(block));
+    const CoarseMessage got = sendCoarse(m, c, stats);
+    const Eigen::Index ir = index.at(r);
+    A.block(ir, ir, k, k) += Unflatten(got.diagonal, k, k);
+    B.middleRows(ir, k) = Unflatten(got.residual, k, ncols);
+    for (const auto& [s, block] : got.blocks) {
+      const auto is = index.find(s);  // a silent neighbour's variables stay fixed
+      if (is != index.end()) A.block(ir, is->second, k, k) += Unflatten(block, k, k);
+    }
+  }
+  // H is symmetric; the two robots of a separator computed its block from their own copies.
+  A = 0.5 * (A + A.transpose());
+  const Eigen::LLT<Eigen::MatrixXd> llt(A);
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::MatrixXd Y = llt.solve(B);
+  if (!Y.allFinite()) return false;
+  // The coordinator sends every robot its own y and its neighbouring robots'.
+  for (int r : robots) {
+    RobotAgent& a = *agents_.at(r);
+    std::set<int> needed = a.neighbourRobots();
+    needed.insert(r);
+    CoarseMessage m;
+    m.kind = CoarseKind::kSolution;
+    m.stage = stage;
+    m.sender = c;
+    m.iteration = static_cast<std::uint32_t>(iteration);
+    m.k = k;
+    m.ncols = ncols;
+    for (int s : needed) {
+      const auto is = index.find(s);
+      if (is != index.end()) m.blocks.emplace_back(s, Flatten(Y.middleRows(is->second, k)));
+    }
+    const CoarseMessage got = sendCoarse(m, r, stats);
+    std::map<int, Eigen::MatrixXd> y;
+    for (const auto& [s, block] : got.blocks) y[s] = Unflatten(block, k, ncols);
+    a.applyCoarse(y);
+  }
+  return true;
 }
 
 const DgsStageReport& DgsDriver::runRotationStage() {

@@ -95,6 +95,16 @@ struct DgsOptions {
   int max_iterations = 1000;   // sweeps per stage
   bool flagged_initialisation = true;
   bool weight_by_information = false;  // unit weights as the DGS reference
+  // Two-level DGS (beyond DGS.md): after every sweep that does not stop the stage, a Galerkin
+  // correction over the motions of whole robots (RobotAgent::coarseShare / applyCoarse): each
+  // robot sends its rows of the coarse system (k x k blocks, k = 3 in stage 1, 6 in stage 2) to
+  // the coordinator (the first live robot in the order), which solves it (Cholesky, k * robots
+  // unknowns) and sends each robot the coarse unknowns of itself and its neighbours
+  // (messages.h, CoarseMessage; counted in the sweep's messages and bytes). Same fixed point as
+  // the one-level sweeps; the sweeps no longer grow with the team (README). Skipped, for that
+  // sweep, while some live robot has not yet solved with all its separators (flagged
+  // initialisation) or when the coarse matrix is not positive definite.
+  bool coarse_correction = false;
 
   bool refine = false;  // RunDgs: run the refinement after the two stages
   struct Refinement {
@@ -157,6 +167,7 @@ struct DgsStageReport {
   std::int64_t bytes = 0;
   double final_change = 0.0;       // the largest change of the last sweep
   double final_error_bound = 0.0;  // the largest errorBound(window) of the last sweep
+  int coarse_corrections = 0;      // two-level DGS: corrections applied
 };
 
 // One Gauss-Newton step of the refinement.
@@ -254,6 +265,11 @@ class DgsDriver {
   ControlMessage sendControl(const ControlMessage& m, int to, DgsIterationStats& stats);
   // One sweep: every live robot in the robot order (reversed: backward) solves once.
   void runSweeps(DgsStage stage, DgsIterationStats& stats, bool reverse);
+  // The coarse correction of the two-level DGS; false (nothing changed) when some live robot is
+  // not coarseReady() yet or the coarse matrix is not positive definite.
+  bool coarseCorrection(DgsStage stage, int iteration, DgsIterationStats& stats);
+  // Encodes, counts (unless to the sender itself) and decodes one coarse message.
+  CoarseMessage sendCoarse(const CoarseMessage& m, int to, DgsIterationStats& stats);
   // The refinement's bookkeeping: the sweep being recorded, traffic waiting for the next one.
   struct RefineRun {
     int step = 0;

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <tuple>
@@ -218,6 +219,81 @@ TEST(Dgs, DuplicatedReorderedAndStaleMessagesLeaveTheResultUnchanged) {
 // Robot 8 of blocks_world/9robots stops answering before it solves in stage 2. The others
 // finish; with flagged initialisation they never use its separators in stage 2, so their
 // estimate is the pose step of the graph without robot 8, linearised at the DGS rotations.
+// Two-level DGS (DgsOptions::coarse_correction): the coarse correction is a Galerkin step of the
+// same linear systems, so the fixed point is the centralized two-stage estimate as before.
+TEST(Dgs, CoarseCorrectionReachesTheCentralizedTwoStageEstimate) {
+  for (int n : {4, 16}) {
+    const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(n));
+    const TwoStageResult c = CentralizedTwoStage(d.graph, d.initial);
+    for (SweepOrder order : {SweepOrder::kGaussSeidel, SweepOrder::kJacobi}) {
+      SCOPED_TRACE(std::to_string(n) + " robots, " + ToString(order));
+      DgsOptions o = Tight(order, 1e-9);
+      o.coarse_correction = true;
+      const DgsResult r = RunDgs(d.graph, d.initial, o);
+      EXPECT_EQ(r.rotation.status, StageStatus::kConverged);
+      EXPECT_EQ(r.pose.status, StageStatus::kConverged);
+      EXPECT_GT(r.rotation.coarse_corrections, 0);
+      EXPECT_GT(r.pose.coarse_corrections, 0);
+      const TrajectoryErrors e = CompareEstimates(r.values, c.values);
+      EXPECT_EQ(e.poses.count, static_cast<int>(c.values.size()));
+      EXPECT_LE(e.poses.ate, kAteTolerance);
+      EXPECT_LE(e.poses.are_deg, kAreToleranceDeg);
+    }
+  }
+}
+
+// What the coarse correction is for: the one-level sweeps need more and more of them as the team
+// grows (a whole robot moves against the others only slowly), the two-level ones do not.
+// Measured at eta 1e-2 (rotation + pose sweeps, README): one-level 22, 44, 79, 142, 129, 148,
+// 225 and two-level 10, 11, 12, 13, 13, 14, 13 for 2, 4, 9, 16, 25, 36, 49 robots.
+TEST(Dgs, CoarseCorrectionKeepsTheSweepsFlatAsTheTeamGrows) {
+  int fewest = 1 << 30, most = 0;
+  for (int n : test::kBlocksWorldRobots) {
+    SCOPED_TRACE(std::to_string(n) + " robots");
+    const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(n));
+    DgsOptions o;  // the paper's eta 1e-2, Gauss-Seidel
+    const DgsResult one = RunDgs(d.graph, d.initial, o);
+    o.coarse_correction = true;
+    const DgsResult two = RunDgs(d.graph, d.initial, o);
+    EXPECT_EQ(two.rotation.status, StageStatus::kConverged);
+    EXPECT_EQ(two.pose.status, StageStatus::kConverged);
+    const int sweeps_one = one.rotation.iterations + one.pose.iterations;
+    const int sweeps_two = two.rotation.iterations + two.pose.iterations;
+    EXPECT_LE(sweeps_two, sweeps_one);
+    fewest = std::min(fewest, sweeps_two);
+    most = std::max(most, sweeps_two);
+    // As close to the two-stage cost as the one-level run.
+    const double two_stage = d.graph.cost(CentralizedTwoStage(d.graph, d.initial).values);
+    EXPECT_NEAR(d.graph.cost(two.values), two_stage, 0.02 * two_stage);
+  }
+  EXPECT_LE(most, fewest + 6);  // 2 to 49 robots: within a few sweeps of each other
+}
+
+// The correction is the exact minimiser over the coarse space: after it, every robot's projected
+// residual P_r^T (g - H x)_r of the rotation stage is zero (the stage-1 space is invariant under
+// the update, X (I + Y) spans what X spans), and it was not before.
+TEST(Dgs, CoarseCorrectionZeroesTheProjectedResidual) {
+  const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(9));
+  DgsOptions o;
+  o.max_iterations = 2;  // sweep 1 (flagged), sweep 2, then one correction
+  DgsDriver one_level(d.graph, d.initial, o);
+  one_level.runRotationStage();
+  o.coarse_correction = true;
+  DgsDriver two_level(d.graph, d.initial, o);
+  const DgsStageReport& report = two_level.runRotationStage();
+  // After sweep 1 the robots solved before their neighbours had not used every separator yet.
+  EXPECT_EQ(report.coarse_corrections, 1);
+  double before = 0.0, after = 0.0;
+  for (int r = 0; r < two_level.numAgents(); ++r) {
+    ASSERT_TRUE(one_level.agent(r).coarseReady());
+    ASSERT_TRUE(two_level.agent(r).coarseReady());
+    before = std::max(before, one_level.agent(r).coarseShare().residual.norm());
+    after = std::max(after, two_level.agent(r).coarseShare().residual.norm());
+  }
+  EXPECT_GT(before, 1e-3);
+  EXPECT_LT(after, 1e-9 * before + 1e-12);
+}
+
 TEST(Dgs, ARobotThatStopsAnsweringDoesNotStopTheOthers) {
   const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(9));
   const int silent = 8;
@@ -228,30 +304,38 @@ TEST(Dgs, ARobotThatStopsAnsweringDoesNotStopTheOthers) {
   const Key anchor = GaugeAnchor(d.graph);
   ASSERT_TRUE(UnreachableFrom(without, anchor).empty());
 
-  FaultInjection faults;
-  faults.silent = {{silent, DgsStage::kPose, 1}};
-  DgsDriver driver(d.graph, d.initial, Tight(SweepOrder::kGaussSeidel, 1e-10), faults);
-  EXPECT_EQ(driver.runRotationStage().status, StageStatus::kConverged);
-  std::map<Key, Matrix3> rotations;
-  for (int r = 0; r < driver.numAgents(); ++r) {
-    for (const auto& [k, x] : driver.agent(r).estimate()) rotations[k] = x.rotation().matrix();
-  }
-  const DgsStageReport& pose = driver.runPoseStage();
-  EXPECT_EQ(pose.status, StageStatus::kConverged);
-  const DgsResult r = driver.result();
-  ASSERT_EQ(r.silent.size(), 1u);
-  EXPECT_EQ(r.silent[0].robot, silent);
-  EXPECT_EQ(r.silent[0].stage, DgsStage::kPose);
-  EXPECT_EQ(r.silent[0].iteration, 1);
-  EXPECT_EQ(driver.agent(silent).state(), AgentState::kPose);  // never finished
-  EXPECT_EQ(r.values.size(), d.initial.size());  // its variables keep their last estimate
+  for (bool coarse : {false, true}) {
+    SCOPED_TRACE(coarse ? "two-level" : "one-level");
+    FaultInjection faults;
+    faults.silent = {{silent, DgsStage::kPose, 1}};
+    DgsOptions options = Tight(SweepOrder::kGaussSeidel, 1e-10);
+    options.coarse_correction = coarse;
+    DgsDriver driver(d.graph, d.initial, options, faults);
+    EXPECT_EQ(driver.runRotationStage().status, StageStatus::kConverged);
+    std::map<Key, Matrix3> rotations;
+    for (int r = 0; r < driver.numAgents(); ++r) {
+      for (const auto& [k, x] : driver.agent(r).estimate()) rotations[k] = x.rotation().matrix();
+    }
+    const DgsStageReport& pose = driver.runPoseStage();
+    EXPECT_EQ(pose.status, StageStatus::kConverged);
+    const DgsResult r = driver.result();
+    ASSERT_EQ(r.silent.size(), 1u);
+    EXPECT_EQ(r.silent[0].robot, silent);
+    EXPECT_EQ(r.silent[0].stage, DgsStage::kPose);
+    EXPECT_EQ(r.silent[0].iteration, 1);
+    EXPECT_EQ(driver.agent(silent).state(), AgentState::kPose);  // never finished
+    EXPECT_EQ(r.values.size(), d.initial.size());  // its variables keep their last estimate
 
-  const Values reference = CentralizedPoseStep(without, rotations, anchor, d.initial.at(anchor));
-  double worst = 0.0;
-  for (const auto& [k, x] : reference) {
-    worst = std::max(worst, (r.values.at(k).translation() - x.translation()).norm());
+    const Values reference = CentralizedPoseStep(without, rotations, anchor, d.initial.at(anchor));
+    double worst = 0.0;
+    for (const auto& [k, x] : reference) {
+      worst = std::max(worst, (r.values.at(k).translation() - x.translation()).norm());
+    }
+    EXPECT_LT(worst, 1e-6);
+    if (coarse) {
+      EXPECT_GT(pose.coarse_corrections, 0);
+    }
   }
-  EXPECT_LT(worst, 1e-6);
 }
 
 TEST(Dgs, ARobotThatStopsAnsweringInStageOneIsReported) {

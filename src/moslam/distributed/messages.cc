@@ -310,4 +310,131 @@ ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes) {
   return m;
 }
 
+namespace {
+
+void CheckCoarse(const CoarseMessage& m) {
+  auto fail = [](const std::string& why) {
+    throw InvalidInputError("DGS coarse message: " + why);
+  };
+  if (m.kind != CoarseKind::kShare && m.kind != CoarseKind::kSolution) fail("unknown kind");
+  if (m.stage != DgsStage::kRotation && m.stage != DgsStage::kPose) {
+    fail("stage must be rotation or pose");
+  }
+  if (m.sender < 0 || m.sender > kMaxMessageRobot) fail("sender outside [0, 65535]");
+  if (m.k < 1 || m.k > 16 || m.ncols < 1 || m.ncols > 16) fail("k and ncols must be in [1, 16]");
+  const bool share = m.kind == CoarseKind::kShare;
+  const std::size_t kk = static_cast<std::size_t>(m.k * m.k);
+  const std::size_t kc = static_cast<std::size_t>(m.k * m.ncols);
+  if (share && (m.diagonal.size() != kk || m.residual.size() != kc)) {
+    fail("diagonal or residual of the wrong size");
+  }
+  if (!share && (!m.diagonal.empty() || !m.residual.empty())) {
+    fail("a solution carries no diagonal or residual");
+  }
+  if (m.blocks.size() > kMaxMessageRobot) fail("too many blocks");
+  int previous = -1;
+  auto finite = [&](const std::vector<double>& v) {
+    for (double d : v) {
+      if (!std::isfinite(d)) fail("non-finite value");
+    }
+  };
+  finite(m.diagonal);
+  finite(m.residual);
+  for (const auto& [robot, values] : m.blocks) {
+    if (robot <= previous || robot > kMaxMessageRobot) fail("block robots not increasing");
+    previous = robot;
+    if (values.size() != (share ? kk : kc)) fail("block of the wrong size");
+    finite(values);
+  }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& m) {
+  CheckCoarse(m);
+  const std::size_t block = m.kind == CoarseKind::kShare ? m.k * m.k : m.k * m.ncols;
+  std::vector<std::uint8_t> out(kMessageHeaderBytes +
+                                8 * (m.diagonal.size() + m.residual.size()) +
+                                m.blocks.size() * (2 + 8 * block));
+  Writer w(out.data());
+  w.u8(kCoarseMagic);
+  w.u8(kMessageVersion);
+  w.u8(static_cast<std::uint8_t>(m.stage));
+  w.u8(static_cast<std::uint8_t>(m.kind));
+  w.u16(static_cast<std::uint16_t>(m.sender));
+  w.u16(static_cast<std::uint16_t>(m.blocks.size()));
+  w.u32(m.iteration);
+  w.u8(static_cast<std::uint8_t>(m.k));
+  w.u8(static_cast<std::uint8_t>(m.ncols));
+  w.u16(0);
+  for (double d : m.diagonal) w.f64(d);
+  for (double d : m.residual) w.f64(d);
+  for (const auto& [robot, values] : m.blocks) {
+    w.u16(static_cast<std::uint16_t>(robot));
+    for (double d : values) w.f64(d);
+  }
+  return out;
+}
+
+CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
+  Reader r(bytes);
+  if (r.u8("magic") != kCoarseMagic) {
+    throw InvalidInputError("DGS coarse message: bad magic byte (not a coarse message)");
+  }
+  const std::uint8_t version = r.u8("version");
+  if (version != kMessageVersion) {
+    throw InvalidInputError("DGS coarse message: unsupported version " + std::to_string(version));
+  }
+  CoarseMessage m;
+  const std::uint8_t stage = r.u8("stage");
+  if (stage != static_cast<std::uint8_t>(DgsStage::kRotation) &&
+      stage != static_cast<std::uint8_t>(DgsStage::kPose)) {
+    throw InvalidInputError("DGS coarse message: stage " + std::to_string(stage) +
+                            " is not rotation or pose");
+  }
+  m.stage = static_cast<DgsStage>(stage);
+  const std::uint8_t kind = r.u8("kind");
+  if (kind != static_cast<std::uint8_t>(CoarseKind::kShare) &&
+      kind != static_cast<std::uint8_t>(CoarseKind::kSolution)) {
+    throw InvalidInputError("DGS coarse message: unknown kind " + std::to_string(kind));
+  }
+  m.kind = static_cast<CoarseKind>(kind);
+  m.sender = r.u16("sender");
+  const std::size_t count = r.u16("block count");
+  m.iteration = r.u32("iteration");
+  m.k = r.u8("k");
+  m.ncols = r.u8("ncols");
+  if (m.k < 1 || m.k > 16 || m.ncols < 1 || m.ncols > 16) {
+    throw InvalidInputError("DGS coarse message: k and ncols must be in [1, 16]");
+  }
+  if (r.u16("reserved") != 0) {
+    throw InvalidInputError("DGS coarse message: reserved field not zero");
+  }
+  const bool share = m.kind == CoarseKind::kShare;
+  const std::size_t kk = static_cast<std::size_t>(m.k * m.k);
+  const std::size_t kc = static_cast<std::size_t>(m.k * m.ncols);
+  const std::size_t block = share ? kk : kc;
+  const std::size_t payload = (share ? 8 * (kk + kc) : 0) + count * (2 + 8 * block);
+  r.need(payload, "payload");
+  if (r.remaining() != payload) {
+    throw InvalidInputError("DGS coarse message: " + std::to_string(r.remaining() - payload) +
+                            " trailing bytes");
+  }
+  auto doubles = [&](std::size_t n) {
+    std::vector<double> v(n);
+    for (double& d : v) d = r.f64("value");
+    return v;
+  };
+  if (share) {
+    m.diagonal = doubles(kk);
+    m.residual = doubles(kc);
+  }
+  for (std::size_t b = 0; b < count; ++b) {
+    const int robot = r.u16("block robot");
+    m.blocks.emplace_back(robot, doubles(block));
+  }
+  CheckCoarse(m);
+  return m;
+}
+
 }  // namespace moslam

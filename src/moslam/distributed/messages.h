@@ -18,6 +18,7 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "moslam/distributed/dgs_types.h"
@@ -90,5 +91,36 @@ inline constexpr std::uint8_t kRefineFinished = 2;   // kStepDecision
 // Throws InvalidInputError on the same conditions DecodeControlMessage rejects.
 std::vector<std::uint8_t> EncodeControlMessage(const ControlMessage& message);
 ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes);
+
+// Coarse messages of the two-level DGS (dgs_driver.h, DgsOptions::coarse_correction): each robot
+// sends its rows of the small coarse system to a coordinator robot, which solves it and sends
+// each robot the coarse unknowns of itself and of its neighbouring robots. Little-endian:
+//
+//   header (16 bytes): u8 magic 0xD8 | u8 version 1 | u8 stage | u8 kind | u16 sender |
+//                      u16 block count | u32 iteration | u8 k | u8 ncols | u16 reserved (0)
+//   kShare     k*k doubles (P_r^T H_rr P_r), k*ncols doubles (P_r^T (g - H x)_r), then per
+//              block: u16 robot s, k*k doubles (P_r^T H_rs P_s)
+//   kSolution  per block: u16 robot, k*ncols doubles (that robot's coarse unknowns y)
+// Matrices column-major; block robots strictly increasing. DecodeCoarseMessage rejects with
+// InvalidInputError: truncated input, bad magic/version/stage (rotation or pose only)/kind,
+// k or ncols outside [1, 16], a non-zero reserved field, robots not increasing, a non-finite
+// value, trailing bytes.
+enum class CoarseKind : std::uint8_t { kShare = 1, kSolution = 2 };
+
+struct CoarseMessage {
+  CoarseKind kind = CoarseKind::kShare;
+  DgsStage stage = DgsStage::kRotation;
+  int sender = 0;
+  std::uint32_t iteration = 0;
+  int k = 3, ncols = 3;
+  std::vector<double> diagonal, residual;                    // kShare: k*k and k*ncols
+  std::vector<std::pair<int, std::vector<double>>> blocks;   // kShare: k*k; kSolution: k*ncols
+};
+
+inline constexpr std::uint8_t kCoarseMagic = 0xD8;
+
+// Throws InvalidInputError on the conditions DecodeCoarseMessage rejects (and wrong sizes).
+std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& message);
+CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes);
 
 }  // namespace moslam

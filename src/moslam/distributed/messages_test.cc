@@ -275,5 +275,90 @@ TEST(ControlMessages, RejectsMalformedInput) {
   EXPECT_THROW(EncodeControlMessage(sender), InvalidInputError);
 }
 
+CoarseMessage ExampleShare() {
+  CoarseMessage m;
+  m.kind = CoarseKind::kShare;
+  m.stage = DgsStage::kPose;
+  m.sender = 3;
+  m.iteration = 7;
+  m.k = 6;
+  m.ncols = 1;
+  for (int i = 0; i < 36; ++i) m.diagonal.push_back(0.5 * i - 3.0);
+  for (int i = 0; i < 6; ++i) m.residual.push_back(-1e-3 * i);
+  m.blocks.emplace_back(1, std::vector<double>(36, 2.5));
+  m.blocks.emplace_back(4, std::vector<double>(36, -1.25));
+  return m;
+}
+
+TEST(CoarseMessages, RoundTripAndSize) {
+  const CoarseMessage m = ExampleShare();
+  const std::vector<std::uint8_t> bytes = EncodeCoarseMessage(m);
+  // Header, diagonal and residual, two blocks of (robot id + 36 doubles).
+  EXPECT_EQ(bytes.size(), 16u + 8u * (36 + 6) + 2u * (2 + 8 * 36));
+  EXPECT_EQ(bytes[0], kCoarseMagic);
+  const CoarseMessage d = DecodeCoarseMessage(bytes);
+  EXPECT_EQ(d.kind, m.kind);
+  EXPECT_EQ(d.stage, m.stage);
+  EXPECT_EQ(d.sender, m.sender);
+  EXPECT_EQ(d.iteration, m.iteration);
+  EXPECT_EQ(d.k, m.k);
+  EXPECT_EQ(d.ncols, m.ncols);
+  EXPECT_EQ(d.diagonal, m.diagonal);
+  EXPECT_EQ(d.residual, m.residual);
+  EXPECT_EQ(d.blocks, m.blocks);
+
+  CoarseMessage y;
+  y.kind = CoarseKind::kSolution;
+  y.stage = DgsStage::kRotation;
+  y.k = 3;
+  y.ncols = 3;
+  y.blocks.emplace_back(0, std::vector<double>(9, 0.125));
+  const CoarseMessage yd = DecodeCoarseMessage(EncodeCoarseMessage(y));
+  EXPECT_EQ(yd.blocks, y.blocks);
+  EXPECT_TRUE(yd.diagonal.empty());
+}
+
+TEST(CoarseMessages, RejectsMalformedInput) {
+  const std::vector<std::uint8_t> good = EncodeCoarseMessage(ExampleShare());
+  auto rejects = [](std::vector<std::uint8_t> bytes, const char* why) {
+    SCOPED_TRACE(why);
+    EXPECT_THROW(DecodeCoarseMessage(bytes), InvalidInputError);
+  };
+  rejects({good.begin(), good.begin() + 10}, "truncated header");
+  rejects({good.begin(), good.end() - 1}, "truncated payload");
+  std::vector<std::uint8_t> b = good;
+  b.push_back(0);
+  rejects(b, "trailing byte");
+  b = good;
+  b[0] = 0xD6;
+  rejects(b, "magic of a value message");
+  b = good;
+  b[2] = static_cast<std::uint8_t>(DgsStage::kRefine);
+  rejects(b, "refinement stage");
+  b = good;
+  b[3] = 9;
+  rejects(b, "kind");
+  b = good;
+  b[12] = 0;
+  rejects(b, "k = 0");
+  b = good;
+  b[14] = 1;
+  rejects(b, "reserved");
+  b = good;
+  const double nan = std::nan("");
+  std::memcpy(&b[16], &nan, 8);
+  rejects(b, "non-finite value");
+
+  CoarseMessage m = ExampleShare();
+  std::swap(m.blocks[0], m.blocks[1]);
+  EXPECT_THROW(EncodeCoarseMessage(m), InvalidInputError);  // robots not increasing
+  m = ExampleShare();
+  m.residual.pop_back();
+  EXPECT_THROW(EncodeCoarseMessage(m), InvalidInputError);  // wrong size
+  m = ExampleShare();
+  m.kind = CoarseKind::kSolution;
+  EXPECT_THROW(EncodeCoarseMessage(m), InvalidInputError);  // a solution has no diagonal
+}
+
 }  // namespace
 }  // namespace moslam

@@ -1,6 +1,7 @@
 #include "moslam/distributed/robot_agent.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <string>
@@ -8,6 +9,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/two_stage_terms.h"
+#include "moslam/geometry/so3.h"
 
 namespace moslam {
 
@@ -389,6 +391,117 @@ void RobotAgent::assemble(DgsStage stage, const std::vector<bool>& use) {
   }
 }
 
+Eigen::MatrixXd RobotAgent::localRhs(DgsStage stage) const {
+  // Conjugate gradients: the sweeps apply the preconditioner to the residual.
+  Eigen::MatrixXd G = cg_ ? Eigen::MatrixXd(cg_res_) : G0_;
+  const auto box = inboxes_.find(stage);
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    if (separator_row_[s] < 0) continue;
+    if (stage == DgsStage::kRotation) {
+      const Eigen::MatrixXd foreign = neighbourValue(separators_[s].slot, stage);
+      G.middleRows(separator_row_[s], 3).noalias() -= coupling_[s] * foreign;
+      continue;
+    }
+    // Stages 2 and refinement: 6 numbers; an increment that has not arrived is 0.
+    const Eigen::VectorXd* foreign =
+        box == inboxes_.end() ? nullptr : box->second.get(separators_[s].slot);
+    if (!foreign) continue;
+    G.col(0).segment<6>(separator_row_[s]).noalias() -=
+        Matrix6(coupling_[s]) * foreign->head<6>();
+  }
+  return G;
+}
+
+Eigen::MatrixXd RobotAgent::CoarseBasis(DgsStage stage, const Eigen::VectorXd& x,
+                                        const Matrix3* R_hat) {
+  if (stage == DgsStage::kRotation) return Eigen::Map<const Eigen::Matrix3d>(x.data());
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(6, 6);
+  P.topLeftCorner<3, 3>() = R_hat->transpose();
+  P.bottomLeftCorner<3, 3>() = -SO3::Hat(x.tail<3>());  // w x t = -t^ w
+  P.bottomRightCorner<3, 3>().setIdentity();
+  return P;
+}
+
+bool RobotAgent::coarseReady(const std::set<int>& absent) const {
+  if ((state_ != AgentState::kRotation && state_ != AgentState::kPose) || !initialised_ ||
+      !factorized_ || cg_ || cached_use_.size() != separators_.size()) {
+    return false;
+  }
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    if (!cached_use_[s] && absent.count(separators_[s].foreign_robot) == 0) return false;
+  }
+  return true;
+}
+
+CoarseShare RobotAgent::coarseShare() const {
+  if ((state_ != AgentState::kRotation && state_ != AgentState::kPose) || !factorized_ || cg_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": coarseShare() before a solve of stage 1 or 2 (state " +
+                            ToString(state_) + ")");
+  }
+  const DgsStage stage = currentStage();
+  const bool rotation = stage == DgsStage::kRotation;
+  const BlockLeastSquares& problem = rotation ? *rotation_problem_ : *pose_problem_;
+  const int bs = rotation ? 3 : 6, k = rotation ? 3 : 6, ncols = rotation ? 3 : 1;
+  const Eigen::Index n = static_cast<Eigen::Index>(unknowns_.size()) * bs;
+  // P (n x k) and x (n x ncols), stacked in the problem's order.
+  Eigen::MatrixXd P(n, k), X(n, ncols);
+  for (std::size_t i = 0; i < unknowns_.size(); ++i) {
+    const Eigen::Index row = problem.row(unknowns_[i]);
+    const Matrix3* R = rotation ? nullptr : &R_hat_.at(unknowns_[i]);
+    P.middleRows(row, bs) = CoarseBasis(stage, x_[i], R);
+    X.middleRows(row, bs) = Eigen::Map<const Eigen::MatrixXd>(x_[i].data(), bs, ncols);
+  }
+  CoarseShare share;
+  Eigen::MatrixXd HP(n, k);
+  for (int c = 0; c < k; ++c) HP.col(c) = problem.multiply(P.col(c));
+  share.diagonal = P.transpose() * HP;
+  Eigen::MatrixXd residual = localRhs(stage);
+  for (int c = 0; c < ncols; ++c) residual.col(c) -= problem.multiply(X.col(c));
+  share.residual = P.transpose() * residual;
+  const auto box = inboxes_.find(stage);
+  for (std::size_t s = 0; s < separators_.size(); ++s) {
+    if (separator_row_[s] < 0) continue;
+    const Separator& sep = separators_[s];
+    const Eigen::VectorXd* foreign = box->second.get(sep.slot);
+    if (!foreign) continue;  // stage 2: no increment yet, P_j unknown (and the coupling unused)
+    const Matrix3* R = rotation ? nullptr : &R_hat_.at(sep.foreign);
+    const Eigen::MatrixXd block = P.middleRows(separator_row_[s], bs).transpose() *
+                                  coupling_[s] * CoarseBasis(stage, *foreign, R);
+    auto [it, inserted] = share.coupling.try_emplace(sep.foreign_robot, block);
+    if (!inserted) it->second += block;
+  }
+  return share;
+}
+
+void RobotAgent::applyCoarse(const std::map<int, Eigen::MatrixXd>& y) {
+  if (state_ != AgentState::kRotation && state_ != AgentState::kPose) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": applyCoarse() in state " +
+                            ToString(state_));
+  }
+  const DgsStage stage = currentStage();
+  const bool rotation = stage == DgsStage::kRotation;
+  const int bs = rotation ? 3 : 6, ncols = rotation ? 3 : 1;
+  auto apply = [&](Eigen::VectorXd& x, const Eigen::MatrixXd& yr, const Matrix3* R) {
+    const Eigen::MatrixXd dx = CoarseBasis(stage, x, R) * yr;  // bs x ncols
+    x += Eigen::Map<const Eigen::VectorXd>(dx.data(), bs * ncols);
+  };
+  const auto own = y.find(robot_);
+  if (own != y.end()) {
+    for (std::size_t i = 0; i < unknowns_.size(); ++i) {
+      apply(x_[i], own->second, rotation ? nullptr : &R_hat_.at(unknowns_[i]));
+    }
+  }
+  StageInbox& box = inbox(stage);
+  for (std::size_t j = 0; j < neighbour_list_.size(); ++j) {
+    const Key& key = neighbour_list_[j];
+    const auto it = y.find(key.robot);
+    if (it == y.end() || !box.has[j]) continue;
+    if (!rotation && R_hat_.count(key) == 0) continue;
+    apply(box.values[j], it->second, rotation ? nullptr : &R_hat_.at(key));
+  }
+}
+
 bool RobotAgent::iterate() {
   const DgsStage stage = currentStage();
   if (stage == DgsStage::kRefine && !linearized_) {
@@ -401,23 +514,7 @@ bool RobotAgent::iterate() {
   const bool rotation = stage == DgsStage::kRotation;
   BlockLeastSquares& problem = rotation ? *rotation_problem_ : *pose_problem_;
 
-  // Conjugate gradients: the sweeps apply the preconditioner to the residual.
-  Eigen::MatrixXd G = cg_ ? Eigen::MatrixXd(cg_res_) : G0_;
-  const StageInbox& box = inbox(stage);
-  for (std::size_t s = 0; s < separators_.size(); ++s) {
-    if (separator_row_[s] < 0) continue;
-    if (stage == DgsStage::kRotation) {
-      const Eigen::MatrixXd foreign = neighbourValue(separators_[s].slot, stage);
-      G.middleRows(separator_row_[s], 3).noalias() -= coupling_[s] * foreign;
-      continue;
-    }
-    // Stages 2 and refinement: 6 numbers; an increment that has not arrived is 0.
-    const Eigen::VectorXd* foreign = box.get(separators_[s].slot);
-    if (!foreign) continue;
-    G.col(0).segment<6>(separator_row_[s]).noalias() -=
-        Matrix6(coupling_[s]) * foreign->head<6>();
-  }
-  const std::vector<Eigen::MatrixXd> solution = problem.backSolve(G);
+  const std::vector<Eigen::MatrixXd> solution = problem.backSolve(localRhs(stage));
 
   const double gamma = stage == DgsStage::kRefine ? options_.refine_gamma : options_.gamma;
   double change2 = 0.0;

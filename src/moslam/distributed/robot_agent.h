@@ -77,6 +77,14 @@ struct AgentOptions {
 
 enum class ReceiveStatus { kAccepted, kDuplicate, kStale };
 
+// One robot's rows of the coarse system of the two-level DGS (RobotAgent::coarseShare()):
+// k = 3 unknowns per robot and 3 right-hand sides in stage 1, k = 6 and 1 in stage 2.
+struct CoarseShare {
+  Eigen::MatrixXd diagonal;                 // k x k: P_r^T H_rr P_r
+  std::map<int, Eigen::MatrixXd> coupling;  // per neighbouring robot s: P_r^T H_rs P_s (k x k)
+  Eigen::MatrixXd residual;                 // k x ncols: P_r^T (g - H x)_r
+};
+
 // A message to one neighbouring robot.
 struct OutgoingMessage {
   int to = 0;
@@ -167,6 +175,26 @@ class RobotAgent {
   // (empty outside kRotation/kPose/kRefine).
   std::vector<OutgoingMessage> outgoing() const;
 
+  // Two-level DGS (beyond DGS.md; DgsOptions::coarse_correction in dgs_driver.h): a Galerkin
+  // correction x_i += P_i y_r over the motions of whole robots, the slow modes of the sweeps
+  // (each robot's block is solved exactly; what the sweeps are slow at is moving a whole robot
+  // against the others). For every variable i of robot r:
+  //   stage 1: X_i += X_i Y_r, Y_r 3x3 (X = R^T: R += Y_r^T R, a linear map of the whole robot;
+  //            the chordal residual of an edge inside the robot only scales by it)
+  //   stage 2: dtheta_i += R_hat_i^T w_r, t_i += tau_r + w_r x t_i, y_r = (w_r, tau_r): a rigid
+  //            motion of the robot (edges inside it change only by w_r x their residual)
+  // coarseReady(absent): the last solve used every separator except those to the `absent`
+  // robots (stopped answering: their variables stay fixed), so the local normal matrix is the
+  // robot's whole diagonal block H_rr of the stage. coarseShare(): its rows of the coarse system
+  // (P^T H P) y = P^T (g - H x) at the current estimates, own and received, for the separators
+  // its last solve used (InvalidInputError before a solve of stage 1 or 2; the driver asks only
+  // once every robot is coarseReady). applyCoarse(y): adds P_i y_robot to the own unknowns and to the
+  // received copies of the neighbours' variables (robots missing from y: 0), the same operation
+  // on the same numbers as their owners do, so no estimate has to be sent again.
+  bool coarseReady(const std::set<int>& absent = {}) const;
+  CoarseShare coarseShare() const;
+  void applyCoarse(const std::map<int, Eigen::MatrixXd>& y);
+
   // Iterations (solves) done in the current stage; whether it has solved in this stage.
   int iteration() const { return iteration_; }
   bool initialised() const { return initialised_; }
@@ -228,6 +256,12 @@ class RobotAgent {
   bool solvable(DgsStage stage, std::vector<bool>& use) const;
   // Builds and factorizes the normal matrix (and G0_) unless cached for `use`.
   void assemble(DgsStage stage, const std::vector<bool>& use);
+  // The right-hand side of the local solve with the neighbour values held now (after assemble).
+  Eigen::MatrixXd localRhs(DgsStage stage) const;
+  // The coarse basis P_i (module comment above) of a variable with stage value x; R_hat: its
+  // linearisation rotation (stage 2 only).
+  static Eigen::MatrixXd CoarseBasis(DgsStage stage, const Eigen::VectorXd& x,
+                                     const Matrix3* R_hat);
   // The refinement's linear terms at the current estimate (GN: A = dr/dx, C = r, W = Omega).
   void linearizeRefine();
   const SE3* knownPose(const Key& key) const;  // own or a neighbour's copy; nullptr if unknown
