@@ -45,6 +45,8 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"cost_eta2", &RunMetrics::cost_eta2},
       {"dgs_bytes_eta1", &RunMetrics::dgs_bytes_eta1},
       {"dgs_bytes_eta2", &RunMetrics::dgs_bytes_eta2},
+      {"iterations_eta1_other", &RunMetrics::iterations_eta1_other},
+      {"iterations_eta2_other", &RunMetrics::iterations_eta2_other},
       {"gn_cost", &RunMetrics::gn_cost},
       {"gn_iterations", &RunMetrics::gn_iterations},
       {"gn_chordal_cost", &RunMetrics::gn_chordal_cost},
@@ -114,11 +116,13 @@ struct DgsRun {
   double refined_cost = kNaN, refine_iterations = kNaN, refine_bytes = kNaN, refine_seconds = kNaN;
 };
 
-DgsRun RunDgsStages(const PoseGraph& graph, const Values& initial, double eta, bool refine) {
+DgsRun RunDgsStages(const PoseGraph& graph, const Values& initial, double eta, bool refine,
+                    bool two_level) {
   DgsOptions options;
   options.eta_rotation = eta;
   options.eta_pose = eta;
   options.refine = refine;
+  options.coarse_correction = two_level;
   const auto t0 = Clock::now();
   DgsDriver driver(graph, initial, options);
   const DgsStageReport rotation = driver.runRotationStage();
@@ -273,8 +277,13 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.gn_chordal_cost = Optimize(joint.graph, ChordalInitialization(joint.graph)).final_cost;
 
   // Distributed.
-  const DgsRun eta1 = RunDgsStages(joint.graph, joint.initial, 1e-1, false);
-  const DgsRun eta2 = RunDgsStages(joint.graph, joint.initial, 1e-2, config.refine);
+  const bool two_level = config.two_level_dgs;
+  const DgsRun eta1 = RunDgsStages(joint.graph, joint.initial, 1e-1, false, two_level);
+  const DgsRun eta2 = RunDgsStages(joint.graph, joint.initial, 1e-2, config.refine, two_level);
+  m.iterations_eta1_other =
+      RunDgsStages(joint.graph, joint.initial, 1e-1, false, !two_level).iterations;
+  m.iterations_eta2_other =
+      RunDgsStages(joint.graph, joint.initial, 1e-2, false, !two_level).iterations;
   m.iterations_eta1 = eta1.iterations;
   m.cost_eta1 = joint.graph.cost(eta1.values);
   m.dgs_bytes_eta1 = eta1.bytes;
@@ -376,11 +385,14 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
   };
   std::vector<std::string> head = {"Scenario", "Robots", "σR (deg)", "σt (m)"};
   std::vector<std::string> extra;
+  // The DGS variant run beside the tables' one, for its sweep counts.
+  const bool two_level = results.empty() || results.front().config.two_level_dgs;
+  const std::string other = two_level ? "One-level" : "Two-level";
   switch (kind) {
     case TableKind::kAccuracy:
       extra = {"#Iter η=1e-1", "Cost η=1e-1", "#Iter η=1e-2", "Cost η=1e-2", "GN cost",
                "Refined cost", "ATE* poses (m)", "ATE* lmks (m)", "ARE* poses (deg)",
-               "ARE* lmks (deg)"};
+               "ARE* lmks (deg)", other + " #Iter η=1e-1 / 1e-2"};
       break;
     case TableKind::kAssociation:
       extra = {"Intra precision", "Intra recall", "Rendezvous precision", "Rendezvous recall",
@@ -393,7 +405,8 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
                "Comm. Obj measured (MB)", "DGS traffic (MB)"};
       break;
     case TableKind::kScale:
-      extra = {"Poses", "Landmarks", "#Iter η=1e-1", "#Iter η=1e-2", "Cost η=1e-1 / GN",
+      extra = {"Poses", "Landmarks", "#Iter η=1e-1", "#Iter η=1e-2",
+               other + " #Iter η=1e-1 / 1e-2", "Cost η=1e-1 / GN",
                "Cost η=1e-2 / GN", "Refined / GN", "Rendezvous bytes", "DGS bytes η=1e-1",
                "Refine bytes", "Time SLAM / GN / DGS / refine (s)", "Time total (s)"};
       break;
@@ -418,7 +431,8 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
       case TableKind::kAccuracy:
         extra = {Fix(m.iterations_eta1), Fix(m.cost_eta1), Fix(m.iterations_eta2),
                  Fix(m.cost_eta2), Fix(m.gn_cost), Fix(m.refined_cost), Sci(m.ate_star_poses),
-                 Sci(m.ate_star_landmarks), Sci(m.are_star_poses), Sci(m.are_star_landmarks)};
+                 Sci(m.ate_star_landmarks), Sci(m.are_star_poses), Sci(m.are_star_landmarks),
+                 Fix(m.iterations_eta1_other) + " / " + Fix(m.iterations_eta2_other)};
         break;
       case TableKind::kAssociation:
         extra = {Fix(m.intra_precision, 3), Fix(m.intra_recall, 3), Fix(m.inter_precision, 3),
@@ -436,7 +450,9 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
         break;
       case TableKind::kScale:
         extra = {Fix(m.poses, 0), Fix(m.landmarks, 0), Fix(m.iterations_eta1),
-                 Fix(m.iterations_eta2), Fix(m.cost_eta1 / m.gn_cost, 4),
+                 Fix(m.iterations_eta2),
+                 Fix(m.iterations_eta1_other) + " / " + Fix(m.iterations_eta2_other),
+                 Fix(m.cost_eta1 / m.gn_cost, 4),
                  Fix(m.cost_eta2 / m.gn_cost, 4), Fix(m.refined_cost / m.gn_cost, 6),
                  Sci(m.rendezvous_bytes), Sci(m.dgs_bytes_eta1), Sci(m.refine_bytes),
                  fmt::format("{} / {} / {} / {}", Fix(m.seconds_slam, 2), Fix(m.seconds_gn, 2),
@@ -485,6 +501,7 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"information", ToString(c.information)},
                              {"poses_per_robot", c.poses_per_robot},
                              {"refine", c.refine},
+                             {"dgs", c.two_level_dgs ? "two-level" : "one-level"},
                              {"perception", c.rendered ? "rendered" : "sampled"},
                              {"points_per_frame", c.point_cloud.points_per_frame},
                              {"bytes_per_point", c.point_cloud.bytes_per_point},

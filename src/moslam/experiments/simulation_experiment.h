@@ -10,7 +10,9 @@
 //     At 15 deg / 0.3 m the joint problem has several local minima: over Table 2's 10 runs the
 //     two starts differed by -2.3% to +4.2% in single runs (README);
 //   - DGS (distributed/dgs_driver.h) with eta = 1e-1 and eta = 1e-2 (both stages), from each
-//     robot's own estimate; iterations = rotation sweeps + pose sweeps;
+//     robot's own estimate; iterations = rotation sweeps + pose sweeps; two-level (coarse
+//     correction, ExperimentConfig::two_level_dgs) by default, the one-level DGS of the paper
+//     run beside it for its sweep counts;
 //   - refined: the DGS refinement stage (Gauss-Newton by distributed sweeps) run after the
 //     eta = 1e-2 two-stage estimate (DgsOptions::refine). From the coarser eta = 1e-1 estimate
 //     it reached a worse local minimum in 1 of 10 runs at 15 deg / 0.3 m (+4.2%);
@@ -78,6 +80,9 @@ struct ExperimentConfig {
   InformationMode information = InformationMode::kNoise;
   int poses_per_robot = 100;
   bool refine = true;                // run the DGS refinement (refined cost)
+  // The DGS of the tables: two-level (DgsOptions::coarse_correction, the default) or one-level
+  // (the paper's). The other one runs too, for its sweep counts only (iterations_*_other).
+  bool two_level_dgs = true;
   PointCloudModel point_cloud;
   // Object measurements by the perception front-end on rendered frames
   // (perception/rendered_sensing.h) instead of sampled ones; null: sampled (sim/sensing.h).
@@ -93,6 +98,8 @@ struct RunMetrics {
   // DGS, eta = 1e-1 and 1e-2: sweeps (rotation + pose) and cost; bytes of the DGS messages.
   double iterations_eta1 = 0, cost_eta1 = 0, iterations_eta2 = 0, cost_eta2 = 0;
   double dgs_bytes_eta1 = 0, dgs_bytes_eta2 = 0;
+  // The sweeps of the other DGS variant (one-level when the tables use two-level, and back).
+  double iterations_eta1_other = 0, iterations_eta2_other = 0;
   double gn_cost = 0, gn_iterations = 0;
   double gn_chordal_cost = 0;  // the same solver started from ChordalInitialization instead
   // After the refinement of the eta = 1e-2 estimate (NaN when not run).

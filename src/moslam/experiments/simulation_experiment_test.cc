@@ -36,6 +36,9 @@ TEST(SimulationExperiment, TinyRunIsFiniteAndDgsNoBetterThanGn) {
   EXPECT_GE(m.refined_cost, m.gn_cost * (1 - 1e-9));
   EXPECT_GT(m.iterations_eta1, 0.0);
   EXPECT_GT(m.iterations_eta2, 0.0);
+  // Two-level DGS (the default) next to the one-level sweeps: no more of them.
+  EXPECT_GT(m.iterations_eta2_other, 0.0);
+  EXPECT_LE(m.iterations_eta2, m.iterations_eta2_other);
   EXPECT_GT(m.rendezvous_bytes, 0.0);
   EXPECT_GT(m.dgs_bytes_eta1, 0.0);
   EXPECT_GT(m.dgs_bytes_eta2, 0.0);
