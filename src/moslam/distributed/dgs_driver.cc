@@ -14,6 +14,7 @@
 #include "moslam/distributed/messages.h"
 #include "moslam/distributed/partition.h"
 #include "moslam/distributed/robot_agent.h"
+#include "moslam/geometry/so3.h"
 
 namespace moslam {
 
@@ -358,6 +359,16 @@ Eigen::MatrixXd Unflatten(const std::vector<double>& v, int rows, int cols) {
   return Eigen::Map<const Eigen::MatrixXd>(v.data(), rows, cols);
 }
 
+// Stage 2: coarse unknowns (w, tau) about centre c_s, as unknowns about c_r: the same motion
+// w x (t - c_s) + tau = w x (t - c_r) + tau + (c_s - c_r) x w, i.e. T(d) = [I 0; d^ I] with
+// d = c_s - c_r (the columns of robot s's basis centred on c_s are those centred on c_r times
+// T(d)). Stage 1: the identity.
+Eigen::MatrixXd CentreShift(int k, const Eigen::Vector3d& d) {
+  Eigen::MatrixXd T = Eigen::MatrixXd::Identity(k, k);
+  if (k == 6) T.bottomLeftCorner<3, 3>() = SO3::Hat(d);
+  return T;
+}
+
 }  // namespace
 
 CoarseMessage DgsDriver::sendCoarse(const CoarseMessage& m, int to, DgsIterationStats& stats) {
@@ -390,6 +401,8 @@ bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStat
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(K, K), B(K, ncols);
   const int c = coordinator();
   // Every robot sends its rows to the coordinator.
+  std::map<int, Eigen::Vector3d> centre;
+  std::map<int, std::vector<std::pair<int, std::vector<double>>>> received;
   for (int r : robots) {
     const CoarseShare share = agents_.at(r)->coarseShare();
     CoarseMessage m;
@@ -399,23 +412,35 @@ bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStat
     m.iteration = static_cast<std::uint32_t>(iteration);
     m.k = k;
     m.ncols = ncols;
+    if (stage == DgsStage::kPose) m.center = Flatten(share.center);
     m.diagonal = Flatten(share.diagonal);
     m.residual = Flatten(share.residual);
     for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, Flatten(block));
-    const CoarseMessage got = sendCoarse(m, c, stats);
+    CoarseMessage got = sendCoarse(m, c, stats);
+    centre[r] = got.center.empty() ? Eigen::Vector3d::Zero()
+                                   : Eigen::Vector3d(got.center[0], got.center[1], got.center[2]);
     const Eigen::Index ir = index.at(r);
     A.block(ir, ir, k, k) += Unflatten(got.diagonal, k, k);
     B.middleRows(ir, k) = Unflatten(got.residual, k, ncols);
-    for (const auto& [s, block] : got.blocks) {
+    received[r] = std::move(got.blocks);
+  }
+  for (int r : robots) {
+    const Eigen::Index ir = index.at(r);
+    for (const auto& [s, block] : received[r]) {
       const auto is = index.find(s);  // a silent neighbour's variables stay fixed
-      if (is != index.end()) A.block(ir, is->second, k, k) += Unflatten(block, k, k);
+      if (is == index.end()) continue;
+      A.block(ir, is->second, k, k) +=
+          Unflatten(block, k, k) * CentreShift(k, centre.at(s) - centre.at(r));
     }
   }
   // H is symmetric; the two robots of a separator computed its block from their own copies.
   A = 0.5 * (A + A.transpose());
-  const Eigen::LLT<Eigen::MatrixXd> llt(A);
+  // Jacobi scaling (rotations and translations have different units), then Cholesky.
+  const Eigen::VectorXd scale = A.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseInverse();
+  if (!scale.allFinite()) return false;
+  const Eigen::LLT<Eigen::MatrixXd> llt(scale.asDiagonal() * A * scale.asDiagonal());
   if (llt.info() != Eigen::Success) return false;
-  const Eigen::MatrixXd Y = llt.solve(B);
+  const Eigen::MatrixXd Y = scale.asDiagonal() * llt.solve(scale.asDiagonal() * B);
   if (!Y.allFinite()) return false;
   // The coordinator sends every robot its own y and its neighbouring robots'.
   for (int r : robots) {
@@ -429,9 +454,11 @@ bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStat
     m.iteration = static_cast<std::uint32_t>(iteration);
     m.k = k;
     m.ncols = ncols;
-    for (int s : needed) {
+    for (int s : needed) {  // y_s about c_s, sent about c_r (the receiver's basis)
       const auto is = index.find(s);
-      if (is != index.end()) m.blocks.emplace_back(s, Flatten(Y.middleRows(is->second, k)));
+      if (is == index.end()) continue;
+      const Eigen::MatrixXd y_s = Y.middleRows(is->second, k);
+      m.blocks.emplace_back(s, Flatten(CentreShift(k, centre.at(s) - centre.at(r)) * y_s));
     }
     const CoarseMessage got = sendCoarse(m, r, stats);
     std::map<int, Eigen::MatrixXd> y;

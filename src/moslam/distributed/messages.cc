@@ -328,9 +328,10 @@ void CheckCoarse(const CoarseMessage& m) {
   if (share && (m.diagonal.size() != kk || m.residual.size() != kc)) {
     fail("diagonal or residual of the wrong size");
   }
-  if (!share && (!m.diagonal.empty() || !m.residual.empty())) {
-    fail("a solution carries no diagonal or residual");
+  if (!share && (!m.diagonal.empty() || !m.residual.empty() || !m.center.empty())) {
+    fail("a solution carries no centre, diagonal or residual");
   }
+  if (m.center.size() != 0 && m.center.size() != 3) fail("centre of size other than 0 or 3");
   if (m.blocks.size() > kMaxMessageRobot) fail("too many blocks");
   int previous = -1;
   auto finite = [&](const std::vector<double>& v) {
@@ -338,6 +339,7 @@ void CheckCoarse(const CoarseMessage& m) {
       if (!std::isfinite(d)) fail("non-finite value");
     }
   };
+  finite(m.center);
   finite(m.diagonal);
   finite(m.residual);
   for (const auto& [robot, values] : m.blocks) {
@@ -354,7 +356,7 @@ std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& m) {
   CheckCoarse(m);
   const std::size_t block = m.kind == CoarseKind::kShare ? m.k * m.k : m.k * m.ncols;
   std::vector<std::uint8_t> out(kMessageHeaderBytes +
-                                8 * (m.diagonal.size() + m.residual.size()) +
+                                8 * (m.center.size() + m.diagonal.size() + m.residual.size()) +
                                 m.blocks.size() * (2 + 8 * block));
   Writer w(out.data());
   w.u8(kCoarseMagic);
@@ -366,7 +368,9 @@ std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& m) {
   w.u32(m.iteration);
   w.u8(static_cast<std::uint8_t>(m.k));
   w.u8(static_cast<std::uint8_t>(m.ncols));
-  w.u16(0);
+  w.u8(static_cast<std::uint8_t>(m.center.size()));
+  w.u8(0);
+  for (double d : m.center) w.f64(d);
   for (double d : m.diagonal) w.f64(d);
   for (double d : m.residual) w.f64(d);
   for (const auto& [robot, values] : m.blocks) {
@@ -407,14 +411,20 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
   if (m.k < 1 || m.k > 16 || m.ncols < 1 || m.ncols > 16) {
     throw InvalidInputError("DGS coarse message: k and ncols must be in [1, 16]");
   }
-  if (r.u16("reserved") != 0) {
+  const std::size_t centre = r.u8("center size");
+  if (r.u8("reserved") != 0) {
     throw InvalidInputError("DGS coarse message: reserved field not zero");
   }
   const bool share = m.kind == CoarseKind::kShare;
+  if (centre != 0 && (centre != 3 || !share)) {
+    throw InvalidInputError("DGS coarse message: center size " + std::to_string(centre) +
+                            " (0, or 3 in a share)");
+  }
   const std::size_t kk = static_cast<std::size_t>(m.k * m.k);
   const std::size_t kc = static_cast<std::size_t>(m.k * m.ncols);
   const std::size_t block = share ? kk : kc;
-  const std::size_t payload = (share ? 8 * (kk + kc) : 0) + count * (2 + 8 * block);
+  const std::size_t payload =
+      8 * centre + (share ? 8 * (kk + kc) : 0) + count * (2 + 8 * block);
   r.need(payload, "payload");
   if (r.remaining() != payload) {
     throw InvalidInputError("DGS coarse message: " + std::to_string(r.remaining() - payload) +
@@ -425,6 +435,7 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
     for (double& d : v) d = r.f64("value");
     return v;
   };
+  m.center = doubles(centre);
   if (share) {
     m.diagonal = doubles(kk);
     m.residual = doubles(kc);

@@ -97,14 +97,17 @@ ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes);
 // each robot the coarse unknowns of itself and of its neighbouring robots. Little-endian:
 //
 //   header (16 bytes): u8 magic 0xD8 | u8 version 1 | u8 stage | u8 kind | u16 sender |
-//                      u16 block count | u32 iteration | u8 k | u8 ncols | u16 reserved (0)
-//   kShare     k*k doubles (P_r^T H_rr P_r), k*ncols doubles (P_r^T (g - H x)_r), then per
-//              block: u16 robot s, k*k doubles (P_r^T H_rs P_s)
-//   kSolution  per block: u16 robot, k*ncols doubles (that robot's coarse unknowns y)
+//                      u16 block count | u32 iteration | u8 k | u8 ncols | u8 center size |
+//                      u8 reserved (0)
+//   kShare     center size doubles (stage 2: the robot's coarse centre c_r, 3), k*k doubles
+//              (P_r^T H_rr P_r), k*ncols doubles (P_r^T (g - H x)_r), then per block: u16 robot s,
+//              k*k doubles (P_r^T H_rs P_s, in the sender's basis)
+//   kSolution  per block: u16 robot, k*ncols doubles (that robot's coarse unknowns y, in the
+//              receiver's basis)
 // Matrices column-major; block robots strictly increasing. DecodeCoarseMessage rejects with
 // InvalidInputError: truncated input, bad magic/version/stage (rotation or pose only)/kind,
-// k or ncols outside [1, 16], a non-zero reserved field, robots not increasing, a non-finite
-// value, trailing bytes.
+// k or ncols outside [1, 16], a center size other than 0 or 3 (0 in a solution), a non-zero
+// reserved field, robots not increasing, a non-finite value, trailing bytes.
 enum class CoarseKind : std::uint8_t { kShare = 1, kSolution = 2 };
 
 struct CoarseMessage {
@@ -113,6 +116,7 @@ struct CoarseMessage {
   int sender = 0;
   std::uint32_t iteration = 0;
   int k = 3, ncols = 3;
+  std::vector<double> center;                                // kShare: 0 or 3
   std::vector<double> diagonal, residual;                    // kShare: k*k and k*ncols
   std::vector<std::pair<int, std::vector<double>>> blocks;   // kShare: k*k; kSolution: k*ncols
 };

@@ -285,6 +285,7 @@ CoarseMessage ExampleShare() {
   m.ncols = 1;
   for (int i = 0; i < 36; ++i) m.diagonal.push_back(0.5 * i - 3.0);
   for (int i = 0; i < 6; ++i) m.residual.push_back(-1e-3 * i);
+  m.center = {10.0, -2.0, 0.5};
   m.blocks.emplace_back(1, std::vector<double>(36, 2.5));
   m.blocks.emplace_back(4, std::vector<double>(36, -1.25));
   return m;
@@ -293,8 +294,8 @@ CoarseMessage ExampleShare() {
 TEST(CoarseMessages, RoundTripAndSize) {
   const CoarseMessage m = ExampleShare();
   const std::vector<std::uint8_t> bytes = EncodeCoarseMessage(m);
-  // Header, diagonal and residual, two blocks of (robot id + 36 doubles).
-  EXPECT_EQ(bytes.size(), 16u + 8u * (36 + 6) + 2u * (2 + 8 * 36));
+  // Header, centre, diagonal and residual, two blocks of (robot id + 36 doubles).
+  EXPECT_EQ(bytes.size(), 16u + 8u * (3 + 36 + 6) + 2u * (2 + 8 * 36));
   EXPECT_EQ(bytes[0], kCoarseMagic);
   const CoarseMessage d = DecodeCoarseMessage(bytes);
   EXPECT_EQ(d.kind, m.kind);
@@ -303,6 +304,7 @@ TEST(CoarseMessages, RoundTripAndSize) {
   EXPECT_EQ(d.iteration, m.iteration);
   EXPECT_EQ(d.k, m.k);
   EXPECT_EQ(d.ncols, m.ncols);
+  EXPECT_EQ(d.center, m.center);
   EXPECT_EQ(d.diagonal, m.diagonal);
   EXPECT_EQ(d.residual, m.residual);
   EXPECT_EQ(d.blocks, m.blocks);
@@ -342,7 +344,10 @@ TEST(CoarseMessages, RejectsMalformedInput) {
   b[12] = 0;
   rejects(b, "k = 0");
   b = good;
-  b[14] = 1;
+  b[14] = 2;
+  rejects(b, "center size 2");
+  b = good;
+  b[15] = 1;
   rejects(b, "reserved");
   b = good;
   const double nan = std::nan("");

@@ -413,13 +413,30 @@ Eigen::MatrixXd RobotAgent::localRhs(DgsStage stage) const {
 }
 
 Eigen::MatrixXd RobotAgent::CoarseBasis(DgsStage stage, const Eigen::VectorXd& x,
-                                        const Matrix3* R_hat) {
+                                        const Matrix3* R_hat, const Eigen::Vector3d& lever) {
   if (stage == DgsStage::kRotation) return Eigen::Map<const Eigen::Matrix3d>(x.data());
   Eigen::MatrixXd P = Eigen::MatrixXd::Zero(6, 6);
   P.topLeftCorner<3, 3>() = R_hat->transpose();
-  P.bottomLeftCorner<3, 3>() = -SO3::Hat(x.tail<3>());  // w x t = -t^ w
+  P.bottomLeftCorner<3, 3>() = -SO3::Hat(lever);  // w x d = -d^ w
   P.bottomRightCorner<3, 3>().setIdentity();
   return P;
+}
+
+void RobotAgent::freezeCoarseBasis() {
+  if (coarse_frozen_ || currentStage() != DgsStage::kPose) return;
+  coarse_ref_.clear();
+  coarse_centre_.setZero();
+  for (const Eigen::VectorXd& x : x_) {
+    coarse_ref_.push_back(x.tail<3>());
+    coarse_centre_ += x.tail<3>();
+  }
+  if (!x_.empty()) coarse_centre_ /= static_cast<double>(x_.size());
+  const StageInbox& box = inbox(DgsStage::kPose);
+  coarse_ref_copy_.assign(neighbour_list_.size(), Eigen::Vector3d::Zero());
+  for (std::size_t j = 0; j < neighbour_list_.size(); ++j) {
+    if (box.has[j]) coarse_ref_copy_[j] = box.values[j].tail<3>();
+  }
+  coarse_frozen_ = true;
 }
 
 bool RobotAgent::coarseReady(const std::set<int>& absent) const {
@@ -433,7 +450,7 @@ bool RobotAgent::coarseReady(const std::set<int>& absent) const {
   return true;
 }
 
-CoarseShare RobotAgent::coarseShare() const {
+CoarseShare RobotAgent::coarseShare() {
   if ((state_ != AgentState::kRotation && state_ != AgentState::kPose) || !factorized_ || cg_) {
     throw InvalidInputError("DGS robot " + std::to_string(robot_) +
                             ": coarseShare() before a solve of stage 1 or 2 (state " +
@@ -444,15 +461,19 @@ CoarseShare RobotAgent::coarseShare() const {
   const BlockLeastSquares& problem = rotation ? *rotation_problem_ : *pose_problem_;
   const int bs = rotation ? 3 : 6, k = rotation ? 3 : 6, ncols = rotation ? 3 : 1;
   const Eigen::Index n = static_cast<Eigen::Index>(unknowns_.size()) * bs;
+  freezeCoarseBasis();
+  CoarseShare share;
+  share.center = rotation ? Eigen::Vector3d::Zero() : coarse_centre_;
   // P (n x k) and x (n x ncols), stacked in the problem's order.
   Eigen::MatrixXd P(n, k), X(n, ncols);
   for (std::size_t i = 0; i < unknowns_.size(); ++i) {
     const Eigen::Index row = problem.row(unknowns_[i]);
     const Matrix3* R = rotation ? nullptr : &R_hat_.at(unknowns_[i]);
-    P.middleRows(row, bs) = CoarseBasis(stage, x_[i], R);
+    const Eigen::Vector3d lever = rotation ? Eigen::Vector3d::Zero()
+                                           : Eigen::Vector3d(coarse_ref_[i] - coarse_centre_);
+    P.middleRows(row, bs) = CoarseBasis(stage, x_[i], R, lever);
     X.middleRows(row, bs) = Eigen::Map<const Eigen::MatrixXd>(x_[i].data(), bs, ncols);
   }
-  CoarseShare share;
   Eigen::MatrixXd HP(n, k);
   for (int c = 0; c < k; ++c) HP.col(c) = problem.multiply(P.col(c));
   share.diagonal = P.transpose() * HP;
@@ -463,11 +484,16 @@ CoarseShare RobotAgent::coarseShare() const {
   for (std::size_t s = 0; s < separators_.size(); ++s) {
     if (separator_row_[s] < 0) continue;
     const Separator& sep = separators_[s];
+    if (sep.foreign == anchor_) continue;  // fixed: not in its owner's coarse space
     const Eigen::VectorXd* foreign = box->second.get(sep.slot);
     if (!foreign) continue;  // stage 2: no increment yet, P_j unknown (and the coupling unused)
     const Matrix3* R = rotation ? nullptr : &R_hat_.at(sep.foreign);
+    const Eigen::Vector3d lever =
+        rotation ? Eigen::Vector3d::Zero()
+                 : Eigen::Vector3d(coarse_ref_copy_[static_cast<std::size_t>(sep.slot)] -
+                                   coarse_centre_);
     const Eigen::MatrixXd block = P.middleRows(separator_row_[s], bs).transpose() *
-                                  coupling_[s] * CoarseBasis(stage, *foreign, R);
+                                  coupling_[s] * CoarseBasis(stage, *foreign, R, lever);
     auto [it, inserted] = share.coupling.try_emplace(sep.foreign_robot, block);
     if (!inserted) it->second += block;
   }
@@ -482,23 +508,32 @@ void RobotAgent::applyCoarse(const std::map<int, Eigen::MatrixXd>& y) {
   const DgsStage stage = currentStage();
   const bool rotation = stage == DgsStage::kRotation;
   const int bs = rotation ? 3 : 6, ncols = rotation ? 3 : 1;
-  auto apply = [&](Eigen::VectorXd& x, const Eigen::MatrixXd& yr, const Matrix3* R) {
-    const Eigen::MatrixXd dx = CoarseBasis(stage, x, R) * yr;  // bs x ncols
+  if (!rotation && !coarse_frozen_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot_) +
+                            ": applyCoarse() in stage 2 before coarseShare()");
+  }
+  auto apply = [&](Eigen::VectorXd& x, const Eigen::MatrixXd& yr, const Matrix3* R,
+                   const Eigen::Vector3d& ref) {
+    const Eigen::MatrixXd dx = CoarseBasis(stage, x, R, ref - coarse_centre_) * yr;
     x += Eigen::Map<const Eigen::VectorXd>(dx.data(), bs * ncols);
   };
+  const Eigen::Vector3d none = Eigen::Vector3d::Zero();
   const auto own = y.find(robot_);
   if (own != y.end()) {
+    if (before_coarse_.empty()) before_coarse_ = x_;
     for (std::size_t i = 0; i < unknowns_.size(); ++i) {
-      apply(x_[i], own->second, rotation ? nullptr : &R_hat_.at(unknowns_[i]));
+      apply(x_[i], own->second, rotation ? nullptr : &R_hat_.at(unknowns_[i]),
+            rotation ? none : coarse_ref_[i]);
     }
   }
   StageInbox& box = inbox(stage);
   for (std::size_t j = 0; j < neighbour_list_.size(); ++j) {
     const Key& key = neighbour_list_[j];
     const auto it = y.find(key.robot);
-    if (it == y.end() || !box.has[j]) continue;
+    if (it == y.end() || !box.has[j] || key == anchor_) continue;  // the anchor never moves
     if (!rotation && R_hat_.count(key) == 0) continue;
-    apply(box.values[j], it->second, rotation ? nullptr : &R_hat_.at(key));
+    apply(box.values[j], it->second, rotation ? nullptr : &R_hat_.at(key),
+          rotation ? none : coarse_ref_copy_[j]);
   }
 }
 
@@ -522,10 +557,13 @@ bool RobotAgent::iterate() {
     // Stage 1: X = R^T, whose column-major flattening is r (row by row).
     const Eigen::VectorXd x_new =
         Eigen::Map<const Eigen::VectorXd>(solution[i].data(), solution[i].size());
-    change2 += (x_new - x_[i]).squaredNorm();
+    // Two-level: the change of the iteration includes the coarse correction since the last solve.
+    const Eigen::VectorXd& x_old = before_coarse_.empty() ? x_[i] : before_coarse_[i];
+    change2 += (x_new - x_old).squaredNorm();
     x_[i] = (1.0 - gamma) * x_[i] + gamma * x_new;
   }
   last_change_ = std::sqrt(change2);
+  before_coarse_.clear();
   // A solve that changes nothing (no new neighbour value since the last one: Jacobi on two
   // robots alternates) is not a step of the contraction: it is left out of the ratios.
   if (last_change_ == 0.0) {
@@ -636,6 +674,8 @@ void RobotAgent::resetProgress() {
   last_change_ = std::numeric_limits<double>::infinity();
   recent_changes_.clear();
   zero_changes_ = 0;
+  before_coarse_.clear();
+  coarse_frozen_ = false;
 }
 
 void RobotAgent::startRefine() {

@@ -83,6 +83,11 @@ struct CoarseShare {
   Eigen::MatrixXd diagonal;                 // k x k: P_r^T H_rr P_r
   std::map<int, Eigen::MatrixXd> coupling;  // per neighbouring robot s: P_r^T H_rs P_s (k x k)
   Eigen::MatrixXd residual;                 // k x ncols: P_r^T (g - H x)_r
+  // Stage 2: the point c_r the robot's coarse rotations turn about (the mean of its
+  // translations; a basis centred on the robot keeps the coarse system well conditioned far from
+  // the origin). Every block, the neighbours' columns included, is in this robot's basis
+  // (centred on c_r); the coordinator moves them to the neighbours' centres. Stage 1: zero.
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
 };
 
 // A message to one neighbouring robot.
@@ -181,18 +186,21 @@ class RobotAgent {
   // against the others). For every variable i of robot r:
   //   stage 1: X_i += X_i Y_r, Y_r 3x3 (X = R^T: R += Y_r^T R, a linear map of the whole robot;
   //            the chordal residual of an edge inside the robot only scales by it)
-  //   stage 2: dtheta_i += R_hat_i^T w_r, t_i += tau_r + w_r x t_i, y_r = (w_r, tau_r): a rigid
-  //            motion of the robot (edges inside it change only by w_r x their residual)
+  //   stage 2: dtheta_i += R_hat_i^T w_r, t_i += tau_r + w_r x (t_i - c_r), y_r = (w_r, tau_r):
+  //            a rigid motion of the robot about its centre c_r (CoarseShare::center; edges
+  //            inside the robot change only by w_r x their residual)
   // coarseReady(absent): the last solve used every separator except those to the `absent`
   // robots (stopped answering: their variables stay fixed), so the local normal matrix is the
   // robot's whole diagonal block H_rr of the stage. coarseShare(): its rows of the coarse system
   // (P^T H P) y = P^T (g - H x) at the current estimates, own and received, for the separators
   // its last solve used (InvalidInputError before a solve of stage 1 or 2; the driver asks only
-  // once every robot is coarseReady). applyCoarse(y): adds P_i y_robot to the own unknowns and to the
-  // received copies of the neighbours' variables (robots missing from y: 0), the same operation
-  // on the same numbers as their owners do, so no estimate has to be sent again.
+  // once every robot is coarseReady). applyCoarse(y): adds P_i y_robot to the own unknowns and
+  // to the received copies of the neighbours' variables (robots missing from y: 0), every y in
+  // this robot's basis (stage 2: centred on its c_r, as coarseShare() computed it; the estimates
+  // must not change in between): the same motion of the same numbers as their owners apply, so
+  // no estimate has to be sent again.
   bool coarseReady(const std::set<int>& absent = {}) const;
-  CoarseShare coarseShare() const;
+  CoarseShare coarseShare();
   void applyCoarse(const std::map<int, Eigen::MatrixXd>& y);
 
   // Iterations (solves) done in the current stage; whether it has solved in this stage.
@@ -259,9 +267,13 @@ class RobotAgent {
   // The right-hand side of the local solve with the neighbour values held now (after assemble).
   Eigen::MatrixXd localRhs(DgsStage stage) const;
   // The coarse basis P_i (module comment above) of a variable with stage value x; R_hat: its
-  // linearisation rotation (stage 2 only).
+  // linearisation rotation, center: the point the rotations turn about (stage 2 only).
   static Eigen::MatrixXd CoarseBasis(DgsStage stage, const Eigen::VectorXd& x,
-                                     const Matrix3* R_hat);
+                                     const Matrix3* R_hat, const Eigen::Vector3d& center);
+  // Stage 2: fixes the coarse basis at the first coarseShare() of the stage, so every
+  // correction of the stage works in one subspace (the two-level contraction): the lever arms
+  // are the translations then (own and copies) and c_r their mean.
+  void freezeCoarseBasis();
   // The refinement's linear terms at the current estimate (GN: A = dr/dx, C = r, W = Omega).
   void linearizeRefine();
   const SE3* knownPose(const Key& key) const;  // own or a neighbour's copy; nullptr if unknown
@@ -300,6 +312,13 @@ class RobotAgent {
   std::vector<double> recent_changes_;  // the stage's last non-zero changes, oldest first (<= 66)
   int zero_changes_ = 0;                // solves since the last non-zero change
   std::vector<Eigen::VectorXd> x_;              // per unknown, StageDimension of the stage
+  std::vector<Eigen::VectorXd> before_coarse_;  // x_ before the coarse corrections since the
+                                                // last solve (empty: none)
+  // Stage 2's frozen coarse basis (freezeCoarseBasis): translations per unknown and per
+  // neighbour slot, and their centre.
+  bool coarse_frozen_ = false;
+  std::vector<Eigen::Vector3d> coarse_ref_, coarse_ref_copy_;
+  Eigen::Vector3d coarse_centre_ = Eigen::Vector3d::Zero();
   std::vector<Eigen::VectorXd> relaxed_;        // stage-1 result kept for relaxedRotations()
   std::map<Key, Matrix3> R_hat_;                // stage-2 linearisation point (own + neighbours)
   std::map<DgsStage, StageInbox> inboxes_;
