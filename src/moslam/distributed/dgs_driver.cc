@@ -400,18 +400,22 @@ bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStat
   const Eigen::Index K = static_cast<Eigen::Index>(robots.size()) * k;
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(K, K), B(K, ncols);
   const int c = coordinator();
+  auto message = [&](CoarseKind kind, int sender) {
+    CoarseMessage m;
+    m.kind = kind;
+    m.stage = stage;
+    m.sender = sender;
+    m.iteration = static_cast<std::uint32_t>(iteration);
+    m.k = k;
+    m.ncols = ncols;
+    return m;
+  };
   // Every robot sends its rows to the coordinator.
   std::map<int, Eigen::Vector3d> centre;
   std::map<int, std::vector<std::pair<int, std::vector<double>>>> received;
   for (int r : robots) {
     const CoarseShare share = agents_.at(r)->coarseShare();
-    CoarseMessage m;
-    m.kind = CoarseKind::kShare;
-    m.stage = stage;
-    m.sender = r;
-    m.iteration = static_cast<std::uint32_t>(iteration);
-    m.k = k;
-    m.ncols = ncols;
+    CoarseMessage m = message(CoarseKind::kShare, r);
     if (stage == DgsStage::kPose) m.center = Flatten(share.center);
     m.diagonal = Flatten(share.diagonal);
     m.residual = Flatten(share.residual);
@@ -447,13 +451,7 @@ bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStat
     RobotAgent& a = *agents_.at(r);
     std::set<int> needed = a.neighbourRobots();
     needed.insert(r);
-    CoarseMessage m;
-    m.kind = CoarseKind::kSolution;
-    m.stage = stage;
-    m.sender = c;
-    m.iteration = static_cast<std::uint32_t>(iteration);
-    m.k = k;
-    m.ncols = ncols;
+    CoarseMessage m = message(CoarseKind::kSolution, c);
     for (int s : needed) {  // y_s about c_s, sent about c_r (the receiver's basis)
       const auto is = index.find(s);
       if (is == index.end()) continue;
