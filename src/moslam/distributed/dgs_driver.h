@@ -101,7 +101,8 @@ struct DgsOptions {
   // the coordinator (the first live robot in the order), which solves it (Cholesky, k * robots
   // unknowns) and sends each robot the coarse unknowns of itself and its neighbours
   // (messages.h, CoarseMessage; counted in the sweep's messages and bytes). Same fixed point as
-  // the one-level sweeps; the sweeps no longer grow with the team (README). Skipped, for that
+  // the one-level sweeps, and far fewer of them as the team grows (README: blocks_world eta 1e-2,
+  // 13-22 sweeps for 2-49 robots against 22-225). Skipped, for that
   // sweep, while some live robot has not yet solved with all its separators (flagged
   // initialisation) or when the coarse matrix is not positive definite.
   bool coarse_correction = false;
