@@ -324,27 +324,20 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
       max_bound = std::max(max_bound, bound);
       converged = converged && a.initialised() && measure <= eta;
     }
+    const bool stop = converged && live_robots > 0;
+    // Two-level: the correction belongs to this sweep (its messages, bytes and time).
+    if (!stop && options_.coarse_correction && coarseCorrection(stage, it, stats)) {
+      ++report.coarse_corrections;
+    }
     stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     record(stats);
     if (progress_.on_sweep) progress_.on_sweep(stats);
     report.iterations = it;
     report.final_change = stats.max_change;
     report.final_error_bound = max_bound;
-    if (converged && live_robots > 0) {
+    if (stop) {
       report.status = StageStatus::kConverged;
       break;
-    }
-    if (options_.coarse_correction) {
-      DgsIterationStats coarse;
-      coarse.stage = stage;
-      coarse.iteration = it;
-      if (coarseCorrection(stage, it, coarse)) ++report.coarse_corrections;
-      report.messages += coarse.messages;
-      report.bytes += coarse.bytes;
-      result_.messages += coarse.messages;
-      result_.bytes += coarse.bytes;
-      result_.history.back().messages += coarse.messages;
-      result_.history.back().bytes += coarse.bytes;
     }
   }
 }

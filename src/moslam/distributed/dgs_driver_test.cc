@@ -36,23 +36,35 @@ DgsOptions Tight(SweepOrder order, double eta) {
 // fixed point is about eta * rho / (1 - rho); on blocks_world rho reaches 0.9996 in stage 2, so
 // eta = 1e-6 leaves up to 7e-4 m (measured; README). The error-bound rule (DgsErrorBound below)
 // covers every folder at eta = 1e-6.
+//
+// Two-level DGS (DgsOptions::coarse_correction) too: the coarse correction is a Galerkin step of
+// the same linear systems, so its fixed point is the same.
 TEST(Dgs, ReachesTheCentralizedTwoStageEstimateOnBlocksWorld) {
   for (int n : {2, 4, 9, 16}) {
     const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(n));
     const TwoStageResult c = CentralizedTwoStage(d.graph, d.initial);
     for (SweepOrder order : {SweepOrder::kGaussSeidel, SweepOrder::kJacobi}) {
-      SCOPED_TRACE(std::to_string(n) + " robots, " + ToString(order));
-      const DgsResult r = RunDgs(d.graph, d.initial, Tight(order, 1e-9));
-      EXPECT_EQ(r.rotation.status, StageStatus::kConverged);
-      EXPECT_EQ(r.pose.status, StageStatus::kConverged);
-      ASSERT_EQ(r.values.size(), c.values.size());
-      const TrajectoryErrors e = CompareEstimates(r.values, c.values);
-      EXPECT_EQ(e.poses.count, static_cast<int>(c.values.size()));
-      EXPECT_LE(e.poses.ate, kAteTolerance);
-      EXPECT_LE(e.poses.are_deg, kAreToleranceDeg);
-      // The anchor is exactly its initial value.
-      const Key anchor = GaugeAnchor(d.graph);
-      EXPECT_EQ(r.values.at(anchor).translation(), d.initial.at(anchor).translation());
+      for (bool coarse : {false, true}) {
+        SCOPED_TRACE(std::to_string(n) + " robots, " + ToString(order) +
+                     (coarse ? ", two-level" : ", one-level"));
+        DgsOptions o = Tight(order, 1e-9);
+        o.coarse_correction = coarse;
+        const DgsResult r = RunDgs(d.graph, d.initial, o);
+        EXPECT_EQ(r.rotation.status, StageStatus::kConverged);
+        EXPECT_EQ(r.pose.status, StageStatus::kConverged);
+        if (coarse) {
+          EXPECT_GT(r.rotation.coarse_corrections, 0);
+          EXPECT_GT(r.pose.coarse_corrections, 0);
+        }
+        ASSERT_EQ(r.values.size(), c.values.size());
+        const TrajectoryErrors e = CompareEstimates(r.values, c.values);
+        EXPECT_EQ(e.poses.count, static_cast<int>(c.values.size()));
+        EXPECT_LE(e.poses.ate, kAteTolerance);
+        EXPECT_LE(e.poses.are_deg, kAreToleranceDeg);
+        // The anchor is exactly its initial value.
+        const Key anchor = GaugeAnchor(d.graph);
+        EXPECT_EQ(r.values.at(anchor).translation(), d.initial.at(anchor).translation());
+      }
     }
   }
 }
@@ -219,29 +231,6 @@ TEST(Dgs, DuplicatedReorderedAndStaleMessagesLeaveTheResultUnchanged) {
 // Robot 8 of blocks_world/9robots stops answering before it solves in stage 2. The others
 // finish; with flagged initialisation they never use its separators in stage 2, so their
 // estimate is the pose step of the graph without robot 8, linearised at the DGS rotations.
-// Two-level DGS (DgsOptions::coarse_correction): the coarse correction is a Galerkin step of the
-// same linear systems, so the fixed point is the centralized two-stage estimate as before.
-TEST(Dgs, CoarseCorrectionReachesTheCentralizedTwoStageEstimate) {
-  for (int n : {4, 16}) {
-    const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(n));
-    const TwoStageResult c = CentralizedTwoStage(d.graph, d.initial);
-    for (SweepOrder order : {SweepOrder::kGaussSeidel, SweepOrder::kJacobi}) {
-      SCOPED_TRACE(std::to_string(n) + " robots, " + ToString(order));
-      DgsOptions o = Tight(order, 1e-9);
-      o.coarse_correction = true;
-      const DgsResult r = RunDgs(d.graph, d.initial, o);
-      EXPECT_EQ(r.rotation.status, StageStatus::kConverged);
-      EXPECT_EQ(r.pose.status, StageStatus::kConverged);
-      EXPECT_GT(r.rotation.coarse_corrections, 0);
-      EXPECT_GT(r.pose.coarse_corrections, 0);
-      const TrajectoryErrors e = CompareEstimates(r.values, c.values);
-      EXPECT_EQ(e.poses.count, static_cast<int>(c.values.size()));
-      EXPECT_LE(e.poses.ate, kAteTolerance);
-      EXPECT_LE(e.poses.are_deg, kAreToleranceDeg);
-    }
-  }
-}
-
 // What the coarse correction is for: the one-level sweeps need more and more of them as the team
 // grows (a whole robot moves against the others only slowly), the two-level ones hardly.
 // Measured at eta 1e-2 (rotation + pose sweeps, README): one-level 22, 44, 79, 142, 129, 148,

@@ -422,6 +422,14 @@ Eigen::MatrixXd RobotAgent::CoarseBasis(DgsStage stage, const Eigen::VectorXd& x
   return P;
 }
 
+Eigen::MatrixXd RobotAgent::coarseBasisOf(const Key& key, const Eigen::VectorXd& x,
+                                          const Eigen::Vector3d& frozen) const {
+  if (currentStage() == DgsStage::kRotation) {
+    return CoarseBasis(DgsStage::kRotation, x, nullptr, Eigen::Vector3d::Zero());
+  }
+  return CoarseBasis(DgsStage::kPose, x, &R_hat_.at(key), frozen - coarse_centre_);
+}
+
 void RobotAgent::freezeCoarseBasis() {
   if (coarse_frozen_ || currentStage() != DgsStage::kPose) return;
   coarse_ref_.clear();
@@ -466,12 +474,10 @@ CoarseShare RobotAgent::coarseShare() {
   share.center = rotation ? Eigen::Vector3d::Zero() : coarse_centre_;
   // P (n x k) and x (n x ncols), stacked in the problem's order.
   Eigen::MatrixXd P(n, k), X(n, ncols);
+  const Eigen::Vector3d none = Eigen::Vector3d::Zero();  // stage 1 has no lever arms
   for (std::size_t i = 0; i < unknowns_.size(); ++i) {
     const Eigen::Index row = problem.row(unknowns_[i]);
-    const Matrix3* R = rotation ? nullptr : &R_hat_.at(unknowns_[i]);
-    const Eigen::Vector3d lever = rotation ? Eigen::Vector3d::Zero()
-                                           : Eigen::Vector3d(coarse_ref_[i] - coarse_centre_);
-    P.middleRows(row, bs) = CoarseBasis(stage, x_[i], R, lever);
+    P.middleRows(row, bs) = coarseBasisOf(unknowns_[i], x_[i], rotation ? none : coarse_ref_[i]);
     X.middleRows(row, bs) = Eigen::Map<const Eigen::MatrixXd>(x_[i].data(), bs, ncols);
   }
   Eigen::MatrixXd HP(n, k);
@@ -487,13 +493,10 @@ CoarseShare RobotAgent::coarseShare() {
     if (sep.foreign == anchor_) continue;  // fixed: not in its owner's coarse space
     const Eigen::VectorXd* foreign = box->second.get(sep.slot);
     if (!foreign) continue;  // stage 2: no increment yet, P_j unknown (and the coupling unused)
-    const Matrix3* R = rotation ? nullptr : &R_hat_.at(sep.foreign);
-    const Eigen::Vector3d lever =
-        rotation ? Eigen::Vector3d::Zero()
-                 : Eigen::Vector3d(coarse_ref_copy_[static_cast<std::size_t>(sep.slot)] -
-                                   coarse_centre_);
+    const Eigen::Vector3d& frozen =
+        rotation ? none : coarse_ref_copy_[static_cast<std::size_t>(sep.slot)];
     const Eigen::MatrixXd block = P.middleRows(separator_row_[s], bs).transpose() *
-                                  coupling_[s] * CoarseBasis(stage, *foreign, R, lever);
+                                  coupling_[s] * coarseBasisOf(sep.foreign, *foreign, frozen);
     auto [it, inserted] = share.coupling.try_emplace(sep.foreign_robot, block);
     if (!inserted) it->second += block;
   }
@@ -512,18 +515,17 @@ void RobotAgent::applyCoarse(const std::map<int, Eigen::MatrixXd>& y) {
     throw InvalidInputError("DGS robot " + std::to_string(robot_) +
                             ": applyCoarse() in stage 2 before coarseShare()");
   }
-  auto apply = [&](Eigen::VectorXd& x, const Eigen::MatrixXd& yr, const Matrix3* R,
-                   const Eigen::Vector3d& ref) {
-    const Eigen::MatrixXd dx = CoarseBasis(stage, x, R, ref - coarse_centre_) * yr;
+  auto apply = [&](const Key& key, Eigen::VectorXd& x, const Eigen::MatrixXd& yr,
+                   const Eigen::Vector3d& frozen) {
+    const Eigen::MatrixXd dx = coarseBasisOf(key, x, frozen) * yr;
     x += Eigen::Map<const Eigen::VectorXd>(dx.data(), bs * ncols);
   };
-  const Eigen::Vector3d none = Eigen::Vector3d::Zero();
+  const Eigen::Vector3d none = Eigen::Vector3d::Zero();  // stage 1 has no lever arms
   const auto own = y.find(robot_);
   if (own != y.end()) {
     if (before_coarse_.empty()) before_coarse_ = x_;
     for (std::size_t i = 0; i < unknowns_.size(); ++i) {
-      apply(x_[i], own->second, rotation ? nullptr : &R_hat_.at(unknowns_[i]),
-            rotation ? none : coarse_ref_[i]);
+      apply(unknowns_[i], x_[i], own->second, rotation ? none : coarse_ref_[i]);
     }
   }
   StageInbox& box = inbox(stage);
@@ -532,8 +534,7 @@ void RobotAgent::applyCoarse(const std::map<int, Eigen::MatrixXd>& y) {
     const auto it = y.find(key.robot);
     if (it == y.end() || !box.has[j] || key == anchor_) continue;  // the anchor never moves
     if (!rotation && R_hat_.count(key) == 0) continue;
-    apply(box.values[j], it->second, rotation ? nullptr : &R_hat_.at(key),
-          rotation ? none : coarse_ref_copy_[j]);
+    apply(key, box.values[j], it->second, rotation ? none : coarse_ref_copy_[j]);
   }
 }
 

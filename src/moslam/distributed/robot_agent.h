@@ -270,6 +270,10 @@ class RobotAgent {
   // linearisation rotation, center: the point the rotations turn about (stage 2 only).
   static Eigen::MatrixXd CoarseBasis(DgsStage stage, const Eigen::VectorXd& x,
                                      const Matrix3* R_hat, const Eigen::Vector3d& center);
+  // CoarseBasis of variable `key` (own or a neighbour's copy) with stage value x in the current
+  // stage; frozen: its translation when the stage-2 basis was frozen (unused in stage 1).
+  Eigen::MatrixXd coarseBasisOf(const Key& key, const Eigen::VectorXd& x,
+                                const Eigen::Vector3d& frozen) const;
   // Stage 2: fixes the coarse basis at the first coarseShare() of the stage, so every
   // correction of the stage works in one subspace (the two-level contraction): the lever arms
   // are the translations then (own and copies) and c_r their mean.
