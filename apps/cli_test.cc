@@ -22,8 +22,9 @@ struct CommandResult {
   std::string out;  // stdout and stderr, interleaved
 };
 
-CommandResult RunMoslam(const std::string& args) {
-  const std::string cmd = std::string(MOSLAM_BINARY) + " " + args + " 2>&1";
+// Runs a shell command line, stderr into stdout.
+CommandResult RunShell(const std::string& command_line) {
+  const std::string cmd = command_line + " 2>&1";
   FILE* pipe = popen(cmd.c_str(), "r");
   if (!pipe) return {-1, "popen failed"};
   std::string out;
@@ -32,6 +33,10 @@ CommandResult RunMoslam(const std::string& args) {
   const int status = pclose(pipe);
   // A crash (signal) is reported as a distinct code so the tests can tell it from exit 1.
   return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
+}
+
+CommandResult RunMoslam(const std::string& args) {
+  return RunShell(std::string(MOSLAM_BINARY) + " " + args);
 }
 
 std::string LastLine(const std::string& s) {
@@ -319,4 +324,45 @@ TEST(CliSimulate, BadInputExitsOneWithAClearMessage) {
   EXPECT_NE(mismatch.out.find("--sigma-trans"), std::string::npos) << mismatch.out;
   EXPECT_NE(RunMoslam("simulate --scenario mars").exit_code, 0);
   EXPECT_NE(RunMoslam("simulate --robots 0").exit_code, 0);
+}
+
+// The pose-graph executable loads nothing of the perception or middleware stacks (apps/cli.h):
+// its shared libraries, as the dynamic loader resolves them.
+TEST(CliExecutables, PoseGraphCommandsLoadNoPerceptionOrDdsLibrary) {
+  const CommandResult ldd = RunShell(std::string("ldd ") + MOSLAM_BINARY);
+  ASSERT_EQ(ldd.exit_code, 0) << ldd.out;
+  const std::string& out = ldd.out;
+  ASSERT_NE(out.find("libc.so"), std::string::npos) << out;  // ldd did list the libraries
+  for (const char* forbidden : {"libpcl", "libvtk", "libopencv", "libddsc", "libgomp"}) {
+    EXPECT_EQ(out.find(forbidden), std::string::npos) << forbidden << " in\n" << out;
+  }
+}
+
+// Commands of the other executables run through `moslam` with their own options and help.
+TEST(CliExecutables, PerceptionAndRobotCommandsRunThroughMoslam) {
+  const CommandResult render = RunMoslam("render --help");
+  EXPECT_EQ(render.exit_code, 0) << render.out;
+  EXPECT_NE(render.out.find("--scenario"), std::string::npos) << render.out;
+  const CommandResult team = RunMoslam("team --help");
+  EXPECT_EQ(team.exit_code, 0) << team.out;
+  EXPECT_NE(team.out.find("--data"), std::string::npos) << team.out;
+  // A real run and its error path, reported by the perception executable: the class names
+  // beside a model that does not exist.
+  const CommandResult detect = RunMoslam("detect --model /nonexistent/m.onnx --image /x.png");
+  EXPECT_EQ(detect.exit_code, 1) << detect.out;
+  EXPECT_NE(detect.out.find("moslam: error: cannot read class names file '/nonexistent/"),
+            std::string::npos)
+      << detect.out;
+}
+
+TEST(CliExecutables, AMissingSiblingExecutableIsAClearError) {
+  const fs::path dir = fs::temp_directory_path() / "moslam_cli_alone";
+  fs::create_directories(dir);
+  const fs::path alone = dir / "moslam";
+  fs::copy_file(MOSLAM_BINARY, alone, fs::copy_options::overwrite_existing);
+  const CommandResult r = RunShell(alone.string() + " render --help");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find((dir / "moslam-perception").string()), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("could not be started"), std::string::npos) << r.out;
+  fs::remove_all(dir);
 }

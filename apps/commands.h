@@ -4,12 +4,27 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <string>
 
+#include "cli.h"
+#include "moslam/experiments/simulation_experiment.h"
 #include "moslam/io/g2o.h"
 
 namespace moslam::cli {
 
-using Runner = std::function<int()>;
+// One-line descriptions of the commands that run in another executable than `moslam` (cli.h):
+// the same text in `moslam --help` and in their own.
+inline constexpr const char* kRobotDescription =
+    "One robot as a process: its g2o file (--data) or its part of a simulated scenario "
+    "(--scenario: object SLAM and rendezvous), DGS with the others over Cyclone DDS";
+inline constexpr const char* kTeamDescription =
+    "Start one `moslam robot` process per robot on loopback and collect the results";
+inline constexpr const char* kRenderDescription =
+    "Rendered RGB-D frames of a scenario: YOLO detector dataset or TUM sequences";
+inline constexpr const char* kDetectDescription =
+    "Run the object detector on an image, or evaluate it on a YOLO-layout dataset";
+inline constexpr const char* kPerceiveDescription =
+    "The perception front-end on a TUM RGB-D layout sequence: detections and object poses (JSON)";
 
 // The g2o reading flags of every subcommand that reads g2o input: --objects and
 // --drop-indefinite-coupling, written into `options` (which must outlive the parse).
@@ -35,8 +50,20 @@ Runner RegisterRobot(CLI::App& app);
 // `moslam team --data <folder> | --scenario <name> --robots N`: N robot processes on loopback,
 // results collected and compared with the in-process run.
 Runner RegisterTeam(CLI::App& app);
+// The options of `simulate --perception rendered`, and what turns them into the experiments'
+// perception hook (ExperimentConfig::perceive). `moslam` passes one that hands the whole command
+// to the perception executable (it never returns); `moslam-perception` one that runs the
+// front-end.
+struct RenderedPerceptionArgs {
+  std::string model, classes, templates;
+  int every = 1;
+};
+using MakePerception = std::function<ExperimentConfig::Perceive(const RenderedPerceptionArgs&)>;
+
 // `moslam simulate --scenario chairs25 --robots 6`: simulated experiments (paper Tables 1-3).
-Runner RegisterSimulate(CLI::App& app);
+Runner RegisterSimulate(CLI::App& app, MakePerception make_perception);
+// `moslam-perception`: the front-end on rendered frames as the experiments' perception hook.
+ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& args);
 // `moslam render --scenario chairs25 --out DIR --format yolo|tum`: rendered RGB-D frames.
 Runner RegisterRender(CLI::App& app);
 // `moslam detect --model M (--image F | --data DIR)`: the object detector (src/moslam/detection)

@@ -235,8 +235,7 @@ int RunOnDataset(const DetectArgs& a) {
 
 Runner RegisterDetect(CLI::App& app) {
   auto args = std::make_shared<DetectArgs>();
-  CLI::App* sub = app.add_subcommand(
-      "detect", "Run the object detector on an image, or evaluate it on a YOLO-layout dataset");
+  CLI::App* sub = app.add_subcommand("detect", kDetectDescription);
   sub->add_option("--model", args->model, "ONNX model (or Darknet .weights with --format darknet)")
       ->required();
   sub->add_option("--format", args->format, "network output format")

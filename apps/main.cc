@@ -1,41 +1,27 @@
-// moslam: multi-robot object-based SLAM tools.
-#include <fmt/core.h>
-
-#include <exception>
-#include <map>
-
+// moslam: multi-robot object-based SLAM tools. This executable holds the pose-graph commands and
+// loads only what they need; the others run in the executables beside it (cli.h).
+#include "cli.h"
 #include "commands.h"
-#include "moslam/common/errors.h"
 
 int main(int argc, char** argv) {
+  namespace cli = moslam::cli;
   CLI::App app{"moslam: multi-robot object-based SLAM (pose graphs on SE(3), distributed Gauss-Seidel)"};
-  app.require_subcommand(1);
-  std::map<const CLI::App*, moslam::cli::Runner> runners;
-  auto add = [&](const moslam::cli::Runner& r) {
-    runners[app.get_subcommands([](const CLI::App*) { return true; }).back()] = r;
+  cli::TuneProcessForSolving();
+  cli::Commands commands(app);
+  commands.add(cli::RegisterSolve(app));
+  commands.add(cli::RegisterDgs(app));
+  // simulate with sampled sensing runs here; --perception rendered hands the command over.
+  commands.add(cli::RegisterSimulate(
+      app, [argv](const cli::RenderedPerceptionArgs&) -> moslam::ExperimentConfig::Perceive {
+        cli::ExecSibling(cli::kPerceptionExecutable, argv);
+      }));
+  const auto forward = [&](const char* name, const char* description, const char* executable) {
+    commands.add(cli::AddForwardedCommand(app, name, description, executable, argv));
   };
-  add(moslam::cli::RegisterSolve(app));
-  add(moslam::cli::RegisterDgs(app));
-  add(moslam::cli::RegisterRobot(app));
-  add(moslam::cli::RegisterTeam(app));
-  add(moslam::cli::RegisterSimulate(app));
-  add(moslam::cli::RegisterRender(app));
-  add(moslam::cli::RegisterDetect(app));
-  add(moslam::cli::RegisterPerceive(app));
-
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
-  try {
-    for (const CLI::App* sub : app.get_subcommands()) return runners.at(sub)();
-  } catch (const moslam::Error& e) {
-    fmt::print(stderr, "moslam: error: {}\n", e.what());
-    return 1;
-  } catch (const std::exception& e) {
-    fmt::print(stderr, "moslam: internal error: {}\n", e.what());
-    return 1;
-  }
-  return 1;
+  forward("robot", cli::kRobotDescription, cli::kRobotExecutable);
+  forward("team", cli::kTeamDescription, cli::kRobotExecutable);
+  forward("render", cli::kRenderDescription, cli::kPerceptionExecutable);
+  forward("detect", cli::kDetectDescription, cli::kPerceptionExecutable);
+  forward("perceive", cli::kPerceiveDescription, cli::kPerceptionExecutable);
+  return commands.run(argc, argv);
 }

@@ -241,9 +241,7 @@ int RunPerceive(const PerceiveArgs& a) {
 
 Runner RegisterPerceive(CLI::App& app) {
   auto args = std::make_shared<PerceiveArgs>();
-  CLI::App* sub = app.add_subcommand(
-      "perceive", "The perception front-end on a TUM RGB-D layout sequence: detections and "
-                  "object poses (JSON)");
+  CLI::App* sub = app.add_subcommand("perceive", kPerceiveDescription);
   sub->add_option("sequence", args->sequence,
                   "sequence directory (rgb.txt, depth.txt, camera.txt, optional groundtruth.txt)")
       ->required();

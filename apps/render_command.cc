@@ -149,8 +149,7 @@ int Run(const RenderArgs& a) {
 
 Runner RegisterRender(CLI::App& app) {
   auto a = std::make_shared<RenderArgs>();
-  CLI::App* sub = app.add_subcommand(
-      "render", "Rendered RGB-D frames of a scenario: YOLO detector dataset or TUM sequences");
+  CLI::App* sub = app.add_subcommand("render", kRenderDescription);
   sub->add_option("--scenario", a->scenario, "chairs25 | house | generated")
       ->check(CLI::IsMember({"chairs25", "house", "generated"}));
   sub->add_option("--robots", a->robots, "number of robots (trajectories)")

@@ -616,10 +616,7 @@ int RunTeam(const TeamArgs& args) {
 
 Runner RegisterRobot(CLI::App& app) {
   auto args = std::make_shared<RobotArgs>();
-  CLI::App* sub = app.add_subcommand(
-      "robot",
-      "One robot as a process: its g2o file (--data) or its part of a simulated scenario "
-      "(--scenario: object SLAM and rendezvous), DGS with the others over Cyclone DDS");
+  CLI::App* sub = app.add_subcommand("robot", kRobotDescription);
   sub->add_option("--robot", args->robot, "Robot id: reads <data>/<id>.g2o")
       ->required()
       ->check(CLI::Range(0, kMaxRobots - 1));
@@ -639,8 +636,7 @@ Runner RegisterRobot(CLI::App& app) {
 
 Runner RegisterTeam(CLI::App& app) {
   auto args = std::make_shared<TeamArgs>();
-  CLI::App* sub = app.add_subcommand(
-      "team", "Start one `moslam robot` process per robot on loopback and collect the results");
+  CLI::App* sub = app.add_subcommand("team", kTeamDescription);
   auto* data = sub->add_option("--data", args->data,
                                "Distributed-mapper folder (0.g2o .. N-1.g2o), or one single-robot "
                                "g2o file split into --robots contiguous blocks of poses (written "

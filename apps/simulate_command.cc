@@ -21,12 +21,9 @@
 #include <string>
 #include <vector>
 
-#include <pcl/console/print.h>
-
 #include "commands.h"
 #include "moslam/common/errors.h"
 #include "moslam/experiments/simulation_experiment.h"
-#include "moslam/perception/rendered_sensing.h"
 
 namespace moslam::cli {
 
@@ -53,7 +50,7 @@ struct SimulateArgs {
 };
 }  // namespace
 
-Runner RegisterSimulate(CLI::App& app) {
+Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
   auto args = std::make_shared<SimulateArgs>();
   CLI::App* sub = app.add_subcommand(
       "simulate", "Simulated multi-robot object SLAM: DGS vs centralized (paper Tables 1-3)");
@@ -99,7 +96,7 @@ Runner RegisterSimulate(CLI::App& app) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
 
-  return [args]() -> int {
+  return [args, make_perception]() -> int {
     const SimulateArgs& a = *args;
     if (a.sigma_rot.size() != a.sigma_trans.size()) {
       throw InvalidInputError(fmt::format(
@@ -107,16 +104,9 @@ Runner RegisterSimulate(CLI::App& app) {
           "noise row",
           a.sigma_rot.size(), a.sigma_trans.size()));
     }
-    std::shared_ptr<RenderedSensingConfig> rendered;
-    if (a.perception == "rendered") {
-      pcl::console::setVerbosityLevel(pcl::console::L_ERROR);  // SAC-IA's per-sample warnings
-      rendered = std::make_shared<RenderedSensingConfig>();
-      rendered->perception.detector.model_path = a.model;
-      rendered->perception.detector.class_names_file = a.classes;
-      rendered->perception.templates_dir = a.templates;
-      rendered->every = a.perceive_every;
-      rendered->validate();
-    }
+    ExperimentConfig::Perceive perceive;
+    const bool rendered = a.perception == "rendered";
+    if (rendered) perceive = make_perception({a.model, a.classes, a.templates, a.perceive_every});
     std::vector<ExperimentResult> results;
     RunEstimates first;
     for (int robots : a.robots) {
@@ -132,7 +122,7 @@ Runner RegisterSimulate(CLI::App& app) {
         c.poses_per_robot = a.poses;
         c.refine = !a.no_refine;
         c.two_level_dgs = a.dgs == "two-level";
-        c.rendered = rendered;
+        c.perceive = perceive;
         results.push_back(RunExperiment(c, results.empty() ? &first : nullptr));
       }
     }

@@ -23,7 +23,9 @@ function(moslam_test name)
   endif()
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
-  target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+  # The serial OpenMP runtime of CHOLMOD (solver/serial_openmp.cc) for every test.
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main
+    moslam_serial_openmp)
   target_compile_definitions(${name} PRIVATE
     MOSLAM_DATASETS_DIR="${MOSLAM_DATASETS_DIR}"
     MOSLAM_BINARY_DIR="${PROJECT_BINARY_DIR}")

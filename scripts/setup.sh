@@ -6,6 +6,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev libsuitesparse-dev
+  libopenblas-pthread-dev  # static BLAS/LAPACK of CHOLMOD in the pose-graph executables (cmake/FindCHOLMOD.cmake)
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libceres-dev            # independent cross-check in bench/ only

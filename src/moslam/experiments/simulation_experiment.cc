@@ -7,13 +7,11 @@
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
-#include <optional>
 #include <utility>
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_driver.h"
-#include "moslam/perception/rendered_sensing.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/sim/sensing.h"
 #include "moslam/sim/world.h"
@@ -219,8 +217,8 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     n->sigma_translation = config.sigma_translation;
   }
   SimulationData data = Simulate(world, sim);
-  std::optional<RenderedSensingStats> perceived;
-  if (config.rendered) perceived = PerceiveSimulation(data, *config.rendered);
+  RunMetrics m;
+  if (config.perceive) config.perceive(data, m);
 
   const MultiRobotSlamConfig slam_config = MultiRobotSlamConfigForNoise(sim.sensing);
   const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, slam_config);
@@ -235,26 +233,6 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   if (config.information == InformationMode::kFixed) {
     NoiseModel paper;  // 5 deg, 0.2 m
     joint.graph = WithInformation(joint.graph, paper.information(sim.sensing.information_sigma_floor));
-  }
-  RunMetrics m;
-  if (perceived) {
-    const RenderedSensingStats& p = *perceived;
-    const double frames = std::max(1, p.frames);
-    m.perception_frames = p.frames;
-    m.perception_detections = p.detections;
-    m.perception_true_detections = p.true_detections;
-    m.perception_accepted = p.accepted;
-    m.perception_accepted_true = p.accepted_true;
-    m.perception_rejected_inliers = p.rejected_inliers;
-    m.perception_rejected_inliers_false = p.rejected_inliers_false;
-    m.perception_median_error_m = p.medianTranslationError();
-    m.perception_median_error_deg = p.medianRotationErrorDeg();
-    m.perception_ms_render = p.render_ms / frames;
-    m.perception_ms_detect = p.times.detect / frames;
-    m.perception_ms_segment = (p.times.prepare + p.times.segment) / frames;
-    m.perception_ms_register = p.times.register_ / frames;
-    m.perception_pcd_bytes = static_cast<double>(p.valid_depth_points) *
-                             config.point_cloud.bytes_per_point / config.robots;
   }
   m.seconds_slam = slam.seconds;
   m.poses = joint.num_poses;
@@ -502,7 +480,7 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"poses_per_robot", c.poses_per_robot},
                              {"refine", c.refine},
                              {"dgs", c.two_level_dgs ? "two-level" : "one-level"},
-                             {"perception", c.rendered ? "rendered" : "sampled"},
+                             {"perception", c.perceive ? "rendered" : "sampled"},
                              {"points_per_frame", c.point_cloud.points_per_frame},
                              {"bytes_per_point", c.point_cloud.bytes_per_point},
                              {"points_per_object", c.point_cloud.points_per_object},

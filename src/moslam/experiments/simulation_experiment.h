@@ -47,8 +47,8 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <limits>
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -56,7 +56,8 @@
 
 namespace moslam {
 
-struct RenderedSensingConfig;  // perception/rendered_sensing.h
+struct SimulationData;  // sim/sensing.h
+struct RunMetrics;
 
 enum class InformationMode { kNoise, kFixed };
 std::string ToString(InformationMode mode);
@@ -84,9 +85,13 @@ struct ExperimentConfig {
   // (the paper's). The other one runs too, for its sweep counts only (iterations_*_other).
   bool two_level_dgs = true;
   PointCloudModel point_cloud;
-  // Object measurements by the perception front-end on rendered frames
-  // (perception/rendered_sensing.h) instead of sampled ones; null: sampled (sim/sensing.h).
-  std::shared_ptr<const RenderedSensingConfig> rendered;
+  // Object measurements by another front-end instead of the sampled ones (sim/sensing.h): called
+  // once per run after the simulation, it replaces data.measurements[r].detections and fills the
+  // perception_* fields of the run's metrics. Null: sampled. The perception front-end on
+  // rendered frames provides one (perception/rendered_sensing.h, `moslam simulate --perception
+  // rendered`); this library does not depend on it.
+  using Perceive = std::function<void(SimulationData& data, RunMetrics& metrics)>;
+  Perceive perceive;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };

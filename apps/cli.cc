@@ -1,0 +1,78 @@
+#include "cli.h"
+
+#include <fmt/core.h>
+#include <malloc.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <system_error>
+#include <utility>
+
+#include "moslam/common/errors.h"
+
+// OpenBLAS's, when linked (weak: null with another BLAS).
+extern "C" void openblas_set_num_threads(int) __attribute__((weak));
+
+namespace moslam::cli {
+
+Commands::Commands(CLI::App& app) : app_(app) { app_.require_subcommand(1); }
+
+void Commands::add(Runner run) {
+  runners_.emplace_back(app_.get_subcommands([](const CLI::App*) { return true; }).back(),
+                        std::move(run));
+}
+
+int Commands::run(int argc, char** argv) {
+  try {
+    app_.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app_.exit(e);
+  }
+  try {
+    for (const auto& [sub, run] : runners_) {
+      if (sub->parsed()) return run();
+    }
+  } catch (const moslam::Error& e) {
+    fmt::print(stderr, "moslam: error: {}\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "moslam: internal error: {}\n", e.what());
+    return 1;
+  }
+  return 1;
+}
+
+void TuneProcessForSolving() {
+  mallopt(M_MMAP_THRESHOLD, 64 << 20);
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
+  if (openblas_set_num_threads != nullptr) openblas_set_num_threads(1);
+}
+
+void ExecSibling(const char* executable, char** argv) {
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) {
+    throw Error(std::string("cannot locate the running executable (/proc/self/exe: ") +
+                ec.message() + ") to start " + executable + " beside it");
+  }
+  const std::string path = (self.parent_path() / executable).string();
+  execv(path.c_str(), argv);  // argv[0] stays as typed: usage lines read `moslam <command>`
+  const int error = errno;
+  throw Error(fmt::format("this command runs in {}, which could not be started ({}): build or "
+                          "install it beside {} (apps/cli.h)",
+                          path, std::strerror(error), self.string()));
+}
+
+Runner AddForwardedCommand(CLI::App& app, const std::string& name, const std::string& description,
+                           const char* executable, char** argv) {
+  CLI::App* sub = app.add_subcommand(name, description);
+  sub->prefix_command();  // every argument after the name belongs to the other executable
+  sub->set_help_flag();   // --help too
+  sub->allow_extras();
+  return [executable, argv]() -> int { ExecSibling(executable, argv); };
+}
+
+}  // namespace moslam::cli

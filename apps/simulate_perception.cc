@@ -1,0 +1,46 @@
+// `moslam simulate --perception rendered` in the perception executable: the experiments'
+// perception hook (ExperimentConfig::perceive) runs the front-end on rendered frames
+// (perception/rendered_sensing.h) and records its statistics in the run's metrics.
+#include <pcl/console/print.h>
+
+#include <algorithm>
+#include <memory>
+
+#include "commands.h"
+#include "moslam/perception/rendered_sensing.h"
+#include "moslam/sim/sensing.h"
+
+namespace moslam::cli {
+
+ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& args) {
+  pcl::console::setVerbosityLevel(pcl::console::L_ERROR);  // SAC-IA's per-sample warnings
+  auto config = std::make_shared<RenderedSensingConfig>();
+  config->perception.detector.model_path = args.model;
+  config->perception.detector.class_names_file = args.classes;
+  config->perception.templates_dir = args.templates;
+  config->every = args.every;
+  config->validate();
+  const PointCloudModel point_cloud;
+  return [config, point_cloud](SimulationData& data, RunMetrics& m) {
+    const RenderedSensingStats p = PerceiveSimulation(data, *config);
+    const double frames = std::max(1, p.frames);
+    m.perception_frames = p.frames;
+    m.perception_detections = p.detections;
+    m.perception_true_detections = p.true_detections;
+    m.perception_accepted = p.accepted;
+    m.perception_accepted_true = p.accepted_true;
+    m.perception_rejected_inliers = p.rejected_inliers;
+    m.perception_rejected_inliers_false = p.rejected_inliers_false;
+    m.perception_median_error_m = p.medianTranslationError();
+    m.perception_median_error_deg = p.medianRotationErrorDeg();
+    m.perception_ms_render = p.render_ms / frames;
+    m.perception_ms_detect = p.times.detect / frames;
+    m.perception_ms_segment = (p.times.prepare + p.times.segment) / frames;
+    m.perception_ms_register = p.times.register_ / frames;
+    m.perception_pcd_bytes = static_cast<double>(p.valid_depth_points) *
+                             point_cloud.bytes_per_point /
+                             data.numRobots();
+  };
+}
+
+}  // namespace moslam::cli
