@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <queue>
+#include <utility>
 #include <unordered_map>
 
 #include "moslam/common/errors.h"
@@ -20,14 +21,22 @@ const SE3& Lookup(const Values& values, Key key) {
 
 }  // namespace
 
-std::set<Key> PoseGraph::keys() const {
-  std::set<Key> out;
+PoseGraph::PoseGraph(std::vector<RelativePoseFactor> factors) : factors_(std::move(factors)) {
   for (const auto& f : factors_) {
-    out.insert(f.a());
-    out.insert(f.b());
+    keys_.insert(f.a());
+    keys_.insert(f.b());
   }
-  for (const auto& p : priors_) out.insert(p.key());
-  return out;
+}
+
+void PoseGraph::add(const RelativePoseFactor& factor) {
+  factors_.push_back(factor);
+  keys_.insert(factor.a());
+  keys_.insert(factor.b());
+}
+
+void PoseGraph::add(const PriorFactor& prior) {
+  priors_.push_back(prior);
+  keys_.insert(prior.key());
 }
 
 int PoseGraph::numRobots() const {

@@ -15,15 +15,21 @@ using Values = std::map<Key, SE3>;
 
 class PoseGraph {
  public:
-  void add(const RelativePoseFactor& factor) { factors_.push_back(factor); }
-  void add(const PriorFactor& prior) { priors_.push_back(prior); }
+  PoseGraph() = default;
+  // The graph of these factors (taken over, not copied).
+  explicit PoseGraph(std::vector<RelativePoseFactor> factors);
+
+  void add(const RelativePoseFactor& factor);
+  void add(const PriorFactor& prior);
+  // Room for `factors` relative-pose factors without reallocating.
+  void reserve(std::size_t factors) { factors_.reserve(factors); }
 
   const std::vector<RelativePoseFactor>& factors() const { return factors_; }
   const std::vector<PriorFactor>& priors() const { return priors_; }
   bool empty() const { return factors_.empty() && priors_.empty(); }
 
-  // Every variable some factor touches, ordered.
-  std::set<Key> keys() const;
+  // Every variable some factor touches, ordered (kept up to date by add()).
+  const std::set<Key>& keys() const { return keys_; }
   // Number of robots: 1 + the largest robot id of any variable (0 for an empty graph).
   int numRobots() const;
 
@@ -33,6 +39,7 @@ class PoseGraph {
  private:
   std::vector<RelativePoseFactor> factors_;
   std::vector<PriorFactor> priors_;
+  std::set<Key> keys_;
 };
 
 // The gauge of CONVENTIONS.md: the first pose of robot 0 (smallest key with robot 0, kind pose).

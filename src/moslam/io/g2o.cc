@@ -176,7 +176,6 @@ struct VertexRecord {
 struct EdgeRecord {
   DecodedId a, b;
   std::array<double, kEdgeNumbers> numbers;  // as read: for recognising the copy of an edge
-  RelativePoseFactor factor;
   Location at;
   bool repaired;  // read with drop_indefinite_coupling
 };
@@ -184,6 +183,7 @@ struct EdgeRecord {
 struct FileRecords {
   std::vector<VertexRecord> vertices;
   std::vector<EdgeRecord> edges;
+  std::vector<RelativePoseFactor> factors;  // one per edge, in the same order
   bool plain_keys = true;
 };
 
@@ -231,13 +231,20 @@ void ParseEdge(const std::vector<std::string_view>& tokens, const G2oReadOptions
   std::array<double, 7> pose_numbers{};
   const SE3 measured = ParsePose(tokens, 3, &pose_numbers, at);
   std::copy(pose_numbers.begin(), pose_numbers.end(), numbers.begin());
+  // The entries' names for error messages, I11 .. I66 in file order.
+  static const std::array<std::string, 21> kEntryNames = [] {
+    std::array<std::string, 21> names;
+    std::size_t n = 0;
+    for (int i = 1; i <= 6; ++i) {
+      for (int j = i; j <= 6; ++j) names[n++] = "information entry I" + std::to_string(10 * i + j);
+    }
+    return names;
+  }();
   Matrix6 information;
   std::size_t k = 7;
   for (int i = 0; i < 6; ++i) {
     for (int j = i; j < 6; ++j, ++k) {
-      const std::string what =
-          "information entry I" + std::to_string(i + 1) + std::to_string(j + 1);
-      numbers[k] = ParseNumber(tokens[3 + k], what.c_str(), at);
+      numbers[k] = ParseNumber(tokens[3 + k], kEntryNames[k - 7].c_str(), at);
       information(MoslamIndex(i), MoslamIndex(j)) = numbers[k];
       information(MoslamIndex(j), MoslamIndex(i)) = numbers[k];
     }
@@ -276,14 +283,36 @@ void ParseEdge(const std::vector<std::string_view>& tokens, const G2oReadOptions
     }
   }
   out->plain_keys = out->plain_keys && (a.raw >> 56) == 0 && (b.raw >> 56) == 0;
-  out->edges.push_back({a, b, numbers, std::move(*factor), at, repaired});
+  out->edges.push_back({a, b, numbers, at, repaired});
+  out->factors.push_back(*factor);
+}
+
+// The whole stream, or Fail on a read error.
+std::string ReadAll(std::istream& in, const std::string* name) {
+  std::string text;
+  std::array<char, 1 << 16> chunk;
+  while (in) {
+    in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    text.append(chunk.data(), static_cast<std::size_t>(in.gcount()));
+  }
+  if (in.bad()) Fail({name, 0}, "read error");
+  return text;
 }
 
 FileRecords ParseRecords(std::istream& in, const std::string* name, const G2oReadOptions& options) {
   FileRecords out;
-  std::string text;
+  const std::string content = ReadAll(in, name);
+  // Records are large (a factor each): reserve for every line so none is copied on growth.
+  const auto lines = static_cast<std::size_t>(std::count(content.begin(), content.end(), '\n'));
+  out.edges.reserve(lines + 1);
+  out.factors.reserve(lines + 1);
+  out.vertices.reserve(lines + 1);
   int line = 0;
-  while (std::getline(in, text)) {
+  for (std::size_t begin = 0; begin < content.size();) {
+    std::size_t end = content.find('\n', begin);
+    if (end == std::string::npos) end = content.size();
+    const std::string_view text(content.data() + begin, end - begin);
+    begin = end + 1;
     if (line == std::numeric_limits<int>::max()) {
       Fail({name, line}, "file has too many lines");
     }
@@ -299,7 +328,6 @@ FileRecords ParseRecords(std::istream& in, const std::string* name, const G2oRea
       FailTag(tokens[0], at);
     }
   }
-  if (in.bad()) Fail({name, line}, "read error after this line");
   if (out.vertices.empty() && out.edges.empty()) {
     Fail({name, 0}, "empty file: no VERTEX_SE3:QUAT or EDGE_SE3:QUAT line");
   }
@@ -327,7 +355,7 @@ struct SignatureLess {
 
 // Merges the files of one dataset: duplicate vertices are rejected, the copy of an inter-robot
 // edge that another file already holds is dropped, dangling edges are rejected.
-Dataset Assemble(const std::vector<FileRecords>& files, const std::vector<std::string>& names) {
+Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>& names) {
   Dataset data;
   data.files = names;
   std::map<Key, Location> defined;
@@ -346,8 +374,10 @@ Dataset Assemble(const std::vector<FileRecords>& files, const std::vector<std::s
   // Inter-robot edges kept so far, per file, with how many copies may still be matched.
   std::map<EdgeSignature, std::map<std::size_t, int>, SignatureLess> unmatched;
   std::vector<const EdgeRecord*> kept;
+  std::vector<const RelativePoseFactor*> kept_factors;
   for (std::size_t f = 0; f < files.size(); ++f) {
-    for (const EdgeRecord& e : files[f].edges) {
+    for (std::size_t i = 0; i < files[f].edges.size(); ++i) {
+      const EdgeRecord& e = files[f].edges[i];
       if (files.size() > 1 && IsInterRobot(e)) {
         auto& copies = unmatched[EdgeSignature{e.a.key, e.b.key, e.numbers}];
         const auto other = std::find_if(copies.begin(), copies.end(), [&](const auto& c) {
@@ -360,6 +390,7 @@ Dataset Assemble(const std::vector<FileRecords>& files, const std::vector<std::s
         ++copies[f];
       }
       kept.push_back(&e);
+      kept_factors.push_back(&files[f].factors[i]);
     }
   }
 
@@ -379,9 +410,13 @@ Dataset Assemble(const std::vector<FileRecords>& files, const std::vector<std::s
       }
     }
   }
-  for (const EdgeRecord* e : kept) {
-    data.graph.add(e->factor);
-    data.repaired_information += e->repaired ? 1 : 0;
+  for (const EdgeRecord* e : kept) data.repaired_information += e->repaired ? 1 : 0;
+  if (files.size() == 1) {
+    // One file keeps every edge: hand its factors over without copying them.
+    data.graph = PoseGraph(std::move(files.front().factors));
+  } else {
+    data.graph.reserve(kept_factors.size());
+    for (const RelativePoseFactor* f : kept_factors) data.graph.add(*f);
   }
   return data;
 }

@@ -50,40 +50,54 @@ BlockSparseSystem::BlockSparseSystem(int num_blocks, int block_size,
     }
     rows_of_col[std::max(i, j)].push_back(std::min(i, j));
   }
-  std::vector<Eigen::Triplet<double>> triplets;
+  // Compressed columns built directly: in scalar column cb * bs + c, the blocks of rows_of_col[cb]
+  // in increasing order, each a run of bs rows (c + 1 for the diagonal block, whose upper
+  // triangle only is stored), so block (rb, cb) starts its run in column c at a known offset.
+  std::vector<int> col_nnz(static_cast<std::size_t>(n) + 1, 0);
   for (int cb = 0; cb < num_blocks; ++cb) {
     auto& rows = rows_of_col[cb];
     std::sort(rows.begin(), rows.end());
     rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
-    for (int rb : rows) {
-      for (int c = 0; c < bs; ++c) {
+    for (int c = 0; c < bs; ++c) {
+      col_nnz[static_cast<std::size_t>(cb * bs + c) + 1] =
+          static_cast<int>(rows.size() - 1) * bs + c + 1;
+    }
+  }
+  for (int k = 0; k < n; ++k) col_nnz[k + 1] += col_nnz[k];
+  im.H.resize(n, n);
+  im.H.resizeNonZeros(col_nnz[static_cast<std::size_t>(n)]);
+  std::copy(col_nnz.begin(), col_nnz.end(), im.H.outerIndexPtr());
+  int* inner = im.H.innerIndexPtr();
+  for (int cb = 0; cb < num_blocks; ++cb) {
+    for (int c = 0; c < bs; ++c) {
+      int* row = inner + col_nnz[static_cast<std::size_t>(cb * bs + c)];
+      for (int rb : rows_of_col[cb]) {
         const int rmax = (rb == cb) ? c + 1 : bs;
-        for (int r = 0; r < rmax; ++r) triplets.emplace_back(rb * bs + r, cb * bs + c, 0.0);
+        for (int r = 0; r < rmax; ++r) *row++ = rb * bs + r;
       }
     }
   }
-  im.H.resize(n, n);
-  im.H.setFromTriplets(triplets.begin(), triplets.end());
-  im.H.makeCompressed();
+  std::fill(im.H.valuePtr(), im.H.valuePtr() + im.H.nonZeros(), 0.0);
 
-  // Locate each block's runs in the compressed storage.
-  const auto* outer = im.H.outerIndexPtr();
-  const auto* inner = im.H.innerIndexPtr();
-  auto find = [&](int row, int col) {
-    const auto* begin = inner + outer[col];
-    const auto* end = inner + outer[col + 1];
-    const auto* it = std::lower_bound(begin, end, row);
-    return static_cast<Eigen::Index>(it - inner);
-  };
+  // Each block's runs: block number i of column block cb starts at i * bs in every column.
   for (int cb = 0; cb < num_blocks; ++cb) {
-    for (int rb : rows_of_col[cb]) {
+    const auto& rows = rows_of_col[cb];
+    for (std::size_t i = 0; i < rows.size(); ++i) {
       const int s = static_cast<int>(im.slot_i.size());
-      im.slot_i.push_back(rb);
+      im.slot_i.push_back(rows[i]);
       im.slot_j.push_back(cb);
-      im.slot_of[im.PairKey(rb, cb)] = s;
-      for (int c = 0; c < bs; ++c) im.offsets.push_back(find(rb * bs, cb * bs + c));
+      im.slot_of[im.PairKey(rows[i], cb)] = s;
+      for (int c = 0; c < bs; ++c) {
+        im.offsets.push_back(col_nnz[static_cast<std::size_t>(cb * bs + c)] +
+                             static_cast<Eigen::Index>(i) * bs);
+      }
     }
   }
+  auto find = [&](int row, int col) {
+    const int* begin = inner + col_nnz[static_cast<std::size_t>(col)];
+    const int* end = inner + col_nnz[static_cast<std::size_t>(col) + 1];
+    return static_cast<Eigen::Index>(std::lower_bound(begin, end, row) - inner);
+  };
   im.diagonal_index.resize(n);
   for (int k = 0; k < n; ++k) im.diagonal_index[k] = find(k, k);
 

@@ -48,108 +48,136 @@ Matrix3 TranslationWeight(const Matrix6& information, const ChordalOptions& opti
 
 }  // namespace
 
+namespace {
+
+// The two linear least-squares problems of the chordal initialisation share their unknowns
+// (3 numbers per variable, the anchor eliminated) and their sparsity pattern: one system, one
+// symbolic analysis, factorized once per problem.
+struct ChordalProblem {
+  Key anchor;
+  Indexing idx;
+  BlockSparseSystem sys;
+
+  explicit ChordalProblem(const PoseGraph& graph)
+      : anchor(GaugeAnchor(graph)),
+        idx(Anchored(graph, anchor), anchor),
+        sys(idx.size(), 3, FreePairs(graph, idx)) {}
+
+  static const PoseGraph& Anchored(const PoseGraph& graph, Key anchor) {
+    RequireAnchored(graph, anchor);
+    return graph;
+  }
+
+  // Stage 1 (see ChordalRotations).
+  std::map<Key, SO3> rotations(const PoseGraph& graph, const SO3& anchor_rotation,
+                               const ChordalOptions& options) {
+    const int n = idx.size();
+    // Unknown per variable: P = R^T, whose column k is row k of R. Each edge gives, for every k,
+    // || P_b e_k - R_ab^T P_a e_k ||^2, so the three rows share one system with three right sides.
+    sys.setZero();
+    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(3 * n, 3);
+    const Matrix3 I = Matrix3::Identity();
+    const Matrix3 P_anchor = anchor_rotation.matrix().transpose();
+    for (const auto& f : graph.factors()) {
+      const int a = idx(f.a()), b = idx(f.b());
+      const double w = RotationWeight(f.information(), options);
+      const Matrix3& Rab = f.measured().rotation().matrix();
+      if (a >= 0) sys.addDiagonal(a, w * I);
+      if (b >= 0) sys.addDiagonal(b, w * I);
+      if (a >= 0 && b >= 0) {
+        sys.add(sys.slot(a, b), -w * Rab);
+      } else if (a < 0) {
+        B.block<3, 3>(3 * b, 0) += w * Rab.transpose() * P_anchor;
+      } else {
+        B.block<3, 3>(3 * a, 0) += w * Rab * P_anchor;
+      }
+    }
+    for (const auto& p : graph.priors()) {
+      const int k = idx(p.key());
+      if (k < 0) continue;  // the anchor is held fixed anyway
+      const double w = RotationWeight(p.information(), options);
+      sys.addDiagonal(k, w * I);
+      B.block<3, 3>(3 * k, 0) += w * p.prior().rotation().matrix().transpose();
+    }
+    sys.factorize();
+    const Eigen::MatrixXd X = sys.backSolve(B);
+
+    std::map<Key, SO3> out{{anchor, anchor_rotation}};
+    for (int k = 0; k < n; ++k) {
+      out.emplace(idx.keys[k], SO3::FromMatrixNormalized(X.block<3, 3>(3 * k, 0).transpose()));
+    }
+    return out;
+  }
+
+  // Stage 2 (see TranslationsGivenRotations).
+  Values translations(const PoseGraph& graph, const std::map<Key, SO3>& rotations,
+                      const Vector3& anchor_translation, const ChordalOptions& options) {
+    const int n = idx.size();
+    auto rotation = [&](Key k) -> const Matrix3& {
+      const auto it = rotations.find(k);
+      if (it == rotations.end()) {
+        throw InvalidInputError("TranslationsGivenRotations: no rotation for " + ToString(k));
+      }
+      return it->second.matrix();
+    };
+    // Residual of an edge, in the frame of a: R_a^T (t_b - t_a) - t_ab, weighted by the
+    // translation information rotated from the measurement's frame into a's.
+    sys.setZero();
+    for (const auto& f : graph.factors()) {
+      const int a = idx(f.a()), b = idx(f.b());
+      const Matrix3& Ra = rotation(f.a());
+      const Matrix3& Rab = f.measured().rotation().matrix();
+      const Matrix3 W = Rab * TranslationWeight(f.information(), options) * Rab.transpose();
+      const Matrix3 M = Ra * W * Ra.transpose();
+      const Vector3 m = Ra * W * f.measured().translation();  // R_a W t_ab
+      if (a >= 0) sys.addDiagonal(a, M);
+      if (b >= 0) sys.addDiagonal(b, M);
+      if (a >= 0 && b >= 0) {
+        sys.add(sys.slot(a, b), -M);
+        sys.rhs().segment<3>(3 * a) -= m;
+        sys.rhs().segment<3>(3 * b) += m;
+      } else if (a < 0) {
+        sys.rhs().segment<3>(3 * b) += M * anchor_translation + m;
+      } else {
+        sys.rhs().segment<3>(3 * a) += M * anchor_translation - m;
+      }
+    }
+    for (const auto& p : graph.priors()) {
+      const int k = idx(p.key());
+      if (k < 0) continue;
+      const Matrix3& Rz = p.prior().rotation().matrix();
+      const Matrix3 M = Rz * TranslationWeight(p.information(), options) * Rz.transpose();
+      sys.addDiagonal(k, M);
+      sys.rhs().segment<3>(3 * k) += M * p.prior().translation();
+    }
+    const Eigen::VectorXd t = sys.solve();
+
+    Values out{{anchor, SE3(SO3(rotation(anchor)), anchor_translation)}};
+    for (int k = 0; k < n; ++k) {
+      out.emplace(idx.keys[k], SE3(SO3(rotation(idx.keys[k])), t.segment<3>(3 * k)));
+    }
+    return out;
+  }
+};
+
+}  // namespace
+
 std::map<Key, SO3> ChordalRotations(const PoseGraph& graph, const SO3& anchor_rotation,
                                     const ChordalOptions& options) {
-  const Key anchor = GaugeAnchor(graph);
-  RequireAnchored(graph, anchor);
-  const Indexing idx(graph, anchor);
-  const int n = idx.size();
-
-  // Unknown per variable: P = R^T, whose column k is row k of R. Each edge gives, for every k,
-  // || P_b e_k - R_ab^T P_a e_k ||^2, so the three rows share one system with three right sides.
-  BlockSparseSystem sys(n, 3, FreePairs(graph, idx));
-  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(3 * n, 3);
-  const Matrix3 I = Matrix3::Identity();
-  const Matrix3 P_anchor = anchor_rotation.matrix().transpose();
-  for (const auto& f : graph.factors()) {
-    const int a = idx(f.a()), b = idx(f.b());
-    const double w = RotationWeight(f.information(), options);
-    const Matrix3& Rab = f.measured().rotation().matrix();
-    if (a >= 0) sys.addDiagonal(a, w * I);
-    if (b >= 0) sys.addDiagonal(b, w * I);
-    if (a >= 0 && b >= 0) {
-      sys.add(sys.slot(a, b), -w * Rab);
-    } else if (a < 0) {
-      B.block<3, 3>(3 * b, 0) += w * Rab.transpose() * P_anchor;
-    } else {
-      B.block<3, 3>(3 * a, 0) += w * Rab * P_anchor;
-    }
-  }
-  for (const auto& p : graph.priors()) {
-    const int k = idx(p.key());
-    if (k < 0) continue;  // the anchor is held fixed anyway
-    const double w = RotationWeight(p.information(), options);
-    sys.addDiagonal(k, w * I);
-    B.block<3, 3>(3 * k, 0) += w * p.prior().rotation().matrix().transpose();
-  }
-  sys.factorize();
-  const Eigen::MatrixXd X = sys.backSolve(B);
-
-  std::map<Key, SO3> out{{anchor, anchor_rotation}};
-  for (int k = 0; k < n; ++k) {
-    out.emplace(idx.keys[k], SO3::FromMatrixNormalized(X.block<3, 3>(3 * k, 0).transpose()));
-  }
-  return out;
+  return ChordalProblem(graph).rotations(graph, anchor_rotation, options);
 }
 
 Values TranslationsGivenRotations(const PoseGraph& graph, const std::map<Key, SO3>& rotations,
                                   const Vector3& anchor_translation,
                                   const ChordalOptions& options) {
-  const Key anchor = GaugeAnchor(graph);
-  RequireAnchored(graph, anchor);
-  const Indexing idx(graph, anchor);
-  const int n = idx.size();
-  auto rotation = [&](Key k) -> const Matrix3& {
-    const auto it = rotations.find(k);
-    if (it == rotations.end()) {
-      throw InvalidInputError("TranslationsGivenRotations: no rotation for " + ToString(k));
-    }
-    return it->second.matrix();
-  };
-
-  // Residual of an edge, in the frame of a: R_a^T (t_b - t_a) - t_ab, weighted by the
-  // translation information rotated from the measurement's frame into a's.
-  BlockSparseSystem sys(n, 3, FreePairs(graph, idx));
-  for (const auto& f : graph.factors()) {
-    const int a = idx(f.a()), b = idx(f.b());
-    const Matrix3& Ra = rotation(f.a());
-    const Matrix3& Rab = f.measured().rotation().matrix();
-    const Matrix3 W = Rab * TranslationWeight(f.information(), options) * Rab.transpose();
-    const Matrix3 M = Ra * W * Ra.transpose();
-    const Vector3 m = Ra * W * f.measured().translation();  // R_a W t_ab
-    if (a >= 0) sys.addDiagonal(a, M);
-    if (b >= 0) sys.addDiagonal(b, M);
-    if (a >= 0 && b >= 0) {
-      sys.add(sys.slot(a, b), -M);
-      sys.rhs().segment<3>(3 * a) -= m;
-      sys.rhs().segment<3>(3 * b) += m;
-    } else if (a < 0) {
-      sys.rhs().segment<3>(3 * b) += M * anchor_translation + m;
-    } else {
-      sys.rhs().segment<3>(3 * a) += M * anchor_translation - m;
-    }
-  }
-  for (const auto& p : graph.priors()) {
-    const int k = idx(p.key());
-    if (k < 0) continue;
-    const Matrix3& Rz = p.prior().rotation().matrix();
-    const Matrix3 M = Rz * TranslationWeight(p.information(), options) * Rz.transpose();
-    sys.addDiagonal(k, M);
-    sys.rhs().segment<3>(3 * k) += M * p.prior().translation();
-  }
-  const Eigen::VectorXd t = sys.solve();
-
-  Values out{{anchor, SE3(SO3(rotation(anchor)), anchor_translation)}};
-  for (int k = 0; k < n; ++k) {
-    out.emplace(idx.keys[k], SE3(SO3(rotation(idx.keys[k])), t.segment<3>(3 * k)));
-  }
-  return out;
+  return ChordalProblem(graph).translations(graph, rotations, anchor_translation, options);
 }
 
 Values ChordalInitialization(const PoseGraph& graph, const SE3& anchor_pose,
                              const ChordalOptions& options) {
-  const auto rotations = ChordalRotations(graph, anchor_pose.rotation(), options);
-  return TranslationsGivenRotations(graph, rotations, anchor_pose.translation(), options);
+  ChordalProblem problem(graph);
+  const auto rotations = problem.rotations(graph, anchor_pose.rotation(), options);
+  return problem.translations(graph, rotations, anchor_pose.translation(), options);
 }
 
 Values OdometryInitialization(const PoseGraph& graph, const SE3& anchor_pose) {

@@ -46,7 +46,8 @@ std::string ToString(TerminationStatus status) {
 }
 
 struct NonlinearOptimizer::Impl {
-  PoseGraph graph;
+  explicit Impl(const PoseGraph& g) : graph(g) {}
+  const PoseGraph& graph;  // the caller's (NonlinearOptimizer's contract)
   OptimizerOptions options;
   Key anchor;
   std::vector<Key> keys;         // every variable, in key order
@@ -95,15 +96,21 @@ struct NonlinearOptimizer::Impl {
       const Vector6 wr = U * r;
       const Matrix6 Ja = U * Ha, Jb = U * Hb;
       const int ba = block[fi.a], bb = block[fi.b];
+      // Blocks evaluated into fixed-size matrices: add() then reads them in place.
       if (ba >= 0) {
-        sys.add(fi.aa, Ja.transpose() * Ja);
+        const Matrix6 Haa = Ja.transpose() * Ja;
+        sys.add(fi.aa, Haa);
         rhs.segment<6>(6 * ba) -= Ja.transpose() * wr;
       }
       if (bb >= 0) {
-        sys.add(fi.bb, Jb.transpose() * Jb);
+        const Matrix6 Hbb = Jb.transpose() * Jb;
+        sys.add(fi.bb, Hbb);
         rhs.segment<6>(6 * bb) -= Jb.transpose() * wr;
       }
-      if (ba >= 0 && bb >= 0) sys.add(fi.ab, Ja.transpose() * Jb);
+      if (ba >= 0 && bb >= 0) {
+        const Matrix6 Hab = Ja.transpose() * Jb;
+        sys.add(fi.ab, Hab);
+      }
     }
     for (size_t i = 0; i < graph.priors().size(); ++i) {
       const PriorFactor& p = graph.priors()[i];
@@ -112,7 +119,8 @@ struct NonlinearOptimizer::Impl {
       Matrix6 H;
       const Vector6 r = p.residual(x[v], &H);
       const Matrix6 J = p.sqrtInformation() * H;
-      sys.add(prior_index[i].second, J.transpose() * J);
+      const Matrix6 JTJ = J.transpose() * J;
+      sys.add(prior_index[i].second, JTJ);
       rhs.segment<6>(6 * block[v]) -= J.transpose() * (p.sqrtInformation() * r);
     }
     result.linearize_seconds += SecondsSince(t0);
@@ -214,11 +222,10 @@ struct NonlinearOptimizer::Impl {
 
 NonlinearOptimizer::NonlinearOptimizer(const PoseGraph& graph, const Values& initial,
                                        const OptimizerOptions& options)
-    : impl_(std::make_unique<Impl>()) {
+    : impl_(std::make_unique<Impl>(graph)) {
   const auto t0 = Clock::now();
   options.validate();
   Impl& im = *impl_;
-  im.graph = graph;
   im.options = options;
   im.anchor = GaugeAnchor(graph);
   RequireAnchored(graph, im.anchor);

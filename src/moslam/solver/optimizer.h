@@ -72,6 +72,7 @@ struct OptimizerResult {
 
 class NonlinearOptimizer {
  public:
+  // `graph` is not copied: it must outlive the optimizer (as a Ceres Problem's cost functions).
   // Throws InvalidInputError (a variable without an initial estimate, non-finite values, bad
   // options) or UnderdeterminedError (no anchor, a part of the graph nothing anchors).
   NonlinearOptimizer(const PoseGraph& graph, const Values& initial,
