@@ -10,10 +10,16 @@
 //   agent.startPose();                     // project to SO(3); stage 2 (one pose step)
 //   loop as above; agent.finish();         // estimate() is final
 //
-// The subgraph holds every factor that touches one of the robot's variables: inner edges (both
-// ends its own) and separators (one end another robot's). Ownership is the robot in each key.
-// The anchor (first pose of robot 0, CONVENTIONS.md) is held at its initial value by the agent
-// that owns it: it is not an unknown (eliminated, so it is exact in both stages).
+// The agent composes one piece per job, each in its own file: the robot's part of the graph
+// (local_graph.h), what it received (neighbour_inbox.h), its block of each linear stage
+// (local_system.h), the sweep bookkeeping of the stopping rules (sweep_progress.h), the coarse
+// correction of the two-level DGS (coarse_correction.h), the Gauss-Newton refinement
+// (refinement.h) and conjugate gradients (conjugate_gradients.h); this class is the state machine
+// and the messages. The subgraph holds every factor that touches one of the robot's variables:
+// inner edges (both ends its own) and separators (one end another robot's). Ownership is the
+// robot in each key. The anchor (first pose of robot 0, CONVENTIONS.md) is held at its initial
+// value by the agent that owns it: it is not an unknown (eliminated, so it is exact in both
+// stages).
 //
 // Flagged initialisation: in each stage a separator is used only once the other robot has
 // solved in that stage (its messages say `initialised`). Without it, a separator is used as soon
@@ -56,14 +62,18 @@
 #include <set>
 #include <vector>
 
+#include "moslam/distributed/coarse_correction.h"
+#include "moslam/distributed/conjugate_gradients.h"
 #include "moslam/distributed/dgs_types.h"
+#include "moslam/distributed/local_graph.h"
+#include "moslam/distributed/local_system.h"
 #include "moslam/distributed/messages.h"
+#include "moslam/distributed/neighbour_inbox.h"
+#include "moslam/distributed/refinement.h"
+#include "moslam/distributed/sweep_progress.h"
 #include "moslam/graph/pose_graph.h"
 
 namespace moslam {
-
-class BlockLeastSquares;
-struct LinearTerm;
 
 struct AgentOptions {
   double gamma = 1.0;                  // over-relaxation: x <- (1 - gamma) x_old + gamma x_new
@@ -73,21 +83,6 @@ struct AgentOptions {
 
   // Throws InvalidInputError unless 0 < gamma < 2 and 0 < refine_gamma < 2.
   void validate() const;
-};
-
-enum class ReceiveStatus { kAccepted, kDuplicate, kStale };
-
-// One robot's rows of the coarse system of the two-level DGS (RobotAgent::coarseShare()):
-// k = 3 unknowns per robot and 3 right-hand sides in stage 1, k = 6 and 1 in stage 2.
-struct CoarseShare {
-  Eigen::MatrixXd diagonal;                 // k x k: P_r^T H_rr P_r
-  std::map<int, Eigen::MatrixXd> coupling;  // per neighbouring robot s: P_r^T H_rs P_s (k x k)
-  Eigen::MatrixXd residual;                 // k x ncols: P_r^T (g - H x)_r
-  // Stage 2: the point c_r the robot's coarse rotations turn about (the mean of its
-  // translations; a basis centred on the robot keeps the coarse system well conditioned far from
-  // the origin). Every block, the neighbours' columns included, is in this robot's basis
-  // (centred on c_r); the coordinator moves them to the neighbours' centres. Stage 1: zero.
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();
 };
 
 // A message to one neighbouring robot.
@@ -109,17 +104,17 @@ class RobotAgent {
   RobotAgent(const RobotAgent&) = delete;
   RobotAgent& operator=(const RobotAgent&) = delete;
 
-  int robot() const { return robot_; }
+  int robot() const { return graph_.robot(); }
   AgentState state() const { return state_; }
   // The robot's variables (anchor included), ordered.
-  const std::vector<Key>& ownVariables() const { return own_; }
+  const std::vector<Key>& ownVariables() const { return graph_.own(); }
   // Foreign variables its separators touch (the neighbour table), and their owners.
-  const std::set<Key>& neighbourVariables() const { return neighbour_keys_; }
-  std::set<int> neighbourRobots() const;
+  const std::set<Key>& neighbourVariables() const { return graph_.neighbourKeys(); }
+  std::set<int> neighbourRobots() const { return graph_.neighbourRobots(); }
   // For each neighbouring robot, how many of its variables this robot needs.
-  std::map<int, int> neighbourLinks() const;
+  std::map<int, int> neighbourLinks() const { return graph_.neighbourLinks(); }
   // For each neighbouring robot, which of this robot's variables it needs.
-  const std::map<int, std::vector<Key>>& sharedWith() const { return shared_with_; }
+  const std::map<int, std::vector<Key>>& sharedWith() const { return graph_.sharedWith(); }
 
   // Stage transitions. startRotation(): from kIdle; own estimate starts at the initial
   // rotations. startPose(): from kRotation; projects the own and the received neighbour
@@ -166,8 +161,8 @@ class RobotAgent {
   double incrementNorm() const;
   // From now on this robot counts its separators to `robot` in costShare() (the other robot no
   // longer reports).
-  void setUnresponsive(int robot);
-  bool refined() const { return refined_; }
+  void setUnresponsive(int robot) { refinement_.setUnresponsive(robot); }
+  bool refined() const { return refinement_.started(); }
 
   ReceiveStatus receive(const Message& message);
 
@@ -180,36 +175,24 @@ class RobotAgent {
   // (empty outside kRotation/kPose/kRefine).
   std::vector<OutgoingMessage> outgoing() const;
 
-  // Two-level DGS (beyond DGS.md; DgsOptions::coarse_correction in dgs_driver.h): a Galerkin
-  // correction x_i += P_i y_r over the motions of whole robots, the slow modes of the sweeps
-  // (each robot's block is solved exactly; what the sweeps are slow at is moving a whole robot
-  // against the others). For every variable i of robot r:
-  //   stage 1: X_i += X_i Y_r, Y_r 3x3 (X = R^T: R += Y_r^T R, a linear map of the whole robot;
-  //            the chordal residual of an edge inside the robot only scales by it)
-  //   stage 2: dtheta_i += R_hat_i^T w_r, t_i += tau_r + w_r x (t_i - c_r), y_r = (w_r, tau_r):
-  //            a rigid motion of the robot about its centre c_r (CoarseShare::center; edges
-  //            inside the robot change only by w_r x their residual)
-  // coarseReady(absent): the last solve used every separator except those to the `absent`
-  // robots (stopped answering: their variables stay fixed), so the local normal matrix is the
-  // robot's whole diagonal block H_rr of the stage. coarseShare(): its rows of the coarse system
-  // (P^T H P) y = P^T (g - H x) at the current estimates, own and received, for the separators
-  // its last solve used (InvalidInputError before a solve of stage 1 or 2; the driver asks only
-  // once every robot is coarseReady). applyCoarse(y): adds P_i y_robot to the own unknowns and
-  // to the received copies of the neighbours' variables (robots missing from y: 0), every y in
-  // this robot's basis (stage 2: centred on its c_r, as coarseShare() computed it; the estimates
-  // must not change in between): the same motion of the same numbers as their owners apply, so
-  // no estimate has to be sent again.
+  // Two-level DGS (beyond DGS.md; DgsOptions::coarse_correction in dgs_driver.h; the basis and
+  // what share and apply compute: coarse_correction.h). coarseReady(absent): the last solve used
+  // every separator except those to the `absent` robots (stopped answering: their variables stay
+  // fixed), so the local normal matrix is the robot's whole diagonal block H_rr of the stage.
+  // coarseShare(): its rows of the coarse system (InvalidInputError before a solve of stage 1 or
+  // 2; the driver asks only once every robot is coarseReady). applyCoarse(y): the correction, to
+  // its own unknowns and its copies of the neighbours' variables.
   bool coarseReady(const std::set<int>& absent = {}) const;
   CoarseShare coarseShare();
   void applyCoarse(const std::map<int, Eigen::MatrixXd>& y);
 
   // Iterations (solves) done in the current stage; whether it has solved in this stage.
   int iteration() const { return iteration_; }
-  bool initialised() const { return initialised_; }
+  bool initialised() const { return progress_.initialised(); }
   // ||x_solve - x_old||_2 over the robot's stacked unknowns at its last solve (9 numbers per
   // variable in stage 1, 6 in stage 2 and in a refinement step); +infinity before the first solve
   // of a stage (of a refinement step).
-  double lastChange() const { return last_change_; }
+  double lastChange() const { return progress_.lastChange(); }
   // The a-posteriori distance bound of StageStopping::kErrorBound (dgs_types.h): gamma * c *
   // rho / (1 - rho) over the stage's non-zero changes c (a solve that changes nothing had no new
   // input and is skipped), c the last of them, rho the largest sqrt(c_k / c_{k-2}) over the last
@@ -224,136 +207,55 @@ class RobotAgent {
   // The stage-1 relaxed rotations (row by row), own variables.
   std::map<Key, Eigen::VectorXd> relaxedRotations() const;
 
-  std::int64_t duplicatesIgnored() const { return duplicates_; }
-  std::int64_t staleIgnored() const { return stale_; }
+  std::int64_t duplicatesIgnored() const { return inbox_.duplicates(); }
+  std::int64_t staleIgnored() const { return inbox_.stale(); }
 
  private:
-  struct Separator {
-    std::size_t factor;  // index into factors_
-    Key own, foreign;
-    int foreign_robot;
-    int slot = 0;        // the foreign variable's index in neighbour_list_
-  };
-  struct StageInbox {
-    // The latest estimate received per neighbour variable (by slot), and whether one arrived.
-    std::vector<Eigen::VectorXd> values;
-    std::vector<char> has;
-    std::map<int, std::int64_t> last_iteration;
-    std::set<int> initialised_robots;
-    const Eigen::VectorXd* get(int slot) const {
-      return has.empty() || !has[static_cast<std::size_t>(slot)]
-                 ? nullptr
-                 : &values[static_cast<std::size_t>(slot)];
-    }
-    void forget() { std::fill(has.begin(), has.end(), 0); }
-  };
-
   DgsStage currentStage() const;
-  void prepareStage(DgsStage stage);
-  StageInbox& inbox(DgsStage stage);
   bool usable(const Separator& s, DgsStage stage) const;
-  Eigen::MatrixXd neighbourValue(int slot, DgsStage stage) const;
-  // A_own^T W A_foreign of a separator whose linear term (terms_[sep.factor]) is built.
-  Eigen::MatrixXd couplingBlock(const Separator& sep) const;
+  // The separators the current stage can use; false when some group of unknowns is not anchored.
+  bool solvable(DgsStage stage, std::vector<bool>& use) const;
+  LocalSystem& system(DgsStage stage) { return stage == DgsStage::kRotation ? rotation_ : pose_; }
+  const LocalSystem& system(DgsStage stage) const {
+    return stage == DgsStage::kRotation ? rotation_ : pose_;
+  }
+  // The stage's terms into its system (stages 1 and 2).
+  void prepareStage(DgsStage stage);
+  // The right-hand side of the local solve with the neighbour values held now (after assembly):
+  // G0 (conjugate gradients: the residual) - sum_s H_rs x_s.
+  Eigen::MatrixXd localRhs(DgsStage stage) const;
   void requireRefine(const char* what) const;
   // Throws InvalidInputError "<what> in state <state><hint>" unless the agent is in `expected`.
   void requireState(AgentState expected, const char* what, const char* hint = "") const;
   // Start of a stage or of a linear step: not yet solved, no change measured.
   void resetProgress();
-  // Which separators the current stage can use; false when some block is not anchored yet.
-  bool solvable(DgsStage stage, std::vector<bool>& use) const;
-  // Builds and factorizes the normal matrix (and G0_) unless cached for `use`.
-  void assemble(DgsStage stage, const std::vector<bool>& use);
-  // The right-hand side of the local solve with the neighbour values held now (after assemble).
-  Eigen::MatrixXd localRhs(DgsStage stage) const;
-  // The coarse basis P_i (module comment above) of a variable with stage value x; R_hat: its
-  // linearisation rotation, center: the point the rotations turn about (stage 2 only).
-  static Eigen::MatrixXd CoarseBasis(DgsStage stage, const Eigen::VectorXd& x,
-                                     const Matrix3* R_hat, const Eigen::Vector3d& center);
-  // CoarseBasis of variable `key` (own or a neighbour's copy) with stage value x in the current
-  // stage; frozen: its translation when the stage-2 basis was frozen (unused in stage 1).
-  Eigen::MatrixXd coarseBasisOf(const Key& key, const Eigen::VectorXd& x,
-                                const Eigen::Vector3d& frozen) const;
-  // Stage 2: fixes the coarse basis at the first coarseShare() of the stage, so every
-  // correction of the stage works in one subspace (the two-level contraction): the lever arms
-  // are the translations then (own and copies) and c_r their mean.
-  void freezeCoarseBasis();
-  // The refinement's linear terms at the current estimate (GN: A = dr/dx, C = r, W = Omega).
-  void linearizeRefine();
-  const SE3* knownPose(const Key& key) const;  // own or a neighbour's copy; nullptr if unknown
   // The step's increment of unknown i / of a neighbour variable (0 if none arrived).
   Vector6 ownIncrement(std::size_t i) const;
   Vector6 neighbourIncrement(int slot) const;
   Eigen::VectorXd stackedSweepValue() const;  // x_ stacked
 
-  int robot_;
   AgentOptions options_;
-  Key anchor_;
-  bool owns_anchor_ = false;
-  SE3 anchor_pose_;
-  std::vector<RelativePoseFactor> factors_;
-  std::vector<PriorFactor> priors_;
-  std::vector<std::size_t> inner_;
-  std::vector<Separator> separators_;
-  std::vector<Key> own_;
-  std::vector<Key> unknowns_;  // own_ without the anchor
-  std::map<Key, int> unknown_index_;
-  std::set<Key> neighbour_keys_;
-  std::vector<Key> neighbour_list_;  // neighbour_keys_ in order: the slots
-  std::map<Key, int> neighbour_slot_;
-  std::map<int, std::vector<Key>> shared_with_;
-  // Components of the unknowns through inner edges: whether each is tied to the anchor or a
-  // prior, and its separators.
-  std::vector<int> component_of_;  // per unknown
-  std::vector<bool> component_fixed_;
-  std::vector<std::vector<std::size_t>> component_separators_;
-  Values initial_;  // own variables
+  LocalGraph graph_;
+  NeighbourInbox inbox_;
+  LocalSystem rotation_, pose_;  // the pose stage's system serves the refinement too
+  StageCoarseSpace coarse_;
+  Refinement refinement_;
+  ConjugateGradients cg_;
+  SweepProgress progress_;
 
   AgentState state_ = AgentState::kIdle;
-  int iteration_ = 0;
-  bool initialised_ = false;
-  double last_change_ = std::numeric_limits<double>::infinity();
-  std::vector<double> recent_changes_;  // the stage's last non-zero changes, oldest first (<= 66)
-  int zero_changes_ = 0;                // solves since the last non-zero change
+  int iteration_ = 0;  // solves in the current stage: the messages' iteration numbers
   std::vector<Eigen::VectorXd> x_;              // per unknown, StageDimension of the stage
   std::vector<Eigen::VectorXd> before_coarse_;  // x_ before the coarse corrections since the
                                                 // last solve (empty: none)
-  // Stage 2's frozen coarse basis (freezeCoarseBasis): translations per unknown and per
-  // neighbour slot, and their centre.
-  bool coarse_frozen_ = false;
-  std::vector<Eigen::Vector3d> coarse_ref_, coarse_ref_copy_;
-  Eigen::Vector3d coarse_centre_ = Eigen::Vector3d::Zero();
   std::vector<Eigen::VectorXd> relaxed_;        // stage-1 result kept for relaxedRotations()
   std::map<Key, Matrix3> R_hat_;                // stage-2 linearisation point (own + neighbours)
-  std::map<DgsStage, StageInbox> inboxes_;
-  // The current stage's terms (constant within a stage: stage 2 is linearised once), per factor
-  // and prior; per separator, A_own^T W A_foreign (its right-hand side is linear in the
-  // neighbour's estimate). The factorization is reused while the usable separators stay the same.
-  std::vector<LinearTerm> terms_, prior_terms_;
-  std::vector<Eigen::MatrixXd> coupling_;
-  Eigen::MatrixXd anchor_value_;
-  std::vector<bool> cached_use_;
-  bool factorized_ = false;
-  Eigen::MatrixXd G0_;
-  std::vector<Eigen::Index> separator_row_;  // per separator: row of its own end, -1: unused
-  std::unique_ptr<BlockLeastSquares> rotation_problem_, pose_problem_;
-  std::int64_t duplicates_ = 0, stale_ = 0;
-
-  // Refinement: the own estimate (anchor included), the copies of the neighbours' poses (by
-  // slot; pose_known_: received), the damping, and the diagonal of each unknown's block of H.
-  bool refined_ = false;
+  // Refinement: whether the step is linearised and solved by conjugate gradients (and whether
+  // this robot can solve in it).
   bool linearized_ = false;
   double lambda_ = 0.0;
-  Values pose_;
-  std::vector<SE3> neighbour_pose_;
-  std::vector<char> pose_known_;
-  std::vector<Eigen::VectorXd> hessian_diagonal_;
-  std::set<int> unresponsive_;
-  // Conjugate gradients (stacked over unknowns_, 6 per unknown) and the neighbours' copies.
-  bool cg_ = false;
+  bool cg_active_ = false;
   bool can_solve_ = true;
-  Eigen::VectorXd cg_delta_, cg_res_, cg_p_, cg_q_;
-  std::vector<Vector6> neighbour_p_, neighbour_delta_;  // by slot
 };
 
 }  // namespace moslam

@@ -1,0 +1,124 @@
+#include "moslam/distributed/coarse_correction.h"
+
+#include <string>
+
+#include "moslam/common/errors.h"
+#include "moslam/geometry/so3.h"
+
+namespace moslam {
+
+Eigen::MatrixXd StageCoarseSpace::Basis(DgsStage stage, const Eigen::VectorXd& x,
+                                        const Matrix3* R_hat, const Eigen::Vector3d& lever) {
+  if (stage == DgsStage::kRotation) return Eigen::Map<const Eigen::Matrix3d>(x.data());
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(6, 6);
+  P.topLeftCorner<3, 3>() = R_hat->transpose();
+  P.bottomLeftCorner<3, 3>() = -SO3::Hat(lever);  // w x d = -d^ w
+  P.bottomRightCorner<3, 3>().setIdentity();
+  return P;
+}
+
+Eigen::MatrixXd StageCoarseSpace::basisOf(DgsStage stage, const Key& key,
+                                          const Eigen::VectorXd& x,
+                                          const Eigen::Vector3d& frozen,
+                                          const std::map<Key, Matrix3>& R_hat) const {
+  if (stage == DgsStage::kRotation) {
+    return Basis(DgsStage::kRotation, x, nullptr, Eigen::Vector3d::Zero());
+  }
+  return Basis(DgsStage::kPose, x, &R_hat.at(key), frozen - centre_);
+}
+
+void StageCoarseSpace::freeze(const std::vector<Eigen::VectorXd>& x, const NeighbourInbox& inbox) {
+  ref_.clear();
+  centre_.setZero();
+  for (const Eigen::VectorXd& xi : x) {
+    ref_.push_back(xi.tail<3>());
+    centre_ += xi.tail<3>();
+  }
+  if (!x.empty()) centre_ /= static_cast<double>(x.size());
+  const std::size_t n = graph_.neighbours().size();
+  ref_copy_.assign(n, Eigen::Vector3d::Zero());
+  for (std::size_t j = 0; j < n; ++j) {
+    const Eigen::VectorXd* v = inbox.get(DgsStage::kPose, static_cast<int>(j));
+    if (v) ref_copy_[j] = v->tail<3>();
+  }
+  frozen_ = true;
+}
+
+CoarseShare StageCoarseSpace::share(DgsStage stage, const std::vector<Eigen::VectorXd>& x,
+                                    const Eigen::MatrixXd& rhs, const LocalSystem& system,
+                                    const NeighbourInbox& inbox,
+                                    const std::map<Key, Matrix3>& R_hat) {
+  const bool rotation = stage == DgsStage::kRotation;
+  const int bs = rotation ? 3 : 6, k = rotation ? 3 : 6, ncols = rotation ? 3 : 1;
+  const auto& unknowns = graph_.unknowns();
+  const Eigen::Index n = static_cast<Eigen::Index>(unknowns.size()) * bs;
+  if (!rotation && !frozen_) freeze(x, inbox);
+  CoarseShare share;
+  share.center = rotation ? Eigen::Vector3d::Zero() : centre_;
+  // P (n x k) and x (n x ncols), stacked in the system's order.
+  Eigen::MatrixXd P(n, k), X(n, ncols);
+  const Eigen::Vector3d none = Eigen::Vector3d::Zero();  // stage 1 has no lever arms
+  for (std::size_t i = 0; i < unknowns.size(); ++i) {
+    const Eigen::Index row = system.row(unknowns[i]);
+    P.middleRows(row, bs) = basisOf(stage, unknowns[i], x[i], rotation ? none : ref_[i], R_hat);
+    X.middleRows(row, bs) = Eigen::Map<const Eigen::MatrixXd>(x[i].data(), bs, ncols);
+  }
+  Eigen::MatrixXd HP(n, k);
+  for (int c = 0; c < k; ++c) HP.col(c) = system.multiply(P.col(c));
+  share.diagonal = P.transpose() * HP;
+  Eigen::MatrixXd residual = rhs;
+  for (int c = 0; c < ncols; ++c) residual.col(c) -= system.multiply(X.col(c));
+  share.residual = P.transpose() * residual;
+  const auto& separators = graph_.separators();
+  for (std::size_t s = 0; s < separators.size(); ++s) {
+    const Eigen::Index row = system.separatorRow(s);
+    if (row < 0) continue;
+    const Separator& sep = separators[s];
+    if (sep.foreign == graph_.anchor()) continue;  // fixed: not in its owner's coarse space
+    const Eigen::VectorXd* foreign = inbox.get(stage, sep.slot);
+    if (!foreign) continue;  // stage 2: no increment yet, P_j unknown (and the coupling unused)
+    const Eigen::Vector3d& frozen =
+        rotation ? none : ref_copy_[static_cast<std::size_t>(sep.slot)];
+    const Eigen::MatrixXd block = P.middleRows(row, bs).transpose() * system.coupling(s) *
+                                  basisOf(stage, sep.foreign, *foreign, frozen, R_hat);
+    auto [it, inserted] = share.coupling.try_emplace(sep.foreign_robot, block);
+    if (!inserted) it->second += block;
+  }
+  return share;
+}
+
+void StageCoarseSpace::apply(DgsStage stage, const std::map<int, Eigen::MatrixXd>& y,
+                             std::vector<Eigen::VectorXd>& x, NeighbourInbox& inbox,
+                             const std::map<Key, Matrix3>& R_hat) const {
+  const bool rotation = stage == DgsStage::kRotation;
+  const int bs = rotation ? 3 : 6, ncols = rotation ? 3 : 1;
+  if (!rotation && !frozen_) {
+    throw InvalidInputError("DGS robot " + std::to_string(graph_.robot()) +
+                            ": applyCoarse() in stage 2 before coarseShare()");
+  }
+  auto move = [&](const Key& key, Eigen::VectorXd& value, const Eigen::MatrixXd& yr,
+                  const Eigen::Vector3d& frozen) {
+    const Eigen::MatrixXd dx = basisOf(stage, key, value, frozen, R_hat) * yr;
+    value += Eigen::Map<const Eigen::VectorXd>(dx.data(), bs * ncols);
+  };
+  const Eigen::Vector3d none = Eigen::Vector3d::Zero();  // stage 1 has no lever arms
+  const auto own = y.find(graph_.robot());
+  if (own != y.end()) {
+    const auto& unknowns = graph_.unknowns();
+    for (std::size_t i = 0; i < unknowns.size(); ++i) {
+      move(unknowns[i], x[i], own->second, rotation ? none : ref_[i]);
+    }
+  }
+  const auto& neighbours = graph_.neighbours();
+  for (std::size_t j = 0; j < neighbours.size(); ++j) {
+    const Key& key = neighbours[j];
+    const auto it = y.find(key.robot);
+    if (it == y.end() || key == graph_.anchor()) continue;  // the anchor never moves
+    Eigen::VectorXd* value = inbox.mutableValue(stage, static_cast<int>(j));
+    if (!value) continue;
+    if (!rotation && R_hat.count(key) == 0) continue;
+    move(key, *value, it->second, rotation ? none : ref_copy_[j]);
+  }
+}
+
+}  // namespace moslam

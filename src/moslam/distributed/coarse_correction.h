@@ -1,0 +1,78 @@
+// The robot's side of the two-level DGS (DgsOptions::coarse_correction, beyond DGS.md): a Galerkin
+// correction x_i += P_i y_r over the motions of whole robots, the slow modes of the sweeps (each
+// robot's block is solved exactly; what the sweeps are slow at is moving a whole robot against
+// the others). For every variable i of robot r:
+//   stage 1: X_i += X_i Y_r, Y_r 3x3 (X = R^T: R += Y_r^T R, a linear map of the whole robot;
+//            the chordal residual of an edge inside the robot only scales by it)
+//   stage 2: dtheta_i += R_hat_i^T w_r, t_i += tau_r + w_r x (t_i - c_r), y_r = (w_r, tau_r):
+//            a rigid motion of the robot about its centre c_r (CoarseShare::center; edges
+//            inside the robot change only by w_r x their residual)
+// share(): the robot's rows of the coarse system (P^T H P) y = P^T (g - H x) at the current
+// estimates, own and received, for the separators the last solve used. apply(y): adds P_i y to the
+// own unknowns and to the received copies of the neighbours' variables (robots missing from y:
+// 0), every y in this robot's basis (stage 2: centred on its c_r, as share() computed it; the
+// estimates must not change in between): the same motion of the same numbers as their owners
+// apply, so no estimate has to be sent again. The stage-2 basis is frozen at the stage's first
+// share (lever arms t_i - c_r of that moment), so every correction works in one subspace.
+#pragma once
+
+#include <Eigen/Core>
+#include <map>
+#include <vector>
+
+#include "moslam/distributed/dgs_types.h"
+#include "moslam/distributed/local_graph.h"
+#include "moslam/distributed/local_system.h"
+#include "moslam/distributed/neighbour_inbox.h"
+
+namespace moslam {
+
+// One robot's rows of the coarse system: k = 3 unknowns per robot and 3 right-hand sides in
+// stage 1, k = 6 and 1 in stage 2.
+struct CoarseShare {
+  Eigen::MatrixXd diagonal;                 // k x k: P_r^T H_rr P_r
+  std::map<int, Eigen::MatrixXd> coupling;  // per neighbouring robot s: P_r^T H_rs P_s (k x k)
+  Eigen::MatrixXd residual;                 // k x ncols: P_r^T (g - H x)_r
+  // Stage 2: the point c_r the robot's coarse rotations turn about (the mean of its
+  // translations; a basis centred on the robot keeps the coarse system well conditioned far from
+  // the origin). Every block, the neighbours' columns included, is in this robot's basis
+  // (centred on c_r); the coordinator moves them to the neighbours' centres. Stage 1: zero.
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+};
+
+class StageCoarseSpace {
+ public:
+  // `graph` must outlive it.
+  explicit StageCoarseSpace(const LocalGraph& graph) : graph_(graph) {}
+
+  // A new stage: the stage-2 basis is frozen again at the next share().
+  void reset() { frozen_ = false; }
+  bool frozen() const { return frozen_; }
+
+  // `x`: the own unknowns' stage values; `rhs`: the local right-hand side with the neighbour values
+  // held now (g - sum_s H_rs x_s); `R_hat`: stage 2's linearisation rotations (own and neighbours').
+  CoarseShare share(DgsStage stage, const std::vector<Eigen::VectorXd>& x,
+                    const Eigen::MatrixXd& rhs, const LocalSystem& system,
+                    const NeighbourInbox& inbox, const std::map<Key, Matrix3>& R_hat);
+  // Applies y (per robot, k x ncols, in this robot's basis) to `x` and to the inbox's copies.
+  // Throws InvalidInputError in stage 2 before share().
+  void apply(DgsStage stage, const std::map<int, Eigen::MatrixXd>& y,
+             std::vector<Eigen::VectorXd>& x, NeighbourInbox& inbox,
+             const std::map<Key, Matrix3>& R_hat) const;
+
+ private:
+  // P_i of a variable with stage value x (stage 2: its R_hat and lever arm about the centre).
+  static Eigen::MatrixXd Basis(DgsStage stage, const Eigen::VectorXd& x, const Matrix3* R_hat,
+                               const Eigen::Vector3d& lever);
+  Eigen::MatrixXd basisOf(DgsStage stage, const Key& key, const Eigen::VectorXd& x,
+                          const Eigen::Vector3d& frozen,
+                          const std::map<Key, Matrix3>& R_hat) const;
+  void freeze(const std::vector<Eigen::VectorXd>& x, const NeighbourInbox& inbox);
+
+  const LocalGraph& graph_;
+  bool frozen_ = false;
+  std::vector<Eigen::Vector3d> ref_, ref_copy_;  // frozen translations: own, neighbours (by slot)
+  Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
+};
+
+}  // namespace moslam
