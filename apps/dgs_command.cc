@@ -35,9 +35,10 @@ struct DgsArgs {
   int max_iterations = 1000;
   bool no_flagged = false;
   bool weighted = false;
-  bool coarse = false;
+  std::string stages = "auto";  // auto: two-level with --refine, one-level (the paper's) without
   bool refine = false;
   std::string refine_solver = "cg";
+  std::string refine_preconditioner = "two-level";
   int refine_max_iterations = 100;
   double refine_tolerance = 1e-10;
   int refine_max_sweeps = 1000;
@@ -96,10 +97,12 @@ int RunDgsCommand(const DgsArgs& a) {
   options.max_iterations = a.max_iterations;
   options.flagged_initialisation = !a.no_flagged;
   options.weight_by_information = a.weighted;
-  options.coarse_correction = a.coarse;
+  options.coarse_correction =
+      a.stages == "two-level" || (a.stages == "auto" && a.refine);
   options.refine = a.refine;
   options.refinement.solver =
       a.refine_solver == "sweeps" ? RefineSolver::kSweeps : RefineSolver::kConjugateGradient;
+  options.refinement.preconditioner = RefinePreconditionerFromString(a.refine_preconditioner);
   options.refinement.max_iterations = a.refine_max_iterations;
   options.refinement.relative_cost_tolerance = a.refine_tolerance;
   options.refinement.max_sweeps = a.refine_max_sweeps;
@@ -181,7 +184,7 @@ int RunDgsCommand(const DgsArgs& a) {
         {"order", a.order},
         {"flagged_initialisation", !a.no_flagged},
         {"weighted", a.weighted},
-        {"coarse", a.coarse},
+        {"coarse", options.coarse_correction},
         {"coarse_corrections", r.rotation.coarse_corrections + r.pose.coarse_corrections},
         {"refine", a.refine},
         {"two_stage_cost", two_stage_cost},
@@ -228,6 +231,29 @@ int RunDgsCommand(const DgsArgs& a) {
         {"total_seconds", total_seconds},
     };
     if (a.refine) {
+      // Per Gauss-Newton step: the accepted cost and the bytes so far (two stages included), and
+      // the bytes when the estimate first came within 1e-6 relative of the centralized optimum.
+      const std::int64_t two_stage_bytes = r.rotation.bytes + r.pose.bytes;
+      const double within = central.final_cost * (1.0 + 1e-6);
+      nlohmann::json history = nlohmann::json::array();
+      nlohmann::json bytes_to_optimum =
+          two_stage_cost <= within ? nlohmann::json(two_stage_bytes) : nlohmann::json(nullptr);
+      double cost = r.refine.initial_cost;
+      for (const RefineStepSummary& step : r.refine.steps) {
+        if (step.accepted) cost = step.cost_candidate;
+        history.push_back({{"step", step.iteration},
+                           {"sweeps", step.sweeps},
+                           {"accepted", step.accepted},
+                           {"cost", cost},
+                           {"bytes", two_stage_bytes + step.bytes}});
+        if (bytes_to_optimum.is_null() && cost <= within) {
+          bytes_to_optimum = two_stage_bytes + step.bytes;
+        }
+      }
+      j["refine_history"] = history;
+      j["bytes_to_optimum_1e-6"] = bytes_to_optimum;
+      j["refine_preconditioner"] = ToString(options.refinement.preconditioner);
+      j["refine_coarse_corrections"] = r.refine.coarse_corrections;
       j["refine_solver"] = ToString(options.refinement.solver);
       j["refine_steps"] = r.refine.iterations;
       j["refine_rejected_steps"] = r.refine.rejected;
@@ -302,15 +328,26 @@ Runner RegisterDgs(CLI::App& app) {
   sub->add_flag("--no-flagged", args->no_flagged, "without flagged initialisation");
   sub->add_flag("--weighted", args->weighted,
                 "weight the two stages by the information matrices (the reference: unit)");
-  sub->add_flag("--coarse", args->coarse,
-                "two-level DGS: after each sweep a coarse correction of every robot's motion "
-                "as a whole, solved by one coordinator robot");
+  sub->add_option("--stages", args->stages,
+                  "the two stages: one-level (DGS.md, the paper's), two-level (after each sweep "
+                  "a coarse correction of every robot's motion as a whole, solved by one "
+                  "coordinator robot), or auto: two-level with --refine (the stages then only "
+                  "start the refinement), one-level without")
+      ->check(CLI::IsMember({"auto", "one-level", "two-level"}))
+      ->capture_default_str();
+  sub->add_flag_callback(
+      "--coarse", [args] { args->stages = "two-level"; }, "the same as --stages two-level");
   sub->add_flag("--refine", args->refine,
                 "after the two stages, distributed Gauss-Newton on the SE(3) cost");
   sub->add_option("--refine-solver", args->refine_solver,
                   "linear steps by cg (conjugate gradients preconditioned by the sweeps) or "
                   "sweeps (plain block Gauss-Seidel / Jacobi)")
       ->check(CLI::IsMember({"cg", "sweeps"}))
+      ->capture_default_str();
+  sub->add_option("--refine-preconditioner", args->refine_preconditioner,
+                  "preconditioner of the refinement's conjugate gradients: two-level (the "
+                  "sweeps around a coarse correction over the robots' rigid motions) or sweeps")
+      ->check(CLI::IsMember({"two-level", "sweeps"}))
       ->capture_default_str();
   sub->add_option("--refine-max-iter", args->refine_max_iterations,
                   "maximum Gauss-Newton steps")

@@ -122,3 +122,84 @@ void StageCoarseSpace::apply(DgsStage stage, const std::map<int, Eigen::MatrixXd
 }
 
 }  // namespace moslam
+
+namespace moslam {
+namespace {
+
+// Ad(x^-1) [I 0; c^ I]: a robot's rigid motion about c as the right increment of x.
+Matrix6 RefineBasis(const SE3& x, const Eigen::Vector3d& centre) {
+  Matrix6 S = Matrix6::Identity();
+  S.bottomLeftCorner<3, 3>() = SO3::Hat(centre);
+  return x.inverse().Adjoint() * S;
+}
+
+}  // namespace
+
+void RefineCoarseSpace::build(const LocalGraph& graph, const Refinement& refinement) {
+  const auto& unknowns = graph.unknowns();
+  centre_.setZero();
+  for (const Key& k : unknowns) centre_ += refinement.knownPose(k)->translation();
+  if (!unknowns.empty()) centre_ /= static_cast<double>(unknowns.size());
+  own_.clear();
+  for (const Key& k : unknowns) own_.push_back(RefineBasis(*refinement.knownPose(k), centre_));
+  const auto& neighbours = graph.neighbours();
+  neighbour_.assign(neighbours.size(), Matrix6::Zero());
+  neighbour_known_.assign(neighbours.size(), 0);
+  for (std::size_t j = 0; j < neighbours.size(); ++j) {
+    const SE3* x = refinement.knownPose(neighbours[j]);
+    if (!x || neighbours[j] == graph.anchor()) continue;  // the anchor is in no coarse space
+    neighbour_[j] = RefineBasis(*x, centre_);
+    neighbour_known_[j] = 1;
+  }
+}
+
+CoarseShare RefineCoarseSpace::matrix(const LocalGraph& graph, const LocalSystem& system) const {
+  const auto& unknowns = graph.unknowns();
+  const Eigen::Index n = static_cast<Eigen::Index>(6 * unknowns.size());
+  Eigen::MatrixXd P(n, 6);
+  for (std::size_t i = 0; i < unknowns.size(); ++i) {
+    P.middleRows<6>(system.row(unknowns[i])) = own_[i];
+  }
+  Eigen::MatrixXd HP(n, 6);
+  for (int c = 0; c < 6; ++c) HP.col(c) = system.multiply(P.col(c));
+  CoarseShare share;
+  share.diagonal = P.transpose() * HP;
+  share.center = centre_;
+  const auto& separators = graph.separators();
+  for (std::size_t s = 0; s < separators.size(); ++s) {
+    const Eigen::Index row = system.separatorRow(s);
+    const Separator& sep = separators[s];
+    if (row < 0 || !neighbour_known_[static_cast<std::size_t>(sep.slot)]) continue;
+    const Eigen::MatrixXd block = P.middleRows<6>(row).transpose() * system.coupling(s) *
+                                  neighbour_[static_cast<std::size_t>(sep.slot)];
+    auto [it, inserted] = share.coupling.try_emplace(sep.foreign_robot, block);
+    if (!inserted) it->second += block;
+  }
+  return share;
+}
+
+Eigen::VectorXd RefineCoarseSpace::project(const LocalGraph& graph, const LocalSystem& system,
+                                           const Eigen::VectorXd& r) const {
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(6);
+  const auto& unknowns = graph.unknowns();
+  for (std::size_t i = 0; i < unknowns.size(); ++i) {
+    out.noalias() += own_[i].transpose() * r.segment<6>(system.row(unknowns[i]));
+  }
+  return out;
+}
+
+void RefineCoarseSpace::apply(const LocalGraph& graph, const std::map<int, Eigen::MatrixXd>& y,
+                              std::vector<Eigen::VectorXd>& z, NeighbourInbox& inbox) const {
+  const auto own = y.find(graph.robot());
+  if (own != y.end()) {
+    for (std::size_t i = 0; i < z.size(); ++i) z[i] += own_[i] * own->second.col(0);
+  }
+  const auto& neighbours = graph.neighbours();
+  for (std::size_t j = 0; j < neighbours.size(); ++j) {
+    const auto it = y.find(neighbours[j].robot);
+    if (it == y.end() || !neighbour_known_[j]) continue;
+    inbox.add(DgsStage::kRefine, static_cast<int>(j), neighbour_[j] * it->second.col(0));
+  }
+}
+
+}  // namespace moslam

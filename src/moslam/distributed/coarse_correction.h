@@ -24,6 +24,7 @@
 #include "moslam/distributed/local_graph.h"
 #include "moslam/distributed/local_system.h"
 #include "moslam/distributed/neighbour_inbox.h"
+#include "moslam/distributed/refinement.h"
 
 namespace moslam {
 
@@ -72,6 +73,40 @@ class StageCoarseSpace {
   const LocalGraph& graph_;
   bool frozen_ = false;
   std::vector<Eigen::Vector3d> ref_, ref_copy_;  // frozen translations: own, neighbours (by slot)
+  Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
+};
+
+}  // namespace moslam
+
+namespace moslam {
+
+// The second level of the refinement's preconditioner (DgsOptions::Refinement::
+// coarse_preconditioner): the same coarse space, one rigid motion y = (w, tau) of each robot
+// about its centre c_r, in the refinement's unknowns, the right increments x_i Exp(delta_i):
+//   delta_i = Ad(x_i^-1) [I 0; c_r^ I] y,
+// the first-order increment of x_i moved by the world-frame rotation w about c_r and the
+// translation tau. The basis is taken at the step's linearisation point and the robot's centre
+// (the mean of its translations), for its unknowns and its known neighbour copies alike (the
+// neighbours' columns in this robot's basis; CoarseSystem moves them to their own centres).
+class RefineCoarseSpace {
+ public:
+  // The basis at the current estimate of `refinement`.
+  void build(const LocalGraph& graph, const Refinement& refinement);
+  // The robot's rows of the coarse matrix P^T (H + damping) P of the step's system, as assembled
+  // in `system`: diagonal, couplings to the neighbouring robots, centre (no residual).
+  CoarseShare matrix(const LocalGraph& graph, const LocalSystem& system) const;
+  // P_r^T r for the robot's part r of a residual (stacked as the system's unknowns).
+  Eigen::VectorXd project(const LocalGraph& graph, const LocalSystem& system,
+                          const Eigen::VectorXd& r) const;
+  // z_i += P_i y_r for the own unknowns (`z`, per unknown) and for the neighbours' copies of z in
+  // `inbox` (stage kRefine; a copy not received yet counts as 0): the same move as their owners.
+  void apply(const LocalGraph& graph, const std::map<int, Eigen::MatrixXd>& y,
+             std::vector<Eigen::VectorXd>& z, NeighbourInbox& inbox) const;
+
+ private:
+  std::vector<Matrix6> own_;             // P_i per unknown
+  std::vector<Matrix6> neighbour_;       // per slot (zero when unknown or the anchor)
+  std::vector<char> neighbour_known_;
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
 };
 

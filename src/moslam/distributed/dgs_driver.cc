@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/distributed/coarse_system.h"
 #include "moslam/distributed/messages.h"
 #include "moslam/distributed/partition.h"
 #include "moslam/distributed/robot_agent.h"
@@ -80,6 +81,17 @@ std::string ToString(StageStatus status) {
 
 std::string ToString(RefineSolver solver) {
   return solver == RefineSolver::kSweeps ? "sweeps" : "cg";
+}
+
+std::string ToString(RefinePreconditioner preconditioner) {
+  return preconditioner == RefinePreconditioner::kSweeps ? "sweeps" : "two-level";
+}
+
+RefinePreconditioner RefinePreconditionerFromString(const std::string& text) {
+  if (text == "sweeps") return RefinePreconditioner::kSweeps;
+  if (text == "two-level") return RefinePreconditioner::kTwoLevel;
+  throw InvalidInputError("refinement preconditioner must be sweeps or two-level, got '" + text +
+                          "'");
 }
 
 std::vector<int> FlaggedRobotOrder(const std::vector<int>& robots,
@@ -342,33 +354,13 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
   }
 }
 
-namespace {
-
-std::vector<double> Flatten(const Eigen::MatrixXd& m) {
-  return std::vector<double>(m.data(), m.data() + m.size());
-}
-
-Eigen::MatrixXd Unflatten(const std::vector<double>& v, int rows, int cols) {
-  return Eigen::Map<const Eigen::MatrixXd>(v.data(), rows, cols);
-}
-
-// Stage 2: coarse unknowns (w, tau) about centre c_s, as unknowns about c_r: the same motion
-// w x (t - c_s) + tau = w x (t - c_r) + tau + (c_s - c_r) x w, i.e. T(d) = [I 0; d^ I] with
-// d = c_s - c_r (the columns of robot s's basis centred on c_s are those centred on c_r times
-// T(d)). Stage 1: the identity.
-Eigen::MatrixXd CentreShift(int k, const Eigen::Vector3d& d) {
-  Eigen::MatrixXd T = Eigen::MatrixXd::Identity(k, k);
-  if (k == 6) T.bottomLeftCorner<3, 3>() = SO3::Hat(d);
-  return T;
-}
-
-}  // namespace
-
 CoarseMessage DgsDriver::sendCoarse(const CoarseMessage& m, int to, DgsIterationStats& stats) {
   const std::vector<std::uint8_t> bytes = EncodeCoarseMessage(m);
   if (m.sender == to) return m;  // the coordinator's own share: no network
   ++stats.messages;
   stats.bytes += static_cast<std::int64_t>(bytes.size());
+  ++stats.coarse_messages;
+  stats.coarse_bytes += static_cast<std::int64_t>(bytes.size());
   return DecodeCoarseMessage(bytes);
 }
 
@@ -386,74 +378,36 @@ bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStat
   if (robots.empty()) return false;
   const int k = stage == DgsStage::kRotation ? 3 : 6;
   const int ncols = stage == DgsStage::kRotation ? 3 : 1;
-  std::map<int, Eigen::Index> index;
-  for (std::size_t i = 0; i < robots.size(); ++i) {
-    index[robots[i]] = static_cast<Eigen::Index>(i) * k;
-  }
-  const Eigen::Index K = static_cast<Eigen::Index>(robots.size()) * k;
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(K, K), B(K, ncols);
+  CoarseSystem coarse(robots, k);
+  Eigen::MatrixXd B(coarse.rows(), ncols);
   const int c = coordinator();
-  auto message = [&](CoarseKind kind, int sender) {
+  // Every robot sends its rows to the coordinator.
+  for (int r : robots) {
+    const CoarseShare share = agents_.at(r)->coarseShare();
     CoarseMessage m;
-    m.kind = kind;
+    m.kind = CoarseKind::kShare;
     m.stage = stage;
-    m.sender = sender;
+    m.sender = r;
     m.iteration = static_cast<std::uint32_t>(iteration);
     m.k = k;
     m.ncols = ncols;
-    return m;
-  };
-  // Every robot sends its rows to the coordinator.
-  std::map<int, Eigen::Vector3d> centre;
-  std::map<int, std::vector<std::pair<int, std::vector<double>>>> received;
-  for (int r : robots) {
-    const CoarseShare share = agents_.at(r)->coarseShare();
-    CoarseMessage m = message(CoarseKind::kShare, r);
-    if (stage == DgsStage::kPose) m.center = Flatten(share.center);
-    m.diagonal = Flatten(share.diagonal);
-    m.residual = Flatten(share.residual);
-    for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, Flatten(block));
-    CoarseMessage got = sendCoarse(m, c, stats);
-    centre[r] = got.center.empty() ? Eigen::Vector3d::Zero()
-                                   : Eigen::Vector3d(got.center[0], got.center[1], got.center[2]);
-    const Eigen::Index ir = index.at(r);
-    A.block(ir, ir, k, k) += Unflatten(got.diagonal, k, k);
-    B.middleRows(ir, k) = Unflatten(got.residual, k, ncols);
-    received[r] = std::move(got.blocks);
+    if (stage == DgsStage::kPose) m.center = FlattenMatrix(share.center);
+    m.diagonal = FlattenMatrix(share.diagonal);
+    m.residual = FlattenMatrix(share.residual);
+    for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+    B.middleRows(coarse.index(r), k) = coarse.addShare(sendCoarse(m, c, stats));
   }
-  for (int r : robots) {
-    const Eigen::Index ir = index.at(r);
-    for (const auto& [s, block] : received[r]) {
-      const auto is = index.find(s);  // a silent neighbour's variables stay fixed
-      if (is == index.end()) continue;
-      A.block(ir, is->second, k, k) +=
-          Unflatten(block, k, k) * CentreShift(k, centre.at(s) - centre.at(r));
-    }
-  }
-  // H is symmetric; the two robots of a separator computed its block from their own copies.
-  A = 0.5 * (A + A.transpose());
-  // Jacobi scaling (rotations and translations have different units), then Cholesky.
-  const Eigen::VectorXd scale = A.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseInverse();
-  if (!scale.allFinite()) return false;
-  const Eigen::LLT<Eigen::MatrixXd> llt(scale.asDiagonal() * A * scale.asDiagonal());
-  if (llt.info() != Eigen::Success) return false;
-  const Eigen::MatrixXd Y = scale.asDiagonal() * llt.solve(scale.asDiagonal() * B);
-  if (!Y.allFinite()) return false;
+  Eigen::MatrixXd Y;
+  if (!coarse.factorize() || !coarse.solve(B, &Y)) return false;
   // The coordinator sends every robot its own y and its neighbouring robots'.
   for (int r : robots) {
     RobotAgent& a = *agents_.at(r);
-    std::set<int> needed = a.neighbourRobots();
-    needed.insert(r);
-    CoarseMessage m = message(CoarseKind::kSolution, c);
-    for (int s : needed) {  // y_s about c_s, sent about c_r (the receiver's basis)
-      const auto is = index.find(s);
-      if (is == index.end()) continue;
-      const Eigen::MatrixXd y_s = Y.middleRows(is->second, k);
-      m.blocks.emplace_back(s, Flatten(CentreShift(k, centre.at(s) - centre.at(r)) * y_s));
-    }
-    const CoarseMessage got = sendCoarse(m, r, stats);
+    const CoarseMessage got = sendCoarse(
+        coarse.solutionFor(r, a.neighbourRobots(), Y, stage, c,
+                           static_cast<std::uint32_t>(iteration)),
+        r, stats);
     std::map<int, Eigen::MatrixXd> y;
-    for (const auto& [s, block] : got.blocks) y[s] = Unflatten(block, k, ncols);
+    for (const auto& [s, block] : got.blocks) y[s] = UnflattenMatrix(block, k, ncols);
     a.applyCoarse(y);
   }
   return true;
@@ -522,6 +476,8 @@ void DgsDriver::closeSweep(RefineRun& run) {
   report.bytes += stats.bytes;
   report.control_messages += stats.control_messages;
   report.control_bytes += stats.control_bytes;
+  report.coarse_messages += stats.coarse_messages;
+  report.coarse_bytes += stats.coarse_bytes;
   result_.messages += stats.messages;
   result_.bytes += stats.bytes;
   result_.history.push_back(stats);
@@ -606,21 +562,93 @@ void DgsDriver::solveBySweeps(RefineRun& run, RefineStepSummary& summary) {
   }
 }
 
+std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsIterationStats& stats,
+                                                            std::uint32_t sweep) {
+  std::vector<int> robots;
+  for (int r : order_) {
+    if (!live(r)) continue;
+    if (!agents_.at(r)->refineCoarseReady()) return nullptr;
+    robots.push_back(r);
+  }
+  if (robots.empty()) return nullptr;
+  auto coarse = std::make_unique<CoarseSystem>(robots, 6);
+  const int c = coordinator();
+  for (int r : robots) {
+    const CoarseShare share = agents_.at(r)->refineCoarseMatrix();
+    CoarseMessage m;
+    m.kind = CoarseKind::kMatrix;
+    m.stage = DgsStage::kRefine;
+    m.sender = r;
+    m.iteration = sweep;
+    m.k = 6;
+    m.ncols = 1;
+    m.center = FlattenMatrix(share.center);
+    m.diagonal = FlattenMatrix(share.diagonal);
+    for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+    coarse->addShare(sendCoarse(m, c, stats));
+  }
+  if (!coarse->factorize()) return nullptr;
+  return coarse;
+}
+
+void DgsDriver::refineCoarseCorrection(const CoarseSystem& coarse, DgsIterationStats& stats,
+                                       std::uint32_t sweep) {
+  const int c = coordinator();
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(coarse.rows(), 1);
+  for (int r : order_) {
+    if (!live(r) || coarse.index(r) < 0) continue;
+    CoarseMessage m;
+    m.kind = CoarseKind::kResidual;
+    m.stage = DgsStage::kRefine;
+    m.sender = r;
+    m.iteration = sweep;
+    m.k = 6;
+    m.ncols = 1;
+    m.residual = FlattenMatrix(agents_.at(r)->refineCoarseResidual());
+    const CoarseMessage got = sendCoarse(m, c, stats);
+    B.middleRows(coarse.index(r), 6) = UnflattenMatrix(got.residual, 6, 1);
+  }
+  Eigen::MatrixXd Y;
+  if (!coarse.solve(B, &Y)) return;
+  for (int r : order_) {
+    if (!live(r) || coarse.index(r) < 0) continue;
+    RobotAgent& a = *agents_.at(r);
+    const CoarseMessage got = sendCoarse(
+        coarse.solutionFor(r, a.neighbourRobots(), Y, DgsStage::kRefine, c, sweep), r, stats);
+    std::map<int, Eigen::MatrixXd> y;
+    for (const auto& [s, block] : got.blocks) y[s] = UnflattenMatrix(block, 6, 1);
+    a.applyRefineCoarse(y);
+  }
+  ++result_.refine.coarse_corrections;
+}
+
 void DgsDriver::solveByConjugateGradients(RefineRun& run, RefineStepSummary& summary) {
   const DgsOptions::Refinement& opt = options_.refinement;
   int sweeps = 0;
-  // z = M^-1 res: symmetric block Gauss-Seidel (a forward and a backward sweep) or one block
-  // Jacobi sweep, from z = 0.
+  // The step's coarse system of the two-level preconditioner, set up at its first use.
+  std::unique_ptr<CoarseSystem> coarse;
+  bool coarse_tried = false;
+  // z = M^-1 res from z = 0: symmetric block Gauss-Seidel (a forward and a backward sweep) or
+  // one block Jacobi sweep; two-level: a coarse correction after the first sweep (and, with
+  // Jacobi, a second sweep after it, so that M stays symmetric).
   auto precondition = [&]() {
     for (int r : order_) {
       if (live(r)) agents_.at(r)->startPreconditioner();
     }
-    const bool symmetric = options_.order == SweepOrder::kGaussSeidel;
-    for (int pass = 0; pass < (symmetric ? 2 : 1); ++pass) {
+    if (opt.preconditioner == RefinePreconditioner::kTwoLevel && !coarse_tried) {
+      coarse_tried = true;
+      coarse = refineCoarseSystem(traffic(run), static_cast<std::uint32_t>(sweeps));
+    }
+    const bool gauss_seidel = options_.order == SweepOrder::kGaussSeidel;
+    const int passes = gauss_seidel || coarse ? 2 : 1;
+    for (int pass = 0; pass < passes; ++pass) {
       openSweep(run);
-      runSweeps(DgsStage::kRefine, run.current, pass == 1);
-      run.current.max_change = observedChange();
+      runSweeps(DgsStage::kRefine, run.current, gauss_seidel && pass == 1);
       ++sweeps;
+      if (pass == 0 && coarse) {
+        refineCoarseCorrection(*coarse, run.current, static_cast<std::uint32_t>(sweeps));
+      }
+      run.current.max_change = observedChange();
     }
   };
   auto all = [&](const std::function<void(RobotAgent&)>& f) {
@@ -774,6 +802,7 @@ const RefineReport& DgsDriver::runRefineStage() {
       closeSweep(run);
       if (accept) cost = candidate;
       summary.accepted = accept;
+      summary.bytes = report.bytes;
       report.iterations = step;
       report.final_cost = cost;
       summary.seconds = Since(step_start);

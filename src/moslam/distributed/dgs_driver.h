@@ -83,6 +83,15 @@ enum class RefineSolver {
 };
 std::string ToString(RefineSolver solver);
 
+// The preconditioner of the refinement's conjugate gradients (see the top).
+enum class RefinePreconditioner {
+  kSweeps,    // a forward and a backward block Gauss-Seidel sweep (one Jacobi sweep)
+  kTwoLevel,  // the same sweeps around a coarse correction over the robots' rigid motions
+};
+std::string ToString(RefinePreconditioner preconditioner);
+// "sweeps" | "two-level"; throws InvalidInputError otherwise.
+RefinePreconditioner RefinePreconditionerFromString(const std::string& text);
+
 struct DgsOptions {
   double eta_rotation = 1e-2;  // stage 1 stops when every robot's change is <= this
   double eta_pose = 1e-2;      // stage 2 likewise
@@ -110,6 +119,7 @@ struct DgsOptions {
   bool refine = false;  // RunDgs: run the refinement after the two stages
   struct Refinement {
     RefineSolver solver = RefineSolver::kConjugateGradient;
+    RefinePreconditioner preconditioner = RefinePreconditioner::kTwoLevel;
     int max_iterations = 100;                // Gauss-Newton steps (accepted or rejected)
     double relative_cost_tolerance = 1e-10;  // converged when a step gains <= this * F
     int max_sweeps = 1000;                   // per step
@@ -152,6 +162,8 @@ struct DgsIterationStats {
   std::int64_t control_messages = 0;  // refinement: the control messages among them (the sweep's
   std::int64_t control_bytes = 0;     // reports and decision; a step's cost reports and step
                                       // decision count in the step's last sweep)
+  std::int64_t coarse_messages = 0;   // two-level: the coarse messages among them (rows to the
+  std::int64_t coarse_bytes = 0;      // coordinator, solutions back)
   double max_change = 0.0;    // over the live robots (+inf while one has not solved yet)
   double max_increment = 0.0; // refinement by sweeps: the largest ||delta_r||
   double residual = 0.0;      // refinement by conjugate gradients: sqrt(res.z / res0.z0) after
@@ -181,6 +193,7 @@ struct RefineStepSummary {
   double cost_candidate = 0.0;   // F at x Exp(delta)
   bool accepted = false;
   double seconds = 0.0;
+  std::int64_t bytes = 0;  // everything the refinement sent up to the end of this step
 };
 
 struct RefineReport {
@@ -192,9 +205,12 @@ struct RefineReport {
   std::int64_t bytes = 0;
   std::int64_t control_messages = 0;
   std::int64_t control_bytes = 0;
+  std::int64_t coarse_messages = 0;  // two-level preconditioner
+  std::int64_t coarse_bytes = 0;
   double initial_cost = 0.0;  // F at the two-stage estimate, as the robots' shares sum it
   double final_cost = 0.0;
   int coordinator = 0;
+  int coarse_corrections = 0;  // two-level preconditioner: coarse corrections applied
   std::vector<RefineStepSummary> steps;
   double seconds = 0.0;
 };
@@ -220,6 +236,7 @@ struct DgsResult {
 };
 
 class RobotAgent;
+class CoarseSystem;
 
 // Called after every sweep (all stages) and after every refinement step, e.g. to print progress.
 struct DgsProgress {
@@ -271,6 +288,12 @@ class DgsDriver {
   bool coarseCorrection(DgsStage stage, int iteration, DgsIterationStats& stats);
   // Encodes, counts (unless to the sender itself) and decodes one coarse message.
   CoarseMessage sendCoarse(const CoarseMessage& m, int to, DgsIterationStats& stats);
+  // The refinement's two-level preconditioner: the step's coarse system at the coordinator (null
+  // when some live robot cannot take part or the matrix is not positive definite), and one coarse
+  // correction of the robots' z with it.
+  std::unique_ptr<CoarseSystem> refineCoarseSystem(DgsIterationStats& stats, std::uint32_t sweep);
+  void refineCoarseCorrection(const CoarseSystem& coarse, DgsIterationStats& stats,
+                              std::uint32_t sweep);
   // The refinement's bookkeeping: the sweep being recorded, traffic waiting for the next one.
   struct RefineRun {
     int step = 0;

@@ -312,26 +312,63 @@ ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes) {
 
 namespace {
 
+// Which sections a coarse message of each kind carries (messages.h).
+struct CoarseLayout {
+  bool center, diagonal, residual;
+  bool matrix_blocks;  // blocks of k*k (else k*ncols)
+};
+
+CoarseLayout LayoutOf(CoarseKind kind) {
+  switch (kind) {
+    case CoarseKind::kShare:
+      return {true, true, true, true};
+    case CoarseKind::kSolution:
+      return {false, false, false, false};
+    case CoarseKind::kMatrix:
+      return {true, true, false, true};
+    case CoarseKind::kResidual:
+      return {false, false, true, false};
+  }
+  throw InvalidInputError("DGS coarse message: unknown kind");
+}
+
+bool KnownKind(std::uint8_t kind) { return kind >= 1 && kind <= 4; }
+
+// The stages a kind belongs to: the two-level DGS (rotation, pose) shares and solves; the
+// refinement's preconditioner sends its matrix and residuals apart (and solves).
+bool StageAllowed(CoarseKind kind, DgsStage stage) {
+  const bool two_stage = stage == DgsStage::kRotation || stage == DgsStage::kPose;
+  switch (kind) {
+    case CoarseKind::kShare:
+      return two_stage;
+    case CoarseKind::kSolution:
+      return two_stage || stage == DgsStage::kRefine;
+    case CoarseKind::kMatrix:
+    case CoarseKind::kResidual:
+      return stage == DgsStage::kRefine;
+  }
+  return false;
+}
+
 void CheckCoarse(const CoarseMessage& m) {
   auto fail = [](const std::string& why) {
     throw InvalidInputError("DGS coarse message: " + why);
   };
-  if (m.kind != CoarseKind::kShare && m.kind != CoarseKind::kSolution) fail("unknown kind");
-  if (m.stage != DgsStage::kRotation && m.stage != DgsStage::kPose) {
-    fail("stage must be rotation or pose");
-  }
+  if (!KnownKind(static_cast<std::uint8_t>(m.kind))) fail("unknown kind");
+  if (!StageAllowed(m.kind, m.stage)) fail("stage not allowed for the kind");
   if (m.sender < 0 || m.sender > kMaxMessageRobot) fail("sender outside [0, 65535]");
-  if (m.k < 1 || m.k > 16 || m.ncols < 1 || m.ncols > 16) fail("k and ncols must be in [1, 16]");
-  const bool share = m.kind == CoarseKind::kShare;
+  if (m.k < 1 || m.k > kMaxCoarseK || m.ncols < 1 || m.ncols > 16) {
+    fail("k must be in [1, " + std::to_string(kMaxCoarseK) + "] and ncols in [1, 16]");
+  }
+  const CoarseLayout layout = LayoutOf(m.kind);
   const std::size_t kk = static_cast<std::size_t>(m.k * m.k);
   const std::size_t kc = static_cast<std::size_t>(m.k * m.ncols);
-  if (share && (m.diagonal.size() != kk || m.residual.size() != kc)) {
-    fail("diagonal or residual of the wrong size");
+  if (m.diagonal.size() != (layout.diagonal ? kk : 0)) fail("diagonal of the wrong size");
+  if (m.residual.size() != (layout.residual ? kc : 0)) fail("residual of the wrong size");
+  if (m.center.size() != 0 && (m.center.size() != 3 || !layout.center)) {
+    fail("centre of size other than 0 or 3 (or in a message without one)");
   }
-  if (!share && (!m.diagonal.empty() || !m.residual.empty() || !m.center.empty())) {
-    fail("a solution carries no centre, diagonal or residual");
-  }
-  if (m.center.size() != 0 && m.center.size() != 3) fail("centre of size other than 0 or 3");
+  if (m.kind == CoarseKind::kResidual && !m.blocks.empty()) fail("a residual carries no blocks");
   if (m.blocks.size() > kMaxMessageRobot) fail("too many blocks");
   int previous = -1;
   auto finite = [&](const std::vector<double>& v) {
@@ -345,7 +382,7 @@ void CheckCoarse(const CoarseMessage& m) {
   for (const auto& [robot, values] : m.blocks) {
     if (robot <= previous || robot > kMaxMessageRobot) fail("block robots not increasing");
     previous = robot;
-    if (values.size() != (share ? kk : kc)) fail("block of the wrong size");
+    if (values.size() != (layout.matrix_blocks ? kk : kc)) fail("block of the wrong size");
     finite(values);
   }
 }
@@ -354,7 +391,8 @@ void CheckCoarse(const CoarseMessage& m) {
 
 std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& m) {
   CheckCoarse(m);
-  const std::size_t block = m.kind == CoarseKind::kShare ? m.k * m.k : m.k * m.ncols;
+  const std::size_t block =
+      LayoutOf(m.kind).matrix_blocks ? m.k * m.k : m.k * m.ncols;
   std::vector<std::uint8_t> out(kMessageHeaderBytes +
                                 8 * (m.center.size() + m.diagonal.size() + m.residual.size()) +
                                 m.blocks.size() * (2 + 8 * block));
@@ -391,40 +429,46 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
   }
   CoarseMessage m;
   const std::uint8_t stage = r.u8("stage");
-  if (stage != static_cast<std::uint8_t>(DgsStage::kRotation) &&
-      stage != static_cast<std::uint8_t>(DgsStage::kPose)) {
-    throw InvalidInputError("DGS coarse message: stage " + std::to_string(stage) +
-                            " is not rotation or pose");
+  if (stage < static_cast<std::uint8_t>(DgsStage::kRotation) ||
+      stage > static_cast<std::uint8_t>(DgsStage::kRefine)) {
+    throw InvalidInputError("DGS coarse message: unknown stage " + std::to_string(stage));
   }
   m.stage = static_cast<DgsStage>(stage);
   const std::uint8_t kind = r.u8("kind");
-  if (kind != static_cast<std::uint8_t>(CoarseKind::kShare) &&
-      kind != static_cast<std::uint8_t>(CoarseKind::kSolution)) {
+  if (!KnownKind(kind)) {
     throw InvalidInputError("DGS coarse message: unknown kind " + std::to_string(kind));
   }
   m.kind = static_cast<CoarseKind>(kind);
+  if (!StageAllowed(m.kind, m.stage)) {
+    throw InvalidInputError("DGS coarse message: kind " + std::to_string(kind) +
+                            " does not belong to stage " + std::to_string(stage));
+  }
   m.sender = r.u16("sender");
   const std::size_t count = r.u16("block count");
   m.iteration = r.u32("iteration");
   m.k = r.u8("k");
   m.ncols = r.u8("ncols");
-  if (m.k < 1 || m.k > 16 || m.ncols < 1 || m.ncols > 16) {
-    throw InvalidInputError("DGS coarse message: k and ncols must be in [1, 16]");
+  if (m.k < 1 || m.k > kMaxCoarseK || m.ncols < 1 || m.ncols > 16) {
+    throw InvalidInputError("DGS coarse message: k must be in [1, " +
+                            std::to_string(kMaxCoarseK) + "] and ncols in [1, 16]");
   }
   const std::size_t centre = r.u8("center size");
   if (r.u8("reserved") != 0) {
     throw InvalidInputError("DGS coarse message: reserved field not zero");
   }
-  const bool share = m.kind == CoarseKind::kShare;
-  if (centre != 0 && (centre != 3 || !share)) {
+  const CoarseLayout layout = LayoutOf(m.kind);
+  if (centre != 0 && (centre != 3 || !layout.center)) {
     throw InvalidInputError("DGS coarse message: center size " + std::to_string(centre) +
-                            " (0, or 3 in a share)");
+                            " (0, or 3 in a share or a matrix)");
+  }
+  if (m.kind == CoarseKind::kResidual && count != 0) {
+    throw InvalidInputError("DGS coarse message: a residual carries no blocks");
   }
   const std::size_t kk = static_cast<std::size_t>(m.k * m.k);
   const std::size_t kc = static_cast<std::size_t>(m.k * m.ncols);
-  const std::size_t block = share ? kk : kc;
-  const std::size_t payload =
-      8 * centre + (share ? 8 * (kk + kc) : 0) + count * (2 + 8 * block);
+  const std::size_t block = layout.matrix_blocks ? kk : kc;
+  const std::size_t payload = 8 * centre + (layout.diagonal ? 8 * kk : 0) +
+                              (layout.residual ? 8 * kc : 0) + count * (2 + 8 * block);
   r.need(payload, "payload");
   if (r.remaining() != payload) {
     throw InvalidInputError("DGS coarse message: " + std::to_string(r.remaining() - payload) +
@@ -436,10 +480,8 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
     return v;
   };
   m.center = doubles(centre);
-  if (share) {
-    m.diagonal = doubles(kk);
-    m.residual = doubles(kc);
-  }
+  if (layout.diagonal) m.diagonal = doubles(kk);
+  if (layout.residual) m.residual = doubles(kc);
   for (std::size_t b = 0; b < count; ++b) {
     const int robot = r.u16("block robot");
     m.blocks.emplace_back(robot, doubles(block));

@@ -92,23 +92,31 @@ inline constexpr std::uint8_t kRefineFinished = 2;   // kStepDecision
 std::vector<std::uint8_t> EncodeControlMessage(const ControlMessage& message);
 ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes);
 
-// Coarse messages of the two-level DGS (dgs_driver.h, DgsOptions::coarse_correction): each robot
-// sends its rows of the small coarse system to a coordinator robot, which solves it and sends
-// each robot the coarse unknowns of itself and of its neighbouring robots. Little-endian:
+// Coarse messages: the second level of the two-level DGS (dgs_driver.h,
+// DgsOptions::coarse_correction) and of the refinement's preconditioner
+// (DgsOptions::Refinement::coarse_preconditioner). Each robot sends its rows of a small coarse
+// system to a coordinator robot, which solves it and sends each robot the coarse unknowns of
+// itself and of its neighbouring robots. Little-endian:
 //
 //   header (16 bytes): u8 magic 0xD8 | u8 version 1 | u8 stage | u8 kind | u16 sender |
 //                      u16 block count | u32 iteration | u8 k | u8 ncols | u8 center size |
 //                      u8 reserved (0)
-//   kShare     center size doubles (stage 2: the robot's coarse centre c_r, 3), k*k doubles
-//              (P_r^T H_rr P_r), k*ncols doubles (P_r^T (g - H x)_r), then per block: u16 robot s,
-//              k*k doubles (P_r^T H_rs P_s, in the sender's basis)
-//   kSolution  per block: u16 robot, k*ncols doubles (that robot's coarse unknowns y, in the
-//              receiver's basis)
+//   kShare     (rotation, pose) center size doubles (stage 2: the robot's coarse centre c_r, 3),
+//              k*k doubles (P_r^T H_rr P_r), k*ncols doubles (P_r^T (g - H x)_r), then per block:
+//              u16 robot s, k*k doubles (P_r^T H_rs P_s, in the sender's basis)
+//   kSolution  (any stage) per block: u16 robot, k*ncols doubles (that robot's coarse unknowns y,
+//              in the receiver's basis)
+//   kMatrix    (refinement) as kShare without the residual: the coarse matrix of a Gauss-Newton
+//              step, sent once per step
+//   kResidual  (refinement) k*ncols doubles (P_r^T r_r), no blocks: one per preconditioning
 // Matrices column-major; block robots strictly increasing. DecodeCoarseMessage rejects with
-// InvalidInputError: truncated input, bad magic/version/stage (rotation or pose only)/kind,
-// k or ncols outside [1, 16], a center size other than 0 or 3 (0 in a solution), a non-zero
-// reserved field, robots not increasing, a non-finite value, trailing bytes.
-enum class CoarseKind : std::uint8_t { kShare = 1, kSolution = 2 };
+// InvalidInputError: truncated input, bad magic/version/stage/kind or a kind of another stage,
+// k outside [1, kMaxCoarseK] or ncols outside [1, 16], a center size other than 0 or 3 (0 in a
+// solution or a residual), blocks in a residual, a non-zero reserved field, robots not
+// increasing, a non-finite value, trailing bytes.
+enum class CoarseKind : std::uint8_t { kShare = 1, kSolution = 2, kMatrix = 3, kResidual = 4 };
+
+inline constexpr int kMaxCoarseK = 16;
 
 struct CoarseMessage {
   CoarseKind kind = CoarseKind::kShare;
@@ -116,9 +124,11 @@ struct CoarseMessage {
   int sender = 0;
   std::uint32_t iteration = 0;
   int k = 3, ncols = 3;
-  std::vector<double> center;                                // kShare: 0 or 3
-  std::vector<double> diagonal, residual;                    // kShare: k*k and k*ncols
-  std::vector<std::pair<int, std::vector<double>>> blocks;   // kShare: k*k; kSolution: k*ncols
+  std::vector<double> center;                                // kShare, kMatrix: 0 or 3
+  std::vector<double> diagonal, residual;                    // k*k (kShare, kMatrix), k*ncols
+                                                             // (kShare, kResidual)
+  std::vector<std::pair<int, std::vector<double>>> blocks;   // k*k (kShare, kMatrix); k*ncols
+                                                             // (kSolution)
 };
 
 inline constexpr std::uint8_t kCoarseMagic = 0xD8;

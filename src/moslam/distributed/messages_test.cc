@@ -335,8 +335,8 @@ TEST(CoarseMessages, RejectsMalformedInput) {
   b[0] = 0xD6;
   rejects(b, "magic of a value message");
   b = good;
-  b[2] = static_cast<std::uint8_t>(DgsStage::kRefine);
-  rejects(b, "refinement stage");
+  b[2] = 7;
+  rejects(b, "unknown stage");
   b = good;
   b[3] = 9;
   rejects(b, "kind");
@@ -363,6 +363,56 @@ TEST(CoarseMessages, RejectsMalformedInput) {
   m = ExampleShare();
   m.kind = CoarseKind::kSolution;
   EXPECT_THROW(EncodeCoarseMessage(m), InvalidInputError);  // a solution has no diagonal
+}
+
+// The refinement's preconditioner sends its coarse matrix once per step (kMatrix: a share
+// without residual) and a residual per preconditioning (kResidual); neither belongs to the
+// two-level stages, and a share does not belong to the refinement.
+TEST(CoarseMessages, RefinementMatrixAndResidual) {
+  CoarseMessage matrix = ExampleShare();
+  matrix.kind = CoarseKind::kMatrix;
+  matrix.stage = DgsStage::kRefine;
+  matrix.residual.clear();
+  const std::vector<std::uint8_t> bytes = EncodeCoarseMessage(matrix);
+  EXPECT_EQ(bytes.size(), 16u + 8u * (3 + 36) + 2u * (2 + 8 * 36));
+  const CoarseMessage md = DecodeCoarseMessage(bytes);
+  EXPECT_EQ(md.kind, CoarseKind::kMatrix);
+  EXPECT_EQ(md.diagonal, matrix.diagonal);
+  EXPECT_EQ(md.blocks, matrix.blocks);
+  EXPECT_TRUE(md.residual.empty());
+
+  CoarseMessage residual;
+  residual.kind = CoarseKind::kResidual;
+  residual.stage = DgsStage::kRefine;
+  residual.sender = 3;
+  residual.k = 6;
+  residual.ncols = 1;
+  residual.residual = {1, 2, 3, 4, 5, 6};
+  const std::vector<std::uint8_t> rb = EncodeCoarseMessage(residual);
+  EXPECT_EQ(rb.size(), 16u + 8u * 6);
+  EXPECT_EQ(DecodeCoarseMessage(rb).residual, residual.residual);
+
+  auto rejects = [](std::vector<std::uint8_t> b, const char* why) {
+    SCOPED_TRACE(why);
+    EXPECT_THROW(DecodeCoarseMessage(b), InvalidInputError);
+  };
+  std::vector<std::uint8_t> b = bytes;
+  b[2] = static_cast<std::uint8_t>(DgsStage::kPose);
+  rejects(b, "a matrix in the pose stage");
+  b = EncodeCoarseMessage(ExampleShare());
+  b[2] = static_cast<std::uint8_t>(DgsStage::kRefine);
+  rejects(b, "a share in the refinement");
+  b = rb;
+  b[14] = 3;
+  rejects(b, "a residual with a centre");
+  b = rb;
+  b[6] = 1;  // one block announced
+  rejects(b, "a residual with blocks");
+  b = rb;
+  b[12] = kMaxCoarseK + 1;
+  rejects(b, "k too large");
+  residual.blocks.emplace_back(0, std::vector<double>(6, 0.0));
+  EXPECT_THROW(EncodeCoarseMessage(residual), InvalidInputError);
 }
 
 }  // namespace

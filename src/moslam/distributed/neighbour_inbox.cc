@@ -71,6 +71,16 @@ Eigen::VectorXd* NeighbourInbox::mutableValue(DgsStage s, int slot) {
   return box.has[j] ? &box.values[j] : nullptr;
 }
 
+void NeighbourInbox::add(DgsStage s, int slot, const Eigen::VectorXd& delta) {
+  Stage& box = stage(s);
+  const auto j = static_cast<std::size_t>(slot);
+  if (!box.has[j]) {
+    box.values[j].setZero();
+    box.has[j] = 1;
+  }
+  box.values[j] += delta;
+}
+
 bool NeighbourInbox::initialised(DgsStage stage, int robot) const {
   const auto it = stages_.find(stage);
   return it != stages_.end() && it->second.initialised_robots.count(robot) > 0;

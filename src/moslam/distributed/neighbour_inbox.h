@@ -36,6 +36,8 @@ class NeighbourInbox {
   const Eigen::VectorXd* get(DgsStage stage, int slot) const;
   // The same, writable: the coarse correction moves the copies of the neighbours' variables.
   Eigen::VectorXd* mutableValue(DgsStage stage, int slot);
+  // value += delta for the variable in `slot` (one not received counts as 0 and is then held).
+  void add(DgsStage stage, int slot, const Eigen::VectorXd& delta);
   // Whether `robot` said it has solved in `stage`.
   bool initialised(DgsStage stage, int robot) const;
   // Forgets the values of `stage` (not the iterations accepted).

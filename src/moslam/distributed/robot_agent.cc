@@ -371,6 +371,7 @@ void RobotAgent::beginStep(double lambda) {
   lambda_ = lambda;
   pose_.setDamping(lambda, refinement_.hessianDiagonal());
   cg_active_ = false;
+  refine_coarse_built_ = false;
   can_solve_ = true;
   x_.assign(graph_.unknowns().size(), Eigen::VectorXd::Zero(6));
   inbox_.forget(DgsStage::kRefine);  // the neighbours' increments of an earlier step
@@ -459,6 +460,39 @@ void RobotAgent::advance(double alpha) {
   requireRefine("advance()");
   if (!cg_active_) return;
   cg_.advance(alpha);
+}
+
+bool RobotAgent::refineCoarseReady() const {
+  return state_ == AgentState::kRefine && cg_active_ && can_solve_;
+}
+
+CoarseShare RobotAgent::refineCoarseMatrix() {
+  if (!refineCoarseReady()) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot()) +
+                            ": refineCoarseMatrix() outside a conjugate-gradient step it can "
+                            "solve in (state " + ToString(state_) + ")");
+  }
+  refine_coarse_.build(graph_, refinement_);
+  refine_coarse_built_ = true;
+  return refine_coarse_.matrix(graph_, pose_);
+}
+
+Eigen::VectorXd RobotAgent::refineCoarseResidual() const {
+  if (!refineCoarseReady() || !refine_coarse_built_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot()) +
+                            ": refineCoarseResidual() before refineCoarseMatrix() of the step");
+  }
+  const Eigen::VectorXd r =
+      localRhs(DgsStage::kRefine).col(0) - pose_.multiply(stackedSweepValue());
+  return refine_coarse_.project(graph_, pose_, r);
+}
+
+void RobotAgent::applyRefineCoarse(const std::map<int, Eigen::MatrixXd>& y) {
+  if (!refineCoarseReady() || !refine_coarse_built_) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot()) +
+                            ": applyRefineCoarse() before refineCoarseMatrix() of the step");
+  }
+  refine_coarse_.apply(graph_, y, x_, inbox_);
 }
 
 void RobotAgent::finishRefine() {

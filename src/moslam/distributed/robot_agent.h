@@ -154,6 +154,20 @@ class RobotAgent {
   double curvature();
   void advance(double alpha);
 
+  // The second level of the refinement's preconditioner (coarse_correction.h,
+  // RefineCoarseSpace; dgs_driver.h, DgsOptions::Refinement::preconditioner). In a CG step
+  // (after startPreconditioner()):
+  //   refineCoarseReady():    this robot can take part (it can solve in this step)
+  //   refineCoarseMatrix():   its rows of the step's coarse matrix P^T (H + damping) P, the basis
+  //                           at the step's linearisation point (once per step)
+  //   refineCoarseResidual(): P_r^T (res - H z)_r with its z and the neighbours' latest z
+  //   applyRefineCoarse(y):   z += P y, to its z and its copies of the neighbours' z
+  // InvalidInputError outside a CG step (and before refineCoarseMatrix() for the other two).
+  bool refineCoarseReady() const;
+  CoarseShare refineCoarseMatrix();
+  Eigen::VectorXd refineCoarseResidual() const;
+  void applyRefineCoarse(const std::map<int, Eigen::MatrixXd>& y);
+
   // This robot's share of the cost F (see the top): at the current estimate, or (candidate) at
   // x Exp(delta) with the neighbours' latest increments. In kRefine (InvalidInputError else).
   double costShare(bool candidate) const;
@@ -240,6 +254,8 @@ class RobotAgent {
   LocalSystem rotation_, pose_;  // the pose stage's system serves the refinement too
   StageCoarseSpace coarse_;
   Refinement refinement_;
+  RefineCoarseSpace refine_coarse_;
+  bool refine_coarse_built_ = false;
   ConjugateGradients cg_;
   SweepProgress progress_;
 

@@ -1,0 +1,95 @@
+#include "moslam/distributed/coarse_system.h"
+
+#include "moslam/common/errors.h"
+#include "moslam/geometry/so3.h"
+
+namespace moslam {
+
+std::vector<double> FlattenMatrix(const Eigen::MatrixXd& m) {
+  return std::vector<double>(m.data(), m.data() + m.size());
+}
+
+Eigen::MatrixXd UnflattenMatrix(const std::vector<double>& v, int rows, int cols) {
+  return Eigen::Map<const Eigen::MatrixXd>(v.data(), rows, cols);
+}
+
+CoarseSystem::CoarseSystem(const std::vector<int>& robots, int k)
+    : robots_(robots), k_(k), A_(Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(robots.size()) * k,
+                                                      static_cast<Eigen::Index>(robots.size()) * k)) {
+  for (std::size_t i = 0; i < robots_.size(); ++i) {
+    index_[robots_[i]] = static_cast<Eigen::Index>(i) * k_;
+    centre_[robots_[i]] = Eigen::Vector3d::Zero();
+  }
+}
+
+Eigen::Index CoarseSystem::index(int robot) const {
+  const auto it = index_.find(robot);
+  return it == index_.end() ? -1 : it->second;
+}
+
+Eigen::MatrixXd CoarseSystem::shift(int from, int to) const {
+  Eigen::MatrixXd T = Eigen::MatrixXd::Identity(k_, k_);
+  if (k_ == 6) T.bottomLeftCorner<3, 3>() = SO3::Hat(centre_.at(from) - centre_.at(to));
+  return T;
+}
+
+Eigen::MatrixXd CoarseSystem::addShare(const CoarseMessage& m) {
+  const Eigen::Index ir = index(m.sender);
+  if (ir < 0 || m.k != k_) {
+    throw InvalidInputError("coarse system: a share from robot " + std::to_string(m.sender) +
+                            " that is not in the system (or of another size)");
+  }
+  if (m.center.size() == 3) centre_[m.sender] = Eigen::Vector3d(m.center[0], m.center[1], m.center[2]);
+  A_.block(ir, ir, k_, k_) += UnflattenMatrix(m.diagonal, k_, k_);
+  blocks_[m.sender] = m.blocks;
+  factorized_ = false;
+  if (m.residual.empty()) return Eigen::MatrixXd();
+  return UnflattenMatrix(m.residual, k_, m.ncols);
+}
+
+bool CoarseSystem::factorize() {
+  // Couplings, now that every centre is known.
+  for (const auto& [r, blocks] : blocks_) {
+    const Eigen::Index ir = index_.at(r);
+    for (const auto& [s, block] : blocks) {
+      const Eigen::Index is = index(s);  // a silent neighbour's variables stay fixed
+      if (is < 0) continue;
+      A_.block(ir, is, k_, k_) += UnflattenMatrix(block, k_, k_) * shift(s, r);
+    }
+  }
+  blocks_.clear();
+  A_ = 0.5 * (A_ + A_.transpose());
+  scale_ = A_.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseInverse();
+  if (!scale_.allFinite()) return false;
+  llt_.compute(scale_.asDiagonal() * A_ * scale_.asDiagonal());
+  factorized_ = llt_.info() == Eigen::Success;
+  return factorized_;
+}
+
+bool CoarseSystem::solve(const Eigen::MatrixXd& B, Eigen::MatrixXd* Y) const {
+  if (!factorized_) return false;
+  *Y = scale_.asDiagonal() * llt_.solve(scale_.asDiagonal() * B);
+  return Y->allFinite();
+}
+
+CoarseMessage CoarseSystem::solutionFor(int robot, const std::set<int>& neighbours,
+                                        const Eigen::MatrixXd& Y, DgsStage stage, int sender,
+                                        std::uint32_t iteration) const {
+  CoarseMessage m;
+  m.kind = CoarseKind::kSolution;
+  m.stage = stage;
+  m.sender = sender;
+  m.iteration = iteration;
+  m.k = k_;
+  m.ncols = static_cast<int>(Y.cols());
+  std::set<int> needed = neighbours;
+  needed.insert(robot);
+  for (int s : needed) {  // y_s about c_s, sent about c_r (the receiver's basis)
+    const Eigen::Index is = index(s);
+    if (is < 0) continue;
+    m.blocks.emplace_back(s, FlattenMatrix(shift(s, robot) * Y.middleRows(is, k_)));
+  }
+  return m;
+}
+
+}  // namespace moslam

@@ -1,0 +1,68 @@
+// The coordinator's side of a coarse correction (the two-level DGS and the refinement's
+// preconditioner, dgs_driver.h): the coarse system assembled from the robots' rows
+// (CoarseMessage kShare or kMatrix), each robot's unknowns in the basis centred on its own c_r,
+// and its solution sent back to each robot in that robot's basis.
+//
+// Centres (6 unknowns per robot, a rigid motion (w, tau) about c): unknowns about c_s are, about
+// c_r, T(c_s - c_r) y with T(d) = [I 0; d^ I] (w x (t - c_s) + tau = w x (t - c_r) + tau +
+// (c_s - c_r) x w); robot r's coupling block to s, computed in r's basis, becomes s's basis by
+// right-multiplying T(c_s - c_r). k = 3 (stage 1, no centre): the identity.
+//
+// The matrix is symmetrised (the two robots of a separator computed its blocks from their own
+// copies) and factorized by Cholesky after Jacobi scaling (rotations and translations have
+// different units).
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <map>
+#include <set>
+#include <vector>
+
+#include "moslam/distributed/messages.h"
+
+namespace moslam {
+
+class CoarseSystem {
+ public:
+  // The robots whose coarse unknowns form the system (k each), in this order.
+  CoarseSystem(const std::vector<int>& robots, int k);
+
+  // Adds robot r's rows from its share (kShare or kMatrix: centre, diagonal, coupling blocks;
+  // blocks to robots outside the system are dropped: their variables stay fixed). Returns the
+  // share's residual (kShare), k x ncols, or an empty matrix.
+  Eigen::MatrixXd addShare(const CoarseMessage& share);
+  // Symmetrises and factorizes, once every robot's share was added; false when the matrix is not
+  // positive definite (then no correction).
+  bool factorize();
+  // Y = A^-1 B for B stacked by robot (k rows each); false (and no Y) when not finite.
+  bool solve(const Eigen::MatrixXd& B, Eigen::MatrixXd* Y) const;
+  // The kSolution for robot r: the rows of Y of r and of each robot of `neighbours` in the
+  // system, moved to r's centre.
+  CoarseMessage solutionFor(int robot, const std::set<int>& neighbours, const Eigen::MatrixXd& Y,
+                            DgsStage stage, int sender, std::uint32_t iteration) const;
+
+  int k() const { return k_; }
+  Eigen::Index rows() const { return static_cast<Eigen::Index>(robots_.size()) * k_; }
+  // Row of robot r's first unknown; -1 when r is not in the system.
+  Eigen::Index index(int robot) const;
+
+ private:
+  Eigen::MatrixXd shift(int from, int to) const;  // T(c_from - c_to)
+
+  std::vector<int> robots_;
+  int k_;
+  std::map<int, Eigen::Index> index_;
+  std::map<int, Eigen::Vector3d> centre_;
+  std::map<int, std::vector<std::pair<int, std::vector<double>>>> blocks_;
+  Eigen::MatrixXd A_;
+  Eigen::VectorXd scale_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;
+  bool factorized_ = false;
+};
+
+// Matrices to and from a message's column-major doubles.
+std::vector<double> FlattenMatrix(const Eigen::MatrixXd& m);
+Eigen::MatrixXd UnflattenMatrix(const std::vector<double>& v, int rows, int cols);
+
+}  // namespace moslam
