@@ -37,6 +37,7 @@ struct DgsArgs {
   bool weighted = false;
   std::string stages = "auto";  // auto: two-level with --refine, one-level (the paper's) without
   bool refine = false;
+  std::string pose_solver = "auto";  // auto: cg with --refine, sweeps (DGS.md) without
   std::string refine_solver = "cg";
   std::string refine_preconditioner = "two-level";
   int refine_max_iterations = 100;
@@ -100,6 +101,9 @@ int RunDgsCommand(const DgsArgs& a) {
   options.coarse_correction =
       a.stages == "two-level" || (a.stages == "auto" && a.refine);
   options.refine = a.refine;
+  options.pose_solver = a.pose_solver == "cg" || (a.pose_solver == "auto" && a.refine)
+                            ? DgsOptions::PoseSolver::kConjugateGradient
+                            : DgsOptions::PoseSolver::kSweeps;
   options.refinement.solver =
       a.refine_solver == "sweeps" ? RefineSolver::kSweeps : RefineSolver::kConjugateGradient;
   options.refinement.preconditioner = RefinePreconditionerFromString(a.refine_preconditioner);
@@ -343,6 +347,11 @@ Runner RegisterDgs(CLI::App& app) {
                   "linear steps by cg (conjugate gradients preconditioned by the sweeps) or "
                   "sweeps (plain block Gauss-Seidel / Jacobi)")
       ->check(CLI::IsMember({"cg", "sweeps"}))
+      ->capture_default_str();
+  sub->add_option("--pose-solver", args->pose_solver,
+                  "the pose stage: sweeps (DGS.md), cg (conjugate gradients on the same system, "
+                  "preconditioned as the refinement's), or auto: cg with --refine, sweeps without")
+      ->check(CLI::IsMember({"auto", "sweeps", "cg"}))
       ->capture_default_str();
   sub->add_option("--refine-preconditioner", args->refine_preconditioner,
                   "preconditioner of the refinement's conjugate gradients: two-level (the "

@@ -153,6 +153,27 @@ void RefineCoarseSpace::build(const LocalGraph& graph, const Refinement& refinem
   }
 }
 
+void RefineCoarseSpace::buildPoseStage(const LocalGraph& graph,
+                                       const std::map<Key, Matrix3>& R_hat) {
+  auto basis = [](const Matrix3& R) {
+    Matrix6 P = Matrix6::Identity();
+    P.topLeftCorner<3, 3>() = R.transpose();
+    return P;
+  };
+  centre_.setZero();
+  own_.clear();
+  for (const Key& k : graph.unknowns()) own_.push_back(basis(R_hat.at(k)));
+  const auto& neighbours = graph.neighbours();
+  neighbour_.assign(neighbours.size(), Matrix6::Zero());
+  neighbour_known_.assign(neighbours.size(), 0);
+  for (std::size_t j = 0; j < neighbours.size(); ++j) {
+    const auto R = R_hat.find(neighbours[j]);
+    if (R == R_hat.end() || neighbours[j] == graph.anchor()) continue;
+    neighbour_[j] = basis(R->second);
+    neighbour_known_[j] = 1;
+  }
+}
+
 CoarseShare RefineCoarseSpace::matrix(const LocalGraph& graph, const LocalSystem& system) const {
   const auto& unknowns = graph.unknowns();
   const Eigen::Index n = static_cast<Eigen::Index>(6 * unknowns.size());
@@ -188,7 +209,8 @@ Eigen::VectorXd RefineCoarseSpace::project(const LocalGraph& graph, const LocalS
   return out;
 }
 
-void RefineCoarseSpace::apply(const LocalGraph& graph, const std::map<int, Eigen::MatrixXd>& y,
+void RefineCoarseSpace::apply(const LocalGraph& graph, DgsStage stage,
+                              const std::map<int, Eigen::MatrixXd>& y,
                               std::vector<Eigen::VectorXd>& z, NeighbourInbox& inbox) const {
   const auto own = y.find(graph.robot());
   if (own != y.end()) {
@@ -198,7 +220,7 @@ void RefineCoarseSpace::apply(const LocalGraph& graph, const std::map<int, Eigen
   for (std::size_t j = 0; j < neighbours.size(); ++j) {
     const auto it = y.find(neighbours[j].robot);
     if (it == y.end() || !neighbour_known_[j]) continue;
-    inbox.add(DgsStage::kRefine, static_cast<int>(j), neighbour_[j] * it->second.col(0));
+    inbox.add(stage, static_cast<int>(j), neighbour_[j] * it->second.col(0));
   }
 }
 

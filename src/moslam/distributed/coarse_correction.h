@@ -92,6 +92,10 @@ class RefineCoarseSpace {
  public:
   // The basis at the current estimate of `refinement`.
   void build(const LocalGraph& graph, const Refinement& refinement);
+  // The same coarse space in the pose stage's unknowns (dtheta, t) (DgsOptions::pose_solver =
+  // conjugate gradients): dtheta_i = R_hat_i^T w, t_i = tau, the robot's motion as a whole with
+  // the lever arms of its starting point t = 0.
+  void buildPoseStage(const LocalGraph& graph, const std::map<Key, Matrix3>& R_hat);
   // The robot's rows of the coarse matrix P^T (H + damping) P of the step's system, as assembled
   // in `system`: diagonal, couplings to the neighbouring robots, centre (no residual).
   CoarseShare matrix(const LocalGraph& graph, const LocalSystem& system) const;
@@ -99,8 +103,8 @@ class RefineCoarseSpace {
   Eigen::VectorXd project(const LocalGraph& graph, const LocalSystem& system,
                           const Eigen::VectorXd& r) const;
   // z_i += P_i y_r for the own unknowns (`z`, per unknown) and for the neighbours' copies of z in
-  // `inbox` (stage kRefine; a copy not received yet counts as 0): the same move as their owners.
-  void apply(const LocalGraph& graph, const std::map<int, Eigen::MatrixXd>& y,
+  // `inbox` (the CG's stage; a copy not received yet counts as 0): the same move as their owners.
+  void apply(const LocalGraph& graph, DgsStage stage, const std::map<int, Eigen::MatrixXd>& y,
              std::vector<Eigen::VectorXd>& z, NeighbourInbox& inbox) const;
 
  private:

@@ -21,6 +21,7 @@ class ConjugateGradients {
   void start(const Eigen::VectorXd& residual, std::size_t neighbour_slots);
 
   const Eigen::VectorXd& residual() const { return res_; }
+  const Eigen::VectorXd& direction() const { return p_; }
   const Eigen::VectorXd& increment() const { return delta_; }
   Vector6 increment(std::size_t unknown) const {
     return delta_.segment<6>(static_cast<Eigen::Index>(6 * unknown));

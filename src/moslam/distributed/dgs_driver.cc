@@ -295,7 +295,9 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     result_.bytes += stats.bytes;
     result_.history.push_back(stats);
   };
-  if (!options_.flagged_initialisation) {
+  const bool by_cg = stage == DgsStage::kPose &&
+                     options_.pose_solver == DgsOptions::PoseSolver::kConjugateGradient;
+  if (!options_.flagged_initialisation || by_cg) {
     // Every robot starts knowing its neighbours' initial estimates (not initialised).
     const auto start = Clock::now();
     DgsIterationStats stats;
@@ -312,6 +314,10 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     stats.max_change = std::numeric_limits<double>::infinity();
     stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     record(stats);
+  }
+  if (by_cg) {
+    runPoseByConjugateGradients(report);
+    return;
   }
   report.status = StageStatus::kMaxIterations;
   for (int it = 1; it <= options_.max_iterations; ++it) {
@@ -460,8 +466,9 @@ void DgsDriver::openSweep(RefineRun& run) {
   closeSweep(run);
   run.current = run.pending;
   run.pending = DgsIterationStats();
-  run.current.stage = DgsStage::kRefine;
-  run.current.iteration = ++result_.refine.sweeps;
+  run.current.stage = run.stage;
+  run.current.iteration =
+      run.stage == DgsStage::kRefine ? ++result_.refine.sweeps : ++result_.pose.iterations;
   run.current.refine_step = run.step;
   run.open = true;
   run.sweep_start = Clock::now();
@@ -471,13 +478,18 @@ void DgsDriver::closeSweep(RefineRun& run) {
   if (!run.open) return;
   DgsIterationStats& stats = run.current;
   stats.seconds += Since(run.sweep_start);
-  RefineReport& report = result_.refine;
-  report.messages += stats.messages;
-  report.bytes += stats.bytes;
-  report.control_messages += stats.control_messages;
-  report.control_bytes += stats.control_bytes;
-  report.coarse_messages += stats.coarse_messages;
-  report.coarse_bytes += stats.coarse_bytes;
+  if (run.stage == DgsStage::kRefine) {
+    RefineReport& report = result_.refine;
+    report.messages += stats.messages;
+    report.bytes += stats.bytes;
+    report.control_messages += stats.control_messages;
+    report.control_bytes += stats.control_bytes;
+    report.coarse_messages += stats.coarse_messages;
+    report.coarse_bytes += stats.coarse_bytes;
+  } else {
+    result_.pose.messages += stats.messages;
+    result_.pose.bytes += stats.bytes;
+  }
   result_.messages += stats.messages;
   result_.bytes += stats.bytes;
   result_.history.push_back(stats);
@@ -490,8 +502,8 @@ DgsIterationStats& DgsDriver::traffic(RefineRun& run) {
 }
 
 double DgsDriver::gather(RefineRun& run, ControlKind kind, std::uint32_t sweep,
-                         const std::function<double(RobotAgent&)>& share, double* max_second,
-                         const std::function<double(RobotAgent&)>& second) {
+                         const std::function<double(RobotAgent&)>& share, Reduce reduce,
+                         double* max_second, const std::function<double(RobotAgent&)>& second) {
   const int c = coordinator();
   double total = 0.0;
   if (max_second) *max_second = 0.0;
@@ -506,12 +518,8 @@ double DgsDriver::gather(RefineRun& run, ControlKind kind, std::uint32_t sweep,
     m.value[0] = share(*agent);
     if (second) m.value[1] = second(*agent);
     const ControlMessage got = r == c ? m : sendControl(m, c, traffic(run));
-    if (kind == ControlKind::kReport && second) {
-      total = std::max(total, got.value[0]);  // a maximum (sweep reports)
-      if (max_second) *max_second = std::max(*max_second, got.value[1]);
-    } else {
-      total += got.value[0];
-    }
+    total = reduce == Reduce::kMax ? std::max(total, got.value[0]) : total + got.value[0];
+    if (max_second) *max_second = std::max(*max_second, got.value[1]);
   }
   return total;
 }
@@ -550,8 +558,8 @@ void DgsDriver::solveBySweeps(RefineRun& run, RefineStepSummary& summary) {
     double max_increment = 0.0;
     const double max_change = gather(
         run, ControlKind::kReport, static_cast<std::uint32_t>(sweep),
-        [](RobotAgent& a) { return a.initialised() ? a.lastChange() : 0.0; }, &max_increment,
-        [](RobotAgent& a) { return a.incrementNorm(); });
+        [](RobotAgent& a) { return a.initialised() ? a.lastChange() : 0.0; }, Reduce::kMax,
+        &max_increment, [](RobotAgent& a) { return a.incrementNorm(); });
     const bool stop = max_change <= opt.sweep_tolerance * max_increment;
     broadcast(run, static_cast<std::uint32_t>(sweep), stop, 0.0);
     run.current.max_change = max_change;
@@ -562,7 +570,8 @@ void DgsDriver::solveBySweeps(RefineRun& run, RefineStepSummary& summary) {
   }
 }
 
-std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsIterationStats& stats,
+std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsStage stage,
+                                                            DgsIterationStats& stats,
                                                             std::uint32_t sweep) {
   std::vector<int> robots;
   for (int r : order_) {
@@ -577,7 +586,7 @@ std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsIterationStats& s
     const CoarseShare share = agents_.at(r)->refineCoarseMatrix();
     CoarseMessage m;
     m.kind = CoarseKind::kMatrix;
-    m.stage = DgsStage::kRefine;
+    m.stage = stage;
     m.sender = r;
     m.iteration = sweep;
     m.k = 6;
@@ -591,15 +600,15 @@ std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsIterationStats& s
   return coarse;
 }
 
-void DgsDriver::refineCoarseCorrection(const CoarseSystem& coarse, DgsIterationStats& stats,
-                                       std::uint32_t sweep) {
+void DgsDriver::refineCoarseCorrection(DgsStage stage, const CoarseSystem& coarse,
+                                       DgsIterationStats& stats, std::uint32_t sweep) {
   const int c = coordinator();
   Eigen::MatrixXd B = Eigen::MatrixXd::Zero(coarse.rows(), 1);
   for (int r : order_) {
     if (!live(r) || coarse.index(r) < 0) continue;
     CoarseMessage m;
     m.kind = CoarseKind::kResidual;
-    m.stage = DgsStage::kRefine;
+    m.stage = stage;
     m.sender = r;
     m.iteration = sweep;
     m.k = 6;
@@ -614,18 +623,21 @@ void DgsDriver::refineCoarseCorrection(const CoarseSystem& coarse, DgsIterationS
     if (!live(r) || coarse.index(r) < 0) continue;
     RobotAgent& a = *agents_.at(r);
     const CoarseMessage got = sendCoarse(
-        coarse.solutionFor(r, a.neighbourRobots(), Y, DgsStage::kRefine, c, sweep), r, stats);
+        coarse.solutionFor(r, a.neighbourRobots(), Y, stage, c, sweep), r, stats);
     std::map<int, Eigen::MatrixXd> y;
     for (const auto& [s, block] : got.blocks) y[s] = UnflattenMatrix(block, 6, 1);
     a.applyRefineCoarse(y);
   }
-  ++result_.refine.coarse_corrections;
+  ++(stage == DgsStage::kRefine ? result_.refine.coarse_corrections
+                                 : result_.pose.coarse_corrections);
 }
 
-void DgsDriver::solveByConjugateGradients(RefineRun& run, RefineStepSummary& summary) {
+DgsDriver::CgOutcome DgsDriver::solveByConjugateGradients(RefineRun& run, const CgGoal& goal) {
   const DgsOptions::Refinement& opt = options_.refinement;
-  int sweeps = 0;
-  // The step's coarse system of the two-level preconditioner, set up at its first use.
+  const DgsStage stage = run.stage;
+  CgOutcome outcome;
+  int& sweeps = outcome.sweeps;
+  // The coarse system of the two-level preconditioner, set up at its first use.
   std::unique_ptr<CoarseSystem> coarse;
   bool coarse_tried = false;
   // z = M^-1 res from z = 0: symmetric block Gauss-Seidel (a forward and a backward sweep) or
@@ -637,16 +649,16 @@ void DgsDriver::solveByConjugateGradients(RefineRun& run, RefineStepSummary& sum
     }
     if (opt.preconditioner == RefinePreconditioner::kTwoLevel && !coarse_tried) {
       coarse_tried = true;
-      coarse = refineCoarseSystem(traffic(run), static_cast<std::uint32_t>(sweeps));
+      coarse = refineCoarseSystem(stage, traffic(run), static_cast<std::uint32_t>(sweeps));
     }
     const bool gauss_seidel = options_.order == SweepOrder::kGaussSeidel;
     const int passes = gauss_seidel || coarse ? 2 : 1;
     for (int pass = 0; pass < passes; ++pass) {
       openSweep(run);
-      runSweeps(DgsStage::kRefine, run.current, gauss_seidel && pass == 1);
+      runSweeps(stage, run.current, gauss_seidel && pass == 1);
       ++sweeps;
       if (pass == 0 && coarse) {
-        refineCoarseCorrection(*coarse, run.current, static_cast<std::uint32_t>(sweeps));
+        refineCoarseCorrection(stage, *coarse, run.current, static_cast<std::uint32_t>(sweeps));
       }
       run.current.max_change = observedChange();
     }
@@ -658,40 +670,63 @@ void DgsDriver::solveByConjugateGradients(RefineRun& run, RefineStepSummary& sum
   };
   precondition();
   const double rz0 = gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
-                            [](RobotAgent& a) { return a.residualDot(); });
+                            [](RobotAgent& a) { return a.residualDot(); }, Reduce::kSum);
   double rz = rz0;
-  summary.sweeps = sweeps;
   if (!(rz0 > 0.0)) {  // the gradient is zero: delta = 0
     broadcast(run, static_cast<std::uint32_t>(sweeps), true, 0.0);
-    summary.linear_converged = true;
-    return;
+    outcome.converged = true;
+    return outcome;
   }
   broadcast(run, static_cast<std::uint32_t>(sweeps), false, 0.0);
   all([](RobotAgent& a) { a.firstDirection(); });
   while (true) {
-    const double pq = gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
-                             [](RobotAgent& a) { return a.curvature(); });
+    // p.Hp summed; with a change goal also the largest ||p_r|| (the change is |alpha| ||p_r||).
+    double max_direction = 0.0;
+    const double pq = gather(
+        run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
+        [](RobotAgent& a) { return a.curvature(); }, Reduce::kSum, &max_direction,
+        [](RobotAgent& a) { return a.directionNorm(); });
     if (!(pq > 0.0)) {  // no curvature left along p (rounding): keep delta
       broadcast(run, static_cast<std::uint32_t>(sweeps), true, 0.0);
+      outcome.converged = true;
       break;
     }
     const double alpha = rz / pq;
     broadcast(run, static_cast<std::uint32_t>(sweeps), false, alpha);
     all([alpha](RobotAgent& a) { a.advance(alpha); });
+    const double change = std::abs(alpha) * max_direction;
+    run.current.max_change = change;
     precondition();
     const double rz_new = gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
-                                 [](RobotAgent& a) { return a.residualDot(); });
+                                 [](RobotAgent& a) { return a.residualDot(); }, Reduce::kSum);
     const double relative = std::sqrt(std::max(rz_new, 0.0) / rz0);
     run.current.residual = relative;
-    summary.sweeps = sweeps;
-    const bool stop = relative <= opt.cg_tolerance || sweeps + 2 > opt.max_sweeps;
-    summary.linear_converged = relative <= opt.cg_tolerance;
+    outcome.converged = (goal.tolerance > 0.0 && relative <= goal.tolerance) ||
+                        (goal.eta_change > 0.0 && change <= goal.eta_change);
+    const bool stop = outcome.converged || sweeps + 2 > goal.max_sweeps;
     const double beta = rz_new / rz;
     broadcast(run, static_cast<std::uint32_t>(sweeps), stop, beta);
     if (stop) break;
     all([beta](RobotAgent& a) { a.nextDirection(beta); });
     rz = rz_new;
   }
+  return outcome;
+}
+
+void DgsDriver::runPoseByConjugateGradients(DgsStageReport& report) {
+  RefineRun run;
+  run.stage = DgsStage::kPose;
+  CgGoal goal;
+  goal.eta_change = options_.eta_pose;
+  goal.max_sweeps = options_.max_iterations;
+  const CgOutcome outcome = solveByConjugateGradients(run, goal);
+  if (run.pending.messages > 0) {  // traffic after the last sweep (the final decision)
+    openSweep(run);
+  }
+  closeSweep(run);
+  report.status = outcome.converged ? StageStatus::kConverged : StageStatus::kMaxIterations;
+  report.iterations = result_.pose.iterations;
+  report.final_change = result_.history.empty() ? 0.0 : result_.history.back().max_change;
 }
 
 const RefineReport& DgsDriver::runRefineStage() {
@@ -723,7 +758,7 @@ const RefineReport& DgsDriver::runRefineStage() {
   tellSilence();
   auto costOf = [&](bool candidate) {
     return gather(run, ControlKind::kCostReport, 0,
-                  [candidate](RobotAgent& a) { return a.costShare(candidate); });
+                  [candidate](RobotAgent& a) { return a.costShare(candidate); }, Reduce::kSum);
   };
 
   report.status = StageStatus::kMaxIterations;
@@ -755,7 +790,12 @@ const RefineReport& DgsDriver::runRefineStage() {
         if (live(r)) agents_.at(r)->beginStep(lambda);
       }
       if (opt.solver == RefineSolver::kConjugateGradient) {
-        solveByConjugateGradients(run, summary);
+        CgGoal goal;
+        goal.tolerance = opt.cg_tolerance;
+        goal.max_sweeps = opt.max_sweeps;
+        const CgOutcome outcome = solveByConjugateGradients(run, goal);
+        summary.sweeps = outcome.sweeps;
+        summary.linear_converged = outcome.converged;
       } else {
         solveBySweeps(run, summary);
       }

@@ -104,6 +104,18 @@ struct DgsOptions {
   int max_iterations = 1000;   // sweeps per stage
   bool flagged_initialisation = true;
   bool weight_by_information = false;  // unit weights as the DGS reference
+  // How the pose stage is solved: the robot-by-robot sweeps of DGS.md (default), or conjugate
+  // gradients on the same linear system (beyond DGS.md), preconditioned as the refinement's
+  // (refinement.preconditioner: the sweeps, around a coarse correction when two-level, whose
+  // basis is the robots' rotations and translations as a whole at the stage's starting point).
+  // The robots first exchange their starting values (zero increments, the anchor's translation);
+  // the stage stops when every robot's change in an iteration is at most eta_pose (the DGS
+  // measure) or after max_iterations sweeps. Same fixed point (the centralized two-stage
+  // estimate), reached in far fewer sweeps where the sweeps contract slowly (long chains split
+  // in pieces: sphere2500, torus3D). Every message and the scalars of the two all-reduces per
+  // iteration are serialized and counted.
+  enum class PoseSolver { kSweeps, kConjugateGradient };
+  PoseSolver pose_solver = PoseSolver::kSweeps;
   // Two-level DGS (beyond DGS.md): after every sweep that does not stop the stage, a Galerkin
   // correction over the motions of whole robots (RobotAgent::coarseShare / applyCoarse): each
   // robot sends its rows of the coarse system (k x k blocks, k = 3 in stage 1, 6 in stage 2) to
@@ -291,29 +303,48 @@ class DgsDriver {
   // The refinement's two-level preconditioner: the step's coarse system at the coordinator (null
   // when some live robot cannot take part or the matrix is not positive definite), and one coarse
   // correction of the robots' z with it.
-  std::unique_ptr<CoarseSystem> refineCoarseSystem(DgsIterationStats& stats, std::uint32_t sweep);
-  void refineCoarseCorrection(const CoarseSystem& coarse, DgsIterationStats& stats,
-                              std::uint32_t sweep);
-  // The refinement's bookkeeping: the sweep being recorded, traffic waiting for the next one.
+  std::unique_ptr<CoarseSystem> refineCoarseSystem(DgsStage stage, DgsIterationStats& stats,
+                                                   std::uint32_t sweep);
+  void refineCoarseCorrection(DgsStage stage, const CoarseSystem& coarse,
+                              DgsIterationStats& stats, std::uint32_t sweep);
+  // The bookkeeping of a stage solved by conjugate gradients or refined: the sweep being
+  // recorded, traffic waiting for the next one.
   struct RefineRun {
+    DgsStage stage = DgsStage::kRefine;
     int step = 0;
     bool open = false;
     DgsIterationStats current, pending;
     std::chrono::steady_clock::time_point sweep_start;
   };
+  // What conjugate gradients aim at: a relative preconditioned residual (0: none), a largest
+  // change of any robot in one iteration (0: none), within a number of sweeps.
+  struct CgGoal {
+    double tolerance = 0.0;
+    double eta_change = 0.0;
+    int max_sweeps = 1000;
+  };
+  struct CgOutcome {
+    int sweeps = 0;
+    bool converged = false;
+  };
   int coordinator() const;  // the first live robot of the order, -1 if none
   void openSweep(RefineRun& run);
   void closeSweep(RefineRun& run);
   DgsIterationStats& traffic(RefineRun& run);
-  // Every live robot reports share() to the coordinator; returns the sum (kCostReport, or
-  // kReport without `second`) or, for kReport with `second`, the maxima of both values.
+  enum class Reduce { kSum, kMax };
+  // Every live robot reports share() (and second(), if given) to the coordinator; returns their
+  // sum or maximum (summed in robot id order: independent of the order of arrival), and the
+  // maximum of the second values in max_second.
   double gather(RefineRun& run, ControlKind kind, std::uint32_t sweep,
-                const std::function<double(RobotAgent&)>& share, double* max_second = nullptr,
+                const std::function<double(RobotAgent&)>& share, Reduce reduce,
+                double* max_second = nullptr,
                 const std::function<double(RobotAgent&)>& second = {});
   void broadcast(RefineRun& run, std::uint32_t sweep, bool stop, double coefficient);
   double observedChange() const;
   void solveBySweeps(RefineRun& run, RefineStepSummary& summary);
-  void solveByConjugateGradients(RefineRun& run, RefineStepSummary& summary);
+  CgOutcome solveByConjugateGradients(RefineRun& run, const CgGoal& goal);
+  // The pose stage by conjugate gradients (DgsOptions::pose_solver).
+  void runPoseByConjugateGradients(DgsStageReport& report);
   std::vector<Wire> encodeOutgoing(int robot) const;
   bool live(int robot) const;
 

@@ -335,7 +335,8 @@ CoarseLayout LayoutOf(CoarseKind kind) {
 bool KnownKind(std::uint8_t kind) { return kind >= 1 && kind <= 4; }
 
 // The stages a kind belongs to: the two-level DGS (rotation, pose) shares and solves; the
-// refinement's preconditioner sends its matrix and residuals apart (and solves).
+// preconditioner of conjugate gradients (pose stage, refinement) sends its matrix and residuals
+// apart (and solves).
 bool StageAllowed(CoarseKind kind, DgsStage stage) {
   const bool two_stage = stage == DgsStage::kRotation || stage == DgsStage::kPose;
   switch (kind) {
@@ -344,8 +345,8 @@ bool StageAllowed(CoarseKind kind, DgsStage stage) {
     case CoarseKind::kSolution:
       return two_stage || stage == DgsStage::kRefine;
     case CoarseKind::kMatrix:
-    case CoarseKind::kResidual:
-      return stage == DgsStage::kRefine;
+    case CoarseKind::kResidual:  // the preconditioner of conjugate gradients
+      return stage == DgsStage::kPose || stage == DgsStage::kRefine;
   }
   return false;
 }

@@ -106,9 +106,9 @@ ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes);
 //              u16 robot s, k*k doubles (P_r^T H_rs P_s, in the sender's basis)
 //   kSolution  (any stage) per block: u16 robot, k*ncols doubles (that robot's coarse unknowns y,
 //              in the receiver's basis)
-//   kMatrix    (refinement) as kShare without the residual: the coarse matrix of a Gauss-Newton
-//              step, sent once per step
-//   kResidual  (refinement) k*ncols doubles (P_r^T r_r), no blocks: one per preconditioning
+//   kMatrix    (pose, refinement: conjugate gradients) as kShare without the residual: the coarse
+//              matrix of a linear solve, sent once per solve
+//   kResidual  (pose, refinement) k*ncols doubles (P_r^T r_r), no blocks: one per preconditioning
 // Matrices column-major; block robots strictly increasing. DecodeCoarseMessage rejects with
 // InvalidInputError: truncated input, bad magic/version/stage/kind or a kind of another stage,
 // k outside [1, kMaxCoarseK] or ncols outside [1, 16], a center size other than 0 or 3 (0 in a

@@ -365,9 +365,9 @@ TEST(CoarseMessages, RejectsMalformedInput) {
   EXPECT_THROW(EncodeCoarseMessage(m), InvalidInputError);  // a solution has no diagonal
 }
 
-// The refinement's preconditioner sends its coarse matrix once per step (kMatrix: a share
-// without residual) and a residual per preconditioning (kResidual); neither belongs to the
-// two-level stages, and a share does not belong to the refinement.
+// The preconditioner of conjugate gradients sends its coarse matrix once per solve (kMatrix: a
+// share without residual) and a residual per preconditioning (kResidual); neither belongs to the
+// rotation stage, and a share does not belong to the refinement.
 TEST(CoarseMessages, RefinementMatrixAndResidual) {
   CoarseMessage matrix = ExampleShare();
   matrix.kind = CoarseKind::kMatrix;
@@ -397,8 +397,8 @@ TEST(CoarseMessages, RefinementMatrixAndResidual) {
     EXPECT_THROW(DecodeCoarseMessage(b), InvalidInputError);
   };
   std::vector<std::uint8_t> b = bytes;
-  b[2] = static_cast<std::uint8_t>(DgsStage::kPose);
-  rejects(b, "a matrix in the pose stage");
+  b[2] = static_cast<std::uint8_t>(DgsStage::kRotation);
+  rejects(b, "a matrix in the rotation stage");
   b = EncodeCoarseMessage(ExampleShare());
   b[2] = static_cast<std::uint8_t>(DgsStage::kRefine);
   rejects(b, "a share in the refinement");

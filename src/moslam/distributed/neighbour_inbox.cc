@@ -71,6 +71,13 @@ Eigen::VectorXd* NeighbourInbox::mutableValue(DgsStage s, int slot) {
   return box.has[j] ? &box.values[j] : nullptr;
 }
 
+void NeighbourInbox::set(DgsStage s, int slot, const Eigen::VectorXd& value) {
+  Stage& box = stage(s);
+  const auto j = static_cast<std::size_t>(slot);
+  box.values[j] = value;
+  box.has[j] = 1;
+}
+
 void NeighbourInbox::add(DgsStage s, int slot, const Eigen::VectorXd& delta) {
   Stage& box = stage(s);
   const auto j = static_cast<std::size_t>(slot);

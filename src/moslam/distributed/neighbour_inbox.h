@@ -36,6 +36,8 @@ class NeighbourInbox {
   const Eigen::VectorXd* get(DgsStage stage, int slot) const;
   // The same, writable: the coarse correction moves the copies of the neighbours' variables.
   Eigen::VectorXd* mutableValue(DgsStage stage, int slot);
+  // The value of the variable in `slot`, as if received.
+  void set(DgsStage stage, int slot, const Eigen::VectorXd& value);
   // value += delta for the variable in `slot` (one not received counts as 0 and is then held).
   void add(DgsStage stage, int slot, const Eigen::VectorXd& delta);
   // Whether `robot` said it has solved in `stage`.

@@ -92,6 +92,16 @@ void RobotAgent::startPose() {
 
 void RobotAgent::finish() {
   requireState(AgentState::kPose, "finish()");
+  if (cg_active_) {
+    // Conjugate gradients solved the stage: x = the starting values (0 for the unknowns) + delta,
+    // and the neighbours' values likewise from their copies, for the refinement's start.
+    for (std::size_t i = 0; i < x_.size(); ++i) x_[i] = cg_.increment(i);
+    for (std::size_t j = 0; j < pose_start_.size(); ++j) {
+      inbox_.set(DgsStage::kPose, static_cast<int>(j),
+                 pose_start_[j] + Eigen::VectorXd(cg_.neighbourIncrement(static_cast<int>(j))));
+    }
+    cg_active_ = false;
+  }
   state_ = AgentState::kDone;
 }
 
@@ -105,6 +115,9 @@ ReceiveStatus RobotAgent::receive(const Message& m) {
 
 bool RobotAgent::usable(const Separator& s, DgsStage stage) const {
   if (stage == DgsStage::kRefine) return refinement_.knows(s.slot);
+  // Conjugate gradients in the pose stage: every separator whose term is built (the neighbour's
+  // rotation is known) takes part from the start; the values are the CG vectors.
+  if (stage == DgsStage::kPose && cg_active_) return pose_.built(s.factor);
   if (inbox_.get(stage, s.slot) == nullptr) return false;
   if (options_.flagged_initialisation && !inbox_.initialised(stage, s.foreign_robot)) return false;
   if (stage == DgsStage::kPose && R_hat_.count(s.foreign) == 0) return false;
@@ -156,9 +169,13 @@ bool RobotAgent::solvable(DgsStage stage, std::vector<bool>& use) const {
 }
 
 Eigen::MatrixXd RobotAgent::localRhs(DgsStage stage) const {
-  const LocalSystem& sys = system(stage);
   // Conjugate gradients: the sweeps apply the preconditioner to the residual.
-  Eigen::MatrixXd G = cg_active_ ? Eigen::MatrixXd(cg_.residual()) : sys.constantRhs();
+  return subtractCouplings(stage, cg_active_ ? Eigen::MatrixXd(cg_.residual())
+                                             : system(stage).constantRhs());
+}
+
+Eigen::MatrixXd RobotAgent::subtractCouplings(DgsStage stage, Eigen::MatrixXd G) const {
+  const LocalSystem& sys = system(stage);
   const auto& separators = graph_.separators();
   for (std::size_t s = 0; s < separators.size(); ++s) {
     const Eigen::Index row = sys.separatorRow(s);
@@ -268,7 +285,7 @@ std::vector<OutgoingMessage> RobotAgent::outgoing() const {
         v = x_[static_cast<std::size_t>(i)];
       } else if (stage == DgsStage::kRotation) {  // the anchor
         v = RowMajor(graph_.initial(k).rotation().matrix());
-      } else if (stage == DgsStage::kRefine) {  // the anchor: never moves
+      } else if (stage == DgsStage::kRefine || cg_active_) {  // the anchor: never moves
         v = Eigen::VectorXd::Zero(6);
       } else {
         v = Eigen::VectorXd::Zero(6);
@@ -290,7 +307,9 @@ Values RobotAgent::estimate() const {
       values[k] = graph_.initial(k);  // the anchor, or nothing estimated yet
       continue;
     }
-    const Eigen::VectorXd& x = x_[static_cast<std::size_t>(i)];
+    const Eigen::VectorXd x = state_ == AgentState::kPose && cg_active_
+                                  ? Eigen::VectorXd(cg_.increment(static_cast<std::size_t>(i)))
+                                  : x_[static_cast<std::size_t>(i)];
     if (state_ == AgentState::kRotation) {
       values[k] = SE3(SO3(ProjectToRotation(x)), Vector3::Zero());
     } else {
@@ -405,29 +424,56 @@ void RobotAgent::acceptStep() {
   linearized_ = false;
 }
 
-void RobotAgent::startPreconditioner() {
-  requireRefine("startPreconditioner()");
+DgsStage RobotAgent::cgStage(const char* what) const {
+  if (state_ == AgentState::kPose) return DgsStage::kPose;
+  requireRefine(what);
   if (!linearized_) {
-    throw InvalidInputError("DGS robot " + std::to_string(robot()) +
-                            ": startPreconditioner() before beginStep()");
+    throw InvalidInputError("DGS robot " + std::to_string(robot()) + ": " + what +
+                            " before beginStep()");
   }
+  return DgsStage::kRefine;
+}
+
+void RobotAgent::startPreconditioner() {
+  const DgsStage stage = cgStage("startPreconditioner()");
   if (!cg_active_) {
-    std::vector<bool> use;
-    can_solve_ = solvable(DgsStage::kRefine, use);
-    if (can_solve_) pose_.assemble(use);
+    // Pose stage: the starting values are those the neighbours sent in the stage's first
+    // exchange (zero increments, the anchor's translation); the right-hand side holds them.
+    std::vector<Eigen::VectorXd> start(graph_.neighbours().size());
+    if (stage == DgsStage::kPose) {
+      for (std::size_t j = 0; j < start.size(); ++j) {
+        const Eigen::VectorXd* v = inbox_.get(DgsStage::kPose, static_cast<int>(j));
+        start[j] = v ? *v : Eigen::VectorXd(Eigen::VectorXd::Zero(6));
+      }
+    }
     cg_active_ = true;
+    std::vector<bool> use;
+    can_solve_ = solvable(stage, use);
     const Eigen::Index n = static_cast<Eigen::Index>(6 * graph_.unknowns().size());
-    cg_.start(can_solve_ ? Eigen::VectorXd(pose_.constantRhs().col(0))
-                         : Eigen::VectorXd(Eigen::VectorXd::Zero(n)),
-              graph_.neighbours().size());
+    Eigen::VectorXd residual = Eigen::VectorXd::Zero(n);
+    if (can_solve_) {
+      pose_.assemble(use);
+      residual = pose_.constantRhs().col(0);
+      if (stage == DgsStage::kPose) {
+        const auto& separators = graph_.separators();
+        for (std::size_t s = 0; s < separators.size(); ++s) {
+          const Eigen::Index row = pose_.separatorRow(s);
+          if (row < 0) continue;
+          residual.segment<6>(row).noalias() -=
+              Matrix6(pose_.coupling(s)) * start[static_cast<std::size_t>(separators[s].slot)];
+        }
+      }
+    }
+    cg_.start(residual, graph_.neighbours().size());
+    pose_start_ = std::move(start);
   }
   x_.assign(graph_.unknowns().size(), Eigen::VectorXd::Zero(6));
-  inbox_.forget(DgsStage::kRefine);
+  inbox_.forget(stage);
   resetProgress();
 }
 
 double RobotAgent::residualDot() const {
-  requireRefine("residualDot()");
+  cgStage("residualDot()");
   if (!cg_active_) return 0.0;
   return cg_.residual().dot(stackedSweepValue());
 }
@@ -435,20 +481,21 @@ double RobotAgent::residualDot() const {
 void RobotAgent::firstDirection() { nextDirection(0.0); }
 
 void RobotAgent::nextDirection(double beta) {
-  requireRefine("nextDirection()");
+  cgStage("nextDirection()");
   if (!cg_active_) {
     throw InvalidInputError("DGS robot " + std::to_string(robot()) +
                             ": a search direction before startPreconditioner()");
   }
+  const DgsStage stage = currentStage();
   std::vector<const Eigen::VectorXd*> neighbour_z(graph_.neighbours().size());
   for (std::size_t i = 0; i < neighbour_z.size(); ++i) {
-    neighbour_z[i] = inbox_.get(DgsStage::kRefine, static_cast<int>(i));
+    neighbour_z[i] = inbox_.get(stage, static_cast<int>(i));
   }
   cg_.nextDirection(beta, stackedSweepValue(), neighbour_z);
 }
 
 double RobotAgent::curvature() {
-  requireRefine("curvature()");
+  cgStage("curvature()");
   if (!cg_active_ || !can_solve_) {
     if (cg_active_) cg_.clearCurvature();
     return 0.0;
@@ -457,13 +504,14 @@ double RobotAgent::curvature() {
 }
 
 void RobotAgent::advance(double alpha) {
-  requireRefine("advance()");
+  cgStage("advance()");
   if (!cg_active_) return;
   cg_.advance(alpha);
 }
 
 bool RobotAgent::refineCoarseReady() const {
-  return state_ == AgentState::kRefine && cg_active_ && can_solve_;
+  return (state_ == AgentState::kRefine || state_ == AgentState::kPose) && cg_active_ &&
+         can_solve_;
 }
 
 CoarseShare RobotAgent::refineCoarseMatrix() {
@@ -472,7 +520,11 @@ CoarseShare RobotAgent::refineCoarseMatrix() {
                             ": refineCoarseMatrix() outside a conjugate-gradient step it can "
                             "solve in (state " + ToString(state_) + ")");
   }
-  refine_coarse_.build(graph_, refinement_);
+  if (state_ == AgentState::kPose) {
+    refine_coarse_.buildPoseStage(graph_, R_hat_);
+  } else {
+    refine_coarse_.build(graph_, refinement_);
+  }
   refine_coarse_built_ = true;
   return refine_coarse_.matrix(graph_, pose_);
 }
@@ -483,7 +535,7 @@ Eigen::VectorXd RobotAgent::refineCoarseResidual() const {
                             ": refineCoarseResidual() before refineCoarseMatrix() of the step");
   }
   const Eigen::VectorXd r =
-      localRhs(DgsStage::kRefine).col(0) - pose_.multiply(stackedSweepValue());
+      localRhs(currentStage()).col(0) - pose_.multiply(stackedSweepValue());
   return refine_coarse_.project(graph_, pose_, r);
 }
 
@@ -492,7 +544,7 @@ void RobotAgent::applyRefineCoarse(const std::map<int, Eigen::MatrixXd>& y) {
     throw InvalidInputError("DGS robot " + std::to_string(robot()) +
                             ": applyRefineCoarse() before refineCoarseMatrix() of the step");
   }
-  refine_coarse_.apply(graph_, y, x_, inbox_);
+  refine_coarse_.apply(graph_, currentStage(), y, x_, inbox_);
 }
 
 void RobotAgent::finishRefine() {

@@ -152,6 +152,8 @@ class RobotAgent {
   void firstDirection();
   void nextDirection(double beta);
   double curvature();
+  // ||p_r||: a robot's change in an iteration is |alpha| ||p_r|| (0 outside conjugate gradients).
+  double directionNorm() const { return cg_active_ ? cg_.direction().norm() : 0.0; }
   void advance(double alpha);
 
   // The second level of the refinement's preconditioner (coarse_correction.h,
@@ -238,6 +240,11 @@ class RobotAgent {
   // The right-hand side of the local solve with the neighbour values held now (after assembly):
   // G0 (conjugate gradients: the residual) - sum_s H_rs x_s.
   Eigen::MatrixXd localRhs(DgsStage stage) const;
+  // G - sum_s H_rs x_s over the separators used, x_s the values held now.
+  Eigen::MatrixXd subtractCouplings(DgsStage stage, Eigen::MatrixXd G) const;
+  // The stage conjugate gradients run in (pose or refinement; InvalidInputError otherwise, and in
+  // the refinement before beginStep()).
+  DgsStage cgStage(const char* what) const;
   void requireRefine(const char* what) const;
   // Throws InvalidInputError "<what> in state <state><hint>" unless the agent is in `expected`.
   void requireState(AgentState expected, const char* what, const char* hint = "") const;
@@ -272,6 +279,7 @@ class RobotAgent {
   double lambda_ = 0.0;
   bool cg_active_ = false;
   bool can_solve_ = true;
+  std::vector<Eigen::VectorXd> pose_start_;  // pose-stage CG: the neighbours' starting values
 };
 
 }  // namespace moslam
