@@ -44,6 +44,9 @@ Runner RegisterSolve(CLI::App& app);
 // distributed refinement), compared with centralized Gauss-Newton.
 Runner RegisterDgs(CLI::App& app);
 
+// `moslam spoil <folder> --fraction P --seed S --out DIR`: wrong separators added (robust/spoil.h).
+Runner RegisterSpoil(CLI::App& app);
+
 // `moslam robot --robot R --data <folder> | --scenario <name>`: one robot process (a simulated
 // robot: object SLAM and rendezvous first), DGS over Cyclone DDS.
 Runner RegisterRobot(CLI::App& app);

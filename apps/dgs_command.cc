@@ -3,6 +3,7 @@
 // (from the chordal initialisation, same gauge: no alignment).
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -15,7 +16,9 @@
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/messages.h"
 #include "moslam/distributed/partition.h"
+#include "moslam/distributed/robust_dgs.h"
 #include "moslam/io/g2o.h"
+#include "moslam/io/tum.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/optimizer.h"
@@ -47,6 +50,10 @@ struct DgsArgs {
   double refine_gamma = 1.0;
   G2oReadOptions read;  // --objects, --drop-indefinite-coupling
   bool json = false;
+  bool robust = false;
+  double gnc_threshold = 0.0;  // 0: GncOptions' default
+  int separator_support = 3;
+  std::string out;             // folder: one g2o and one TUM file per robot
 };
 
 double Since(std::chrono::steady_clock::time_point t0) {
@@ -66,7 +73,117 @@ double StageSeconds(const DgsResult& r, DgsStage stage) {
   return s;
 }
 
-int RunDgsCommand(const DgsArgs& a) {
+void WriteEstimate(const std::string& dir, const PoseGraph& graph, const Values& values,
+                   const G2oReadOptions& read) {
+  if (dir.empty()) return;
+  G2oWriteOptions w;
+  w.scheme = read.scheme;
+  WriteG2oFolder(dir, graph, values, w);
+  WriteTumTrajectories(dir, values);
+}
+
+// --robust: GNC-TLS by the robots (distributed/robust_dgs.h) beside the centralized GNC.
+int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& initial,
+                        const DgsOptions& dgs, std::chrono::steady_clock::time_point t_start) {
+  RobustDgsOptions options;
+  options.dgs = dgs;
+  options.gnc.threshold = a.gnc_threshold;
+  options.check_separators = a.separator_support > 0;
+  options.consistency.min_support = std::max(1, a.separator_support);
+  options.validate();
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  const auto robust_count = std::count(robust.begin(), robust.end(), true);
+  const Key anchor = GaugeAnchor(graph);
+  const auto anchor_it = initial.find(anchor);
+  const SE3 anchor_pose = anchor_it != initial.end() ? anchor_it->second : SE3();
+  const GncResult central =
+      SolveRobustCentralized(graph,
+                             [&](const PoseGraph& g) { return ChordalInitialization(g, anchor_pose); },
+                             robust, options);
+  const RobustDgsResult r = RunRobustDgs(graph, initial, robust, options);
+  WriteEstimate(a.out, graph, r.values, a.read);
+  // The cost of the factors each solve kept (weight >= 0.5).
+  auto keptCost = [&](const Values& values, const std::vector<double>& weights) {
+    const std::vector<double> r2 = SquaredResiduals(graph, values);
+    double c = 0.0;
+    for (std::size_t i = 0; i < r2.size(); ++i) c += weights[i] >= 0.5 ? 0.5 * r2[i] : 0.0;
+    return c;
+  };
+  int disagree = 0;
+  nlohmann::json rejected = nlohmann::json::array();
+  for (std::size_t i = 0; i < r.weights.size(); ++i) {
+    disagree += (r.weights[i] < 0.5) != (central.weights[i] < 0.5) ? 1 : 0;
+    if (r.weights[i] < 0.5) {
+      rejected.push_back({ToString(graph.factors()[i].a()), ToString(graph.factors()[i].b())});
+    }
+  }
+  const double cost = keptCost(r.values, r.weights);
+  const double central_cost = keptCost(central.values, central.weights);
+  const TrajectoryErrors errors = CompareEstimates(r.values, central.values);
+  const double total_seconds = Since(t_start);
+  if (a.json) {
+    nlohmann::json j = {
+        {"input", a.input},
+        {"robust", true},
+        {"variables", graph.keys().size()},
+        {"factors", graph.factors().size()},
+        {"robust_factors", robust_count},
+        {"gnc_threshold", options.gnc.threshold2()},
+        {"status", ToString(r.status)},
+        {"rounds", r.iterations},
+        {"outliers", r.outliers},
+        {"rejected", rejected},
+        {"centralized_status", ToString(central.status)},
+        {"centralized_rounds", central.iterations},
+        {"centralized_outliers", central.outliers},
+        {"weights_disagreeing", disagree},
+        {"kept_cost", cost},
+        {"centralized_kept_cost", central_cost},
+        {"ate_poses", errors.poses.ate},
+        {"are_poses_deg", errors.poses.are_deg},
+        {"bytes", r.bytes()},
+        {"bytes_solves", r.solve_bytes},
+        {"bytes_weights", r.weight_bytes},
+        {"weight_messages", r.weight_messages},
+        {"bytes_control", r.control_bytes},
+        {"bytes_consistency", r.consistency_bytes},
+        {"consistency_rejected", r.consistency_rejected},
+        {"sweeps", r.sweeps},
+        {"seconds", r.seconds},
+        {"total_seconds", total_seconds},
+    };
+    nlohmann::json rounds = nlohmann::json::array();
+    for (const RobustDgsRound& k : r.rounds) {
+      rounds.push_back({{"round", k.round}, {"mu", k.mu}, {"undecided", k.undecided},
+                        {"outliers", k.outliers}, {"bytes", k.solve_bytes}, {"cost", k.cost}});
+    }
+    j["round_history"] = rounds;
+    fmt::print("{}\n", j.dump());
+  } else {
+    fmt::print("{}: {} variables, {} factors ({} robust), GNC-TLS threshold {:g}\n", a.input,
+               graph.keys().size(), graph.factors().size(), robust_count,
+               options.gnc.threshold2());
+    fmt::print("centralized GNC: {} after {} round(s), {} rejected, cost of the kept factors "
+               "{:.10g}\n",
+               ToString(central.status), central.iterations, central.outliers, central_cost);
+    fmt::print("robots' GNC:     {} after {} round(s), {} rejected ({} weight(s) differ from "
+               "the centralized), cost of the kept factors {:.10g} ({:.3e} relative)\n",
+               ToString(r.status), r.iterations, r.outliers, disagree, cost,
+               central_cost > 0 ? cost / central_cost - 1.0 : 0.0);
+    fmt::print("vs centralized GNC (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses\n",
+               errors.poses.ate, errors.poses.are_deg, errors.poses.count);
+    fmt::print("separator check: {} rejected before GNC\n", r.consistency_rejected);
+    fmt::print("traffic: {} bytes (solves {}, weights {} in {} messages, control {}, separator "
+               "check {}); {} sweeps; {:.3f} s\n",
+               r.bytes(), r.solve_bytes, r.weight_bytes, r.weight_messages, r.control_bytes,
+               r.consistency_bytes, r.sweeps, r.seconds);
+  }
+  return 0;
+}
+
+int RunDgsCommand(const DgsArgs& a_in) {
+  DgsArgs a = a_in;
+  if (a.robust) a.refine = true;  // every robust round solves to the optimum
   const auto t_start = std::chrono::steady_clock::now();
   const G2oReadOptions& read_options = a.read;
   const Dataset data = ReadG2o(a.input, read_options);
@@ -116,6 +233,7 @@ int RunDgsCommand(const DgsArgs& a) {
   }
   options.refinement.gamma = a.refine_gamma;
   options.validate();
+  if (a.robust) return RunRobustDgsCommand(a, graph, initial, options, t_start);
 
   // The reference: centralized Gauss-Newton from the chordal initialisation, in the same gauge
   // (the anchor at its initial value, as the distributed solve holds it).
@@ -168,6 +286,7 @@ int RunDgsCommand(const DgsArgs& a) {
   const double two_stage_cost = graph.cost(two_stage);
   if (a.refine) driver.runRefineStage();
   const DgsResult r = driver.result();
+  WriteEstimate(a.out, graph, r.values, a.read);
   const double final_cost = graph.cost(r.values);
   const TrajectoryErrors errors = CompareEstimates(r.values, central.values);
   const TrajectoryErrors two_stage_errors = CompareEstimates(two_stage, central.values);
@@ -374,6 +493,22 @@ Runner RegisterDgs(CLI::App& app) {
                   "over-relaxation of the refinement sweeps, in (0, 2)")
       ->capture_default_str();
   AddG2oReadFlags(sub, &args->read);
+  sub->add_flag("--robust", args->robust,
+                "outlier-robust: graduated non-convexity with a truncated least-squares cost on "
+                "the inter-robot factors, run by the robots (implies --refine)");
+  sub->add_option("--gnc-threshold", args->gnc_threshold,
+                  "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
+                  "6 dof at 0.999, for information that is the noise's)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  sub->add_option("--separator-support", args->separator_support,
+                  "--robust: before GNC, keep of each robot pair's separators the largest "
+                  "pairwise consistent set if it has at least this many (0: no check)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  sub->add_option("--out", args->out,
+                  "write the distributed estimate into this folder: 0.g2o .. N-1.g2o (each "
+                  "robot's vertices and edges) and robot_<r>.tum");
   sub->add_flag("--json", args->json, "print one JSON object as the last line (no progress)");
   return [args] { return RunDgsCommand(*args); };
 }

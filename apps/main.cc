@@ -10,6 +10,7 @@ int main(int argc, char** argv) {
   cli::Commands commands(app);
   commands.add(cli::RegisterSolve(app));
   commands.add(cli::RegisterDgs(app));
+  commands.add(cli::RegisterSpoil(app));
   // simulate with sampled sensing runs here; --perception rendered hands the command over.
   commands.add(cli::RegisterSimulate(
       app, [argv](const cli::RenderedPerceptionArgs&) -> moslam::ExperimentConfig::Perceive {

@@ -39,6 +39,11 @@ struct SimulateArgs {
   int poses = 100;
   bool no_refine = false;
   std::string dgs = "two-level";
+  std::string initial_poses = "known";
+  double outliers = 0.0;
+  bool robust = false;
+  double gnc_threshold = 0.0;
+  bool skip_unlinked = false;
   std::vector<std::string> table{"all"};
   bool json = false;
   std::string plot;
@@ -76,9 +81,31 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "one-level (the paper's); the other runs too, for its sweep counts")
       ->check(CLI::IsMember({"two-level", "one-level"}))
       ->capture_default_str();
+  sub->add_option("--initial-poses", args->initial_poses,
+                  "known (the paper: a rendezvous relates the frames by the robots' initial "
+                  "poses) or unknown (it aligns the two object maps from the objects alone)")
+      ->check(CLI::IsMember({"known", "unknown"}))
+      ->capture_default_str();
+  sub->add_option("--outliers", args->outliers,
+                  "fraction of wrong object associations injected at every rendezvous (a "
+                  "label-consistent wrong object), in [0, 1)")
+      ->check(CLI::Range(0.0, 0.999))
+      ->capture_default_str();
+  sub->add_flag("--robust", args->robust,
+                "also run the robust distributed solve (separator check, GNC-TLS by the robots) "
+                "and the outlier-free solve; --table robust");
+  sub->add_option("--gnc-threshold", args->gnc_threshold,
+                  "--robust: r^T Omega r beyond which an object-object factor is an outlier (0: "
+                  "22.46, chi-square 6 dof at 0.999)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  sub->add_flag("--skip-unlinked", args->skip_unlinked,
+                "leave out (and count) the runs in which a robot never links to robot 0, instead "
+                "of failing");
   sub->add_option("--table", args->table,
                   "table(s) to print: accuracy | association | memory | scale | perception | all")
-      ->check(CLI::IsMember({"accuracy", "association", "memory", "scale", "perception", "all"}));
+      ->check(CLI::IsMember(
+          {"accuracy", "association", "memory", "scale", "perception", "robust", "all"}));
   sub->add_flag("--json", args->json, "print the results as one JSON object on the last line");
   sub->add_option("--plot", args->plot, "write an SVG of run 0 of the first row (Fig. 4)");
   sub->add_option("--perception", args->perception,
@@ -122,6 +149,11 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         c.poses_per_robot = a.poses;
         c.refine = !a.no_refine;
         c.two_level_dgs = a.dgs == "two-level";
+        c.known_initial_poses = a.initial_poses == "known";
+        c.outlier_fraction = a.outliers;
+        c.robust = a.robust;
+        c.gnc_threshold = a.gnc_threshold;
+        c.skip_unlinked = a.skip_unlinked;
         c.perceive = perceive;
         results.push_back(RunExperiment(c, results.empty() ? &first : nullptr));
       }
@@ -131,12 +163,15 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         {"association", TableKind::kAssociation},
         {"memory", TableKind::kMemory},
         {"scale", TableKind::kScale},
-        {"perception", TableKind::kPerception}};
+        {"perception", TableKind::kPerception},
+        {"robust", TableKind::kRobust}};
     bool first_table = true;
     for (const auto& [name, kind] : tables) {
-      // "all" includes the perception table only when there was perception.
+      // "all" includes the perception table only when there was perception, the robust one
+      // only with --robust.
       const bool all = std::find(a.table.begin(), a.table.end(), "all") != a.table.end() &&
-                       (kind != TableKind::kPerception || rendered);
+                       (kind != TableKind::kPerception || rendered) &&
+                       (kind != TableKind::kRobust || a.robust);
       const bool wanted =
           all || std::find(a.table.begin(), a.table.end(), name) != a.table.end();
       if (!wanted) continue;

@@ -1,5 +1,6 @@
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -8,6 +9,8 @@
 #include "moslam/common/errors.h"
 #include "moslam/io/g2o.h"
 #include "moslam/io/tum.h"
+#include "moslam/distributed/robust_dgs.h"
+#include "moslam/robust/gnc.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/optimizer.h"
 
@@ -25,6 +28,8 @@ struct SolveArgs {
   std::string tum_dir;
   bool json = false;
   bool verbose = false;
+  bool robust = false;
+  double gnc_threshold = 0.0;  // 0: GncOptions' default
 };
 
 double Since(std::chrono::steady_clock::time_point t0) {
@@ -72,7 +77,31 @@ int RunSolve(const SolveArgs& a) {
                  data.repaired_information);
     }
   }
-  const OptimizerResult result = optimizer.optimize();
+  OptimizerResult result;
+  GncResult gnc;
+  const std::vector<bool> robust_mask =
+      a.robust ? DefaultRobustFactors(data.graph) : std::vector<bool>{};
+  if (a.robust) {
+    RobustDgsOptions robust_options;  // the same check and GNC as `moslam dgs --robust`
+    robust_options.gnc.threshold = a.gnc_threshold;
+    // The initialisation of the factors the separator check keeps (--init file: the file's).
+    auto initialize = [&](const PoseGraph& kept) {
+      if (a.init == "file") return initial;
+      Dataset d;
+      d.graph = kept;
+      d.initial = data.initial;
+      return InitialEstimate(d, a.init);
+    };
+    gnc = SolveRobustCentralized(data.graph, initialize, robust_mask, robust_options, options);
+    result.values = gnc.values;
+    result.termination = TerminationStatus::kConverged;
+    result.initial_cost = data.graph.cost(initial);
+    result.final_cost = data.graph.cost(gnc.values);
+    result.iterations = gnc.iterations;
+    result.seconds = gnc.seconds;
+  } else {
+    result = optimizer.optimize();
+  }
   const double total_seconds = Since(t_start);
 
   if (!a.out.empty()) {
@@ -90,7 +119,7 @@ int RunSolve(const SolveArgs& a) {
   if (!a.tum_dir.empty()) WriteTumTrajectories(a.tum_dir, result.values);
 
   if (a.json) {
-    const nlohmann::json j = {
+    nlohmann::json j = {
         {"input", a.input},
         {"variables", data.graph.keys().size()},
         {"factors", data.graph.factors().size()},
@@ -109,7 +138,30 @@ int RunSolve(const SolveArgs& a) {
         {"cholesky_seconds", result.solve_seconds},
         {"total_seconds", total_seconds},
     };
+    if (a.robust) {
+      nlohmann::json r = {{"status", ToString(gnc.status)},
+                          {"rounds", gnc.iterations},
+                          {"outliers", gnc.outliers},
+                          {"least_squares_cost", gnc.least_squares_cost},
+                          {"final_mu", gnc.final_mu}};
+      nlohmann::json rejected = nlohmann::json::array();
+      for (std::size_t i = 0; i < gnc.weights.size(); ++i) {
+        if (gnc.weights[i] < 0.5) {
+          const RelativePoseFactor& f = data.graph.factors()[i];
+          rejected.push_back({ToString(f.a()), ToString(f.b())});
+        }
+      }
+      r["rejected"] = rejected;
+      j["robust"] = r;
+    }
     fmt::print("{}\n", j.dump());
+  } else if (a.robust) {
+    fmt::print("robust (GNC-TLS, threshold {:g}): {} after {} weighted solve(s), {} of {} robust "
+               "factor(s) rejected; cost of all factors {:.10g} (least squares {:.10g}) in "
+               "{:.3f} s\n",
+               GncOptions{a.gnc_threshold}.threshold2(), ToString(gnc.status), gnc.iterations,
+               gnc.outliers, std::count(robust_mask.begin(), robust_mask.end(), true),
+               result.final_cost, gnc.least_squares_cost, gnc.seconds);
   } else {
     fmt::print("{} after {} iteration(s): cost {:.6f} -> {:.10g} in {:.3f} s\n",
                ToString(result.termination), result.iterations, result.initial_cost,
@@ -143,6 +195,15 @@ Runner RegisterSolve(CLI::App& app) {
   sub->add_option("--tum", args->tum_dir, "write one TUM trajectory per robot into this folder");
   sub->add_flag("--json", args->json, "print one JSON object as the last line");
   sub->add_flag("-v,--verbose", args->verbose, "one line per iteration on stderr");
+  sub->add_flag("--robust", args->robust,
+                "the inter-robot factors (single robot: the loop closures) checked for pairwise "
+                "consistency per robot pair, then graduated non-convexity with a truncated "
+                "least-squares cost on them; the rest least squares");
+  sub->add_option("--gnc-threshold", args->gnc_threshold,
+                  "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
+                  "6 dof at 0.999, for information that is the noise's)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   return [args] { return RunSolve(*args); };
 }
 

@@ -491,4 +491,68 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
   return m;
 }
 
+namespace {
+
+void CheckWeights(const WeightMessage& m) {
+  auto bad = [](const std::string& what) {
+    throw InvalidInputError("DGS weight message: " + what);
+  };
+  if (m.sender < 0 || m.sender > kMaxMessageRobot || m.receiver < 0 ||
+      m.receiver > kMaxMessageRobot) {
+    bad("robot ids must be in [0, 65535]");
+  }
+  if (m.sender == m.receiver) bad("sender and receiver are the same robot " + std::to_string(m.sender));
+  for (std::size_t i = 0; i < m.weights.size(); ++i) {
+    const double w = m.weights[i];
+    if (!(w >= 0.0 && w <= 1.0)) {
+      bad("weight " + std::to_string(i) + " is not a number in [0, 1]");
+    }
+  }
+  if (m.weights.size() > 0xFFFFFFFFu) bad("too many weights");
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeWeightMessage(const WeightMessage& m) {
+  CheckWeights(m);
+  std::vector<std::uint8_t> out(kWeightHeaderBytes + 8 * m.weights.size());
+  Writer w(out.data());
+  w.u8(kWeightMagic);
+  w.u8(kMessageVersion);
+  w.u16(static_cast<std::uint16_t>(m.sender));
+  w.u16(static_cast<std::uint16_t>(m.receiver));
+  w.u16(0);
+  w.u32(m.round);
+  w.u32(static_cast<std::uint32_t>(m.weights.size()));
+  for (double v : m.weights) w.f64(v);
+  return out;
+}
+
+WeightMessage DecodeWeightMessage(const std::vector<std::uint8_t>& bytes) {
+  Reader r(bytes);
+  if (r.u8("magic") != kWeightMagic) {
+    throw InvalidInputError("DGS weight message: bad magic byte (not a weight message)");
+  }
+  const std::uint8_t version = r.u8("version");
+  if (version != kMessageVersion) {
+    throw InvalidInputError("DGS weight message: unsupported version " + std::to_string(version));
+  }
+  WeightMessage m;
+  m.sender = r.u16("sender");
+  m.receiver = r.u16("receiver");
+  if (r.u16("reserved") != 0) throw InvalidInputError("DGS weight message: reserved field not 0");
+  m.round = r.u32("round");
+  const std::uint32_t count = r.u32("count");
+  if (r.remaining() / 8 < count || r.remaining() != 8 * static_cast<std::size_t>(count)) {
+    throw InvalidInputError("DGS weight message: " + std::to_string(count) + " weights need " +
+                            std::to_string(8 * static_cast<std::size_t>(count)) + " bytes, " +
+                            std::to_string(r.remaining()) + " follow");
+  }
+  m.weights.resize(count);
+  for (double& w : m.weights) w = r.f64("weight");
+  CheckWeights(m);
+  return m;
+}
+
 }  // namespace moslam
+

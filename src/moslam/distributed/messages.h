@@ -137,4 +137,29 @@ inline constexpr std::uint8_t kCoarseMagic = 0xD8;
 std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& message);
 CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes);
 
+// Weight messages of the robust solve (robust_dgs.h): between two GNC rounds, the robot that owns
+// the robust separators between itself and another robot (the lower id) sends it their weights,
+// in the order both robots hold those factors (the graph's). Little-endian:
+//
+//   u8 magic 0xD9 | u8 version 1 | u16 sender | u16 receiver | u16 reserved (0) |
+//   u32 round (the GNC round, 1-based) | u32 count | count x f64 weight
+//
+// DecodeWeightMessage rejects with InvalidInputError: truncated input, a bad magic/version, a
+// non-zero reserved field, a sender equal to the receiver, a count the payload does not hold
+// exactly, a weight that is not a number in [0, 1].
+struct WeightMessage {
+  int sender = 0;
+  int receiver = 0;
+  std::uint32_t round = 0;
+  std::vector<double> weights;
+};
+
+inline constexpr std::uint8_t kWeightMagic = 0xD9;
+inline constexpr std::size_t kWeightHeaderBytes = 16;
+
+// Throws InvalidInputError on the conditions DecodeWeightMessage rejects (robots outside
+// [0, 65535] too).
+std::vector<std::uint8_t> EncodeWeightMessage(const WeightMessage& message);
+WeightMessage DecodeWeightMessage(const std::vector<std::uint8_t>& bytes);
+
 }  // namespace moslam

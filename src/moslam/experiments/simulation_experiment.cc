@@ -6,12 +6,14 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <utility>
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/robust_dgs.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/sim/sensing.h"
 #include "moslam/sim/world.h"
@@ -68,6 +70,29 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"inter_precision", &RunMetrics::inter_precision},
       {"inter_recall", &RunMetrics::inter_recall},
       {"rendezvous_bytes", &RunMetrics::rendezvous_bytes},
+      {"aligned", &RunMetrics::aligned},
+      {"refused_too_few", &RunMetrics::refused_too_few},
+      {"refused_ambiguous", &RunMetrics::refused_ambiguous},
+      {"alignments_wrong", &RunMetrics::alignments_wrong},
+      {"alignable", &RunMetrics::alignable},
+      {"alignable_aligned", &RunMetrics::alignable_aligned},
+      {"shared_removed", &RunMetrics::shared_removed},
+      {"shared_removed_correct", &RunMetrics::shared_removed_correct},
+      {"injected", &RunMetrics::injected},
+      {"wrong_factors", &RunMetrics::wrong_factors},
+      {"outlier_precision", &RunMetrics::outlier_precision},
+      {"outlier_recall", &RunMetrics::outlier_recall},
+      {"ls_ate_poses", &RunMetrics::ls_ate_poses},
+      {"ls_are_poses", &RunMetrics::ls_are_poses},
+      {"robust_ate_poses", &RunMetrics::robust_ate_poses},
+      {"robust_are_poses", &RunMetrics::robust_are_poses},
+      {"free_ate_poses", &RunMetrics::free_ate_poses},
+      {"free_are_poses", &RunMetrics::free_are_poses},
+      {"robust_vs_free_ate", &RunMetrics::robust_vs_free_ate},
+      {"robust_vs_free_are", &RunMetrics::robust_vs_free_are},
+      {"robust_bytes", &RunMetrics::robust_bytes},
+      {"robust_extra_bytes", &RunMetrics::robust_extra_bytes},
+      {"robust_rounds", &RunMetrics::robust_rounds},
       {"memory_pcd", &RunMetrics::memory_pcd},
       {"memory_obj_formula", &RunMetrics::memory_obj_formula},
       {"memory_obj_measured", &RunMetrics::memory_obj_measured},
@@ -166,8 +191,10 @@ TableKind TableKindFromString(const std::string& text) {
   if (text == "memory") return TableKind::kMemory;
   if (text == "scale") return TableKind::kScale;
   if (text == "perception") return TableKind::kPerception;
+  if (text == "robust") return TableKind::kRobust;
   throw InvalidInputError(
-      "table must be accuracy, association, memory, scale or perception, got '" + text + "'");
+      "table must be accuracy, association, memory, scale, perception or robust, got '" + text +
+      "'");
 }
 
 void ExperimentConfig::validate() const {
@@ -187,6 +214,12 @@ void ExperimentConfig::validate() const {
   }
   if (!(sigma_translation >= 0.0) || !std::isfinite(sigma_translation)) {
     throw InvalidInputError("experiment: sigma_translation must be finite and >= 0");
+  }
+  if (!(outlier_fraction >= 0.0 && outlier_fraction < 1.0)) {
+    throw InvalidInputError("experiment: outlier_fraction must be in [0, 1)");
+  }
+  if (!(gnc_threshold >= 0.0) || !std::isfinite(gnc_threshold)) {
+    throw InvalidInputError("experiment: gnc_threshold must be finite and >= 0");
   }
   if (poses_per_robot < 2) {
     throw InvalidInputError("experiment: poses_per_robot must be at least 2, got " +
@@ -220,12 +253,15 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   RunMetrics m;
   if (config.perceive) config.perceive(data, m);
 
-  const MultiRobotSlamConfig slam_config = MultiRobotSlamConfigForNoise(sim.sensing);
+  MultiRobotSlamConfig slam_config = MultiRobotSlamConfigForNoise(sim.sensing);
+  slam_config.known_initial_poses = config.known_initial_poses;
+  slam_config.outlier_fraction = config.outlier_fraction;
+  slam_config.outlier_seed = seed;
   const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, slam_config);
   JointProblem joint =
       AssembleJointProblem(slam.robots, slam.shared, slam_config.rendezvous.lambda());
   if (!joint.unanchored_robots.empty()) {
-    throw UnderdeterminedError(fmt::format(
+    throw UnlinkedRobotError(fmt::format(
         "experiment {} with {} robots, seed {}: robot {} never linked to robot 0 through "
         "rendezvous (try another seed or more poses per robot)",
         config.scenario, config.robots, seed, joint.unanchored_robots.front()));
@@ -244,6 +280,20 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.inter_precision = slam.inter.precision();
   m.inter_recall = slam.inter.recall();
   m.rendezvous_bytes = static_cast<double>(slam.bytes);
+  for (const RendezvousRecord& r : slam.rendezvous) {
+    m.shared_removed += r.removed;
+    m.shared_removed_correct += r.removed_correct;
+    if (!r.alignment) continue;
+    const bool aligned = *r.alignment == AlignmentStatus::kAligned;
+    m.aligned += aligned ? 1 : 0;
+    m.refused_too_few += *r.alignment == AlignmentStatus::kTooFew ? 1 : 0;
+    m.refused_ambiguous += *r.alignment == AlignmentStatus::kAmbiguous ? 1 : 0;
+    m.alignments_wrong += r.alignment_wrong ? 1 : 0;
+    if (r.truly_shared >= 4) {
+      m.alignable += 1;
+      m.alignable_aligned += aligned ? 1 : 0;
+    }
+  }
 
   // Centralized.
   const auto t_gn = Clock::now();
@@ -291,6 +341,78 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.dgs_ate_landmarks = dgs_gt.aligned.objects.ate;
   m.dgs_are_poses = dgs_gt.aligned.poses.are_deg;
   m.dgs_are_landmarks = dgs_gt.aligned.objects.are_deg;
+
+  if (config.robust) {
+    // The object-object factors: robust, and wrong when their landmarks are other world objects.
+    std::map<Key, int> truth_of;
+    for (const ObjectSlam& robot : slam.robots) {
+      for (const Landmark& l : robot.landmarks()) truth_of[l.key] = l.true_object;
+    }
+    const std::size_t nf = joint.graph.factors().size();
+    std::vector<bool> robust(nf, false), wrong(nf, false);
+    std::vector<RelativePoseFactor> right;
+    for (std::size_t i = 0; i < nf; ++i) {
+      const RelativePoseFactor& f = joint.graph.factors()[i];
+      robust[i] = f.a().isObject() && f.b().isObject() && f.a().robot != f.b().robot;
+      if (robust[i]) {
+        const int ta = truth_of.at(f.a()), tb = truth_of.at(f.b());
+        wrong[i] = ta < 0 || ta != tb;
+      }
+      if (!wrong[i]) right.push_back(f);
+    }
+    m.injected = slam.injected;
+    RobustDgsOptions options;
+    options.dgs.coarse_correction = config.two_level_dgs;
+    options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+    options.gnc.threshold = config.gnc_threshold;
+    const RobustDgsResult r = RunRobustDgs(joint.graph, joint.initial, robust, options);
+    int flagged = 0, flagged_wrong = 0, wrong_count = 0;
+    for (std::size_t i = 0; i < nf; ++i) {
+      if (!robust[i]) continue;
+      wrong_count += wrong[i] ? 1 : 0;
+      if (r.weights[i] < 0.5) {
+        ++flagged;
+        flagged_wrong += wrong[i] ? 1 : 0;
+      }
+    }
+    m.wrong_factors = wrong_count;
+    m.outlier_precision = flagged > 0 ? static_cast<double>(flagged_wrong) / flagged : 1.0;
+    m.outlier_recall = wrong_count > 0 ? static_cast<double>(flagged_wrong) / wrong_count : 1.0;
+    m.robust_bytes = static_cast<double>(r.bytes());
+    m.robust_extra_bytes =
+        static_cast<double>(r.weight_bytes + r.control_bytes + r.consistency_bytes);
+    m.robust_rounds = r.iterations;
+    // The least-squares DGS, refined (the same solver with every weight 1).
+    DgsOptions ls_options = options.dgs;
+    ls_options.refine = true;
+    const Values ls = RunDgs(joint.graph, joint.initial, ls_options).values;
+    // The outlier-free solve, centralized from the same start as the robots'.
+    PoseGraph free_graph(std::move(right));
+    Values free = joint.initial;
+    try {
+      free = Optimize(free_graph, CentralizedTwoStage(free_graph, joint.initial).values).values;
+    } catch (const UnderdeterminedError&) {
+      // Only wrong pairs linked some robot: no outlier-free reference for this run.
+      free.clear();
+    }
+    const GroundTruthErrors ls_gt = CompareToGroundTruth(ls, truth);
+    const GroundTruthErrors robust_gt = CompareToGroundTruth(r.values, truth);
+    m.ls_ate_poses = ls_gt.aligned.poses.ate;
+    m.ls_are_poses = ls_gt.aligned.poses.are_deg;
+    m.robust_ate_poses = robust_gt.aligned.poses.ate;
+    m.robust_are_poses = robust_gt.aligned.poses.are_deg;
+    if (!free.empty()) {
+      const GroundTruthErrors free_gt = CompareToGroundTruth(free, truth);
+      m.free_ate_poses = free_gt.aligned.poses.ate;
+      m.free_are_poses = free_gt.aligned.poses.are_deg;
+      const TrajectoryErrors d = CompareEstimates(r.values, free);
+      m.robust_vs_free_ate = d.poses.ate;
+      m.robust_vs_free_are = d.poses.are_deg;
+    } else {
+      m.free_ate_poses = m.free_are_poses = std::nan("");
+      m.robust_vs_free_ate = m.robust_vs_free_are = std::nan("");
+    }
+  }
 
   // Table 3, per robot.
   const PointCloudModel& pc = config.point_cloud;
@@ -343,7 +465,17 @@ ExperimentResult RunExperiment(const ExperimentConfig& config, RunEstimates* fir
   ExperimentResult result;
   result.config = config;
   for (int i = 0; i < config.runs; ++i) {
-    result.runs.push_back(RunSimulationOnce(config, i, i == 0 ? first_estimates : nullptr));
+    try {
+      result.runs.push_back(RunSimulationOnce(config, i, i == 0 ? first_estimates : nullptr));
+    } catch (const UnlinkedRobotError&) {
+      if (!config.skip_unlinked) throw;
+      result.skipped.push_back(i);
+    }
+  }
+  if (result.runs.empty()) {
+    throw UnderdeterminedError(fmt::format("experiment {} with {} robots: every run left a robot "
+                                           "unlinked",
+                                           config.scenario, config.robots));
   }
   result.mean = MeanOf(result.runs);
   return result;
@@ -394,6 +526,13 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
                "ms/frame render / detect / segment / register",
                "Point clouds of the frames (MB/robot)", "Object map measured (MB/robot)",
                "GN cost", "Refined cost", "ATE* poses (m)"};
+      break;
+    case TableKind::kRobust:
+      extra = {"Initial poses", "P", "Runs (skipped)", "Rendezvous precision / recall",
+               "Aligned / refused few / ambiguous / wrong", "Aligned of alignable",
+               "Wrong factors (injected)", "Outlier precision / recall",
+               "GT ATE poses LS / robust / free (m)", "GT ARE poses LS / robust / free (deg)",
+               "Robust vs free, worst run: ATE (m) / ARE (deg)", "Robust extra bytes"};
       break;
   }
   head.insert(head.end(), extra.begin(), extra.end());
@@ -451,6 +590,30 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
                  MB(m.perception_pcd_bytes), MB(m.memory_obj_measured), Fix(m.gn_cost),
                  Fix(m.refined_cost), Sci(m.ate_star_poses)};
         break;
+      case TableKind::kRobust: {
+        double worst_ate = 0.0, worst_are = 0.0;
+        for (const RunMetrics& run : r.runs) {
+          worst_ate = std::max(worst_ate, run.robust_vs_free_ate);
+          worst_are = std::max(worst_are, run.robust_vs_free_are);
+        }
+        const bool unknown = !c.known_initial_poses;
+        extra = {unknown ? "unknown" : "known", Fix(c.outlier_fraction, 1),
+                 fmt::format("{} ({})", r.runs.size(), r.skipped.size()),
+                 Fix(m.inter_precision, 3) + " / " + Fix(m.inter_recall, 3),
+                 unknown ? fmt::format("{} / {} / {} / {}", Fix(m.aligned), Fix(m.refused_too_few),
+                                       Fix(m.refused_ambiguous), Fix(m.alignments_wrong))
+                         : "-",
+                 unknown && m.alignable > 0 ? Fix(100.0 * m.alignable_aligned / m.alignable, 1) + " %"
+                                            : "-",
+                 Fix(m.wrong_factors) + " (" + Fix(m.injected) + ")",
+                 Fix(m.outlier_precision, 3) + " / " + Fix(m.outlier_recall, 3),
+                 Sci(m.ls_ate_poses) + " / " + Sci(m.robust_ate_poses) + " / " +
+                     Sci(m.free_ate_poses),
+                 Sci(m.ls_are_poses) + " / " + Sci(m.robust_are_poses) + " / " +
+                     Sci(m.free_are_poses),
+                 Sci(worst_ate) + " / " + Sci(worst_are), Sci(m.robust_extra_bytes)};
+        break;
+      }
     }
     cells.insert(cells.end(), extra.begin(), extra.end());
     row(cells);
@@ -484,7 +647,11 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"points_per_frame", c.point_cloud.points_per_frame},
                              {"bytes_per_point", c.point_cloud.bytes_per_point},
                              {"points_per_object", c.point_cloud.points_per_object},
-                             {"bytes_per_object", c.point_cloud.bytes_per_object}};
+                             {"bytes_per_object", c.point_cloud.bytes_per_object},
+                             {"initial_poses", c.known_initial_poses ? "known" : "unknown"},
+                             {"outlier_fraction", c.outlier_fraction},
+                             {"robust", c.robust},
+                             {"skipped_runs", r.skipped}};
     nlohmann::json runs = nlohmann::json::array();
     for (const RunMetrics& m : r.runs) runs.push_back(metrics(m));
     rows.push_back({{"config", config}, {"mean", metrics(r.mean)}, {"runs", runs}});

@@ -46,6 +46,8 @@
 //                           of the DGS traffic (total DGS bytes eta 1e-1 / robots)
 #pragma once
 
+#include "moslam/common/errors.h"
+
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -81,6 +83,20 @@ struct ExperimentConfig {
   InformationMode information = InformationMode::kNoise;
   int poses_per_robot = 100;
   bool refine = true;                // run the DGS refinement (refined cost)
+  // Whether a rendezvous knows the robots' initial poses (the paper) or aligns the two object
+  // maps from the objects alone (slam/rendezvous.h).
+  bool known_initial_poses = true;
+  // Wrong associations injected at rendezvous (MultiRobotSlamConfig::outlier_fraction; seeded by
+  // the run's seed), and the robust distributed solve (distributed/robust_dgs.h) run beside the
+  // least-squares one, with the outlier-free solve (the wrong object-object factors removed by
+  // ground truth) as reference.
+  double outlier_fraction = 0.0;
+  bool robust = false;
+  // GNC's threshold on r^T Omega r of an object-object factor (0: GncOptions' default).
+  double gnc_threshold = 0.0;
+  // A run in which some robot never gets linked to robot 0 (no rendezvous aligned) is left out
+  // of the mean and counted (ExperimentResult::skipped), instead of failing the experiment.
+  bool skip_unlinked = false;
   // The DGS of the tables: two-level (DgsOptions::coarse_correction, the default) or one-level
   // (the paper's). The other one runs too, for its sweep counts only (iterations_*_other).
   bool two_level_dgs = true;
@@ -117,6 +133,23 @@ struct RunMetrics {
   // Association against ground truth.
   double intra_precision = 0, intra_recall = 0, inter_precision = 0, inter_recall = 0;
   double rendezvous_bytes = 0;  // all rendezvous messages
+  // Unknown initial poses: rendezvous aligned, refused (too few consistent objects, ambiguous),
+  // accepted with mostly wrong pairs; the rendezvous where both robots had mapped 4 or more
+  // common objects, and how many of those were aligned. Consistency across rendezvous: pairs
+  // removed, and the right ones among them.
+  double aligned = 0, refused_too_few = 0, refused_ambiguous = 0, alignments_wrong = 0;
+  double alignable = 0, alignable_aligned = 0;
+  double shared_removed = 0, shared_removed_correct = 0;
+  // Robust solve (ExperimentConfig::robust): object-object factors that are wrong (injected or
+  // found), the robust solve's outlier precision and recall over them, ground-truth errors of the
+  // least-squares DGS (refined), of the robust DGS and of the outlier-free solve, the robust
+  // estimate against the outlier-free one (same gauge, no alignment), and the robust solve's
+  // traffic (all of it; the weights and its checks alone).
+  double injected = 0, wrong_factors = 0, outlier_precision = 0, outlier_recall = 0;
+  double ls_ate_poses = 0, ls_are_poses = 0, robust_ate_poses = 0, robust_are_poses = 0;
+  double free_ate_poses = 0, free_are_poses = 0;
+  double robust_vs_free_ate = 0, robust_vs_free_are = 0;
+  double robust_bytes = 0, robust_extra_bytes = 0, robust_rounds = 0;
   // Table 3, per robot (bytes), averaged over the robots.
   double memory_pcd = 0, memory_obj_formula = 0, memory_obj_measured = 0;
   double comm_pcd = 0, comm_obj_formula = 0, comm_obj_measured = 0, comm_dgs_per_robot = 0;
@@ -144,9 +177,16 @@ struct RunEstimates {
   int robots = 0;
 };
 
+// A run in which some robot never got linked to robot 0 through rendezvous.
+class UnlinkedRobotError : public UnderdeterminedError {
+ public:
+  using UnderdeterminedError::UnderdeterminedError;
+};
+
 struct ExperimentResult {
   ExperimentConfig config;
   std::vector<RunMetrics> runs;
+  std::vector<int> skipped;  // runs left out (ExperimentConfig::skip_unlinked)
   RunMetrics mean;
 };
 
@@ -159,7 +199,7 @@ ExperimentResult RunExperiment(const ExperimentConfig& config,
 
 RunMetrics MeanOf(const std::vector<RunMetrics>& runs);
 
-enum class TableKind { kAccuracy, kAssociation, kMemory, kScale, kPerception };
+enum class TableKind { kAccuracy, kAssociation, kMemory, kScale, kPerception, kRobust };
 // "accuracy" | "association" | "memory" | "scale" | "perception"; throws InvalidInputError
 // otherwise.
 TableKind TableKindFromString(const std::string& text);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <map>
+#include <random>
 #include <set>
 
 #include "moslam/common/errors.h"
@@ -29,6 +30,9 @@ int TrueObject(const std::vector<ObjectSlam>& robots, const Key& k) {
 void MultiRobotSlamConfig::validate() const {
   slam.validate();
   rendezvous.validate();
+  if (!(outlier_fraction >= 0.0 && outlier_fraction < 1.0)) {
+    throw InvalidInputError("MultiRobotSlamConfig: outlier_fraction must be in [0, 1)");
+  }
   if (final_iterations < 0) {
     throw InvalidInputError("MultiRobotSlamConfig: final_iterations must be >= 0");
   }
@@ -81,6 +85,7 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
   for (int r = 0; r < n; ++r) out.robots.emplace_back(r, config.slam);
   // Per pair of robots (lower id first): objects both had mapped at a rendezvous.
   std::map<std::pair<int, int>, std::set<int>> possible;
+  std::mt19937_64 outlier_rng(config.outlier_seed);
   std::size_t next_event = 0;
   for (int t = 0; t < steps; ++t) {
     for (int r = 0; r < n; ++r) {
@@ -100,27 +105,87 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
       auto& beta = out.robots[static_cast<std::size_t>(e.beta)];
       alpha.refresh(config.slam.iterations_per_update);
       beta.refresh(config.slam.iterations_per_update);
-      const RendezvousOutcome o = RunRendezvous(
-          alpha, beta, data.trajectories[static_cast<std::size_t>(e.alpha)].front(),
-          data.trajectories[static_cast<std::size_t>(e.beta)].front(), out.shared,
-          config.rendezvous);
+      std::optional<SE3> beta_T_alpha;
+      if (config.known_initial_poses) {
+        beta_T_alpha = BetaTAlpha(data.trajectories[static_cast<std::size_t>(e.alpha)].front(),
+                                  data.trajectories[static_cast<std::size_t>(e.beta)].front());
+      }
+      const RendezvousOutcome o =
+          RunRendezvous(alpha, beta, beta_T_alpha, out.shared, config.rendezvous);
       RendezvousRecord rec;
       rec.event = e;
       rec.objects_sent = o.objects_sent;
       rec.new_shared = static_cast<int>(o.new_shared.size());
       rec.bytes_alpha_to_beta = o.bytes_alpha_to_beta;
       rec.bytes_beta_to_alpha = o.bytes_beta_to_alpha;
-      for (const auto& s : o.new_shared) {
+      const auto correct = [&](const SharedObject& s) {
         const int ta = TrueObject(out.robots, s.alpha_object);
-        if (ta >= 0 && ta == TrueObject(out.robots, s.beta_object)) ++rec.new_shared_correct;
+        return ta >= 0 && ta == TrueObject(out.robots, s.beta_object);
+      };
+      for (const auto& s : o.removed_shared) {
+        const auto it = std::find_if(out.shared.begin(), out.shared.end(), [&](const SharedObject& x) {
+          return x.alpha_object == s.alpha_object && x.beta_object == s.beta_object;
+        });
+        if (it == out.shared.end()) {
+          throw InvalidInputError("RunMultiRobotObjectSlam: a rendezvous removed a pair never shared");
+        }
+        ++rec.removed;
+        rec.removed_correct += correct(s) ? 1 : 0;
+        out.shared.erase(it);
+      }
+      for (const auto& s : o.new_shared) {
+        if (correct(s)) ++rec.new_shared_correct;
         out.shared.push_back(s);
       }
+      if (config.outlier_fraction > 0.0) {
+        // Wrong pairs, label-consistent: an object of alpha with another object of beta.
+        const double expected = config.outlier_fraction / (1.0 - config.outlier_fraction) *
+                                static_cast<double>(o.new_shared.size());
+        int k = static_cast<int>(expected);
+        if (std::uniform_real_distribution<double>(0.0, 1.0)(outlier_rng) < expected - k) ++k;
+        const auto& la = alpha.landmarks();
+        const auto& lb = beta.landmarks();
+        for (int attempt = 0; k > 0 && attempt < 20 * k + 20 && !la.empty(); ++attempt) {
+          const Landmark& x =
+              la[std::uniform_int_distribution<std::size_t>(0, la.size() - 1)(outlier_rng)];
+          std::vector<const Landmark*> other;
+          for (const Landmark& y : lb) {
+            if (y.label == x.label && y.true_object != x.true_object) other.push_back(&y);
+          }
+          if (other.empty()) continue;
+          const Landmark& y = *other[std::uniform_int_distribution<std::size_t>(
+              0, other.size() - 1)(outlier_rng)];
+          const SharedObject wrong{y.key, x.key};
+          const bool known = std::any_of(out.shared.begin(), out.shared.end(), [&](const SharedObject& z) {
+            return z.alpha_object == wrong.alpha_object && z.beta_object == wrong.beta_object;
+          });
+          if (known) continue;
+          out.shared.push_back(wrong);
+          ++rec.injected;
+          ++out.injected;
+          --k;
+        }
+      }
       out.bytes += static_cast<std::int64_t>(o.bytes_alpha_to_beta + o.bytes_beta_to_alpha);
-      out.rendezvous.push_back(rec);
       const std::set<int> ma = MappedObjects(alpha), mb = MappedObjects(beta);
+      std::vector<int> now;
+      std::set_intersection(ma.begin(), ma.end(), mb.begin(), mb.end(), std::back_inserter(now));
+      rec.truly_shared = static_cast<int>(now.size());
+      if (o.alignment) {
+        rec.alignment = o.alignment->status;
+        rec.alignment_support = o.alignment->support;
+        rec.alignment_rival = o.alignment->rival;
+        if (o.alignment->status == AlignmentStatus::kAligned) {
+          int right = 0;
+          for (const auto& [ka, kb] : o.alignment->pairs) {
+            right += correct({Key::Object(e.beta, kb), Key::Object(e.alpha, ka)}) ? 1 : 0;
+          }
+          rec.alignment_wrong = 2 * right < static_cast<int>(o.alignment->pairs.size());
+        }
+      }
+      out.rendezvous.push_back(rec);
       auto& both = possible[{std::min(e.alpha, e.beta), std::max(e.alpha, e.beta)}];
-      std::set_intersection(ma.begin(), ma.end(), mb.begin(), mb.end(),
-                            std::inserter(both, both.end()));
+      both.insert(now.begin(), now.end());
     }
   }
   if (next_event != data.rendezvous.size()) {

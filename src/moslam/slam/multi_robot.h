@@ -24,6 +24,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "moslam/graph/pose_graph.h"
@@ -36,6 +37,16 @@ namespace moslam {
 struct MultiRobotSlamConfig {
   ObjectSlamConfig slam;
   RendezvousConfig rendezvous;
+  // Known (the paper's idealisation): a rendezvous relates the two frames by the robots' initial
+  // poses, SimulationData::trajectories[r][0]. Unknown: it aligns the two object maps from the
+  // objects alone (rendezvous.h); nothing reads the initial poses then.
+  bool known_initial_poses = true;
+  // Experiments: wrong associations injected at every rendezvous, the realistic failure of a
+  // matcher: for the n pairs a rendezvous adds, k more with k = P / (1 - P) n in expectation
+  // (randomly rounded), each an object of alpha paired with an object of beta of the same label
+  // that is another world object (none when beta has no such object). Seeded; 0: none.
+  double outlier_fraction = 0.0;
+  std::uint32_t outlier_seed = 1;
   int final_iterations = 10;  // Gauss-Newton iterations per robot after the last step
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
@@ -52,6 +63,14 @@ struct RendezvousRecord {
   int objects_sent = 0;          // alpha's landmarks
   int new_shared = 0;            // pairs added by this event
   int new_shared_correct = 0;    // ... whose landmarks have the same true object
+  int removed = 0;               // pairs shared before, removed as inconsistent
+  int removed_correct = 0;       // ... that were right
+  int injected = 0;              // wrong pairs injected (MultiRobotSlamConfig::outlier_fraction)
+  int truly_shared = 0;          // objects both robots had mapped then (ground truth)
+  // Unknown initial poses: the alignment's outcome; `wrong`: accepted with most pairs wrong.
+  std::optional<AlignmentStatus> alignment;
+  int alignment_support = 0, alignment_rival = 0;  // ConstellationAlignment::support / rival
+  bool alignment_wrong = false;
   std::size_t bytes_alpha_to_beta = 0;
   std::size_t bytes_beta_to_alpha = 0;
 };
@@ -72,6 +91,7 @@ struct InterRobotAssociationStats {
 struct MultiRobotSlamResult {
   std::vector<ObjectSlam> robots;
   std::vector<SharedObject> shared;  // every shared object, once, in the order found
+  int injected = 0;                  // wrong pairs injected, still in `shared`
   std::vector<RendezvousRecord> rendezvous;
   AssociationStats intra;            // summed over the robots
   InterRobotAssociationStats inter;

@@ -16,6 +16,7 @@ constexpr std::uint8_t kMagic = 0x4F;
 constexpr std::uint8_t kVersion = 1;
 constexpr std::uint8_t kKindObjectMap = 1;
 constexpr std::uint8_t kKindSharedObjects = 2;
+constexpr std::uint8_t kKindSharedObjectsAndRemovals = 3;
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 class Writer {
@@ -225,31 +226,40 @@ std::vector<std::uint8_t> EncodeSharedObjects(const SharedObjectsMessage& messag
   Writer w;
   w.u8(kMagic);
   w.u8(kVersion);
-  w.u8(kKindSharedObjects);
+  w.u8(message.removed.empty() ? kKindSharedObjects : kKindSharedObjectsAndRemovals);
   w.u16(RobotId(message.sender, "EncodeSharedObjects"));
   w.u16(RobotId(message.receiver, "EncodeSharedObjects"));
-  w.u32(static_cast<std::uint32_t>(message.pairs.size()));
-  for (const auto& [a, b] : message.pairs) {
-    w.u32(a);
-    w.u32(b);
+  for (const auto* list : {&message.pairs, &message.removed}) {
+    if (list == &message.removed && message.removed.empty()) break;  // kind 2: no removals
+    w.u32(static_cast<std::uint32_t>(list->size()));
+    for (const auto& [a, b] : *list) {
+      w.u32(a);
+      w.u32(b);
+    }
   }
   return w.take();
 }
 
 SharedObjectsMessage DecodeSharedObjects(const std::vector<std::uint8_t>& bytes) {
   Reader r(bytes, "shared objects message");
-  r.header(kKindSharedObjects);
+  const bool removals = bytes.size() > 2 && bytes[2] == kKindSharedObjectsAndRemovals;
+  r.header(removals ? kKindSharedObjectsAndRemovals : kKindSharedObjects);
   SharedObjectsMessage m;
   m.sender = r.u16("sender");
   m.receiver = r.u16("receiver");
-  const std::uint32_t count = r.u32("pair count");
-  r.plausibleCount(count, 8, "pair");
-  std::set<std::uint32_t> alpha_seen, beta_seen;
-  for (std::uint32_t i = 0; i < count; ++i) {
-    const std::uint32_t a = r.u32("alpha landmark"), b = r.u32("beta landmark");
-    if (!alpha_seen.insert(a).second) r.fail("alpha landmark " + std::to_string(a) + " shared twice");
-    if (!beta_seen.insert(b).second) r.fail("beta landmark " + std::to_string(b) + " shared twice");
-    m.pairs.emplace_back(a, b);
+  for (auto* list : {&m.pairs, &m.removed}) {
+    if (list == &m.removed && !removals) break;
+    const bool added = list == &m.pairs;
+    const std::uint32_t count = r.u32(added ? "pair count" : "removed pair count");
+    r.plausibleCount(count, 8, "pair");
+    std::set<std::uint32_t> alpha_seen, beta_seen;
+    for (std::uint32_t i = 0; i < count; ++i) {
+      const std::uint32_t a = r.u32("alpha landmark"), b = r.u32("beta landmark");
+      const char* how = added ? " shared twice" : " removed twice";
+      if (!alpha_seen.insert(a).second) r.fail("alpha landmark " + std::to_string(a) + how);
+      if (!beta_seen.insert(b).second) r.fail("beta landmark " + std::to_string(b) + how);
+      list->emplace_back(a, b);
+    }
   }
   r.finish();
   return m;
@@ -285,6 +295,8 @@ void RendezvousConfig::validate() const {
     bad("max_correction_deg must be >= 0 and finite");
   }
   if (min_inliers < 1) bad("min_inliers must be >= 1");
+  constellation.validate();
+  consistency.validate();
 }
 
 Matrix6 RendezvousConfig::lambda() const {
@@ -387,7 +399,7 @@ SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
 }
 
 RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
-                                const SE3& world_T_alpha0, const SE3& world_T_beta0,
+                                const std::optional<SE3>& beta_T_alpha,
                                 const std::vector<SharedObject>& already_shared,
                                 const RendezvousConfig& config) {
   config.validate();
@@ -422,36 +434,109 @@ RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
       }
     }
   } else {
-    reply = AnswerObjectMap(received, beta, world_T_alpha0, world_T_beta0, already_shared, config);
+    ConstellationAlignment alignment;
+    reply = AnswerObjectMap(received, beta, beta_T_alpha, already_shared, config, &alignment);
+    if (!beta_T_alpha) out.alignment = alignment;
   }
 
-  // Beta -> alpha: the shared-object list, through the wire; both add the factors.
+  // Beta -> alpha: the shared-object list, through the wire; both add (and drop) the factors.
   const std::vector<std::uint8_t> wire2 = EncodeSharedObjects(reply);
   out.bytes_beta_to_alpha = wire2.size();
-  out.new_shared = SharedObjectsOf(DecodeSharedObjects(wire2));
+  const SharedObjectsMessage answer = DecodeSharedObjects(wire2);
+  out.new_shared = SharedObjectsOf(answer);
+  out.removed_shared = RemovedObjectsOf(answer);
   return out;
 }
 
+namespace {
+
+std::vector<ConstellationObject> Constellation(const std::vector<ObjectMapEntry>& objects) {
+  std::vector<ConstellationObject> out;
+  for (const auto& o : objects) out.push_back({o.landmark, o.label, o.pose});
+  return out;
+}
+
+}  // namespace
+
 SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const ObjectSlam& beta,
-                                     const SE3& world_T_alpha0, const SE3& world_T_beta0,
+                                     const std::optional<SE3>& beta_T_alpha,
                                      const std::vector<SharedObject>& already_shared,
-                                     const RendezvousConfig& config) {
+                                     const RendezvousConfig& config,
+                                     ConstellationAlignment* alignment) {
   config.validate();
   const int a = received.sender, b = beta.robot();
   if (a == b) {
     throw InvalidInputError("AnswerObjectMap: robot " + std::to_string(a) + " meets itself");
   }
-  // Beta matches against its own map, excluding landmarks already shared with alpha.
   std::vector<std::uint32_t> alpha_taken, beta_taken;
   TakenLandmarks(already_shared, a, b, &alpha_taken, &beta_taken);
-  const SE3 beta_T_alpha = world_T_beta0.inverse() * world_T_alpha0;
+  // The pairs this robot pair shares so far, (alpha landmark, beta landmark).
+  std::set<std::pair<std::uint32_t, std::uint32_t>> before;
+  for (const auto& s : already_shared) {
+    if (s.alpha_object.robot == a && s.beta_object.robot == b) {
+      before.emplace(static_cast<std::uint32_t>(s.alpha_object.index),
+                     static_cast<std::uint32_t>(s.beta_object.index));
+    } else if (s.alpha_object.robot == b && s.beta_object.robot == a) {
+      before.emplace(static_cast<std::uint32_t>(s.beta_object.index),
+                     static_cast<std::uint32_t>(s.alpha_object.index));
+    }
+  }
   SharedObjectsMessage reply;
   reply.sender = b;
   reply.receiver = a;
   const std::vector<ObjectMapEntry> own = MakeObjectMapMessage(beta).objects;
-  const SE3 T = AlignObjectMaps(received, beta_T_alpha, own, config, alpha_taken, beta_taken);
-  reply.pairs = MatchObjectMaps(received, T, own, config.gate, alpha_taken, beta_taken);
+  if (beta_T_alpha) {
+    const SE3 T =
+        AlignObjectMaps(received, *beta_T_alpha, own, config, alpha_taken, beta_taken);
+    reply.pairs = MatchObjectMaps(received, T, own, config.gate, alpha_taken, beta_taken);
+    if (!config.check_consistency) return reply;
+  } else {
+    // Unknown initial poses: the whole maps aligned from their objects; the consistent set is
+    // what this pair shares now.
+    const ConstellationAlignment aligned =
+        AlignConstellations(Constellation(received.objects), Constellation(own),
+                            config.constellation);
+    if (alignment) *alignment = aligned;
+    if (aligned.status != AlignmentStatus::kAligned) return reply;  // refused: nothing changes
+    std::vector<std::uint32_t> a_used = alpha_taken, b_used = beta_taken;
+    for (const auto& pair : aligned.pairs) {
+      if (before.count(pair) == 0) reply.pairs.push_back(pair);
+      a_used.push_back(pair.first);
+      b_used.push_back(pair.second);
+    }
+    // The objects the set missed, matched under its transform as with a known prior.
+    for (const auto& pair : MatchObjectMaps(received, aligned.b_T_a, own, config.gate, a_used, b_used)) {
+      reply.pairs.push_back(pair);
+    }
+  }
+  // Consistency across rendezvous: the pairs shared before and the new ones, checked together.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> all(before.begin(), before.end());
+  all.insert(all.end(), reply.pairs.begin(), reply.pairs.end());
+  std::map<std::uint32_t, std::size_t> a_index, b_index;
+  for (std::size_t i = 0; i < received.objects.size(); ++i) a_index[received.objects[i].landmark] = i;
+  for (std::size_t j = 0; j < own.size(); ++j) b_index[own[j].landmark] = j;
+  std::vector<std::pair<std::size_t, std::size_t>> indexed;
+  for (const auto& [ka, kb] : all) indexed.emplace_back(a_index.at(ka), b_index.at(kb));
+  const std::vector<std::size_t> kept = ConsistentSubset(
+      Constellation(received.objects), Constellation(own), indexed, config.consistency);
+  std::vector<bool> keep(all.size(), false);
+  for (std::size_t k : kept) keep[k] = true;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> added;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const bool old = i < before.size();
+    if (old && !keep[i]) reply.removed.push_back(all[i]);
+    if (!old && keep[i]) added.push_back(all[i]);
+  }
+  reply.pairs = std::move(added);
   return reply;
+}
+
+std::vector<SharedObject> RemovedObjectsOf(const SharedObjectsMessage& answer) {
+  std::vector<SharedObject> out;
+  for (const auto& [ka, kb] : answer.removed) {
+    out.push_back({Key::Object(answer.sender, kb), Key::Object(answer.receiver, ka)});
+  }
+  return out;
 }
 
 std::vector<SharedObject> SharedObjectsOf(const SharedObjectsMessage& answer) {

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -396,7 +398,7 @@ TEST(Rendezvous, TwoRobotsShareTheObjectsBothMapped) {
   beta.addFirstPose(sees(wb, {1, 2, 3}));
   RendezvousConfig c;
   c.gate = TestGate();
-  const RendezvousOutcome o = RunRendezvous(alpha, beta, wa, wb, {}, c);
+  const RendezvousOutcome o = RunRendezvous(alpha, beta, BetaTAlpha(wa, wb), {}, c);
   EXPECT_EQ(o.objects_sent, 3);
   ASSERT_EQ(o.new_shared.size(), 2u);
   std::set<std::pair<int, int>> truth;
@@ -410,9 +412,9 @@ TEST(Rendezvous, TwoRobotsShareTheObjectsBothMapped) {
   EXPECT_EQ(o.bytes_alpha_to_beta, EncodeObjectMap(MakeObjectMapMessage(alpha)).size());
   EXPECT_EQ(o.bytes_beta_to_alpha, 7u + 4u + 2u * 8u);
   // A second rendezvous finds nothing new: the shared landmarks are taken.
-  EXPECT_TRUE(RunRendezvous(alpha, beta, wa, wb, o.new_shared, c).new_shared.empty());
+  EXPECT_TRUE(RunRendezvous(alpha, beta, BetaTAlpha(wa, wb), o.new_shared, c).new_shared.empty());
   // Nor with the roles swapped.
-  EXPECT_TRUE(RunRendezvous(beta, alpha, wb, wa, o.new_shared, c).new_shared.empty());
+  EXPECT_TRUE(RunRendezvous(beta, alpha, BetaTAlpha(wb, wa), o.new_shared, c).new_shared.empty());
   // The object-object factor: a = beta's landmark, b = alpha's, z = I, Lambda; zero residual
   // when both estimates are the same pose.
   const RelativePoseFactor f = ObjectObjectFactor(o.new_shared[0], c.lambda());
@@ -422,15 +424,15 @@ TEST(Rendezvous, TwoRobotsShareTheObjectsBothMapped) {
   EXPECT_EQ(f.information(), c.lambda());
   EXPECT_NEAR(c.lambda()(0, 0), 1.0 / std::pow(5.0 * kDeg, 2), 1e-9);
   EXPECT_NEAR(c.lambda()(3, 3), 1.0 / 0.04, 1e-9);
-  EXPECT_THROW(RunRendezvous(alpha, alpha, wa, wa, {}, c), InvalidInputError);
+  EXPECT_THROW(RunRendezvous(alpha, alpha, BetaTAlpha(wa, wa), {}, c), InvalidInputError);
 
   // Ground-truth pairing ignores the poses: with a wrong initial pose for beta it still pairs
   // the two common objects, where the gated matching finds nothing.
   const SE3 wrong = Pose(-20, 7, 0.5, 45);
-  EXPECT_TRUE(RunRendezvous(alpha, beta, wa, wrong, {}, c).new_shared.empty());
+  EXPECT_TRUE(RunRendezvous(alpha, beta, BetaTAlpha(wa, wrong), {}, c).new_shared.empty());
   RendezvousConfig by_truth = c;
   by_truth.ground_truth_association = true;
-  const RendezvousOutcome g = RunRendezvous(alpha, beta, wa, wrong, {}, by_truth);
+  const RendezvousOutcome g = RunRendezvous(alpha, beta, BetaTAlpha(wa, wrong), {}, by_truth);
   ASSERT_EQ(g.new_shared.size(), 2u);
   for (const auto& s : g.new_shared) {
     EXPECT_EQ(alpha.landmarks()[s.alpha_object.index].true_object,
@@ -558,4 +560,67 @@ TEST(MultiRobot, Chairs25SixRobotsDefaultNoise) {
 }
 
 }  // namespace
+// Unknown initial poses: nothing reads the simulated initial poses. Moving every robot's true
+// start anywhere (the data keep their measurements) changes no shared pair and no estimate; with
+// known initial poses the same change breaks the rendezvous.
+TEST(MultiRobot, UnknownInitialPosesNeverReadsThem) {
+  const SimulationData d = Simulation("chairs25", 4, 60, 5.0, 0.2);
+  SimulationData moved = d;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  for (auto& trajectory : moved.trajectories) {
+    trajectory.front() = SE3(SO3::Exp(Vector3(u(rng), u(rng), u(rng))), Vector3(u(rng), u(rng), u(rng)));
+  }
+  MultiRobotSlamConfig config;
+  config.known_initial_poses = false;
+  const MultiRobotSlamResult a = RunMultiRobotObjectSlam(d, config);
+  const MultiRobotSlamResult b = RunMultiRobotObjectSlam(moved, config);
+  ASSERT_FALSE(a.shared.empty());
+  ASSERT_EQ(a.shared.size(), b.shared.size());
+  for (std::size_t i = 0; i < a.shared.size(); ++i) {
+    EXPECT_EQ(a.shared[i].alpha_object, b.shared[i].alpha_object);
+    EXPECT_EQ(a.shared[i].beta_object, b.shared[i].beta_object);
+  }
+  for (std::size_t r = 0; r < a.robots.size(); ++r) {
+    const Values xa = a.robots[r].estimate();
+    const Values xb = b.robots[r].estimate();
+    ASSERT_EQ(xa.size(), xb.size());
+    for (const auto& [k, x] : xa) {
+      EXPECT_EQ((x.translation() - xb.at(k).translation()).norm(), 0.0);
+    }
+  }
+  int aligned = 0;
+  for (const RendezvousRecord& rec : a.rendezvous) {
+    aligned += rec.alignment && *rec.alignment == AlignmentStatus::kAligned ? 1 : 0;
+    EXPECT_FALSE(rec.alignment_wrong);
+  }
+  EXPECT_GT(aligned, 0);
+  config.known_initial_poses = true;
+  EXPECT_NE(RunMultiRobotObjectSlam(moved, config).inter.correct,
+            RunMultiRobotObjectSlam(d, config).inter.correct);
+}
+
+// Injected wrong associations (MultiRobotSlamConfig::outlier_fraction): label-consistent, wrong,
+// about P of the pairs, reproducible.
+TEST(MultiRobot, InjectedOutliersAreLabelConsistentAndWrong) {
+  const SimulationData d = Simulation("chairs25", 4, 60, 5.0, 0.2);
+  MultiRobotSlamConfig config;
+  config.outlier_fraction = 0.5;
+  const MultiRobotSlamResult r = RunMultiRobotObjectSlam(d, config);
+  ASSERT_GT(r.injected, 0);
+  int wrong = 0;
+  for (const SharedObject& s : r.shared) {
+    const Landmark& la = r.robots[static_cast<std::size_t>(s.alpha_object.robot)]
+                             .landmarks()[static_cast<std::size_t>(s.alpha_object.index)];
+    const Landmark& lb = r.robots[static_cast<std::size_t>(s.beta_object.robot)]
+                             .landmarks()[static_cast<std::size_t>(s.beta_object.index)];
+    EXPECT_EQ(la.label, lb.label);
+    wrong += la.true_object != lb.true_object ? 1 : 0;
+  }
+  EXPECT_GE(wrong, r.injected);
+  const double fraction = static_cast<double>(wrong) / static_cast<double>(r.shared.size());
+  EXPECT_NEAR(fraction, 0.5, 0.15);
+  EXPECT_EQ(RunMultiRobotObjectSlam(d, config).injected, r.injected);
+}
+
 }  // namespace moslam

@@ -282,8 +282,10 @@ class RobotSession::Impl {
         } else {
           const ObjectMapMessage received = awaitList(e);
           const SharedObjectsMessage answer = AnswerObjectMap(
-              received, slam, data_.initial_poses[static_cast<std::size_t>(e.alpha)],
-              data_.initial_poses[static_cast<std::size_t>(e.beta)], shared_, options_.slam.rendezvous);
+              received, slam,
+              BetaTAlpha(data_.initial_poses[static_cast<std::size_t>(e.alpha)],
+                         data_.initial_poses[static_cast<std::size_t>(e.beta)]),
+              shared_, options_.slam.rendezvous);
           pairs = answer.pairs;
           sendAnswer(e, pairs);
           record(index, pairs);

@@ -1,0 +1,334 @@
+#include "moslam/distributed/robust_dgs.h"
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <set>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/messages.h"
+#include "moslam/geometry/so3.h"
+
+namespace moslam {
+
+void RobustDgsOptions::validate() const {
+  dgs.validate();
+  gnc.validate();
+  if (!(consistency.threshold >= 0.0)) {
+    throw InvalidInputError("RobustDgsOptions: consistency.threshold must be >= 0");
+  }
+  if (consistency.min_support < 1) {
+    throw InvalidInputError("RobustDgsOptions: consistency.min_support must be >= 1");
+  }
+}
+
+SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
+                                           const RobustDgsOptions& options) {
+  SeparatorConsistencyOptions c = options.consistency;
+  if (c.threshold == 0.0) c.threshold = 2.0 * options.gnc.threshold2();
+  return CheckSeparatorConsistency(graph, c);
+}
+
+namespace {
+
+// The graph without the factors not kept; index[i] = the factor of `graph` behind factor i.
+PoseGraph Kept(const PoseGraph& graph, const std::vector<bool>& kept,
+               std::vector<std::size_t>* index) {
+  std::vector<RelativePoseFactor> factors;
+  for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+    if (!kept[i]) continue;
+    factors.push_back(graph.factors()[i]);
+    index->push_back(i);
+  }
+  PoseGraph out(std::move(factors));
+  for (const PriorFactor& p : graph.priors()) out.add(p);
+  return out;
+}
+
+// Robust factors of weight < 0.5 whose squared residual at `values` is at most c2 get weight 1.
+int Readmit(const PoseGraph& graph, const Values& values, const std::vector<bool>& robust,
+            double c2, std::vector<double>* weights) {
+  const std::vector<double> r2 = SquaredResiduals(graph, values);
+  int count = 0;
+  for (std::size_t i = 0; i < r2.size(); ++i) {
+    if (robust[i] && (*weights)[i] < 0.5 && r2[i] <= c2) {
+      (*weights)[i] = 1.0;
+      ++count;
+    }
+  }
+  return count;
+}
+
+std::vector<bool> Select(const std::vector<bool>& mask, const std::vector<std::size_t>& index) {
+  std::vector<bool> out;
+  for (std::size_t i : index) out.push_back(mask[i]);
+  return out;
+}
+
+}  // namespace
+
+GncResult SolveRobustCentralized(const PoseGraph& graph,
+                                 const std::function<Values(const PoseGraph&)>& initialize,
+                                 const std::vector<bool>& robust, const RobustDgsOptions& options,
+                                 const OptimizerOptions& solver) {
+  options.validate();
+  if (!options.check_separators) {
+    return SolveGnc(graph, initialize(graph), robust, options.gnc, solver);
+  }
+  const SeparatorConsistencyResult check = CheckSeparators(graph, options);
+  std::vector<std::size_t> index;
+  const PoseGraph kept = Kept(graph, check.kept, &index);
+  GncResult r = SolveGnc(kept, initialize(kept), Select(robust, index), options.gnc, solver);
+  std::vector<double> weights(graph.factors().size(), 0.0);
+  for (std::size_t j = 0; j < index.size(); ++j) weights[index[j]] = r.weights[j];
+  r.weights = std::move(weights);
+  // As RunRobustDgs: the check's rejects that agree with the estimate come back, and the
+  // inliers alone are solved.
+  const int readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
+  std::vector<bool> inliers(r.weights.size());
+  bool all_in = readmitted == 0;
+  for (std::size_t i = 0; i < inliers.size(); ++i) {
+    inliers[i] = r.weights[i] >= 0.5;
+    all_in = all_in && r.weights[i] == 1.0;
+  }
+  if (!all_in) {
+    std::vector<std::size_t> used;
+    const PoseGraph final_graph = Kept(graph, inliers, &used);
+    try {
+      r.values = Optimize(final_graph, r.values, solver).values;
+    } catch (const UnderdeterminedError&) {
+    }
+  }
+  r.outliers = 0;
+  for (std::size_t i = 0; i < inliers.size(); ++i) r.outliers += (robust[i] && !inliers[i]) ? 1 : 0;
+  return r;
+}
+
+namespace {
+
+// The team's coordinator gathers one scalar per robot and broadcasts the reduction; every
+// message serialized, counted and decoded (the coordinator's own report does not travel).
+class Coordinator {
+ public:
+  Coordinator(std::vector<int> robots, std::int64_t* bytes)
+      : robots_(std::move(robots)), bytes_(bytes) {}
+
+  double reduce(const std::map<int, double>& share, std::uint32_t round, bool take_max) {
+    const int coordinator = robots_.front();
+    double acc = take_max ? 0.0 : 0.0;
+    bool first = true;
+    for (int r : robots_) {
+      ControlMessage m;
+      m.kind = ControlKind::kReport;
+      m.sender = r;
+      m.round = round;
+      m.value[0] = share.at(r);
+      const double v = r == coordinator ? m.value[0] : send(m).value[0];
+      acc = first ? v : (take_max ? std::max(acc, v) : acc + v);
+      first = false;
+    }
+    ControlMessage b;
+    b.kind = ControlKind::kBroadcast;
+    b.sender = coordinator;
+    b.round = round;
+    b.value[0] = acc;
+    double received = acc;
+    for (int r : robots_) {
+      if (r != coordinator) received = send(b).value[0];
+    }
+    return received;
+  }
+
+ private:
+  ControlMessage send(const ControlMessage& m) {
+    const std::vector<std::uint8_t> wire = EncodeControlMessage(m);
+    *bytes_ += static_cast<std::int64_t>(wire.size());
+    return DecodeControlMessage(wire);
+  }
+  std::vector<int> robots_;
+  std::int64_t* bytes_;
+};
+
+}  // namespace
+
+namespace {
+
+RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
+                               const std::vector<bool>& robust, const RobustDgsOptions& options);
+
+}  // namespace
+
+RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
+                             const std::vector<bool>& robust, const RobustDgsOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  options.validate();
+  const std::size_t n = graph.factors().size();
+  if (robust.size() != n) {
+    throw InvalidInputError("RunRobustDgs: the robust mask has " + std::to_string(robust.size()) +
+                            " entries for " + std::to_string(n) + " factors");
+  }
+  SeparatorConsistencyResult check;
+  check.kept.assign(n, true);
+  if (options.check_separators) check = CheckSeparators(graph, options);
+  std::vector<std::size_t> index;
+  const PoseGraph kept = Kept(graph, check.kept, &index);
+  RobustDgsResult r = RunGncByRobots(kept, initial, Select(robust, index), options);
+  std::vector<double> weights(n, 0.0);
+  for (std::size_t j = 0; j < index.size(); ++j) weights[index[j]] = r.weights[j];
+  r.weights = std::move(weights);
+  r.consistency_bytes = check.bytes;
+  r.consistency_rejected = check.rejected;
+  // The separators the check left out that agree with the estimate come back: the robot of
+  // higher id sends the other its estimates of their poses (one message per robot pair).
+  std::map<std::pair<int, int>, std::set<Key>> ask;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (check.kept[i] || !robust[i]) continue;
+    const RelativePoseFactor& f = graph.factors()[i];
+    const int a = f.a().robot, b = f.b().robot;
+    ask[{std::min(a, b), std::max(a, b)}].insert(a > b ? f.a() : f.b());
+  }
+  for (const auto& [pair, keys] : ask) {
+    Message m;
+    m.stage = DgsStage::kRefine;
+    m.sender = pair.second;
+    for (const Key& k : keys) {
+      m.keys.push_back(k);
+      const Vector6 v = (Vector6() << SO3::Log(r.values.at(k).rotation()),
+                         r.values.at(k).translation()).finished();
+      for (int c = 0; c < 6; ++c) m.values.push_back(v[c]);
+    }
+    r.consistency_bytes += static_cast<std::int64_t>(EncodeMessage(m).size());
+  }
+  r.readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
+  // The estimate of the inliers alone, where some weight is not 1 (the rounds kept a sliver,
+  // min_weight, of every rejected factor) or some separator came back.
+  bool all_in = r.readmitted == 0;
+  std::vector<bool> inliers(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    inliers[i] = r.weights[i] >= 0.5;
+    all_in = all_in && r.weights[i] == 1.0;
+  }
+  if (!all_in) {
+    std::vector<std::size_t> used;
+    const PoseGraph final_graph = Kept(graph, inliers, &used);
+    try {
+      DgsOptions dgs = options.dgs;
+      dgs.refine = true;
+      const DgsResult polish = RunDgs(final_graph, r.values, dgs);
+      r.values = polish.values;
+      r.solve_bytes += polish.bytes;
+      r.sweeps += polish.rotation.iterations + polish.pose.iterations + polish.refine.sweeps;
+      r.polished = true;
+    } catch (const UnderdeterminedError&) {
+      // The inliers leave a robot unlinked: keep the rounds' estimate.
+    }
+  }
+  r.outliers = 0;
+  for (std::size_t i = 0; i < n; ++i) r.outliers += (robust[i] && r.weights[i] < 0.5) ? 1 : 0;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+namespace {
+
+RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
+                               const std::vector<bool>& robust, const RobustDgsOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<RelativePoseFactor>& factors = graph.factors();
+  const std::size_t n = factors.size();
+  if (robust.size() != n) {
+    throw InvalidInputError("RunRobustDgs: the robust mask has " + std::to_string(robust.size()) +
+                            " entries for " + std::to_string(n) + " factors");
+  }
+  DgsOptions dgs = options.dgs;
+  dgs.refine = true;
+
+  // Who owns which weight; the separators each owner sends, per (owner, other robot).
+  std::set<int> robot_set;
+  for (const Key& k : graph.keys()) robot_set.insert(k.robot);
+  const std::vector<int> robots(robot_set.begin(), robot_set.end());
+  std::vector<int> owner(n);
+  std::map<std::pair<int, int>, std::vector<std::size_t>> separators;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int a = factors[i].a().robot, b = factors[i].b().robot;
+    owner[i] = std::min(a, b);
+    if (robust[i] && a != b) separators[{std::min(a, b), std::max(a, b)}].push_back(i);
+  }
+
+  RobustDgsResult out;
+  Coordinator coordinator(robots, &out.control_bytes);
+  auto solve = [&](const PoseGraph& g, const Values& start, RobustDgsRound& round) {
+    const DgsResult r = RunDgs(g, start, dgs);
+    round.solve_bytes = r.bytes;
+    out.solve_bytes += r.bytes;
+    out.sweeps += r.rotation.iterations + r.pose.iterations + r.refine.sweeps;
+    return r.values;
+  };
+  // Each robot's largest squared residual among the factors it owns (robust ones).
+  auto perRobotMax = [&](const std::vector<double>& r2) {
+    std::map<int, double> m;
+    for (int r : robots) m[r] = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (robust[i]) m[owner[i]] = std::max(m[owner[i]], r2[i]);
+    }
+    return m;
+  };
+
+  out.weights.assign(n, 1.0);
+  RobustDgsRound round0;
+  out.values = solve(graph, initial, round0);
+  round0.cost = graph.cost(out.values);
+  out.rounds.push_back(round0);
+  GncSchedule schedule(options.gnc);
+  std::vector<double> r2 = SquaredResiduals(graph, out.values);
+  const double max_r2 = coordinator.reduce(perRobotMax(r2), 0, /*take_max=*/true);
+  if (schedule.start(max_r2)) {
+    for (std::uint32_t k = 1;; ++k) {
+      RobustDgsRound round;
+      round.round = static_cast<int>(k);
+      round.mu = schedule.mu();
+      // Every robot sets the weights it owns and counts the undecided ones.
+      std::map<int, double> undecided;
+      for (int r : robots) undecided[r] = 0.0;
+      std::vector<double> owned(n, 1.0);
+      for (std::size_t i = 0; i < n; ++i) {
+        if (!robust[i]) continue;
+        owned[i] = schedule.weight(r2[i]);
+        if (!schedule.decided(owned[i])) undecided[owner[i]] += 1.0;
+      }
+      // The separators' weights to the other robot; the solve uses what arrived.
+      std::vector<double> used = owned;
+      for (const auto& [pair, list] : separators) {
+        WeightMessage m;
+        m.sender = pair.first;
+        m.receiver = pair.second;
+        m.round = k;
+        for (std::size_t i : list) m.weights.push_back(owned[i]);
+        const std::vector<std::uint8_t> wire = EncodeWeightMessage(m);
+        out.weight_bytes += static_cast<std::int64_t>(wire.size());
+        ++out.weight_messages;
+        const WeightMessage received = DecodeWeightMessage(wire);
+        for (std::size_t j = 0; j < list.size(); ++j) used[list[j]] = received.weights[j];
+      }
+      out.weights = used;
+      const PoseGraph weighted = WeightedGraph(graph, used, options.gnc.min_weight);
+      out.values = solve(weighted, out.values, round);
+      round.cost = weighted.cost(out.values);
+      r2 = SquaredResiduals(graph, out.values);
+      const double left = coordinator.reduce(undecided, k, /*take_max=*/false);
+      round.undecided = static_cast<int>(left);
+      for (std::size_t i = 0; i < n; ++i) round.outliers += (robust[i] && used[i] < 0.5) ? 1 : 0;
+      out.rounds.push_back(round);
+      if (schedule.next(left == 0.0)) break;
+    }
+  }
+  out.status = schedule.status();
+  out.iterations = schedule.iterations();
+  for (std::size_t i = 0; i < n; ++i) out.outliers += (robust[i] && out.weights[i] < 0.5) ? 1 : 0;
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace
+
+}  // namespace moslam

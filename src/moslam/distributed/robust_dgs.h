@@ -1,0 +1,97 @@
+// The robust distributed solve: GNC-TLS (robust/gnc.h) run by the robots themselves around the
+// distributed solver (dgs_driver.h), beyond the paper (its conclusion: "a distributed algorithm
+// for outlier rejection"), as Kimera-Multi distributes GNC.
+//
+//   RobustDgsResult r = RunRobustDgs(graph, initial, robust, options);
+//
+// Round 0: the least-squares solve, RunDgs with the refinement (the distributed optimum). Then
+// every robot owns the weights of its robust factors: those between two of its own variables,
+// and the separators to a robot of higher id (a separator's weight is owned by the lower robot
+// id). Each robot computes the squared residuals of the factors it owns from its estimate and
+// its neighbours' (which the solve left equal to their owners'), and the team runs GncSchedule:
+//   - mu_0: every robot reports the largest residual it owns to the coordinator (the lowest robot
+//     id), which broadcasts the maximum (control messages, 32 bytes each);
+//   - a round: every robot sets the weights it owns; the owner of separators sends them to the
+//     other robot (WeightMessage, messages.h); the weighted problem (each factor's information
+//     times its weight) is solved again by RunDgs with the refinement, from the previous
+//     estimate; every robot reports how many of its weights were undecided (neither 0 nor 1) and
+//     the coordinator broadcasts whether to stop; else mu grows.
+// Around it: before, the pairwise check of the separators (separator_consistency.h: the ones it
+// rejects are left out); after, the rejected separators whose residual at the estimate is within
+// c2 come back (GNC-TLS's own definition of an inlier), and the inliers alone are solved once
+// more (the rounds keep min_weight of every rejected factor).
+// Weights change only between solves; only estimates (inside the solves), weights and these
+// scalars cross the network, all serialized and counted. Same schedule and weights as SolveGnc
+// on the same graph; the estimates differ from the centralized GNC's by the solves' tolerance.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/separator_consistency.h"
+#include "moslam/robust/gnc.h"
+
+namespace moslam {
+
+struct RobustDgsOptions {
+  DgsOptions dgs;  // every solve (the refinement is forced on)
+  GncOptions gnc;
+  // Before GNC, the pairwise consistency of the inter-robot loop closures of every robot pair
+  // (separator_consistency.h); the separators it rejects are left out of every solve. Its
+  // threshold 0: twice GNC's (two factors' errors).
+  bool check_separators = true;
+  SeparatorConsistencyOptions consistency{0.0, 3};
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+};
+
+struct RobustDgsRound {
+  int round = 0;               // 0: least squares
+  double mu = 0.0;             // of the weights this round solved with (0 in round 0)
+  int undecided = 0;           // weights neither 0 nor 1 in this round
+  int outliers = 0;            // robust factors of weight < 0.5
+  std::int64_t solve_bytes = 0;
+  double cost = 0.0;           // F of the estimate under the round's weights
+};
+
+struct RobustDgsResult {
+  Values values;
+  GncStatus status = GncStatus::kAllInliers;
+  std::vector<double> weights;  // per factor of the graph (1 for the non-robust ones)
+  int iterations = 0;           // weighted solves after the least-squares one
+  int outliers = 0;
+  std::vector<RobustDgsRound> rounds;
+  std::int64_t solve_bytes = 0;    // all DGS solves (estimates, coarse and control messages)
+  std::int64_t weight_bytes = 0;   // WeightMessages
+  std::int64_t weight_messages = 0;
+  std::int64_t control_bytes = 0;  // the GNC's reports and broadcasts
+  std::int64_t consistency_bytes = 0;  // the separator check's local estimates
+  int consistency_rejected = 0;        // separators the check left out
+  int readmitted = 0;   // of those, back after GNC: their residual at the estimate within c2
+  bool polished = false;  // a last solve of the inliers alone (weights not all 1)
+  std::int64_t bytes() const {
+    return solve_bytes + weight_bytes + control_bytes + consistency_bytes;
+  }
+  int sweeps = 0;                  // all stages of all solves
+  double seconds = 0.0;
+};
+
+// The pairwise check as the robust solves apply it: its threshold from GNC's when 0.
+SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustDgsOptions& options);
+
+// The centralized reference of RunRobustDgs: the same separator check, then SolveGnc on the
+// factors it kept (weights 0 for the others), from initialize(kept graph) (e.g. its chordal
+// initialisation: that of the whole graph would carry the rejected factors' pull).
+GncResult SolveRobustCentralized(const PoseGraph& graph,
+                                 const std::function<Values(const PoseGraph&)>& initialize,
+                                 const std::vector<bool>& robust, const RobustDgsOptions& options,
+                                 const OptimizerOptions& solver = {});
+
+// robust[i]: whether factor i of `graph` is robust (size = number of factors). Throws
+// InvalidInputError (bad options, a mask of the wrong size) and whatever RunDgs throws.
+RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
+                             const std::vector<bool>& robust, const RobustDgsOptions& options = {});
+
+}  // namespace moslam

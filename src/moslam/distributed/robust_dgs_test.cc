@@ -1,0 +1,171 @@
+#include "moslam/distributed/robust_dgs.h"
+
+#include <gtest/gtest.h>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/dgs_test_util.h"
+#include "moslam/robust/spoil.h"
+#include "moslam/solver/initialization.h"
+
+namespace moslam {
+namespace {
+
+double MaxDistance(const Values& a, const Values& b) {
+  double d = 0.0;
+  for (const auto& [k, x] : a) {
+    d = std::max(d, (x.translation() - b.at(k).translation()).norm());
+  }
+  return d;
+}
+
+// The robots' GNC on blocks_world in 4 robots with 70 % wrong separators: the same weights as the
+// centralized GNC, the clean optimum, and the weights counted on the wire.
+TEST(RobustDgs, RejectsTheOutliersAsTheCentralizedGncDoes) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
+  // The distributed solve holds the anchor at its initial value: the reference too.
+  const Key anchor = GaugeAnchor(data.graph);
+  const SE3 anchor_pose = data.initial.count(anchor) ? data.initial.at(anchor) : SE3();
+  const OptimizerResult clean =
+      Optimize(data.graph, ChordalInitialization(data.graph, anchor_pose));
+  SpoilOptions spoil;
+  spoil.fraction = 0.7;
+  spoil.seed = 2;
+  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
+  const std::vector<bool> robust = DefaultRobustFactors(spoiled.graph);
+  RobustDgsOptions options;
+  options.gnc.threshold = 1.0;  // blocks_world: see robust/gnc_test.cc
+  options.check_separators = false;  // GNC alone
+  options.dgs.coarse_correction = true;
+  options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+  const RobustDgsResult r = RunRobustDgs(spoiled.graph, data.initial, robust, options);
+  const GncResult central = SolveRobustCentralized(
+      spoiled.graph, [&](const PoseGraph& g) { return ChordalInitialization(g, anchor_pose); },
+      robust, options);
+  EXPECT_EQ(r.status, GncStatus::kConverged);
+  ASSERT_EQ(r.weights.size(), spoiled.outlier.size());
+  for (std::size_t i = 0; i < r.weights.size(); ++i) {
+    EXPECT_EQ(r.weights[i] < 0.5, spoiled.outlier[i]) << "factor " << i;
+    EXPECT_EQ(r.weights[i] < 0.5, central.weights[i] < 0.5) << "factor " << i;
+  }
+  EXPECT_LT(MaxDistance(r.values, clean.values), 1e-3);
+  EXPECT_NEAR(data.graph.cost(r.values), clean.final_cost, 1e-4 * clean.final_cost);
+  // One weight message per pair of robots with separators per round, 8 bytes a weight.
+  EXPECT_GT(r.weight_messages, 0);
+  EXPECT_GE(r.weight_bytes, r.weight_messages * static_cast<std::int64_t>(kWeightHeaderBytes));
+  EXPECT_GT(r.control_bytes, 0);
+  EXPECT_EQ(r.bytes(), r.solve_bytes + r.weight_bytes + r.control_bytes);
+  EXPECT_EQ(static_cast<int>(r.rounds.size()), r.iterations + 1);
+}
+
+// The pairwise check alone on blocks_world in 16 robots with 90 % wrong separators: no right
+// separator rejected, nearly every wrong one (those left are GNC's).
+TEST(SeparatorConsistency, KeepsTheRightSeparatorsAtNinetyPercentOutliers) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(16));
+  SpoilOptions spoil;
+  spoil.fraction = 0.9;
+  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
+  SeparatorConsistencyOptions options;
+  options.threshold = 2.0;  // twice the GNC threshold for blocks_world (robust/gnc_test.cc)
+  const SeparatorConsistencyResult r = CheckSeparatorConsistency(spoiled.graph, options);
+  int right_rejected = 0, wrong_kept = 0;
+  for (std::size_t i = 0; i < spoiled.outlier.size(); ++i) {
+    if (!spoiled.outlier[i] && !r.kept[i]) ++right_rejected;
+    if (spoiled.outlier[i] && r.kept[i]) ++wrong_kept;
+  }
+  EXPECT_EQ(right_rejected, 0);
+  EXPECT_LE(wrong_kept, spoiled.added / 20);
+  EXPECT_EQ(r.separators, spoiled.separators + spoiled.added);
+  EXPECT_GT(r.bytes, 0);
+  // One separator between two robots, or two: too few to confirm one another (min_support 3).
+  PoseGraph two;
+  Values unused;
+  two = test::ChainOfRobots(2, 5, &unused);
+  const SeparatorConsistencyResult lone = CheckSeparatorConsistency(two, options);
+  EXPECT_EQ(lone.rejected, lone.separators);
+}
+
+// With the separator check first: blocks_world in 16 robots, 90 % of the separators wrong.
+TEST(RobustDgs, WithTheSeparatorCheckReachesTheCleanOptimumAtNinetyPercent) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(16));
+  const Key anchor = GaugeAnchor(data.graph);
+  const SE3 anchor_pose = data.initial.count(anchor) ? data.initial.at(anchor) : SE3();
+  const OptimizerResult clean =
+      Optimize(data.graph, ChordalInitialization(data.graph, anchor_pose));
+  SpoilOptions spoil;
+  spoil.fraction = 0.9;
+  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
+  RobustDgsOptions options;
+  options.gnc.threshold = 1.0;
+  options.dgs.coarse_correction = true;
+  options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+  const RobustDgsResult r =
+      RunRobustDgs(spoiled.graph, data.initial, DefaultRobustFactors(spoiled.graph), options);
+  for (std::size_t i = 0; i < r.weights.size(); ++i) {
+    EXPECT_EQ(r.weights[i] < 0.5, spoiled.outlier[i]) << "factor " << i;
+  }
+  EXPECT_GT(r.consistency_rejected, spoiled.added * 9 / 10);
+  EXPECT_GT(r.consistency_bytes, 0);
+  EXPECT_LT(MaxDistance(r.values, clean.values), 1e-3);
+  EXPECT_NEAR(data.graph.cost(r.values), clean.final_cost, 1e-4 * clean.final_cost);
+}
+
+TEST(RobustDgs, WithoutOutliersIsTheLeastSquaresSolve) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
+  RobustDgsOptions options;
+  options.gnc.threshold = 1.0;
+  options.dgs.coarse_correction = true;
+  const RobustDgsResult r =
+      RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), options);
+  DgsOptions plain = options.dgs;
+  plain.refine = true;
+  const DgsResult ls = RunDgs(data.graph, data.initial, plain);
+  EXPECT_EQ(r.status, GncStatus::kAllInliers);
+  EXPECT_EQ(r.iterations, 0);
+  EXPECT_EQ(r.outliers, 0);
+  EXPECT_EQ(r.weight_bytes, 0);
+  // The same optimum (the separator check may set aside a right separator, which then comes
+  // back: one more solve, to the refinement's tolerance).
+  EXPECT_LT(MaxDistance(r.values, ls.values), 1e-6);
+}
+
+TEST(RobustDgs, RejectsAMaskOfTheWrongSize) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
+  EXPECT_THROW(RunRobustDgs(data.graph, data.initial, {true, false}), InvalidInputError);
+}
+
+TEST(WeightMessage, RoundTripsAndRejectsBadBytes) {
+  WeightMessage m;
+  m.sender = 3;
+  m.receiver = 7;
+  m.round = 12;
+  m.weights = {0.0, 1.0, 0.25};
+  const std::vector<std::uint8_t> wire = EncodeWeightMessage(m);
+  EXPECT_EQ(wire.size(), kWeightHeaderBytes + 24);
+  const WeightMessage back = DecodeWeightMessage(wire);
+  EXPECT_EQ(back.sender, 3);
+  EXPECT_EQ(back.receiver, 7);
+  EXPECT_EQ(back.round, 12u);
+  EXPECT_EQ(back.weights, m.weights);
+  for (std::size_t n = 0; n < wire.size(); ++n) {  // every truncation
+    EXPECT_THROW(DecodeWeightMessage({wire.begin(), wire.begin() + static_cast<long>(n)}),
+                 InvalidInputError);
+  }
+  std::vector<std::uint8_t> extra = wire;
+  extra.push_back(0);
+  EXPECT_THROW(DecodeWeightMessage(extra), InvalidInputError);
+  std::vector<std::uint8_t> bad = wire;
+  bad[0] ^= 1;
+  EXPECT_THROW(DecodeWeightMessage(bad), InvalidInputError);
+  bad = wire;
+  bad[kWeightHeaderBytes + 7] = 0x7F;  // the first weight becomes a huge number
+  EXPECT_THROW(DecodeWeightMessage(bad), InvalidInputError);
+  bad = wire;
+  bad[4] = 3;  // receiver = sender
+  bad[5] = 0;
+  EXPECT_THROW(DecodeWeightMessage(bad), InvalidInputError);
+  m.weights = {1.5};
+  EXPECT_THROW(EncodeWeightMessage(m), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam
