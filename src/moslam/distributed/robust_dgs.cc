@@ -31,20 +31,6 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
 
 namespace {
 
-// The graph without the factors not kept; index[i] = the factor of `graph` behind factor i.
-PoseGraph Kept(const PoseGraph& graph, const std::vector<bool>& kept,
-               std::vector<std::size_t>* index) {
-  std::vector<RelativePoseFactor> factors;
-  for (std::size_t i = 0; i < graph.factors().size(); ++i) {
-    if (!kept[i]) continue;
-    factors.push_back(graph.factors()[i]);
-    index->push_back(i);
-  }
-  PoseGraph out(std::move(factors));
-  for (const PriorFactor& p : graph.priors()) out.add(p);
-  return out;
-}
-
 // Robust factors of weight < 0.5 whose squared residual at `values` is at most c2 get weight 1.
 int Readmit(const PoseGraph& graph, const Values& values, const std::vector<bool>& robust,
             double c2, std::vector<double>* weights) {
@@ -77,7 +63,7 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
   }
   const SeparatorConsistencyResult check = CheckSeparators(graph, options);
   std::vector<std::size_t> index;
-  const PoseGraph kept = Kept(graph, check.kept, &index);
+  const PoseGraph kept = SubGraph(graph, check.kept, &index);
   GncResult r = SolveGnc(kept, initialize(kept), Select(robust, index), options.gnc, solver);
   std::vector<double> weights(graph.factors().size(), 0.0);
   for (std::size_t j = 0; j < index.size(); ++j) weights[index[j]] = r.weights[j];
@@ -85,22 +71,14 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
   // As RunRobustDgs: the check's rejects that agree with the estimate come back, and the
   // inliers alone are solved.
   const int readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
-  std::vector<bool> inliers(r.weights.size());
-  bool all_in = readmitted == 0;
-  for (std::size_t i = 0; i < inliers.size(); ++i) {
-    inliers[i] = r.weights[i] >= 0.5;
-    all_in = all_in && r.weights[i] == 1.0;
-  }
-  if (!all_in) {
-    std::vector<std::size_t> used;
-    const PoseGraph final_graph = Kept(graph, inliers, &used);
+  if (readmitted > 0 || !AllWeightsOne(r.weights)) {
     try {
-      r.values = Optimize(final_graph, r.values, solver).values;
+      r.values = Optimize(SubGraph(graph, Inliers(r.weights)), r.values, solver).values;
     } catch (const UnderdeterminedError&) {
+      // The inliers leave part of the graph unanchored: keep GNC's estimate.
     }
   }
-  r.outliers = 0;
-  for (std::size_t i = 0; i < inliers.size(); ++i) r.outliers += (robust[i] && !inliers[i]) ? 1 : 0;
+  r.outliers = CountOutliers(robust, r.weights);
   return r;
 }
 
@@ -115,7 +93,7 @@ class Coordinator {
 
   double reduce(const std::map<int, double>& share, std::uint32_t round, bool take_max) {
     const int coordinator = robots_.front();
-    double acc = take_max ? 0.0 : 0.0;
+    double acc = 0.0;
     bool first = true;
     for (int r : robots_) {
       ControlMessage m;
@@ -171,7 +149,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
   check.kept.assign(n, true);
   if (options.check_separators) check = CheckSeparators(graph, options);
   std::vector<std::size_t> index;
-  const PoseGraph kept = Kept(graph, check.kept, &index);
+  const PoseGraph kept = SubGraph(graph, check.kept, &index);
   RobustDgsResult r = RunGncByRobots(kept, initial, Select(robust, index), options);
   std::vector<double> weights(n, 0.0);
   for (std::size_t j = 0; j < index.size(); ++j) weights[index[j]] = r.weights[j];
@@ -202,15 +180,8 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
   r.readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
   // The estimate of the inliers alone, where some weight is not 1 (the rounds kept a sliver,
   // min_weight, of every rejected factor) or some separator came back.
-  bool all_in = r.readmitted == 0;
-  std::vector<bool> inliers(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    inliers[i] = r.weights[i] >= 0.5;
-    all_in = all_in && r.weights[i] == 1.0;
-  }
-  if (!all_in) {
-    std::vector<std::size_t> used;
-    const PoseGraph final_graph = Kept(graph, inliers, &used);
+  if (r.readmitted > 0 || !AllWeightsOne(r.weights)) {
+    const PoseGraph final_graph = SubGraph(graph, Inliers(r.weights));
     try {
       DgsOptions dgs = options.dgs;
       dgs.refine = true;
@@ -223,8 +194,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
       // The inliers leave a robot unlinked: keep the rounds' estimate.
     }
   }
-  r.outliers = 0;
-  for (std::size_t i = 0; i < n; ++i) r.outliers += (robust[i] && r.weights[i] < 0.5) ? 1 : 0;
+  r.outliers = CountOutliers(robust, r.weights);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
@@ -235,11 +205,7 @@ RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
                                const std::vector<bool>& robust, const RobustDgsOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<RelativePoseFactor>& factors = graph.factors();
-  const std::size_t n = factors.size();
-  if (robust.size() != n) {
-    throw InvalidInputError("RunRobustDgs: the robust mask has " + std::to_string(robust.size()) +
-                            " entries for " + std::to_string(n) + " factors");
-  }
+  const std::size_t n = factors.size();  // robust: one per factor (RunRobustDgs checked it)
   DgsOptions dgs = options.dgs;
   dgs.refine = true;
 
@@ -317,14 +283,14 @@ RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
       r2 = SquaredResiduals(graph, out.values);
       const double left = coordinator.reduce(undecided, k, /*take_max=*/false);
       round.undecided = static_cast<int>(left);
-      for (std::size_t i = 0; i < n; ++i) round.outliers += (robust[i] && used[i] < 0.5) ? 1 : 0;
+      round.outliers = CountOutliers(robust, used);
       out.rounds.push_back(round);
       if (schedule.next(left == 0.0)) break;
     }
   }
   out.status = schedule.status();
   out.iterations = schedule.iterations();
-  for (std::size_t i = 0; i < n; ++i) out.outliers += (robust[i] && out.weights[i] < 0.5) ? 1 : 0;
+  out.outliers = CountOutliers(robust, out.weights);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -95,6 +95,36 @@ PoseGraph WeightedGraph(const PoseGraph& graph, const std::vector<double>& weigh
   return out;
 }
 
+PoseGraph SubGraph(const PoseGraph& graph, const std::vector<bool>& keep,
+                   std::vector<std::size_t>* index) {
+  std::vector<RelativePoseFactor> factors;
+  for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+    if (!keep[i]) continue;
+    factors.push_back(graph.factors()[i]);
+    if (index) index->push_back(i);
+  }
+  PoseGraph out(std::move(factors));
+  for (const PriorFactor& p : graph.priors()) out.add(p);
+  return out;
+}
+
+std::vector<bool> Inliers(const std::vector<double>& weights) {
+  std::vector<bool> out;
+  out.reserve(weights.size());
+  for (double w : weights) out.push_back(w >= 0.5);
+  return out;
+}
+
+bool AllWeightsOne(const std::vector<double>& weights) {
+  return std::all_of(weights.begin(), weights.end(), [](double w) { return w == 1.0; });
+}
+
+int CountOutliers(const std::vector<bool>& robust, const std::vector<double>& weights) {
+  int n = 0;
+  for (std::size_t i = 0; i < weights.size(); ++i) n += (robust[i] && weights[i] < 0.5) ? 1 : 0;
+  return n;
+}
+
 std::vector<bool> DefaultRobustFactors(const PoseGraph& graph) {
   const bool single = graph.numRobots() <= 1;
   std::vector<bool> out;
@@ -149,17 +179,9 @@ GncResult SolveGnc(const PoseGraph& graph, const Values& initial, const std::vec
     }
   }
   // The inliers alone, at full weight: the rounds kept min_weight of every rejected factor.
-  bool binary = true;
-  for (std::size_t i = 0; i < n; ++i) binary = binary && out.weights[i] == 1.0;
-  if (!binary) {
-    std::vector<RelativePoseFactor> inliers;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (out.weights[i] >= 0.5) inliers.push_back(graph.factors()[i]);
-    }
-    PoseGraph polish(std::move(inliers));
-    for (const PriorFactor& p : graph.priors()) polish.add(p);
+  if (!AllWeightsOne(out.weights)) {
     try {
-      out.values = Optimize(polish, out.values, solver).values;
+      out.values = Optimize(SubGraph(graph, Inliers(out.weights)), out.values, solver).values;
     } catch (const UnderdeterminedError&) {
       // The inliers leave part of the graph unanchored: keep the rounds' estimate.
     }
@@ -167,7 +189,7 @@ GncResult SolveGnc(const PoseGraph& graph, const Values& initial, const std::vec
   out.status = schedule.status();
   out.iterations = schedule.iterations();
   out.final_mu = schedule.mu();
-  for (std::size_t i = 0; i < n; ++i) out.outliers += (robust[i] && out.weights[i] < 0.5) ? 1 : 0;
+  out.outliers = CountOutliers(robust, out.weights);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -90,6 +90,16 @@ std::vector<double> SquaredResiduals(const PoseGraph& graph, const Values& value
 PoseGraph WeightedGraph(const PoseGraph& graph, const std::vector<double>& weights,
                         double min_weight);
 
+// The graph of the factors with keep[i] (and every prior); index (optional) receives, per factor
+// of the result, the factor of `graph` behind it.
+PoseGraph SubGraph(const PoseGraph& graph, const std::vector<bool>& keep,
+                   std::vector<std::size_t>* index = nullptr);
+// The factors of weight >= 0.5 (the inliers of a GNC result).
+std::vector<bool> Inliers(const std::vector<double>& weights);
+bool AllWeightsOne(const std::vector<double>& weights);
+// Robust factors of weight < 0.5.
+int CountOutliers(const std::vector<bool>& robust, const std::vector<double>& weights);
+
 // The factors robust by default: those between two robots (inter-robot loop closures, shared
 // objects); in a single-robot graph, the loop closures (poses not consecutive).
 std::vector<bool> DefaultRobustFactors(const PoseGraph& graph);

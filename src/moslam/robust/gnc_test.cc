@@ -93,7 +93,9 @@ TEST(Spoil, AddsTheFractionDeterministically) {
     EXPECT_EQ(a.outlier[i], i >= data.graph.factors().size());
     EXPECT_EQ(a.graph.factors()[i].measured().translation(),
               b.graph.factors()[i].measured().translation());
-    if (a.outlier[i]) EXPECT_NE(a.graph.factors()[i].a().robot, a.graph.factors()[i].b().robot);
+    if (a.outlier[i]) {
+      EXPECT_NE(a.graph.factors()[i].a().robot, a.graph.factors()[i].b().robot);
+    }
   }
   o.fraction = 1.0;
   EXPECT_THROW(SpoilSeparators(data.graph, o), InvalidInputError);
