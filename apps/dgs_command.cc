@@ -51,6 +51,7 @@ struct DgsArgs {
   G2oReadOptions read;  // --objects, --drop-indefinite-coupling
   bool json = false;
   bool robust = false;
+  std::string separator_test = "map";  // --robust: map | measurement
   double gnc_threshold = 0.0;  // 0: GncOptions' default
   int separator_support = 3;
   std::string out;             // folder: one g2o and one TUM file per robot
@@ -90,6 +91,7 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
   options.gnc.threshold = a.gnc_threshold;
   options.check_separators = a.separator_support > 0;
   options.consistency.min_support = std::max(1, a.separator_support);
+  options.consistency.map_uncertainty = a.separator_test == "map";
   options.validate();
   const std::vector<bool> robust = DefaultRobustFactors(graph);
   const auto robust_count = std::count(robust.begin(), robust.end(), true);
@@ -496,6 +498,13 @@ Runner RegisterDgs(CLI::App& app) {
   sub->add_flag("--robust", args->robust,
                 "outlier-robust: graduated non-convexity with a truncated least-squares cost on "
                 "the inter-robot factors, run by the robots (implies --refine)");
+  sub->add_option("--separator-test", args->separator_test,
+                  "--robust: the pairwise check of the separators with each robot's map "
+                  "uncertainty (map: marginal covariances, PCM's test) or with the separators' "
+                  "information alone (measurement: when the information is not the noise's, "
+                  "e.g. blocks_world's identity)")
+      ->check(CLI::IsMember({"map", "measurement"}))
+      ->capture_default_str();
   sub->add_option("--gnc-threshold", args->gnc_threshold,
                   "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
                   "6 dof at 0.999, for information that is the noise's)")

@@ -29,6 +29,7 @@ struct SolveArgs {
   bool json = false;
   bool verbose = false;
   bool robust = false;
+  std::string separator_test = "map";  // --robust: map | measurement
   double gnc_threshold = 0.0;  // 0: GncOptions' default
 };
 
@@ -84,6 +85,7 @@ int RunSolve(const SolveArgs& a) {
   if (a.robust) {
     RobustDgsOptions robust_options;  // the same check and GNC as `moslam dgs --robust`
     robust_options.gnc.threshold = a.gnc_threshold;
+    robust_options.consistency.map_uncertainty = a.separator_test == "map";
     // The initialisation of the factors the separator check keeps (--init file: the file's).
     auto initialize = [&](const PoseGraph& kept) {
       if (a.init == "file") return initial;
@@ -199,6 +201,13 @@ Runner RegisterSolve(CLI::App& app) {
                 "the inter-robot factors (single robot: the loop closures) checked for pairwise "
                 "consistency per robot pair, then graduated non-convexity with a truncated "
                 "least-squares cost on them; the rest least squares");
+  sub->add_option("--separator-test", args->separator_test,
+                  "--robust: the pairwise check of the separators with each robot's map "
+                  "uncertainty (map: marginal covariances, PCM's test) or with the separators' "
+                  "information alone (measurement: when the information is not the noise's, "
+                  "e.g. blocks_world's identity)")
+      ->check(CLI::IsMember({"map", "measurement"}))
+      ->capture_default_str();
   sub->add_option("--gnc-threshold", args->gnc_threshold,
                   "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
                   "6 dof at 0.999, for information that is the noise's)")

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer target for the g2o reader with clang (ASan + UBSan) and runs it for a
-# bounded time. Usage: scripts/fuzz.sh [seconds, default 60]
+# Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for a bounded time: the g2o
+# reader, and the decoders of the messages robots send one another (fuzz/messages_fuzz.cc).
+# Usage: scripts/fuzz.sh [seconds per target, default 60]
 # Exits non-zero when the fuzzer finds a crash, a sanitizer report, a leak or a timeout; the input
 # that triggered it is saved under build-fuzz/artifacts/.
 set -euo pipefail
@@ -21,7 +22,7 @@ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER="$CC_BIN" -DCMAKE_CXX_COMPILER="$CXX_BIN" \
   -DMOSLAM_BUILD_FUZZ=ON -DMOSLAM_BUILD_TESTS=OFF -DMOSLAM_BUILD_BENCH=OFF >/dev/null
-cmake --build "$build" --target g2o_reader_fuzz
+cmake --build "$build" --target g2o_reader_fuzz messages_fuzz
 
 # Seed corpus, made fresh at every run from short snippets (datasets are never copied into the
 # repository).
@@ -63,15 +64,38 @@ cat >"$dict" <<'DICT'
 " 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1"
 DICT
 
-echo "fuzzing g2o_reader_fuzz for ${seconds}s"
-set +e
-"$build/fuzz/g2o_reader_fuzz" "$corpus" -dict="$dict" -max_total_time="$seconds" \
-  -max_len=4096 -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
-  -artifact_prefix="$build/artifacts/"
-status=$?
-set -e
-if ((status != 0)); then
-  echo "fuzz.sh: the fuzzer failed (exit $status); reproducer in $build/artifacts/" >&2
-  exit "$status"
-fi
-echo "fuzz.sh: no crash in ${seconds}s"
+# The messages: the first byte picks the decoder; a few valid headers as seeds.
+mcorpus="$work/messages"
+mkdir -p "$mcorpus"
+printf '\x00\xd6\x01\x01\x01\x02\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00' >"$mcorpus/dgs_empty"
+printf '\x03\xd9\x01\x01\x00\x02\x00\x00\x00\x01\x00\x00\x00\x00\x00\x00\x00' >"$mcorpus/weight_empty"
+printf '\x04\xda\x01\x01\x00\x02\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00' >"$mcorpus/covariance_empty"
+printf '\x05\x4f\x01\x01' >"$mcorpus/object_map_start"
+mdict="$work/messages.dict"
+cat >"$mdict" <<'DICT'
+"\xd6\x01"
+"\xd7\x01"
+"\xd8\x01"
+"\xd9\x01"
+"\xda\x01"
+"\x4f\x01"
+"\x00\x00\x00\x00\x00\x00\xf8\x7f"
+"\x06\x00\x00\x00"
+DICT
+
+run_target() {  # name corpus dict max_len
+  echo "fuzzing $1 for ${seconds}s"
+  set +e
+  "$build/fuzz/$1" "$2" -dict="$3" -max_total_time="$seconds" \
+    -max_len="$4" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
+    -artifact_prefix="$build/artifacts/$1-"
+  local status=$?
+  set -e
+  if ((status != 0)); then
+    echo "fuzz.sh: $1 failed (exit $status); reproducer in $build/artifacts/" >&2
+    exit "$status"
+  fi
+}
+run_target g2o_reader_fuzz "$corpus" "$dict" 4096
+run_target messages_fuzz "$mcorpus" "$mdict" 4096
+echo "fuzz.sh: no crash in ${seconds}s per target"

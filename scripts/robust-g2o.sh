@@ -24,7 +24,7 @@ for r in $ROBOTS; do
   for p in $FRACTIONS; do
     spoiled="$WORK/spoiled_${r}_$p"
     "$MOSLAM" spoil "$clean" --fraction "$p" --seed "$SEED" --out "$spoiled" > /dev/null
-    "$MOSLAM" dgs "$spoiled" --robust --gnc-threshold 1 --json --out "$WORK/est_${r}_$p" \
+    "$MOSLAM" dgs "$spoiled" --robust --gnc-threshold 1 --separator-test measurement --json --out "$WORK/est_${r}_$p" \
       | tail -n 1 > "$WORK/dgs_${r}_$p.json"
     rows+=("$(python3 "$ROOT/scripts/lib/robust_g2o_row.py" "$r" "$p" "$WORK/clean_$r.json" \
       "$WORK/clean_$r" "$spoiled/outliers.txt" "$WORK/dgs_${r}_$p.json" "$WORK/est_${r}_$p")")

@@ -554,5 +554,86 @@ WeightMessage DecodeWeightMessage(const std::vector<std::uint8_t>& bytes) {
   return m;
 }
 
-}  // namespace moslam
+namespace {
 
+void CheckCovariance(const CovarianceMessage& m) {
+  auto bad = [](const std::string& what) {
+    throw InvalidInputError("DGS covariance message: " + what);
+  };
+  if (m.sender < 0 || m.sender > kMaxMessageRobot || m.receiver < 0 ||
+      m.receiver > kMaxMessageRobot) {
+    bad("robot ids must be in [0, 65535]");
+  }
+  if (m.sender == m.receiver) bad("sender and receiver are the same robot " + std::to_string(m.sender));
+  const Eigen::Index n = m.covariance.rows();
+  if (m.covariance.cols() != n) bad("the covariance is not square");
+  if (n % 6 != 0 || n > static_cast<Eigen::Index>(kMaxCovarianceDimension)) {
+    bad("dimension " + std::to_string(n) + " is not a multiple of 6 up to " +
+        std::to_string(kMaxCovarianceDimension));
+  }
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!(m.covariance(i, i) >= 0.0)) bad("diagonal entry " + std::to_string(i) + " is negative or not a number");
+    for (Eigen::Index j = i; j < n; ++j) {
+      if (!std::isfinite(m.covariance(i, j))) {
+        bad("entry (" + std::to_string(i) + ", " + std::to_string(j) + ") is not finite");
+      }
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> EncodeCovarianceMessage(const CovarianceMessage& m) {
+  CheckCovariance(m);
+  const std::size_t n = static_cast<std::size_t>(m.covariance.rows());
+  std::vector<std::uint8_t> out(kCovarianceHeaderBytes + 8 * (n * (n + 1) / 2));
+  Writer w(out.data());
+  w.u8(kCovarianceMagic);
+  w.u8(kMessageVersion);
+  w.u16(static_cast<std::uint16_t>(m.sender));
+  w.u16(static_cast<std::uint16_t>(m.receiver));
+  w.u16(0);
+  w.u32(static_cast<std::uint32_t>(n));
+  w.u32(0);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = i; j < n; ++j) {
+      w.f64(m.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+    }
+  }
+  return out;
+}
+
+CovarianceMessage DecodeCovarianceMessage(const std::vector<std::uint8_t>& bytes) {
+  Reader r(bytes);
+  auto bad = [](const std::string& what) {
+    throw InvalidInputError("DGS covariance message: " + what);
+  };
+  if (r.u8("magic") != kCovarianceMagic) bad("bad magic byte (not a covariance message)");
+  const std::uint8_t version = r.u8("version");
+  if (version != kMessageVersion) bad("unsupported version " + std::to_string(version));
+  CovarianceMessage m;
+  m.sender = r.u16("sender");
+  m.receiver = r.u16("receiver");
+  if (r.u16("reserved") != 0) bad("reserved field not 0");
+  const std::uint32_t n = r.u32("dimension");
+  if (r.u32("reserved") != 0) bad("reserved field not 0");
+  if (n % 6 != 0 || n > kMaxCovarianceDimension) {
+    bad("dimension " + std::to_string(n) + " is not a multiple of 6 up to " +
+        std::to_string(kMaxCovarianceDimension));
+  }
+  const std::size_t count = static_cast<std::size_t>(n) * (n + 1) / 2;
+  if (r.remaining() != 8 * count) {
+    bad("dimension " + std::to_string(n) + " needs " + std::to_string(8 * count) + " bytes, " +
+        std::to_string(r.remaining()) + " follow");
+  }
+  m.covariance.resize(n, n);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    for (std::uint32_t j = i; j < n; ++j) {
+      m.covariance(i, j) = m.covariance(j, i) = r.f64("entry");
+    }
+  }
+  CheckCovariance(m);
+  return m;
+}
+
+}  // namespace moslam

@@ -17,6 +17,7 @@
 // trailing bytes.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -161,5 +162,32 @@ inline constexpr std::size_t kWeightHeaderBytes = 16;
 // [0, 65535] too).
 std::vector<std::uint8_t> EncodeWeightMessage(const WeightMessage& message);
 WeightMessage DecodeWeightMessage(const std::vector<std::uint8_t>& bytes);
+
+// Covariance messages of the separator check (separator_consistency.h): beside the local
+// estimates of its separator variables (a DGS message), a robot sends the other robot of the pair
+// their joint covariance in its own map (solver/marginals.h), n = 6 x the number of variables, in
+// the order of that DGS message's keys; the upper triangle, row by row. Little-endian:
+//
+//   u8 magic 0xDA | u8 version 1 | u16 sender | u16 receiver | u16 reserved (0) |
+//   u32 n (a multiple of 6, at most kMaxCovarianceDimension) | u32 reserved (0) |
+//   n (n + 1) / 2 x f64
+//
+// DecodeCovarianceMessage rejects with InvalidInputError: truncated input or trailing bytes, a
+// bad magic/version, non-zero reserved fields, a sender equal to the receiver, n not a multiple
+// of 6 or too large, a non-finite entry, a negative diagonal entry.
+struct CovarianceMessage {
+  int sender = 0;
+  int receiver = 0;
+  Eigen::MatrixXd covariance;  // n x n, symmetric (the encoder sends the upper triangle)
+};
+
+inline constexpr std::uint8_t kCovarianceMagic = 0xDA;
+inline constexpr std::size_t kCovarianceHeaderBytes = 16;
+inline constexpr std::uint32_t kMaxCovarianceDimension = 6 * 4096;
+
+// Throws InvalidInputError on the conditions DecodeCovarianceMessage rejects (and a matrix that
+// is not square).
+std::vector<std::uint8_t> EncodeCovarianceMessage(const CovarianceMessage& message);
+CovarianceMessage DecodeCovarianceMessage(const std::vector<std::uint8_t>& bytes);
 
 }  // namespace moslam

@@ -23,10 +23,11 @@ void RobustDgsOptions::validate() const {
 }
 
 SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
-                                           const RobustDgsOptions& options) {
+                                           const RobustDgsOptions& options,
+                                           const std::vector<bool>& robust) {
   SeparatorConsistencyOptions c = options.consistency;
-  if (c.threshold == 0.0) c.threshold = 2.0 * options.gnc.threshold2();
-  return CheckSeparatorConsistency(graph, c);
+  if (c.threshold == 0.0) c.threshold = options.gnc.threshold2();
+  return CheckSeparatorConsistency(graph, c, robust, options.gnc);
 }
 
 namespace {
@@ -61,7 +62,7 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
   if (!options.check_separators) {
     return SolveGnc(graph, initialize(graph), robust, options.gnc, solver);
   }
-  const SeparatorConsistencyResult check = CheckSeparators(graph, options);
+  const SeparatorConsistencyResult check = CheckSeparators(graph, options, robust);
   std::vector<std::size_t> index;
   const PoseGraph kept = SubGraph(graph, check.kept, &index);
   GncResult r = SolveGnc(kept, initialize(kept), Select(robust, index), options.gnc, solver);
@@ -147,7 +148,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
   }
   SeparatorConsistencyResult check;
   check.kept.assign(n, true);
-  if (options.check_separators) check = CheckSeparators(graph, options);
+  if (options.check_separators) check = CheckSeparators(graph, options, robust);
   std::vector<std::size_t> index;
   const PoseGraph kept = SubGraph(graph, check.kept, &index);
   RobustDgsResult r = RunGncByRobots(kept, initial, Select(robust, index), options);

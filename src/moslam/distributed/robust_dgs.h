@@ -40,7 +40,7 @@ struct RobustDgsOptions {
   GncOptions gnc;
   // Before GNC, the pairwise consistency of the inter-robot loop closures of every robot pair
   // (separator_consistency.h); the separators it rejects are left out of every solve. Its
-  // threshold 0: twice GNC's (two factors' errors).
+  // threshold 0: GNC's c2 (both are chi-square quantiles of a 6-vector).
   bool check_separators = true;
   SeparatorConsistencyOptions consistency{0.0, 3};
   // Throws InvalidInputError naming the first bad field.
@@ -67,7 +67,7 @@ struct RobustDgsResult {
   std::int64_t weight_bytes = 0;   // WeightMessages
   std::int64_t weight_messages = 0;
   std::int64_t control_bytes = 0;  // the GNC's reports and broadcasts
-  std::int64_t consistency_bytes = 0;  // the separator check's local estimates
+  std::int64_t consistency_bytes = 0;  // the separator check's local estimates and covariances
   int consistency_rejected = 0;        // separators the check left out
   int readmitted = 0;   // of those, back after GNC: their residual at the estimate within c2
   bool polished = false;  // a last solve of the inliers alone (weights not all 1)
@@ -78,8 +78,10 @@ struct RobustDgsResult {
   double seconds = 0.0;
 };
 
-// The pairwise check as the robust solves apply it: its threshold from GNC's when 0.
-SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustDgsOptions& options);
+// The pairwise check as the robust solves apply it: its threshold from GNC's when 0, each
+// robot's map robust in the intra-robot factors `robust` marks.
+SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustDgsOptions& options,
+                                           const std::vector<bool>& robust = {});
 
 // The centralized reference of RunRobustDgs: the same separator check, then SolveGnc on the
 // factors it kept (weights 0 for the others), from initialize(kept graph) (e.g. its chordal

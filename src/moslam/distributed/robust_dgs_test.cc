@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/robust/spoil.h"
@@ -65,7 +67,8 @@ TEST(SeparatorConsistency, KeepsTheRightSeparatorsAtNinetyPercentOutliers) {
   spoil.fraction = 0.9;
   const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
   SeparatorConsistencyOptions options;
-  options.threshold = 2.0;  // twice the GNC threshold for blocks_world (robust/gnc_test.cc)
+  options.map_uncertainty = false;  // blocks_world's identity information is not the noise's
+  options.threshold = 1.0;  // the GNC threshold for blocks_world (robust/gnc_test.cc)
   const SeparatorConsistencyResult r = CheckSeparatorConsistency(spoiled.graph, options);
   int right_rejected = 0, wrong_kept = 0;
   for (std::size_t i = 0; i < spoiled.outlier.size(); ++i) {
@@ -84,6 +87,73 @@ TEST(SeparatorConsistency, KeepsTheRightSeparatorsAtNinetyPercentOutliers) {
   EXPECT_EQ(lone.rejected, lone.separators);
 }
 
+// Two robots dead-reckoning 60 poses each (0.5 deg / 3 cm of odometry noise per step, information
+// to match) and meeting every 10 poses: their maps drift apart by far more than the separators'
+// noise. With each map's marginal covariances every right separator agrees with every other (PCM's
+// test), and the wrong ones are rejected; with the separators' information alone (the maps taken
+// as exact) right ones far apart disagree.
+TEST(SeparatorConsistency, MapUncertaintyKeepsRightSeparatorsAcrossDrift) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n01;
+  auto noise = [&](double sr, double st) {
+    Vector6 xi;
+    for (int c = 0; c < 6; ++c) xi[c] = n01(rng) * (c < 3 ? sr : st);
+    return SE3::Exp(xi);
+  };
+  auto information = [](double sr, double st) {
+    Vector6 d;
+    d << Vector3::Constant(1.0 / (sr * sr)), Vector3::Constant(1.0 / (st * st));
+    return Matrix6(d.asDiagonal());
+  };
+  const double deg = 3.14159265358979323846 / 180.0;
+  const double sr = 0.5 * deg, st = 0.03, zr = 0.5 * deg, zt = 0.02;
+  const int n = 60;
+  std::vector<SE3> truth[2];
+  for (int r = 0; r < 2; ++r) {
+    SE3 x(SO3(), Vector3(0.0, 3.0 * r, 0.0));
+    for (int i = 0; i < n; ++i) {
+      truth[r].push_back(x);
+      x = x * SE3(SO3::Exp(Vector3(0.0, 0.0, 0.05)), Vector3(0.5, 0.0, 0.0));
+    }
+  }
+  auto key = [](int r, int i) { return Key::Pose(r, static_cast<std::uint64_t>(i)); };
+  PoseGraph g;
+  for (int r = 0; r < 2; ++r) {
+    for (int i = 0; i + 1 < n; ++i) {
+      g.add(RelativePoseFactor(key(r, i), key(r, i + 1),
+                               truth[r][i].between(truth[r][i + 1]) * noise(sr, st),
+                               information(sr, st)));
+    }
+  }
+  std::vector<bool> wrong;
+  for (int i = 0; i < n; i += 10) {
+    g.add(RelativePoseFactor(key(0, i), key(1, i), truth[0][i].between(truth[1][i]) * noise(zr, zt),
+                             information(zr, zt)));
+    wrong.push_back(false);
+  }
+  for (int i : {15, 35}) {  // right-looking separators to the wrong pose: 3 m and 30 deg off
+    g.add(RelativePoseFactor(key(1, i), key(0, i + 4), truth[1][i].between(truth[0][i]) *
+                             SE3(SO3::Exp(Vector3(0.0, 0.0, 0.52)), Vector3(3.0, 0.0, 0.0)),
+                             information(zr, zt)));
+    wrong.push_back(true);
+  }
+  const std::size_t first = g.factors().size() - wrong.size();
+  SeparatorConsistencyOptions options;
+  const SeparatorConsistencyResult with_maps = CheckSeparatorConsistency(g, options);
+  options.map_uncertainty = false;
+  const SeparatorConsistencyResult exact_maps = CheckSeparatorConsistency(g, options);
+  int right_rejected_exact = 0;
+  for (std::size_t s = 0; s < wrong.size(); ++s) {
+    EXPECT_EQ(with_maps.kept[first + s], !wrong[s]) << "separator " << s;
+    if (!wrong[s] && !exact_maps.kept[first + s]) ++right_rejected_exact;
+  }
+  EXPECT_GT(right_rejected_exact, 0);
+  // The covariance message: 6 variables of robot 1, 36 x 37 / 2 entries and a 16-byte header.
+  EXPECT_GT(with_maps.bytes, exact_maps.bytes + 16 + 8 * 36 * 37 / 2 - 1);
+  EXPECT_EQ(with_maps.messages, 2);
+  EXPECT_EQ(exact_maps.messages, 1);
+}
+
 // With the separator check first: blocks_world in 16 robots, 90 % of the separators wrong.
 TEST(RobustDgs, WithTheSeparatorCheckReachesTheCleanOptimumAtNinetyPercent) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(16));
@@ -96,6 +166,7 @@ TEST(RobustDgs, WithTheSeparatorCheckReachesTheCleanOptimumAtNinetyPercent) {
   const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
   RobustDgsOptions options;
   options.gnc.threshold = 1.0;
+  options.consistency.map_uncertainty = false;
   options.dgs.coarse_correction = true;
   options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
   const RobustDgsResult r =
@@ -113,6 +184,7 @@ TEST(RobustDgs, WithoutOutliersIsTheLeastSquaresSolve) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   RobustDgsOptions options;
   options.gnc.threshold = 1.0;
+  options.consistency.map_uncertainty = false;
   options.dgs.coarse_correction = true;
   const RobustDgsResult r =
       RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), options);
@@ -165,6 +237,45 @@ TEST(WeightMessage, RoundTripsAndRejectsBadBytes) {
   EXPECT_THROW(DecodeWeightMessage(bad), InvalidInputError);
   m.weights = {1.5};
   EXPECT_THROW(EncodeWeightMessage(m), InvalidInputError);
+}
+
+TEST(CovarianceMessage, RoundTripsAndRejectsBadBytes) {
+  CovarianceMessage m;
+  m.sender = 4;
+  m.receiver = 1;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Random(12, 12);
+  m.covariance = A * A.transpose();
+  const std::vector<std::uint8_t> wire = EncodeCovarianceMessage(m);
+  EXPECT_EQ(wire.size(), kCovarianceHeaderBytes + 8 * 12 * 13 / 2);
+  const CovarianceMessage back = DecodeCovarianceMessage(wire);
+  EXPECT_EQ(back.sender, 4);
+  EXPECT_EQ(back.receiver, 1);
+  EXPECT_EQ(back.covariance, m.covariance);  // symmetric: the upper triangle is all of it
+  for (std::size_t n = 0; n < wire.size(); n += 7) {  // truncations
+    EXPECT_THROW(DecodeCovarianceMessage({wire.begin(), wire.begin() + static_cast<long>(n)}),
+                 InvalidInputError);
+  }
+  std::vector<std::uint8_t> bad = wire;
+  bad.push_back(0);
+  EXPECT_THROW(DecodeCovarianceMessage(bad), InvalidInputError);
+  bad = wire;
+  bad[0] ^= 1;  // magic
+  EXPECT_THROW(DecodeCovarianceMessage(bad), InvalidInputError);
+  bad = wire;
+  bad[8] = 11;  // dimension 11: not a multiple of 6
+  EXPECT_THROW(DecodeCovarianceMessage(bad), InvalidInputError);
+  bad = wire;
+  bad[kCovarianceHeaderBytes + 7] = 0xFF;  // the first (diagonal) entry becomes NaN
+  bad[kCovarianceHeaderBytes + 6] = 0xF8;
+  EXPECT_THROW(DecodeCovarianceMessage(bad), InvalidInputError);
+  bad = wire;
+  bad[kCovarianceHeaderBytes + 7] |= 0x80;  // the first entry negative
+  EXPECT_THROW(DecodeCovarianceMessage(bad), InvalidInputError);
+  bad = wire;
+  bad[4] = 4;  // receiver = sender
+  EXPECT_THROW(DecodeCovarianceMessage(bad), InvalidInputError);
+  m.covariance.resize(6, 7);
+  EXPECT_THROW(EncodeCovarianceMessage(m), InvalidInputError);
 }
 
 }  // namespace

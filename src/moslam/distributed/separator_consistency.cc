@@ -2,7 +2,10 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
+#include <algorithm>
+#include <limits>
 #include <map>
+#include <memory>
 #include <set>
 
 #include "moslam/common/errors.h"
@@ -10,6 +13,7 @@
 #include "moslam/geometry/so3.h"
 #include "moslam/robust/max_clique.h"
 #include "moslam/solver/initialization.h"
+#include "moslam/solver/marginals.h"
 #include "moslam/solver/optimizer.h"
 
 namespace moslam {
@@ -23,30 +27,109 @@ void SeparatorConsistencyOptions::validate() const {
 
 namespace {
 
-// Robot r's own estimate of its variables: its intra-robot factors solved alone, re-keyed as
-// robot 0 for the gauge (its first pose at the identity). Empty when it has none.
-Values LocalEstimate(const PoseGraph& graph, int robot) {
-  PoseGraph local;
-  auto rekey = [](Key k) { return Key{0, k.kind, k.index}; };
-  for (const RelativePoseFactor& f : graph.factors()) {
+Key AsRobot(const Key& k, int robot) { return Key{robot, k.kind, k.index}; }
+
+// Robot r's own map: its intra-robot factors solved alone, re-keyed as robot 0 for the gauge (its
+// first pose at the identity), and the marginal covariances there. Empty when it has no factors.
+struct LocalMap {
+  PoseGraph graph;  // re-keyed as robot 0
+  Values estimate;  // re-keyed as robot 0
+  std::unique_ptr<Marginals> marginals;
+  bool has(const Key& k) const { return estimate.count(AsRobot(k, 0)) != 0; }
+  const SE3& at(const Key& k) const { return estimate.at(AsRobot(k, 0)); }
+  Eigen::MatrixXd covariance(const std::vector<Key>& keys) const {
+    std::vector<Key> local;
+    for (const Key& k : keys) local.push_back(AsRobot(k, 0));
+    return marginals->jointCovariance(local);
+  }
+};
+
+std::unique_ptr<LocalMap> BuildLocalMap(const PoseGraph& graph, int robot,
+                                        const std::vector<bool>& robust, const GncOptions& gnc,
+                                        bool marginals) {
+  auto out = std::make_unique<LocalMap>();
+  std::vector<bool> local_robust;
+  for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+    const RelativePoseFactor& f = graph.factors()[i];
     if (f.a().robot == robot && f.b().robot == robot) {
-      local.add(RelativePoseFactor(rekey(f.a()), rekey(f.b()), f.measured(), f.information()));
+      out->graph.add(RelativePoseFactor(AsRobot(f.a(), 0), AsRobot(f.b(), 0), f.measured(),
+                                        f.information()));
+      local_robust.push_back(!robust.empty() && robust[i]);
     }
   }
-  Values out;
-  if (local.factors().empty()) return out;
+  if (out->graph.factors().empty()) return out;
   OptimizerOptions options;
   options.max_iterations = 50;
-  const Values solved = Optimize(local, ChordalInitialization(local, SE3()), options).values;
-  for (const auto& [k, x] : solved) out[Key{robot, k.kind, k.index}] = x;
+  const Values start = ChordalInitialization(out->graph, SE3());
+  if (std::find(local_robust.begin(), local_robust.end(), true) == local_robust.end()) {
+    out->estimate = Optimize(out->graph, start, options).values;
+    if (marginals) out->marginals = std::make_unique<Marginals>(out->graph, out->estimate);
+  } else {
+    const GncResult r = SolveGnc(out->graph, start, local_robust, gnc, options);
+    out->estimate = r.values;
+    if (marginals) {
+      out->marginals = std::make_unique<Marginals>(
+          WeightedGraph(out->graph, r.weights, gnc.min_weight), out->estimate);
+    }
+  }
+  return out;
+}
+
+// The consistency statistic of separators i and j (see the header): e^T Sigma_e^-1 e of the loop
+//   L = P1 P2 P3 P4 P5 P6 = z_i^-1 A_i^-1 A_j z_j B_j^-1 B_i.
+// A right perturbation x Exp(d) of P_k's variable moves to the right end of L as
+//   Ad(T_k^-1) d, T_k = P_{k+1} ... P6 (P3, P4, P6: the variable itself), and a variable that
+// enters inverted (P1, P2, P5: Exp(-d) P_k) as -Ad(S_k^-1) d, S_k = P_k ... P6.
+struct SeparatorEnd {
+  SE3 z;             // measurement from A to B
+  Matrix6 sigma_z;   // its covariance
+  SE3 A, B;          // the two robots' local estimates of its variables
+};
+double LoopStatistic(const SeparatorEnd& i, const SeparatorEnd& j, const Eigen::Matrix<double, 12, 12>& SA,
+                     const Eigen::Matrix<double, 12, 12>& SB) {
+  const SE3 P[6] = {i.z.inverse(), i.A.inverse(), j.A, j.z, j.B.inverse(), i.B};
+  SE3 suffix[7];  // suffix[k] = P_k ... P6 (0-based), suffix[6] = identity
+  for (int k = 5; k >= 0; --k) suffix[k] = P[k] * suffix[k + 1];
+  const SE3& L = suffix[0];
+  auto inverted = [&](int k) -> Matrix6 { return -suffix[k].inverse().Adjoint(); };
+  auto direct = [&](int k) -> Matrix6 { return suffix[k + 1].inverse().Adjoint(); };
+  const Matrix6 Jzi = inverted(0), Jzj = direct(3);
+  Eigen::Matrix<double, 6, 12> JA, JB;
+  JA << inverted(1), direct(2);  // (A_i, A_j)
+  JB << direct(5), inverted(4);  // (B_i, B_j)
+  Matrix6 S = Jzi * i.sigma_z * Jzi.transpose() + Jzj * j.sigma_z * Jzj.transpose() +
+              JA * SA * JA.transpose() + JB * SB * JB.transpose();
+  Matrix6 Jl;
+  const Vector6 e = SE3::Log(L, &Jl);  // Jr^-1(e): e's change for a right perturbation of L
+  S = Jl * S * Jl.transpose();
+  const Eigen::LDLT<Matrix6> ldlt(S);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::numeric_limits<double>::infinity();
+  return e.dot(ldlt.solve(e));
+}
+
+// Rows and columns (6 each) of blocks p and q of a joint covariance.
+Eigen::Matrix<double, 12, 12> PairBlock(const Eigen::MatrixXd& S, int p, int q) {
+  Eigen::Matrix<double, 12, 12> out;
+  const int idx[2] = {p, q};
+  for (int r = 0; r < 2; ++r) {
+    for (int c = 0; c < 2; ++c) out.block<6, 6>(6 * r, 6 * c) = S.block<6, 6>(6 * idx[r], 6 * idx[c]);
+  }
   return out;
 }
 
 }  // namespace
 
 SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
-                                                     const SeparatorConsistencyOptions& options) {
+                                                     const SeparatorConsistencyOptions& options,
+                                                     const std::vector<bool>& robust,
+                                                     const GncOptions& local) {
   options.validate();
+  local.validate();
+  if (!robust.empty() && robust.size() != graph.factors().size()) {
+    throw InvalidInputError("separator consistency: " + std::to_string(robust.size()) +
+                            " robust flags for " + std::to_string(graph.factors().size()) +
+                            " factors");
+  }
   const auto& factors = graph.factors();
   SeparatorConsistencyResult out;
   out.kept.assign(factors.size(), true);
@@ -57,73 +140,93 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     ++out.separators;
     pairs[{std::min(a, b), std::max(a, b)}].push_back(i);
   }
-  std::map<int, Values> local;
-  auto estimate = [&](int robot) -> const Values& {
-    auto it = local.find(robot);
-    if (it == local.end()) it = local.emplace(robot, LocalEstimate(graph, robot)).first;
-    return it->second;
+  const GncOptions& local_gnc = local;
+  std::map<int, std::unique_ptr<LocalMap>> maps;
+  auto map_of = [&](int robot) -> const LocalMap& {
+    auto it = maps.find(robot);
+    if (it == maps.end()) it = maps.emplace(robot, BuildLocalMap(graph, robot, robust, local_gnc, options.map_uncertainty)).first;
+    return *it->second;
   };
   for (const auto& [pair, list] : pairs) {
     ++out.robot_pairs;
     const auto [ra, rb] = pair;
-    const Values& A = estimate(ra);
-    const Values& B = estimate(rb);
-    // What robot b sends robot a: the local estimates of its separator poses.
+    const LocalMap& A = map_of(ra);
+    const LocalMap& B = map_of(rb);
+    // Each robot's separator variables, in key order; every one must be in its own map.
+    std::set<Key> ka_set, kb_set;
+    for (std::size_t i : list) {
+      const bool a_first = factors[i].a().robot == ra;
+      ka_set.insert(a_first ? factors[i].a() : factors[i].b());
+      kb_set.insert(a_first ? factors[i].b() : factors[i].a());
+    }
+    const std::vector<Key> ka(ka_set.begin(), ka_set.end()), kb(kb_set.begin(), kb_set.end());
+    bool known = true;
+    for (const Key& k : ka) known = known && A.has(k);
+    for (const Key& k : kb) known = known && B.has(k);
+    if (!known) continue;  // a variable the robot's own factors do not reach: nothing to check with
+    // What robot b sends robot a: the local estimates of its separator variables and their joint
+    // covariance in its map.
     Message m;
     m.stage = DgsStage::kPose;
     m.sender = rb;
-    std::set<Key> keys;
-    for (std::size_t i : list) {
-      keys.insert(factors[i].a().robot == rb ? factors[i].a() : factors[i].b());
-    }
-    bool known = true;
-    for (const Key& k : keys) {
-      const auto it = B.find(k);
-      if (it == B.end()) {
-        known = false;
-        break;
-      }
+    for (const Key& k : kb) {
       m.keys.push_back(k);
-      const Vector3 w = SO3::Log(it->second.rotation());
+      const SE3& x = B.at(k);
+      const Vector3 w = SO3::Log(x.rotation());
       for (int c = 0; c < 3; ++c) m.values.push_back(w[c]);
-      for (int c = 0; c < 3; ++c) m.values.push_back(it->second.translation()[c]);
+      for (int c = 0; c < 3; ++c) m.values.push_back(x.translation()[c]);
     }
-    if (!known) continue;  // a pose the robot's own factors do not reach: nothing to check with
     const std::vector<std::uint8_t> wire = EncodeMessage(m);
     out.bytes += static_cast<std::int64_t>(wire.size());
     ++out.messages;
     const Message received = DecodeMessage(wire);
-    std::map<Key, SE3> b_poses;
+    Eigen::MatrixXd SA = Eigen::MatrixXd::Zero(6 * static_cast<Eigen::Index>(ka.size()), 6 * static_cast<Eigen::Index>(ka.size()));
+    Eigen::MatrixXd SB = Eigen::MatrixXd::Zero(6 * static_cast<Eigen::Index>(kb.size()), 6 * static_cast<Eigen::Index>(kb.size()));
+    if (options.map_uncertainty) {
+      CovarianceMessage cm;
+      cm.sender = rb;
+      cm.receiver = ra;
+      cm.covariance = B.covariance(kb);
+      const std::vector<std::uint8_t> wire_cov = EncodeCovarianceMessage(cm);
+      out.bytes += static_cast<std::int64_t>(wire_cov.size());
+      ++out.messages;
+      SB = DecodeCovarianceMessage(wire_cov).covariance;
+      SA = A.covariance(ka);
+    }
+    std::map<Key, int> b_index;
+    std::vector<SE3> b_poses;
     for (std::size_t e = 0; e < received.keys.size(); ++e) {
       const double* v = received.entry(e);
-      b_poses[received.keys[e]] = SE3(SO3::Exp(Vector3(v[0], v[1], v[2])), Vector3(v[3], v[4], v[5]));
+      b_index[received.keys[e]] = static_cast<int>(e);
+      b_poses.emplace_back(SO3::Exp(Vector3(v[0], v[1], v[2])), Vector3(v[3], v[4], v[5]));
     }
-    // T_i: robot b's frame in robot a's, from separator i.
-    std::vector<SE3> T;
-    std::vector<Matrix6> covariance;
-    bool usable = true;
+    std::map<Key, int> a_index;
+    for (std::size_t e = 0; e < ka.size(); ++e) a_index[ka[e]] = static_cast<int>(e);
+    // Robot a's view of every separator.
+    std::vector<SeparatorEnd> ends;
+    std::vector<int> ia, ib;
     for (std::size_t i : list) {
       const RelativePoseFactor& f = factors[i];
       const bool a_first = f.a().robot == ra;
-      const Key ka = a_first ? f.a() : f.b(), kb = a_first ? f.b() : f.a();
-      if (!A.count(ka)) {
-        usable = false;
-        break;
-      }
-      const SE3 z = a_first ? f.measured() : f.measured().inverse();
-      T.push_back(A.at(ka) * z * b_poses.at(kb).inverse());
-      covariance.push_back(f.information().inverse());
+      const Key key_a = a_first ? f.a() : f.b(), key_b = a_first ? f.b() : f.a();
+      ia.push_back(a_index.at(key_a));
+      ib.push_back(b_index.at(key_b));
+      // The covariance of z (from A to B): the factor's, or when the factor runs from B to A
+      // that of its inverse: (z Exp(d))^-1 = z^-1 Exp(-Ad(z) d), so Ad(z) Sigma Ad(z)^T.
+      const Matrix6 sigma = f.information().inverse();
+      const Matrix6 Ad = f.measured().Adjoint();
+      ends.push_back({a_first ? f.measured() : f.measured().inverse(),
+                      a_first ? sigma : Matrix6(Ad * sigma * Ad.transpose()), A.at(key_a),
+                      b_poses[static_cast<std::size_t>(ib.back())]});
     }
-    if (!usable) continue;
     const int n = static_cast<int>(list.size());
     ConsistencyGraph g(n);
     for (int i = 0; i < n; ++i) {
       for (int j = i + 1; j < n; ++j) {
-        const SE3 d = T[static_cast<std::size_t>(i)].inverse() * T[static_cast<std::size_t>(j)];
-        Vector6 e;
-        e << SO3::Log(d.rotation()), d.translation();
-        const Matrix6 S = covariance[static_cast<std::size_t>(i)] + covariance[static_cast<std::size_t>(j)];
-        if (e.dot(S.ldlt().solve(e)) <= options.threshold) g.connect(i, j);
+        const double stat = LoopStatistic(ends[static_cast<std::size_t>(i)], ends[static_cast<std::size_t>(j)],
+                                          PairBlock(SA, ia[static_cast<std::size_t>(i)], ia[static_cast<std::size_t>(j)]),
+                                          PairBlock(SB, ib[static_cast<std::size_t>(i)], ib[static_cast<std::size_t>(j)]));
+        if (stat <= options.threshold) g.connect(i, j);
       }
     }
     const CliqueResult best = MaximumClique(g);

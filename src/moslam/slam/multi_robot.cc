@@ -223,6 +223,8 @@ JointProblem AssembleJointProblem(const std::vector<ObjectSlam>& robots,
   for (const auto& robot : robots) {
     const PoseGraph g = robot.graph();
     for (const auto& f : g.factors()) p.graph.add(f);
+    p.factor_objects.insert(p.factor_objects.end(), robot.factorObjects().begin(),
+                            robot.factorObjects().end());
     for (const auto& [k, x] : robot.estimate()) p.initial.emplace(k, x);
     p.num_poses += robot.numPoses();
     p.num_landmarks += static_cast<int>(robot.landmarks().size());
@@ -235,6 +237,7 @@ JointProblem AssembleJointProblem(const std::vector<ObjectSlam>& robots,
       }
     }
     p.graph.add(ObjectObjectFactor(s, lambda));
+    p.factor_objects.push_back(ObjectSlam::kNoObservation);
     ++p.num_object_object;
   }
   if (!robots.empty() && robots.front().robot() == 0 && robots.front().numPoses() > 0) {

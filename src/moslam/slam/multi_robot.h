@@ -110,6 +110,9 @@ struct JointProblem {
   int num_poses = 0;
   int num_landmarks = 0;
   int num_object_object = 0;   // factors, = shared objects
+  // Evaluation only, per factor of `graph`: ObjectSlam::factorObjects() of the robots' factors,
+  // ObjectSlam::kNoObservation for the object-object ones.
+  std::vector<int> factor_objects;
   // Robots with no chain of factors to robot 0 (empty when the graph is anchored).
   std::vector<int> unanchored_robots;
 };

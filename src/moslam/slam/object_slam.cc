@@ -180,6 +180,7 @@ void ObjectSlam::addPose(const OdometryReading& odometry,
   const RelativePoseFactor odo(prev, cur, odometry.measurement, odometry.information);
   ValidateDetections(detections, robot_, num_poses_, config_.ground_truth_association);
   local_graph_.add(odo);
+  factor_objects_.push_back(kNoObservation);
   local_values_[cur] = local_values_.at(prev) * odometry.measurement;
   ++num_poses_;
   addDetections(detections, &odo);
@@ -303,6 +304,7 @@ void ObjectSlam::record(const std::vector<ObjectDetection>& detections,
     last_associations_[d] = k;
     local_graph_.add(
         RelativePoseFactor(pose_key, Key::Object(0, k), det.measurement, det.information));
+    factor_objects_.push_back(det.object_id);
   }
 }
 

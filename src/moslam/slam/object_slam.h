@@ -155,6 +155,10 @@ class ObjectSlam {
   SE3 landmarkPose(std::size_t k) const;
   const std::vector<Landmark>& landmarks() const { return landmarks_; }
   const AssociationStats& associationStats() const { return stats_; }
+  // Evaluation only, per factor of graph(): the world object of the detection behind an
+  // object-pose factor (ObjectDetection::object_id, -1 unknown), kNoObservation for odometry.
+  static constexpr int kNoObservation = -2;
+  const std::vector<int>& factorObjects() const { return factor_objects_; }
   // For each detection of the last pose added: the index of its landmark.
   const std::vector<std::size_t>& lastAssociations() const { return last_associations_; }
 
@@ -180,6 +184,7 @@ class ObjectSlam {
   std::vector<int> mapped_objects_;  // true objects with a landmark (sorted)
   AssociationStats stats_;
   std::vector<std::size_t> last_associations_;
+  std::vector<int> factor_objects_;  // parallel to local_graph_.factors()
   std::size_t factors_at_last_optimize_ = 0;
 };
 
