@@ -54,6 +54,23 @@ TEST(SimulationExperiment, TinyRunIsFiniteAndDgsNoBetterThanGn) {
   EXPECT_NE(svg.find("</svg>"), std::string::npos);
 }
 
+// Half of the object associations at every rendezvous wrong (label-consistent, wrong object):
+// the robots' robust solve finds them and lands where the outlier-free solve does.
+TEST(SimulationExperiment, RobustSolveRejectsInjectedWrongAssociations) {
+  ExperimentConfig c = Tiny();
+  c.scenario = "house";
+  c.outlier_fraction = 0.5;
+  c.robust = true;
+  const RunMetrics m = RunSimulationOnce(c, 0);
+  EXPECT_GT(m.injected, 3.0);
+  EXPECT_GE(m.wrong_factors, m.injected);
+  EXPECT_GE(m.outlier_precision, 0.9);
+  EXPECT_GE(m.outlier_recall, 0.7);
+  EXPECT_LT(m.robust_ate_poses, 0.5 * m.ls_ate_poses);
+  EXPECT_LT(m.robust_vs_free_ate, 0.1);
+  EXPECT_GT(m.robust_extra_bytes, 0.0);
+}
+
 TEST(SimulationExperiment, SameSeedSameNumbers) {
   const RunMetrics a = RunSimulationOnce(Tiny(), 0);
   const RunMetrics b = RunSimulationOnce(Tiny(), 0);
