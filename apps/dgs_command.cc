@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "robust_flags.h"
 #include "moslam/common/errors.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_driver.h"
@@ -51,8 +52,7 @@ struct DgsArgs {
   G2oReadOptions read;  // --objects, --drop-indefinite-coupling
   bool json = false;
   bool robust = false;
-  std::string separator_test = "map";  // --robust: map | measurement
-  double gnc_threshold = 0.0;  // 0: GncOptions' default
+  RobustSolveArgs robust_args;  // --separator-test, --gnc-threshold
   int separator_support = 3;
   std::string out;             // folder: one g2o and one TUM file per robot
 };
@@ -88,10 +88,9 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
                         const DgsOptions& dgs, std::chrono::steady_clock::time_point t_start) {
   RobustDgsOptions options;
   options.dgs = dgs;
-  options.gnc.threshold = a.gnc_threshold;
+  a.robust_args.applyTo(&options);
   options.check_separators = a.separator_support > 0;
   options.consistency.min_support = std::max(1, a.separator_support);
-  options.consistency.map_uncertainty = a.separator_test == "map";
   options.validate();
   const std::vector<bool> robust = DefaultRobustFactors(graph);
   const auto robust_count = std::count(robust.begin(), robust.end(), true);
@@ -498,18 +497,7 @@ Runner RegisterDgs(CLI::App& app) {
   sub->add_flag("--robust", args->robust,
                 "outlier-robust: graduated non-convexity with a truncated least-squares cost on "
                 "the inter-robot factors, run by the robots (implies --refine)");
-  sub->add_option("--separator-test", args->separator_test,
-                  "--robust: the pairwise check of the separators with each robot's map "
-                  "uncertainty (map: marginal covariances, PCM's test) or with the separators' "
-                  "information alone (measurement: when the information is not the noise's, "
-                  "e.g. blocks_world's identity)")
-      ->check(CLI::IsMember({"map", "measurement"}))
-      ->capture_default_str();
-  sub->add_option("--gnc-threshold", args->gnc_threshold,
-                  "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
-                  "6 dof at 0.999, for information that is the noise's)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
+  AddRobustSolveFlags(sub, &args->robust_args);
   sub->add_option("--separator-support", args->separator_support,
                   "--robust: before GNC, keep of each robot pair's separators the largest "
                   "pairwise consistent set if it has at least this many (0: no check)")

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "robust_flags.h"
 #include "moslam/common/errors.h"
 #include "moslam/io/g2o.h"
 #include "moslam/io/tum.h"
@@ -29,8 +30,7 @@ struct SolveArgs {
   bool json = false;
   bool verbose = false;
   bool robust = false;
-  std::string separator_test = "map";  // --robust: map | measurement
-  double gnc_threshold = 0.0;  // 0: GncOptions' default
+  RobustSolveArgs robust_args;  // --separator-test, --gnc-threshold
 };
 
 double Since(std::chrono::steady_clock::time_point t0) {
@@ -84,8 +84,7 @@ int RunSolve(const SolveArgs& a) {
       a.robust ? DefaultRobustFactors(data.graph) : std::vector<bool>{};
   if (a.robust) {
     RobustDgsOptions robust_options;  // the same check and GNC as `moslam dgs --robust`
-    robust_options.gnc.threshold = a.gnc_threshold;
-    robust_options.consistency.map_uncertainty = a.separator_test == "map";
+    a.robust_args.applyTo(&robust_options);
     // The initialisation of the factors the separator check keeps (--init file: the file's).
     auto initialize = [&](const PoseGraph& kept) {
       if (a.init == "file") return initial;
@@ -161,8 +160,8 @@ int RunSolve(const SolveArgs& a) {
     fmt::print("robust (GNC-TLS, threshold {:g}): {} after {} weighted solve(s), {} of {} robust "
                "factor(s) rejected; cost of all factors {:.10g} (least squares {:.10g}) in "
                "{:.3f} s\n",
-               GncOptions{a.gnc_threshold}.threshold2(), ToString(gnc.status), gnc.iterations,
-               gnc.outliers, std::count(robust_mask.begin(), robust_mask.end(), true),
+               GncOptions{a.robust_args.gnc_threshold}.threshold2(), ToString(gnc.status),
+               gnc.iterations, gnc.outliers, std::count(robust_mask.begin(), robust_mask.end(), true),
                result.final_cost, gnc.least_squares_cost, gnc.seconds);
   } else {
     fmt::print("{} after {} iteration(s): cost {:.6f} -> {:.10g} in {:.3f} s\n",
@@ -201,18 +200,7 @@ Runner RegisterSolve(CLI::App& app) {
                 "the inter-robot factors (single robot: the loop closures) checked for pairwise "
                 "consistency per robot pair, then graduated non-convexity with a truncated "
                 "least-squares cost on them; the rest least squares");
-  sub->add_option("--separator-test", args->separator_test,
-                  "--robust: the pairwise check of the separators with each robot's map "
-                  "uncertainty (map: marginal covariances, PCM's test) or with the separators' "
-                  "information alone (measurement: when the information is not the noise's, "
-                  "e.g. blocks_world's identity)")
-      ->check(CLI::IsMember({"map", "measurement"}))
-      ->capture_default_str();
-  sub->add_option("--gnc-threshold", args->gnc_threshold,
-                  "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
-                  "6 dof at 0.999, for information that is the noise's)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
+  AddRobustSolveFlags(sub, &args->robust_args);
   return [args] { return RunSolve(*args); };
 }
 

@@ -493,15 +493,22 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
 
 namespace {
 
+// Messages from one robot to another: both ids in range, and two robots.
+void CheckRobotPair(int sender, int receiver, const std::string& what) {
+  if (sender < 0 || sender > kMaxMessageRobot || receiver < 0 || receiver > kMaxMessageRobot) {
+    throw InvalidInputError(what + ": robot ids must be in [0, 65535]");
+  }
+  if (sender == receiver) {
+    throw InvalidInputError(what + ": sender and receiver are the same robot " +
+                            std::to_string(sender));
+  }
+}
+
 void CheckWeights(const WeightMessage& m) {
   auto bad = [](const std::string& what) {
     throw InvalidInputError("DGS weight message: " + what);
   };
-  if (m.sender < 0 || m.sender > kMaxMessageRobot || m.receiver < 0 ||
-      m.receiver > kMaxMessageRobot) {
-    bad("robot ids must be in [0, 65535]");
-  }
-  if (m.sender == m.receiver) bad("sender and receiver are the same robot " + std::to_string(m.sender));
+  CheckRobotPair(m.sender, m.receiver, "DGS weight message");
   for (std::size_t i = 0; i < m.weights.size(); ++i) {
     const double w = m.weights[i];
     if (!(w >= 0.0 && w <= 1.0)) {
@@ -560,11 +567,7 @@ void CheckCovariance(const CovarianceMessage& m) {
   auto bad = [](const std::string& what) {
     throw InvalidInputError("DGS covariance message: " + what);
   };
-  if (m.sender < 0 || m.sender > kMaxMessageRobot || m.receiver < 0 ||
-      m.receiver > kMaxMessageRobot) {
-    bad("robot ids must be in [0, 65535]");
-  }
-  if (m.sender == m.receiver) bad("sender and receiver are the same robot " + std::to_string(m.sender));
+  CheckRobotPair(m.sender, m.receiver, "DGS covariance message");
   const Eigen::Index n = m.covariance.rows();
   if (m.covariance.cols() != n) bad("the covariance is not square");
   if (n % 6 != 0 || n > static_cast<Eigen::Index>(kMaxCovarianceDimension)) {
@@ -572,7 +575,9 @@ void CheckCovariance(const CovarianceMessage& m) {
         std::to_string(kMaxCovarianceDimension));
   }
   for (Eigen::Index i = 0; i < n; ++i) {
-    if (!(m.covariance(i, i) >= 0.0)) bad("diagonal entry " + std::to_string(i) + " is negative or not a number");
+    if (!(m.covariance(i, i) >= 0.0)) {
+      bad("diagonal entry " + std::to_string(i) + " is negative or not a number");
+    }
     for (Eigen::Index j = i; j < n; ++j) {
       if (!std::isfinite(m.covariance(i, j))) {
         bad("entry (" + std::to_string(i) + ", " + std::to_string(j) + ") is not finite");

@@ -85,8 +85,9 @@ struct SeparatorEnd {
   Matrix6 sigma_z;   // its covariance
   SE3 A, B;          // the two robots' local estimates of its variables
 };
-double LoopStatistic(const SeparatorEnd& i, const SeparatorEnd& j, const Eigen::Matrix<double, 12, 12>& SA,
-                     const Eigen::Matrix<double, 12, 12>& SB) {
+using Matrix12 = Eigen::Matrix<double, 12, 12>;
+double LoopStatistic(const SeparatorEnd& i, const SeparatorEnd& j, const Matrix12& SA,
+                     const Matrix12& SB) {
   const SE3 P[6] = {i.z.inverse(), i.A.inverse(), j.A, j.z, j.B.inverse(), i.B};
   SE3 suffix[7];  // suffix[k] = P_k ... P6 (0-based), suffix[6] = identity
   for (int k = 5; k >= 0; --k) suffix[k] = P[k] * suffix[k + 1];
@@ -103,16 +104,20 @@ double LoopStatistic(const SeparatorEnd& i, const SeparatorEnd& j, const Eigen::
   const Vector6 e = SE3::Log(L, &Jl);  // Jr^-1(e): e's change for a right perturbation of L
   S = Jl * S * Jl.transpose();
   const Eigen::LDLT<Matrix6> ldlt(S);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::numeric_limits<double>::infinity();
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
+    return std::numeric_limits<double>::infinity();
+  }
   return e.dot(ldlt.solve(e));
 }
 
 // Rows and columns (6 each) of blocks p and q of a joint covariance.
-Eigen::Matrix<double, 12, 12> PairBlock(const Eigen::MatrixXd& S, int p, int q) {
-  Eigen::Matrix<double, 12, 12> out;
+Matrix12 PairBlock(const Eigen::MatrixXd& S, int p, int q) {
+  Matrix12 out;
   const int idx[2] = {p, q};
   for (int r = 0; r < 2; ++r) {
-    for (int c = 0; c < 2; ++c) out.block<6, 6>(6 * r, 6 * c) = S.block<6, 6>(6 * idx[r], 6 * idx[c]);
+    for (int c = 0; c < 2; ++c) {
+      out.block<6, 6>(6 * r, 6 * c) = S.block<6, 6>(6 * idx[r], 6 * idx[c]);
+    }
   }
   return out;
 }
@@ -140,11 +145,13 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     ++out.separators;
     pairs[{std::min(a, b), std::max(a, b)}].push_back(i);
   }
-  const GncOptions& local_gnc = local;
   std::map<int, std::unique_ptr<LocalMap>> maps;
   auto map_of = [&](int robot) -> const LocalMap& {
     auto it = maps.find(robot);
-    if (it == maps.end()) it = maps.emplace(robot, BuildLocalMap(graph, robot, robust, local_gnc, options.map_uncertainty)).first;
+    if (it == maps.end()) {
+      it = maps.emplace(robot, BuildLocalMap(graph, robot, robust, local, options.map_uncertainty))
+               .first;
+    }
     return *it->second;
   };
   for (const auto& [pair, list] : pairs) {
@@ -180,8 +187,10 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     out.bytes += static_cast<std::int64_t>(wire.size());
     ++out.messages;
     const Message received = DecodeMessage(wire);
-    Eigen::MatrixXd SA = Eigen::MatrixXd::Zero(6 * static_cast<Eigen::Index>(ka.size()), 6 * static_cast<Eigen::Index>(ka.size()));
-    Eigen::MatrixXd SB = Eigen::MatrixXd::Zero(6 * static_cast<Eigen::Index>(kb.size()), 6 * static_cast<Eigen::Index>(kb.size()));
+    // The maps' joint covariances (zero: the maps taken as exact).
+    const auto na = 6 * static_cast<Eigen::Index>(ka.size());
+    const auto nb = 6 * static_cast<Eigen::Index>(kb.size());
+    Eigen::MatrixXd SA = Eigen::MatrixXd::Zero(na, na), SB = Eigen::MatrixXd::Zero(nb, nb);
     if (options.map_uncertainty) {
       CovarianceMessage cm;
       cm.sender = rb;
@@ -219,14 +228,12 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
                       a_first ? sigma : Matrix6(Ad * sigma * Ad.transpose()), A.at(key_a),
                       b_poses[static_cast<std::size_t>(ib.back())]});
     }
-    const int n = static_cast<int>(list.size());
-    ConsistencyGraph g(n);
-    for (int i = 0; i < n; ++i) {
-      for (int j = i + 1; j < n; ++j) {
-        const double stat = LoopStatistic(ends[static_cast<std::size_t>(i)], ends[static_cast<std::size_t>(j)],
-                                          PairBlock(SA, ia[static_cast<std::size_t>(i)], ia[static_cast<std::size_t>(j)]),
-                                          PairBlock(SB, ib[static_cast<std::size_t>(i)], ib[static_cast<std::size_t>(j)]));
-        if (stat <= options.threshold) g.connect(i, j);
+    ConsistencyGraph g(static_cast<int>(list.size()));
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      for (std::size_t j = i + 1; j < list.size(); ++j) {
+        const double stat = LoopStatistic(ends[i], ends[j], PairBlock(SA, ia[i], ia[j]),
+                                          PairBlock(SB, ib[i], ib[j]));
+        if (stat <= options.threshold) g.connect(static_cast<int>(i), static_cast<int>(j));
       }
     }
     const CliqueResult best = MaximumClique(g);

@@ -1,0 +1,37 @@
+// The flags of the robust solve that `moslam solve` and `moslam dgs` share, and what they set.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "moslam/distributed/robust_dgs.h"
+
+namespace moslam::cli {
+
+struct RobustSolveArgs {
+  std::string separator_test = "map";  // map | measurement
+  double gnc_threshold = 0.0;          // 0: GncOptions' default
+  // The GNC threshold and the separator check's kind in `options`.
+  void applyTo(RobustDgsOptions* options) const {
+    options->gnc.threshold = gnc_threshold;
+    options->consistency.map_uncertainty = separator_test == "map";
+  }
+};
+
+// --separator-test and --gnc-threshold, written into `args` (which must outlive the parse).
+inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
+  sub->add_option("--separator-test", args->separator_test,
+                  "--robust: the pairwise check of the separators with each robot's map "
+                  "uncertainty (map: marginal covariances, PCM's test) or with the separators' "
+                  "information alone (measurement: when the information is not the noise's, "
+                  "e.g. blocks_world's identity)")
+      ->check(CLI::IsMember({"map", "measurement"}))
+      ->capture_default_str();
+  sub->add_option("--gnc-threshold", args->gnc_threshold,
+                  "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
+                  "6 dof at 0.999, for information that is the noise's)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+}
+
+}  // namespace moslam::cli
