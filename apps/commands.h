@@ -3,6 +3,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cstdlib>
 #include <functional>
 #include <string>
 
@@ -60,7 +61,22 @@ Runner RegisterTeam(CLI::App& app);
 struct RenderedPerceptionArgs {
   std::string model, classes, templates;
   int every = 1;
+  std::string template_cache;  // "" = none
 };
+
+// Where built templates are cached unless --template-cache says otherwise:
+// $XDG_CACHE_HOME/moslam/templates, else $HOME/.cache/moslam/templates, else none ("").
+inline std::string DefaultTemplateCacheDir() {
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) {
+    return std::string(x) + "/moslam/templates";
+  }
+  if (const char* h = std::getenv("HOME"); h && *h) return std::string(h) + "/.cache/moslam/templates";
+  return "";
+}
+// --template-cache: "none" disables the cache.
+inline std::string TemplateCacheDir(const std::string& option) {
+  return option == "none" ? std::string() : option;
+}
 using MakePerception = std::function<ExperimentConfig::Perceive(const RenderedPerceptionArgs&)>;
 
 // `moslam simulate --scenario chairs25 --robots 6`: simulated experiments (paper Tables 1-3).

@@ -3,6 +3,7 @@
 //
 //   moslam perceive DIR [--model M.onnx --classes classes.txt] [--templates DIR] [--every K]
 //                   [--max-frames N] [--out detections.json] [--annotate DIR] [--world world.json]
+//                   [--template-cache DIR|none] [--consensus prerejective|sac-ia] [--threads N]
 //                   [--json]
 //
 // Every K-th frame runs detect -> segment -> register (perception/object_perception.h). --out
@@ -21,6 +22,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -47,7 +49,41 @@ struct PerceiveArgs {
   std::string out;
   std::string annotate;
   std::string world;
+  std::string template_cache = DefaultTemplateCacheDir();
+  std::string consensus = "prerejective";
+  int threads = 2;
   bool json = false;
+};
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const double at = q * static_cast<double>(v.size() - 1);
+  const auto lo = static_cast<std::size_t>(std::floor(at));
+  const std::size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
+}
+
+// Per class (and "all"): detections, registered, accepted, pose errors and per-detection
+// registration times (one thread's time: the latency of one detection).
+struct ClassStats {
+  int detections = 0, registered = 0, accepted = 0;
+  std::vector<double> ms, prepare, consensus, gate, gicp, t_err, r_err;
+  void add(const PerceivedObject& o) {
+    ++detections;
+    if (o.status == PerceptionStatus::kNoTemplate ||
+        o.status == PerceptionStatus::kSegmentationFailed) {
+      return;
+    }
+    ++registered;
+    accepted += o.accepted();
+    const RegistrationTimes& t = o.registration.times;
+    ms.push_back(t.total());
+    prepare.push_back(t.prepare);
+    consensus.push_back(t.consensus);
+    gate.push_back(t.gate);
+    gicp.push_back(t.gicp + t.information);
+  }
 };
 
 nlohmann::json PoseJson(const SE3& x) {
@@ -122,6 +158,10 @@ int RunPerceive(const PerceiveArgs& a) {
   config.detector.model_path = a.model;
   config.detector.class_names_file = a.classes;
   config.templates_dir = a.templates;
+  config.template_cache_dir = TemplateCacheDir(a.template_cache);
+  config.threads = a.threads;
+  config.registration.consensus =
+      a.consensus == "sac-ia" ? Consensus::kSacIa : Consensus::kPrerejective;
   ObjectPerception perception(config, world ? world->classes : StandardObjectClasses());
 
   std::vector<std::size_t> frames;
@@ -134,6 +174,7 @@ int RunPerceive(const PerceiveArgs& a) {
   StageTimes times;
   int detections = 0, accepted = 0, gate_rejects = 0;
   std::vector<double> t_err, r_err;
+  std::map<std::string, ClassStats> by_class;
   for (std::size_t n = 0; n < frames.size(); ++n) {
     const std::size_t i = frames[n];
     const TumFrame& f = sequence.frames[i];
@@ -146,6 +187,8 @@ int RunPerceive(const PerceiveArgs& a) {
     nlohmann::json objects = nlohmann::json::array();
     for (const PerceivedObject& o : seen.objects) {
       ++detections;
+      by_class[o.detection.label].add(o);
+      by_class["all"].add(o);
       if (o.status == PerceptionStatus::kTooFewInliers) ++gate_rejects;
       const cv::Rect2f& b = o.detection.box;
       nlohmann::json j = {{"label", o.detection.label},
@@ -178,6 +221,10 @@ int RunPerceive(const PerceiveArgs& a) {
                 M_PI;
             t_err.push_back(best);
             r_err.push_back(rot);
+            for (const char* key : {"all", o.detection.label.c_str()}) {
+              by_class[key].t_err.push_back(best);
+              by_class[key].r_err.push_back(rot);
+            }
             j["ground_truth"] = {{"object", nearest->id},
                                  {"translation_error", best},
                                  {"rotation_error_deg", rot}};
@@ -211,7 +258,30 @@ int RunPerceive(const PerceiveArgs& a) {
         {"register", times.register_ / nf},
         {"total", times.total() / nf}}},
       {"template_seconds", perception.templateSeconds()},
+      {"templates_from_cache", perception.templatesFromCache()},
+      {"consensus", a.consensus},
+      {"threads", a.threads},
   };
+  nlohmann::json classes = nlohmann::json::object();
+  for (const auto& [label, c] : by_class) {
+    nlohmann::json j = {
+        {"detections", c.detections},
+        {"registered", c.registered},
+        {"accepted", c.accepted},
+        {"register_ms", {{"median", Number(Median(c.ms))}, {"p90", Number(Percentile(c.ms, 0.9))}}},
+        {"stage_ms_median",
+         {{"prepare", Number(Median(c.prepare))},
+          {"consensus", Number(Median(c.consensus))},
+          {"gate", Number(Median(c.gate))},
+          {"gicp", Number(Median(c.gicp))}}}};
+    if (world) {
+      j["evaluated"] = c.t_err.size();
+      j["median_translation_error"] = Number(Median(c.t_err));
+      j["median_rotation_error_deg"] = Number(Median(c.r_err));
+    }
+    classes[label] = std::move(j);
+  }
+  summary["classes"] = std::move(classes);
   if (world) {
     summary["evaluated"] = t_err.size();
     summary["median_translation_error"] = Number(Median(t_err));
@@ -221,6 +291,9 @@ int RunPerceive(const PerceiveArgs& a) {
     std::ofstream file(a.out);
     file << nlohmann::json({{"summary", summary}, {"frames", out_frames}}).dump(1) << "\n";
     if (!file) throw Error("perceive: cannot write '" + a.out + "'");
+  }
+  for (const std::string& note : perception.templateNotes()) {
+    fmt::print(stderr, "perceive: template cache: {}\n", note);
   }
   if (a.json) {
     fmt::print("{}\n", summary.dump());
@@ -259,6 +332,16 @@ Runner RegisterPerceive(CLI::App& app) {
   sub->add_option("--annotate", args->annotate, "write annotated colour images to this folder");
   sub->add_option("--world", args->world,
                   "ground-truth world (JSON) to evaluate the poses with groundtruth.txt");
+  sub->add_option("--template-cache", args->template_cache,
+                  "folder caching the built templates (none: no cache)")
+      ->capture_default_str();
+  sub->add_option("--consensus", args->consensus,
+                  "initial alignment: prerejective (fast) or sac-ia (the paper's)")
+      ->check(CLI::IsMember({"prerejective", "sac-ia"}))
+      ->capture_default_str();
+  sub->add_option("--threads", args->threads, "detections of a frame registered in parallel")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   sub->add_flag("--json", args->json, "print the summary as one JSON object on the last line");
   return [args] { return RunPerceive(*args); };
 }

@@ -51,6 +51,7 @@ struct SimulateArgs {
   std::string model = std::string(MOSLAM_MODELS_DIR) + "/detector/moslam_yolo.onnx";
   std::string classes = std::string(MOSLAM_MODELS_DIR) + "/detector/classes.txt";
   std::string templates;
+  std::string template_cache = DefaultTemplateCacheDir();
   int perceive_every = 1;
 };
 }  // namespace
@@ -118,6 +119,9 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
       ->capture_default_str();
   sub->add_option("--templates", args->templates,
                   "rendered: folder of <label>.pcd templates replacing the built-in models");
+  sub->add_option("--template-cache", args->template_cache,
+                  "rendered: folder caching the built templates (none: no cache)")
+      ->capture_default_str();
   sub->add_option("--perceive-every", args->perceive_every,
                   "rendered: perceive every K-th pose (the others have no object measurement)")
       ->check(CLI::PositiveNumber)
@@ -133,7 +137,8 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
     }
     ExperimentConfig::Perceive perceive;
     const bool rendered = a.perception == "rendered";
-    if (rendered) perceive = make_perception({a.model, a.classes, a.templates, a.perceive_every});
+    if (rendered) perceive = make_perception(
+          {a.model, a.classes, a.templates, a.perceive_every, a.template_cache});
     std::vector<ExperimentResult> results;
     RunEstimates first;
     for (int robots : a.robots) {

@@ -18,6 +18,7 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
   config->perception.detector.model_path = args.model;
   config->perception.detector.class_names_file = args.classes;
   config->perception.templates_dir = args.templates;
+  config->perception.template_cache_dir = TemplateCacheDir(args.template_cache);
   config->every = args.every;
   config->validate();
   const PointCloudModel point_cloud;

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for a bounded time: the g2o
-# reader, and the decoders of the messages robots send one another (fuzz/messages_fuzz.cc).
+# reader, the decoders of the messages robots send one another (fuzz/messages_fuzz.cc), and the
+# template cache decoder (fuzz/template_cache_fuzz.cc).
 # Usage: scripts/fuzz.sh [seconds per target, default 60]
 # Exits non-zero when the fuzzer finds a crash, a sanitizer report, a leak or a timeout; the input
 # that triggered it is saved under build-fuzz/artifacts/.
@@ -22,7 +23,7 @@ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER="$CC_BIN" -DCMAKE_CXX_COMPILER="$CXX_BIN" \
   -DMOSLAM_BUILD_FUZZ=ON -DMOSLAM_BUILD_TESTS=OFF -DMOSLAM_BUILD_BENCH=OFF >/dev/null
-cmake --build "$build" --target g2o_reader_fuzz messages_fuzz
+cmake --build "$build" --target g2o_reader_fuzz messages_fuzz template_cache_fuzz
 
 # Seed corpus, made fresh at every run from short snippets (datasets are never copied into the
 # repository).
@@ -98,4 +99,35 @@ run_target() {  # name corpus dict max_len
 }
 run_target g2o_reader_fuzz "$corpus" "$dict" 4096
 run_target messages_fuzz "$mcorpus" "$mdict" 4096
+
+# Template cache files (without their checksum, which the harness appends): a header that asks
+# for label "chair" and holds a few points.
+tcorpus="$work/templates"
+mkdir -p "$tcorpus"
+printf 'MOSLTPL1\x01\x00\x00\x00\x00\x00\x00\x00\x05\x00\x00\x00chair' >"$tcorpus/header"
+{  # a whole template: the default FeatureConfig, 10 points, 10 keypoints, their features
+  cat "$tcorpus/header"
+  printf '\x7b\x14\xae\x47\xe1\x7a\x94\x3f\x7b\x14\xae\x47\xe1\x7a\xa4\x3f'
+  printf '\x9a\x99\x99\x99\x99\x99\xa9\x3f\xb8\x1e\x85\xeb\x51\xb8\x9e\x3f'
+  for part in points keypoints; do
+    printf '\x0a\x00\x00\x00'
+    for i in 0 1 2 3 4 5 6 7 8 9; do
+      printf '\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00'
+      printf '\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x80\x3f\x10\x20\x30\xff'
+    done
+  done
+  head -c 10000 /dev/zero
+} >"$tcorpus/whole"
+tdict="$work/templates.dict"
+cat >"$tdict" <<'DICT'
+"MOSLTPL1"
+"\x05\x00\x00\x00chair"
+"\x7b\x14\xae\x47\xe1\x7a\x94\x3f"
+"\x7b\x14\xae\x47\xe1\x7a\xa4\x3f"
+"\x9a\x99\x99\x99\x99\x99\xa9\x3f"
+"\xb8\x1e\x85\xeb\x51\xb8\x9e\x3f"
+"\x00\x00\x80\x3f"
+"\x0a\x00\x00\x00"
+DICT
+run_target template_cache_fuzz "$tcorpus" "$tdict" 65536
 echo "fuzz.sh: no crash in ${seconds}s per target"

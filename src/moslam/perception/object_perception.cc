@@ -3,9 +3,12 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <functional>
+#include <thread>
 
 #include "moslam/common/errors.h"
 #include "moslam/pose_estimation/organized_cloud.h"
+#include "moslam/pose_estimation/template_cache.h"
 #include "moslam/render/object_models.h"
 
 namespace moslam {
@@ -34,6 +37,29 @@ PerceptionStatus FromRegistration(RegistrationStatus s) {
   return PerceptionStatus::kGicpFailed;
 }
 
+// Everything SampleVisibleSurface reads from a model, with the sampling parameters and a version
+// of the sampler (bump kSamplerVersion when SampleVisibleSurface or ModelCloud changes).
+std::uint64_t MeshDigest(const Mesh& mesh, double spacing, unsigned seed) {
+  constexpr std::uint32_t kSamplerVersion = 1;
+  std::uint64_t h = Fnv1a64(&kSamplerVersion, sizeof(kSamplerVersion));
+  h = Fnv1a64(mesh.vertices.data(), mesh.vertices.size() * sizeof(Vector3), h);
+  h = Fnv1a64(mesh.triangles.data(), mesh.triangles.size() * sizeof(Eigen::Vector3i), h);
+  h = Fnv1a64(mesh.triangle_material.data(), mesh.triangle_material.size() * sizeof(int), h);
+  for (const Material& m : mesh.materials) {
+    h = Fnv1a64(m.colour_bgr.val, 3, h);
+    h = Fnv1a64(m.secondary_bgr.val, 3, h);
+    const auto pattern = static_cast<int>(m.pattern);
+    h = Fnv1a64(&pattern, sizeof(pattern), h);
+    h = Fnv1a64(&m.axis, sizeof(m.axis), h);
+    h = Fnv1a64(&m.period_m, sizeof(m.period_m), h);
+  }
+  h = Fnv1a64(mesh.gradient.data(), 3 * sizeof(double), h);
+  const unsigned char closed = mesh.closed ? 1 : 0;
+  h = Fnv1a64(&closed, 1, h);
+  h = Fnv1a64(&spacing, sizeof(spacing), h);
+  return Fnv1a64(&seed, sizeof(seed), h);
+}
+
 }  // namespace
 
 void PerceptionConfig::validate() const {
@@ -43,6 +69,7 @@ void PerceptionConfig::validate() const {
   if (!(template_spacing > 0.0) || !std::isfinite(template_spacing)) {
     throw InvalidInputError("PerceptionConfig: template_spacing must be positive and finite");
   }
+  if (threads < 1) throw InvalidInputError("PerceptionConfig: threads must be >= 1");
   if (!templates_dir.empty() && !std::filesystem::is_directory(templates_dir)) {
     throw InvalidInputError("PerceptionConfig: templates_dir '" + templates_dir +
                             "' is not a directory");
@@ -77,27 +104,58 @@ ObjectPerception::ObjectPerception(const PerceptionConfig& config,
 
 const ObjectTemplate* ObjectPerception::findTemplate(const std::string& label) {
   auto it = templates_.find(label);
-  if (it == templates_.end()) {
-    const auto t0 = Clock::now();
-    std::optional<ObjectTemplate> made;
-    const std::filesystem::path pcd =
-        config_.templates_dir.empty()
-            ? std::filesystem::path()
-            : std::filesystem::path(config_.templates_dir) / (label + ".pcd");
-    if (!pcd.empty() && std::filesystem::exists(pcd)) {
-      made = LoadObjectTemplate(pcd.string(), label, config_.registration.features);
+  if (it != templates_.end()) return it->second ? &*it->second : nullptr;
+  const auto t0 = Clock::now();
+  // The template's source: a PCD override, or the class model (sampled only on a cache miss:
+  // sampling with visibility costs as much as the features). `digest` identifies it for the cache.
+  std::optional<FeatureCloud> cloud;
+  std::function<FeatureCloud()> sample;
+  std::uint64_t digest = 0;
+  const std::filesystem::path pcd =
+      config_.templates_dir.empty()
+          ? std::filesystem::path()
+          : std::filesystem::path(config_.templates_dir) / (label + ".pcd");
+  if (!pcd.empty() && std::filesystem::exists(pcd)) {
+    cloud = ReadTemplateCloud(pcd.string());
+    digest = CloudDigest(*cloud);
+  } else {
+    for (const ObjectClass& c : classes_) {
+      if (c.label != label) continue;
+      const Mesh mesh = MakeObjectMesh(c);
+      digest = MeshDigest(mesh, config_.template_spacing, config_.template_seed);
+      sample = [this, mesh, label] {
+        return ModelCloud(
+            SampleVisibleSurface(mesh, config_.template_spacing, config_.template_seed), label);
+      };
+      break;
+    }
+  }
+  std::optional<ObjectTemplate> made;
+  if (cloud || sample) {
+    const FeatureConfig& features = config_.registration.features;
+    auto build = [&] { return MakeObjectTemplate(label, cloud ? *cloud : sample(), features); };
+    if (config_.template_cache_dir.empty()) {
+      made = build();
     } else {
-      for (const ObjectClass& c : classes_) {
-        if (c.label != label) continue;
-        const ColoredPointSet points = SampleVisibleSurface(
-            MakeObjectMesh(c), config_.template_spacing, config_.template_seed);
-        made = MakeObjectTemplate(label, points, config_.registration.features);
-        break;
+      const TemplateCache cache(config_.template_cache_dir);
+      const std::uint64_t key = TemplateFingerprint(label, digest, features);
+      std::string why_not;
+      made = cache.load(label, key, features, &why_not);
+      if (made) {
+        ++templates_from_cache_;
+      } else {
+        if (why_not.find(": no entry") == std::string::npos) template_notes_.push_back(why_not);
+        made = build();
+        try {
+          cache.store(*made, key);
+        } catch (const InvalidInputError& e) {
+          template_notes_.push_back(e.what());  // perception goes on without the cache
+        }
       }
     }
-    template_seconds_ += MsSince(t0) / 1000.0;
-    it = templates_.emplace(label, std::move(made)).first;
   }
+  template_seconds_ += MsSince(t0) / 1000.0;
+  it = templates_.emplace(label, std::move(made)).first;
   return it->second ? &*it->second : nullptr;
 }
 
@@ -113,31 +171,68 @@ FramePerception ObjectPerception::perceive(const RgbdFrame& frame) {
   const PreparedFrame prepared = PrepareSegmentation(cloud, config_.segmentation);
   out.times.prepare = MsSince(t);
 
-  for (const Detection& d : detections) {
-    PerceivedObject o;
-    o.detection = d;
-    const ObjectTemplate* tmpl = findTemplate(d.label);
-    if (!tmpl) {
-      out.objects.push_back(std::move(o));
-      continue;
-    }
-    t = Clock::now();
-    o.segmentation = SegmentObject(prepared, d.box, config_.segmentation);
-    out.times.segment += MsSince(t);
+  // Templates first (building one mutates the map), then the detections on the worker threads.
+  out.objects.resize(detections.size());
+  std::vector<const ObjectTemplate*> templates(detections.size());
+  for (std::size_t i = 0; i < detections.size(); ++i) {
+    out.objects[i].detection = detections[i];
+    templates[i] = findTemplate(detections[i].label);
+  }
+  std::vector<double> segment_ms(detections.size(), 0.0), register_ms(detections.size(), 0.0);
+  auto run = [&](std::size_t i) {
+    PerceivedObject& o = out.objects[i];
+    if (!templates[i]) return;
+    auto t0 = Clock::now();
+    o.segmentation = SegmentObject(prepared, o.detection.box, config_.segmentation);
+    segment_ms[i] = MsSince(t0);
     if (o.segmentation.status != SegmentationStatus::kOk) {
       o.status = PerceptionStatus::kSegmentationFailed;
       o.segmentation.segment.reset();
-      out.objects.push_back(std::move(o));
-      continue;
+      return;
     }
-    t = Clock::now();
-    o.registration = RegisterTemplate(*o.segmentation.segment, *tmpl, config_.registration);
-    out.times.register_ += MsSince(t);
+    t0 = Clock::now();
+    o.registration =
+        RegisterTemplate(*o.segmentation.segment, *templates[i], config_.registration);
+    register_ms[i] = MsSince(t0);
     o.segmentation.segment.reset();
     o.status = FromRegistration(o.registration.status);
     if (o.accepted()) o.body_T_object = ObjectMeasurementInBody(o.registration.camera_T_object);
-    out.objects.push_back(std::move(o));
+  };
+  const std::size_t workers =
+      config_.registration.consensus == Consensus::kSacIa
+          ? 1
+          : std::min(detections.size(), static_cast<std::size_t>(config_.threads));
+  t = Clock::now();
+  if (workers <= 1) {
+    for (std::size_t i = 0; i < detections.size(); ++i) run(i);
+  } else {
+    // Detection i on worker i % workers; an exception is carried to this thread.
+    std::vector<std::exception_ptr> errors(workers);
+    std::vector<std::thread> pool;
+    for (std::size_t w = 0; w < workers; ++w) {
+      pool.emplace_back([&, w] {
+        try {
+          for (std::size_t i = w; i < detections.size(); i += workers) run(i);
+        } catch (...) {
+          errors[w] = std::current_exception();
+        }
+      });
+    }
+    for (std::thread& th : pool) th.join();
+    for (const std::exception_ptr& e : errors) {
+      if (e) std::rethrow_exception(e);
+    }
   }
+  // Wall clock of the parallel section, split between the stages by their summed thread times.
+  const double wall = MsSince(t);
+  double seg_sum = 0.0, reg_sum = 0.0;
+  for (std::size_t i = 0; i < detections.size(); ++i) {
+    seg_sum += segment_ms[i];
+    reg_sum += register_ms[i];
+  }
+  const double scale = seg_sum + reg_sum > 0.0 ? wall / (seg_sum + reg_sum) : 0.0;
+  out.times.segment = seg_sum * scale;
+  out.times.register_ = reg_sum * scale;
   return out;
 }
 

@@ -12,11 +12,19 @@
 // information (tangent order (w, v), CONVENTIONS.md).
 //
 // Templates: one per class the detector knows and `classes` describes, built once, when the
-// class is first detected (a template takes 1-3 s: model sampling, visibility, PFHRGB), from the
-// class's procedural model (render/object_models.h, SampleVisibleSurface at template_spacing), or
-// read from `templates_dir`/<label>.pcd when that file exists (your own scanned models; format in
-// pose_estimation/object_template.h). A detected class without a template is reported (status
-// kNoTemplate), never registered.
+// class is first detected, from the class's procedural model (render/object_models.h,
+// SampleVisibleSurface at template_spacing), or read from `templates_dir`/<label>.pcd when that
+// file exists (your own scanned models; format in pose_estimation/object_template.h). With
+// `template_cache_dir`, the built template (its PFHRGB features: 0.3-2.5 s per class) is stored
+// there and read back at the next start (pose_estimation/template_cache.h: keyed by the model's
+// points and the FeatureConfig; a damaged or stale entry is rebuilt, with a note in
+// templateNotes()). A detected class without a template is reported (status kNoTemplate), never
+// registered.
+//
+// Threads: the detections of a frame are segmented and registered on up to `threads` threads
+// (results in detection order, identical for any thread count: the registration draws its random
+// samples from its own seeded generator). SAC-IA (Consensus::kSacIa) draws with rand(), so with it
+// the detections run one after another.
 #pragma once
 
 #include <map>
@@ -41,6 +49,8 @@ struct PerceptionConfig {
   double template_spacing = 0.01;   // m between samples of a class model
   unsigned template_seed = 1;
   std::string templates_dir;        // optional <label>.pcd overrides
+  std::string template_cache_dir;   // optional on-disk cache of built templates ("" = none)
+  int threads = 2;                  // detections of a frame registered in parallel (>= 1)
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
@@ -92,8 +102,11 @@ class ObjectPerception {
   const PerceptionConfig& config() const { return config_; }
   // The template of a class, built on first use; nullptr when the class has none.
   const ObjectTemplate* findTemplate(const std::string& label);
-  // Time spent building templates so far.
+  // Time spent building (or reading) templates so far.
   double templateSeconds() const { return template_seconds_; }
+  // Templates read from the cache so far, and why an entry could not be used or stored.
+  int templatesFromCache() const { return templates_from_cache_; }
+  const std::vector<std::string>& templateNotes() const { return template_notes_; }
 
  private:
   PerceptionConfig config_;
@@ -101,6 +114,8 @@ class ObjectPerception {
   Detector detector_;
   std::map<std::string, std::optional<ObjectTemplate>> templates_;  // nullopt: class has none
   double template_seconds_ = 0.0;
+  int templates_from_cache_ = 0;
+  std::vector<std::string> template_notes_;
 };
 
 // The accepted objects as SLAM measurements (sim/sensing.h; object_id = -1: unknown).

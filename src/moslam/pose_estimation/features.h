@@ -17,8 +17,10 @@ using PfhrgbCloud = pcl::PointCloud<pcl::PFHRGBSignature250>;
 // The preprocessing and descriptor parameters. A template and the segments matched to it must
 // use the same values (Register checks).
 struct FeatureConfig {
-  double voxel_size = 0.015;     // m, pcl::VoxelGrid leaf (shared/notes: 1-1.5 cm)
-  double normal_radius = 0.03;   // m, segment normals (pcl::NormalEstimation)
+  // 2 cm / 4 cm against 1.5 / 3 cm: PFHRGB 3x faster (fewer neighbours, cost ~ neighbours^2), 14
+  // of 16 rendered chair views accepted against 13, median error 2 mm (measure_pose_estimation).
+  double voxel_size = 0.02;      // m, pcl::VoxelGrid leaf
+  double normal_radius = 0.04;   // m, segment normals (pcl::NormalEstimation)
   double feature_radius = 0.05;  // m, PFHRGB neighbourhood (cost ~ neighbours^2)
   // PFHRGB is computed at keypoints, the centroids of a coarser voxel grid of this leaf, over the
   // voxel_size cloud as search surface; SAC-IA and the inlier gate run on the keypoints, GICP on

@@ -59,6 +59,15 @@ int main(int argc, char** argv) {
   app.add_option("--normal-radius", config.features.normal_radius, "normal radius (m)");
   app.add_option("--feature-radius", config.features.feature_radius, "PFHRGB radius (m)");
   app.add_option("--sac-iterations", config.sac_iterations, "SAC-IA iterations");
+  app.add_option("--consensus", config.consensus, "0 = prerejective, 1 = SAC-IA");
+  app.add_option("--pre-iterations", config.prerejective_iterations, "prerejective iterations");
+  app.add_option("--similarity", config.prerejective_similarity, "prerejective similarity");
+  app.add_option("--inlier-fraction", config.prerejective_inlier_fraction,
+                 "prerejective inlier fraction");
+  app.add_option("--min-sample-distance", config.sac_min_sample_distance, "sample spread (m)");
+  app.add_option("--gicp-coarse-points", config.gicp_coarse_points, "coarse GICP points");
+  app.add_option("--gicp-coarse-iterations", config.gicp_coarse_iterations, "coarse GICP its");
+  app.add_option("--gicp-max-points", config.gicp_max_source_points, "GICP source cap");
   app.add_option("--sac-k", config.sac_correspondence_randomness, "SAC-IA k");
   app.add_option("--gicp-iterations", config.gicp_max_iterations, "GICP iterations");
   app.add_option("--gicp-distance", config.gicp_max_correspondence_distance, "GICP max dist (m)");
@@ -167,10 +176,10 @@ int main(int argc, char** argv) {
                 "%6.2f deg | seg %.0f prep %.0f sac %.0f gate %.0f gicp %.0f ms, cpu %.0f ms\n",
                 k, d, seg.segment->size(), r.segment_points, r.segment_keypoints,
                 ToString(r.status), r.inliers, te, re, seg_time, r.times.prepare,
-                r.times.sac_ia, r.times.gate, r.times.gicp, cpu);
+                r.times.consensus, r.times.gate, r.times.gicp, cpu);
     seg_ms.push_back(seg_time);
     prep_ms.push_back(r.times.prepare);
-    sac_ms.push_back(r.times.sac_ia);
+    sac_ms.push_back(r.times.consensus);
     gate_ms.push_back(r.times.gate);
     gicp_ms.push_back(r.times.gicp + r.times.information);
     total_ms.push_back(seg_time + r.times.total());

@@ -56,8 +56,7 @@ ObjectTemplate MakeObjectTemplate(const std::string& label, const FeatureCloud& 
   return t;
 }
 
-ObjectTemplate MakeObjectTemplate(const std::string& label, const ColoredPointSet& points,
-                                  const FeatureConfig& config) {
+FeatureCloud ModelCloud(const ColoredPointSet& points, const std::string& label) {
   if (points.normals.size() != points.points.size() ||
       points.colours_bgr.size() != points.points.size()) {
     throw InvalidInputError("MakeObjectTemplate(" + label +
@@ -76,10 +75,16 @@ ObjectTemplate MakeObjectTemplate(const std::string& label, const ColoredPointSe
     p.b = points.colours_bgr[i][0];
     p.g = points.colours_bgr[i][1];
     p.r = points.colours_bgr[i][2];
+    p.a = 255;
     p.curvature = 0.0f;
     cloud.push_back(p);
   }
-  return MakeObjectTemplate(label, cloud, config);
+  return cloud;
+}
+
+ObjectTemplate MakeObjectTemplate(const std::string& label, const ColoredPointSet& points,
+                                  const FeatureConfig& config) {
+  return MakeObjectTemplate(label, ModelCloud(points, label), config);
 }
 
 void SaveObjectTemplate(const ObjectTemplate& tmpl, const std::string& path) {
@@ -95,8 +100,7 @@ void SaveObjectTemplate(const ObjectTemplate& tmpl, const std::string& path) {
   if (rc != 0) throw InvalidInputError("SaveObjectTemplate(" + path + "): cannot write the file");
 }
 
-ObjectTemplate LoadObjectTemplate(const std::string& path, const std::string& label,
-                                  const FeatureConfig& config) {
+FeatureCloud ReadTemplateCloud(const std::string& path) {
   pcl::PCLPointCloud2 blob;
   int rc = -1;
   try {
@@ -124,6 +128,12 @@ ObjectTemplate LoadObjectTemplate(const std::string& path, const std::string& la
                               " has a non-finite coordinate or normal");
     }
   }
+  return cloud;
+}
+
+ObjectTemplate LoadObjectTemplate(const std::string& path, const std::string& label,
+                                  const FeatureConfig& config) {
+  const FeatureCloud cloud = ReadTemplateCloud(path);
   try {
     return MakeObjectTemplate(label, cloud, config);
   } catch (const InvalidInputError& e) {

@@ -27,6 +27,10 @@ struct ObjectTemplate {
   std::size_t size() const { return cloud ? cloud->size() : 0; }
 };
 
+// A sampled model (render/point_set.h) as a FeatureCloud (rgb from colours_bgr). Throws
+// InvalidInputError on mismatched vector sizes.
+FeatureCloud ModelCloud(const ColoredPointSet& points, const std::string& label = "model");
+
 // From a sampled model (render/point_set.h). Throws InvalidInputError on an invalid config,
 // mismatched vector sizes, non-finite points/normals, or fewer than 10 points after voxelling.
 ObjectTemplate MakeObjectTemplate(const std::string& label, const ColoredPointSet& points,
@@ -36,6 +40,10 @@ ObjectTemplate MakeObjectTemplate(const std::string& label, const FeatureCloud& 
 
 // Writes tmpl.cloud as a binary PCD. Throws InvalidInputError naming the file if it cannot.
 void SaveObjectTemplate(const ObjectTemplate& tmpl, const std::string& path);
+
+// The points of a PCD of the format above, validated but not voxelled (the input of
+// MakeObjectTemplate). Throws InvalidInputError as LoadObjectTemplate.
+FeatureCloud ReadTemplateCloud(const std::string& path);
 
 // Reads a PCD of the format above. Throws InvalidInputError naming the file and the problem
 // (unreadable, missing field, no points, non-finite values).

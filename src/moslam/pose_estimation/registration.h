@@ -1,5 +1,5 @@
-// Object pose from a segment: PFHRGB features + SAC-IA initial alignment, an inlier gate
-// (>= 12 agreeing feature correspondences, the paper's check), then GICP refinement.
+// Object pose from a segment: PFHRGB features + a sample-consensus initial alignment, an inlier
+// gate (>= 12 agreeing feature correspondences, the paper's check), then GICP refinement.
 //
 // Frames: the segment is in the camera optical frame (z forward, x right, y down), the template
 // in the object frame (centre, x forward, z up); metres. The result is camera_T_object
@@ -9,31 +9,36 @@
 // Stages (times in RegistrationResult::times):
 //   prepare : voxel the segment (FeatureConfig::voxel_size), normals (normal_radius, flipped
 //             towards the camera), keypoints (keypoint_voxel, at most max_segment_keypoints),
-//             PFHRGB at the keypoints
-//             (feature_radius); fewer than min_segment_points points or min_inliers keypoints ->
-//             kTooFewPoints;
-//   sac_ia  : pcl::SampleConsensusInitialAlignment, segment keypoints -> template keypoints, with
-//             sac_iterations, sac_correspondence_randomness, sac_min_sample_distance and
-//             sac_max_correspondence_distance; srand(seed) first (PCL draws with rand()), so a
-//             call is deterministic but not thread-safe against other rand() users;
+//             PFHRGB at the keypoints (feature_radius); fewer than min_segment_points points or
+//             min_inliers keypoints -> kTooFewPoints;
+//   consensus: the initial alignment, segment keypoints -> template keypoints (Consensus below):
+//             by default PCL's prerejective sampler with RANSAC's most-inliers criterion
+//             (prerejective_iterations samples, seeded by `seed`, thread-safe), or the paper's
+//             pcl::SampleConsensusInitialAlignment (sac_iterations; srand(seed) first, PCL draws
+//             with rand(), so a call is deterministic but not thread-safe against other rand()
+//             users); both with sac_correspondence_randomness, sac_min_sample_distance and
+//             sac_max_correspondence_distance;
 //   gate    : each segment keypoint's nearest template feature (PFHRGB L2) is a correspondence;
-//             it is an INLIER if the SAC-IA transform maps the segment point within
+//             it is an INLIER if the consensus transform maps the segment point within
 //             inlier_distance of the template point (RegistrationResult::inliers). With
 //             gate_refined_pose (default), a segment failing this still goes through gicp/score,
 //             and the inliers are counted again under the final pose (refined_inliers): the gate
 //             passes if either count reaches min_inliers (SAC-IA often returns a flip of tables
 //             and sofas, whose correct half turn has the inliers). Otherwise kTooFewInliers;
-//   gicp    : pcl::GeneralizedIterativeClosestPoint (voxel_size clouds), segment -> the template
+//   gicp    : pcl::GeneralizedIterativeClosestPoint (voxel_size clouds; the plane covariances of
+//             both clouds from their normals, I - (1 - 1e-3) n n^T), segment -> the template
 //             points whose outward normals face the camera at the initial pose (back faces
-//             removed), run from each SYMMETRY HYPOTHESIS (below); kGicpFailed if no run converges
-//             to a finite transform;
-//   score   : each converged GICP pose is scored (AGREEMENT RULE below) and the best kept;
+//             removed). With several SYMMETRY HYPOTHESES (below), each is aligned coarsely
+//             (gicp_coarse_points, gicp_coarse_iterations) and scored, and the best is refined
+//             (gicp_max_source_points, gicp_max_iterations); kGicpFailed if no run converges to a
+//             finite transform;
+//   score   : the refined pose is scored (AGREEMENT RULE below);
 //             kShapeMismatch if its geometric agreement is below min_geometric_agreement, else
 //             kColourMismatch if its colour agreement is below min_colour_agreement.
 //
 // Symmetry hypotheses (against the 180-degree flips of PFHRGB + SAC-IA, notes/frontend.md
-// pitfall 6, which pass the inlier gate): hypothesis 0 is the SAC-IA pose; then, for each
-// j = 1 .. symmetry_turns - 1, the SAC-IA pose turned by 360 j / symmetry_turns degrees about the
+// pitfall 6, which pass the inlier gate): hypothesis 0 is the consensus pose; then, for each
+// j = 1 .. symmetry_turns - 1, the consensus pose turned by 360 j / symmetry_turns degrees about the
 // object's z axis (a flip matches the segment to the wrong side of the object, so its centre is
 // off by up to the object's size; measured 0.46 m on rendered chairs), three times:
 //   index 3j - 2: about the vertical axis through the object origin;
@@ -41,7 +46,7 @@
 //   index 3j    : as 3j - 1, then shifted horizontally so that the segment's centroid lands on
 //                 the centroid of the template points facing the camera at that pose.
 // symmetry_turns = 2 (default) gives 4 hypotheses (half turn), 4 gives 10 (quarter turns), 1
-// disables them. Each costs one GICP (~0.1-0.3 s on ~2500 segment points).
+// disables them. Each costs one coarse GICP.
 //
 // Agreement rule (RegistrationResult::score, geometric_agreement, colour_agreement): with the
 // segment points y_i mapped into the object frame by the pose and T the template points facing
@@ -54,13 +59,13 @@
 //                  k pulls dark, noisy pixels towards grey;
 //   geometric_agreement = #geometric / N,  colour_agreement = #(geometric and colour) / #geometric,
 //   score = #(geometric and colour) / N   (N = voxelled segment points).
-// The hypothesis with the highest score wins (ties: the lower index). A flip that still wins is
+// The hypothesis whose coarse alignment scores highest wins (ties: the lower index). A flip that still wins is
 // caught by its shape or colour: geometric_agreement < min_geometric_agreement -> kShapeMismatch,
 // else colour_agreement < min_colour_agreement -> kColourMismatch (pose and scores filled, no
 // information). Both thresholds were chosen on rendered chairs (measure_pose_estimation, seeds 1
 // and 2): correct poses had geometric 0.90-1.00 and colour 0.71-0.97, flips colour 0.48-0.60 or
 // geometric 0.83. RefinePose runs the same hypotheses, score and colour gate from
-// its initial pose instead of the SAC-IA pose (symmetry_turns = 1 to refine that pose alone).
+// its initial pose instead of the consensus pose (symmetry_turns = 1 to refine that pose alone).
 //
 // Information matrix (6x6, tangent order (w, v): rotation first, shared/CONVENTIONS.md), for a
 // right perturbation camera_T_object * Exp(xi) (the same xi perturbs the body-frame measurement
@@ -84,14 +89,35 @@
 
 namespace moslam {
 
+// The sample-consensus initial alignment (feature correspondences -> a rigid pose).
+enum class Consensus {
+  // pcl::SampleConsensusPrerejective: a sample whose 3 segment points and their 3 template
+  // matches do not form similar triangles (edge-length ratio < prerejective_similarity) is
+  // rejected before any point is transformed; of the rest, the pose with the lowest mean squared
+  // inlier distance among those putting >= prerejective_inlier_fraction of the segment keypoints
+  // within sac_max_correspondence_distance of the template wins (none: kTooFewInliers).
+  kPrerejective,
+  // pcl::SampleConsensusInitialAlignment (the paper's SAC-IA): every sample is scored over all
+  // segment keypoints (truncated error).
+  kSacIa,
+};
+const char* ToString(Consensus consensus);
+
 struct RegistrationConfig {
   FeatureConfig features;  // must equal the template's (checked)
-  // SAC-IA.
-  int sac_iterations = 1000;  // 500 accepted 2/8 rendered chair views, 1000 5/8 (measured)
+  // Sample consensus (both methods: 3-point samples, each segment feature drawn to one of its
+  // sac_correspondence_randomness nearest template features).
+  Consensus consensus = Consensus::kPrerejective;
   int sac_correspondence_randomness = 5;   // k nearest template features to draw from
+  double sac_max_correspondence_distance = 0.05;  // m, inlier / truncation distance
   double sac_min_sample_distance = 0.05;   // m between the 3 sampled segment points
-  double sac_max_correspondence_distance = 0.05;  // m, truncation of SAC-IA's error
   unsigned seed = 1;
+  // SAC-IA only.
+  int sac_iterations = 1000;  // 500 accepted 2/8 rendered chair views, 1000 5/8 (measured)
+  // Prerejective only.
+  int prerejective_iterations = 5000;
+  double prerejective_similarity = 0.5;
+  double prerejective_inlier_fraction = 0.25;
   // Inlier gate (paper: 12).
   double inlier_distance = 0.05;  // m; 0.04 accepted 5/16 rendered chair views, 0.05 13/16
   int min_inliers = 12;
@@ -101,11 +127,16 @@ struct RegistrationConfig {
   // cost grow linearly with it (a sofa segment had ~2500 keypoints, 6.6 s CPU uncapped).
   int max_segment_keypoints = 1000;
   // GICP.
+  int gicp_max_source_points = 500;  // evenly strided subset of the segment beyond it (0: all)
+  // With several symmetry hypotheses, each is first aligned with gicp_coarse_points of the
+  // segment and gicp_coarse_iterations, and only the best-scoring one is refined in full.
+  int gicp_coarse_points = 150;
+  int gicp_coarse_iterations = 10;
   int gicp_max_iterations = 30;
   double gicp_max_correspondence_distance = 0.05;  // m
   double gicp_transformation_epsilon = 1e-6;
   // Symmetry hypotheses and agreement rule (see the header comment).
-  int symmetry_turns = 2;              // 1 = SAC-IA pose only, 2 = + half turn, 4 = + quarter turns
+  int symmetry_turns = 2;              // 1 = consensus pose only, 2 = + half turn, 4 = + quarter turns
   double score_distance = 0.025;       // m, geometric agreement radius
   double colour_tolerance = 0.05;      // chromaticity L2 distance
   double chroma_dark_offset = 10.0;    // 8-bit units
@@ -133,27 +164,27 @@ const char* ToString(RegistrationStatus status);
 
 struct RegistrationTimes {  // milliseconds
   double prepare = 0.0;     // voxel + normals + PFHRGB of the segment
-  double sac_ia = 0.0;
+  double consensus = 0.0;   // sample-consensus initial alignment
   double gate = 0.0;
   double gicp = 0.0;         // every hypothesis' GICP and its score
   double information = 0.0;
-  double total() const { return prepare + sac_ia + gate + gicp + information; }
+  double total() const { return prepare + consensus + gate + gicp + information; }
 };
 
 struct RegistrationResult {
   RegistrationStatus status = RegistrationStatus::kTooFewPoints;
-  SE3 camera_T_object;            // valid if kAccepted (SAC-IA's estimate if kGicpFailed or
+  SE3 camera_T_object;            // valid if kAccepted (the consensus estimate if kGicpFailed or
                                   // kTooFewInliers, the rejected best pose if k*Mismatch)
-  SE3 sac_camera_T_object;        // SAC-IA's estimate (diagnostics)
+  SE3 sac_camera_T_object;        // the consensus estimate (diagnostics)
   int segment_points = 0;         // after voxelling (voxel_size), with a normal
   int segment_keypoints = 0;      // with a finite PFHRGB descriptor
   int correspondences = 0;        // feature correspondences examined by the gate
-  int inliers = 0;                // of those, agreeing under the SAC-IA transform
+  int inliers = 0;                // of those, agreeing under the consensus transform
   int refined_inliers = -1;       // of those, agreeing under the final pose (-1: no GICP ran)
-  double sac_fitness = 0.0;       // PCL's fitness score after SAC-IA (mean squared NN dist, m^2)
+  double sac_fitness = 0.0;       // PCL fitness after the consensus (m^2)
   double fitness = 0.0;           // PCL's fitness score after GICP (m^2), winning hypothesis
   int hypotheses = 0;             // symmetry hypotheses refined by GICP
-  int hypothesis = -1;            // the winner (0 = SAC-IA pose; header comment for the others)
+  int hypothesis = -1;            // the winner (0 = consensus pose; header comment for the others)
   // Agreement rule of the header comment, winning hypothesis (also filled when the refined pose
   // failed the inlier gate: kTooFewInliers with refined_inliers >= 0).
   double score = 0.0;
