@@ -70,7 +70,9 @@ inline std::string DefaultTemplateCacheDir() {
   if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) {
     return std::string(x) + "/moslam/templates";
   }
-  if (const char* h = std::getenv("HOME"); h && *h) return std::string(h) + "/.cache/moslam/templates";
+  if (const char* h = std::getenv("HOME"); h && *h) {
+    return std::string(h) + "/.cache/moslam/templates";
+  }
   return "";
 }
 // --template-cache: "none" disables the cache.

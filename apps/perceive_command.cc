@@ -196,6 +196,15 @@ int RunPerceive(const PerceiveArgs& a) {
                           {"box", {b.x, b.y, b.width, b.height}},
                           {"status", ToString(o.status)},
                           {"inliers", o.registration.inliers}};
+      if (o.status != PerceptionStatus::kNoTemplate &&
+          o.status != PerceptionStatus::kSegmentationFailed) {
+        const RegistrationTimes& rt = o.registration.times;
+        j["register_ms"] = rt.total();
+        j["stage_ms"] = {{"prepare", rt.prepare},
+                         {"consensus", rt.consensus},
+                         {"gate", rt.gate},
+                         {"gicp", rt.gicp + rt.information}};
+      }
       if (o.accepted()) {
         ++accepted;
         j["camera_T_object"] = PoseJson(o.registration.camera_T_object);

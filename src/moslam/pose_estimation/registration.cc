@@ -256,6 +256,8 @@ void RegistrationConfig::validate() const {
   Require(gicp_coarse_points == 0 || gicp_coarse_points >= min_segment_points,
           p + "gicp_coarse_points", "must be 0 (no cap) or >= min_segment_points");
   Require(gicp_coarse_iterations >= 1, p + "gicp_coarse_iterations", "must be >= 1");
+  Require(PositiveFinite(gicp_coarse_max_correspondence_distance),
+          p + "gicp_coarse_max_correspondence_distance", "must be positive");
   Require(sac_correspondence_randomness >= 1, p + "sac_correspondence_randomness",
           "must be >= 1");
   Require(std::isfinite(sac_min_sample_distance) && sac_min_sample_distance >= 0.0,
@@ -273,6 +275,11 @@ void RegistrationConfig::validate() const {
   Require(PositiveFinite(gicp_transformation_epsilon), p + "gicp_transformation_epsilon",
           "must be positive");
   Require(symmetry_turns >= 1, p + "symmetry_turns", "must be >= 1");
+  Require(upright_yaws >= 0, p + "upright_yaws", "must be >= 0");
+  Require(std::isfinite(upright_min_extent) && upright_min_extent >= 0.0,
+          p + "upright_min_extent", "must be >= 0");
+  Require(camera_up.allFinite() && camera_up.norm() > 1e-6, p + "camera_up",
+          "must be a finite non-zero vector");
   Require(PositiveFinite(score_distance), p + "score_distance", "must be positive");
   Require(PositiveFinite(colour_tolerance), p + "colour_tolerance", "must be positive");
   Require(std::isfinite(chroma_dark_offset) && chroma_dark_offset >= 0.0,
@@ -472,7 +479,8 @@ GicpSource MakeGicpSource(const FeatureCloud::Ptr& source, int max_points) {
 
 GicpOutcome RunGicp(const GicpSource& source, const ObjectTemplate& tmpl,
                     const Eigen::Matrix4f& object_T_camera_initial,
-                    const RegistrationConfig& config, int max_iterations) {
+                    const RegistrationConfig& config, int max_iterations,
+                    double max_correspondence_distance) {
   GicpOutcome out;
   out.target = FrontFaces(tmpl, object_T_camera_initial, config);
   Gicp gicp;
@@ -481,7 +489,7 @@ GicpOutcome RunGicp(const GicpSource& source, const ObjectTemplate& tmpl,
   gicp.setInputTarget(out.target);
   gicp.setTargetCovariances(PlaneCovariances(*out.target));
   gicp.setMaximumIterations(max_iterations);
-  gicp.setMaxCorrespondenceDistance(config.gicp_max_correspondence_distance);
+  gicp.setMaxCorrespondenceDistance(max_correspondence_distance);
   gicp.setTransformationEpsilon(config.gicp_transformation_epsilon);
   FeatureCloud refined;
   gicp.align(refined, object_T_camera_initial);
@@ -573,6 +581,64 @@ std::vector<Eigen::Matrix4f> Hypotheses(const FeatureCloud& source, const Object
   return out;
 }
 
+// The upright hypotheses of registration.h: the object standing on a floor whose up direction in
+// the camera frame is config.camera_up; yaw along the principal horizontal axis of the segment and
+// its quarter turns; the template's camera-facing points centred on the segment. Empty when the
+// template's horizontal extent is below upright_min_extent or upright_yaws is 0.
+std::vector<Eigen::Matrix4f> UprightHypotheses(const FeatureCloud& source,
+                                               const ObjectTemplate& tmpl,
+                                               const RegistrationConfig& config) {
+  std::vector<Eigen::Matrix4f> out;
+  if (config.upright_yaws <= 0 || source.empty()) return out;
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
+  Eigen::Vector3f template_centroid = Eigen::Vector3f::Zero();
+  for (const auto& q : tmpl.cloud->points) {
+    lo = lo.cwiseMin(q.getVector3fMap());
+    hi = hi.cwiseMax(q.getVector3fMap());
+    template_centroid += q.getVector3fMap();
+  }
+  template_centroid /= static_cast<float>(tmpl.cloud->size());
+  if (std::max(hi.x() - lo.x(), hi.y() - lo.y()) < config.upright_min_extent) return out;
+  // Level frame in the camera frame: z up, x the camera's forward axis made horizontal.
+  const Eigen::Vector3f up = config.camera_up.cast<float>().normalized();
+  Eigen::Vector3f forward = Eigen::Vector3f::UnitZ() - up * up.z();
+  if (forward.norm() < 1e-3f) forward = Eigen::Vector3f::UnitX() - up * up.x();
+  forward.normalize();
+  Eigen::Matrix3f level;  // columns: the level frame's axes in the camera frame
+  level << forward, up.cross(forward), up;
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  for (const auto& p : source.points) centroid += p.getVector3fMap();
+  centroid /= static_cast<float>(source.size());
+  Eigen::Matrix2f scatter = Eigen::Matrix2f::Zero();
+  for (const auto& p : source.points) {
+    const Eigen::Vector2f h = (level.transpose() * (p.getVector3fMap() - centroid)).head<2>();
+    scatter += h * h.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2f> eig(scatter);
+  const Eigen::Vector2f axis = eig.eigenvectors().col(1);  // largest eigenvalue
+  const float yaw0 = std::atan2(axis.y(), axis.x());
+  for (int k = 0; k < config.upright_yaws; ++k) {
+    const float yaw = yaw0 + static_cast<float>(2.0 * kPi * k / config.upright_yaws);
+    const Eigen::Matrix3f R =  // camera_R_object
+        level * Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    Eigen::Matrix4f camera_T_object = Eigen::Matrix4f::Identity();
+    camera_T_object.topLeftCorner<3, 3>() = R;
+    camera_T_object.topRightCorner<3, 1>() = centroid - R * template_centroid;
+    // Centre the points facing the camera from there on the segment (twice: the visible set
+    // depends on where the object is).
+    for (int pass = 0; pass < 2; ++pass) {
+      const Eigen::Matrix4f object_T_camera = camera_T_object.inverse();
+      const FeatureCloud::Ptr front = FrontFaces(tmpl, object_T_camera, config);
+      Eigen::Vector3f c = Eigen::Vector3f::Zero();
+      for (const auto& q : front->points) c += q.getVector3fMap();
+      c /= static_cast<float>(std::max<std::size_t>(1, front->size()));
+      camera_T_object.topRightCorner<3, 1>() = centroid - R * c;
+    }
+    out.push_back(camera_T_object.inverse());
+  }
+  return out;
+}
+
 // The information matrix of the final alignment (rule in registration.h).
 Matrix6 Information(const FeatureCloud& source, const FeatureCloud::Ptr& target,
                     const Eigen::Matrix4f& object_T_camera, const RegistrationConfig& config) {
@@ -633,7 +699,8 @@ void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl
     start = -1;
     for (std::size_t h = 0; h < hypotheses.size(); ++h) {
       const GicpOutcome g =
-          RunGicp(coarse, tmpl, hypotheses[h], config, config.gicp_coarse_iterations);
+          RunGicp(coarse, tmpl, hypotheses[h], config, config.gicp_coarse_iterations,
+                  config.gicp_coarse_max_correspondence_distance);
       if (!g.ok) continue;
       const double score = ScorePose(*source, tmpl, g.object_T_camera, config).score;
       if (score > best_coarse) {
@@ -648,7 +715,8 @@ void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl
   int best_index = -1;
   if (start >= 0) {
     GicpOutcome g = RunGicp(MakeGicpSource(source, config.gicp_max_source_points), tmpl, initial,
-                            config, config.gicp_max_iterations);
+                            config, config.gicp_max_iterations,
+                            config.gicp_max_correspondence_distance);
     if (g.ok) {
       best_score = ScorePose(*source, tmpl, g.object_T_camera, config);
       best = std::move(g);
@@ -742,6 +810,8 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   Eigen::Matrix4f object_T_camera_sac = Eigen::Matrix4f::Identity();
   FeatureCloud aligned;
   std::vector<pcl::Indices> nearest_features;  // per keypoint, from the consensus when it has them
+  const std::vector<Eigen::Matrix4f> upright = UprightHypotheses(*source, tmpl, config);
+  bool consensus_failed = false;
   if (config.consensus == Consensus::kSacIa) {
     std::srand(config.seed);  // PCL's SAC-IA draws with rand()
     pcl::SampleConsensusInitialAlignment<FeaturePoint, FeaturePoint, pcl::PFHRGBSignature250> sac;
@@ -773,14 +843,17 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     sac.setSeed(config.seed);
     sac.align(aligned);
     nearest_features = sac.nearestFeatures();
-    if (!sac.hasConverged()) {
+    consensus_failed = !sac.hasConverged();
+    if (consensus_failed && upright.empty()) {
       // No sampled pose put enough segment keypoints on the template: nothing to refine.
       result.times.consensus = MsSince(t0);
       result.status = RegistrationStatus::kTooFewInliers;
       return result;
     }
-    object_T_camera_sac = sac.getFinalTransformation();
-    result.sac_fitness = sac.getFitnessScore(config.sac_max_correspondence_distance);
+    if (!consensus_failed) {
+      object_T_camera_sac = sac.getFinalTransformation();
+      result.sac_fitness = sac.getFitnessScore(config.sac_max_correspondence_distance);
+    }
   }
   result.times.consensus = MsSince(t0);
 
@@ -819,7 +892,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   result.times.gate = MsSince(t0);
   result.camera_T_object = ToSE3(object_T_camera_sac).inverse();
   result.sac_camera_T_object = result.camera_T_object;
-  const bool sac_gate = result.inliers >= config.min_inliers;
+  const bool sac_gate = !consensus_failed && result.inliers >= config.min_inliers;
   if (!sac_gate && !config.gate_refined_pose) {
     result.status = RegistrationStatus::kTooFewInliers;
     return result;
@@ -828,8 +901,10 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   // --- GICP refinement from the SAC-IA transform and its symmetry hypotheses, scoring, colour
   // gate, information matrix; the inlier gate again at the refined pose.
   RegistrationResult refined = result;
-  RefineAndInform(source, tmpl, Hypotheses(*source, tmpl, object_T_camera_sac, config), config,
-                  refined);
+  std::vector<Eigen::Matrix4f> hypotheses;
+  if (!consensus_failed) hypotheses = Hypotheses(*source, tmpl, object_T_camera_sac, config);
+  hypotheses.insert(hypotheses.end(), upright.begin(), upright.end());
+  RefineAndInform(source, tmpl, hypotheses, config, refined);
   if (refined.status == RegistrationStatus::kGicpFailed) {
     if (!sac_gate) refined.status = RegistrationStatus::kTooFewInliers;
     return refined;

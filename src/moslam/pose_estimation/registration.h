@@ -38,8 +38,8 @@
 //
 // Symmetry hypotheses (against the 180-degree flips of PFHRGB + SAC-IA, notes/frontend.md
 // pitfall 6, which pass the inlier gate): hypothesis 0 is the consensus pose; then, for each
-// j = 1 .. symmetry_turns - 1, the consensus pose turned by 360 j / symmetry_turns degrees about the
-// object's z axis (a flip matches the segment to the wrong side of the object, so its centre is
+// j = 1 .. symmetry_turns - 1, the consensus pose turned by 360 j / symmetry_turns degrees about
+// the object's z axis (a flip matches the segment to the wrong side of the object, so its centre is
 // off by up to the object's size; measured 0.46 m on rendered chairs), three times:
 //   index 3j - 2: about the vertical axis through the object origin;
 //   index 3j - 1: about the vertical line through the segment's centroid (object frame);
@@ -47,6 +47,16 @@
 //                 the centroid of the template points facing the camera at that pose.
 // symmetry_turns = 2 (default) gives 4 hypotheses (half turn), 4 gives 10 (quarter turns), 1
 // disables them. Each costs one coarse GICP.
+//
+// Upright hypotheses (large objects: the template's horizontal extent >= upright_min_extent; PFHRGB
+// on a partial view of a sofa or a shelf rarely finds its pose, 2 and 5 of 16 rendered views):
+// objects stand on the floor, whose up direction in the camera frame is camera_up (a level camera:
+// -y of the optical frame). upright_yaws hypotheses follow the symmetry ones: yaw along the
+// segment's principal horizontal axis and its turns by 360 / upright_yaws degrees, translated so
+// that the template points facing the camera are centred on the segment. They go through the same
+// coarse GICP, score and gates (the 12-inlier gate counted at the refined pose); when the
+// consensus finds no pose, they are the only hypotheses (the prerejective consensus then no
+// longer ends the registration with kTooFewInliers).
 //
 // Agreement rule (RegistrationResult::score, geometric_agreement, colour_agreement): with the
 // segment points y_i mapped into the object frame by the pose and T the template points facing
@@ -59,13 +69,14 @@
 //                  k pulls dark, noisy pixels towards grey;
 //   geometric_agreement = #geometric / N,  colour_agreement = #(geometric and colour) / #geometric,
 //   score = #(geometric and colour) / N   (N = voxelled segment points).
-// The hypothesis whose coarse alignment scores highest wins (ties: the lower index). A flip that still wins is
-// caught by its shape or colour: geometric_agreement < min_geometric_agreement -> kShapeMismatch,
-// else colour_agreement < min_colour_agreement -> kColourMismatch (pose and scores filled, no
-// information). Both thresholds were chosen on rendered chairs (measure_pose_estimation, seeds 1
-// and 2): correct poses had geometric 0.90-1.00 and colour 0.71-0.97, flips colour 0.48-0.60 or
-// geometric 0.83. RefinePose runs the same hypotheses, score and colour gate from
-// its initial pose instead of the consensus pose (symmetry_turns = 1 to refine that pose alone).
+// The hypothesis whose coarse alignment scores highest wins (ties: the lower index). A flip that
+// still wins is caught by its shape or colour: geometric_agreement < min_geometric_agreement ->
+// kShapeMismatch, else colour_agreement < min_colour_agreement -> kColourMismatch (pose and scores
+// filled, no information). Both thresholds were chosen on rendered chairs
+// (measure_pose_estimation, seeds 1 and 2): correct poses had geometric 0.90-1.00 and colour
+// 0.71-0.97, flips colour 0.48-0.60 or geometric 0.83. RefinePose runs the same hypotheses, score
+// and colour gate from its initial pose instead of the consensus pose (symmetry_turns = 1 to
+// refine that pose alone).
 //
 // Information matrix (6x6, tangent order (w, v): rotation first, shared/CONVENTIONS.md), for a
 // right perturbation camera_T_object * Exp(xi) (the same xi perturbs the body-frame measurement
@@ -132,11 +143,15 @@ struct RegistrationConfig {
   // segment and gicp_coarse_iterations, and only the best-scoring one is refined in full.
   int gicp_coarse_points = 150;
   int gicp_coarse_iterations = 10;
+  double gicp_coarse_max_correspondence_distance = 0.15;  // m: reaches from the upright guesses
   int gicp_max_iterations = 30;
   double gicp_max_correspondence_distance = 0.05;  // m
   double gicp_transformation_epsilon = 1e-6;
   // Symmetry hypotheses and agreement rule (see the header comment).
-  int symmetry_turns = 2;              // 1 = consensus pose only, 2 = + half turn, 4 = + quarter turns
+  int upright_yaws = 4;                // 0 = no upright hypotheses
+  double upright_min_extent = 0.8;     // m, largest horizontal side of the template
+  Vector3 camera_up = Vector3(0.0, -1.0, 0.0);  // floor normal in the camera frame
+  int symmetry_turns = 2;  // 1 = consensus pose only, 2 = + half turn, 4 = + quarter turns
   double score_distance = 0.025;       // m, geometric agreement radius
   double colour_tolerance = 0.05;      // chromaticity L2 distance
   double chroma_dark_offset = 10.0;    // 8-bit units

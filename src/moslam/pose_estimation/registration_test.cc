@@ -110,6 +110,31 @@ TEST(Registration, PrerejectiveDependsOnTheSeedOnlyAndRunsOnThreads) {
   EXPECT_LT((other.camera_T_object.translation() - truth.translation()).norm(), 0.01);
 }
 
+// Upright hypotheses: with the consensus starved (samples 10 m apart: no pose), a level camera
+// and the object standing upright, the poses along the segment's principal horizontal axis find
+// it; without them the registration ends at the gate.
+TEST(Registration, UprightHypothesesFindAnUprightObjectTheConsensusMissed) {
+  const ObjectTemplate& tmpl = TestTemplate();
+  const SE3 truth = ObjectInFrontOfCamera(0.6, 0.1);
+  const auto segment = test::ViewOf(test::MakeTestObject(0.005), truth, 0.002, 7u);
+  RegistrationConfig config;
+  config.sac_min_sample_distance = 10.0;  // no sample qualifies: the consensus finds no pose
+  config.upright_min_extent = 0.4;  // the test object is 0.5 m wide
+  const RegistrationResult r = RegisterTemplate(*segment, tmpl, config);
+  ASSERT_EQ(r.status, RegistrationStatus::kAccepted) << ToString(r.status);
+  EXPECT_GE(r.refined_inliers, config.min_inliers);
+  EXPECT_GE(r.hypothesis, 0);
+  EXPECT_EQ(r.hypotheses, config.upright_yaws);  // the consensus gave none of its own
+  EXPECT_LT((r.camera_T_object.translation() - truth.translation()).norm(), 0.01);
+  EXPECT_LT(SE3::Log(truth.inverse() * r.camera_T_object).head<3>().norm() * 180.0 / kPi, 1.0);
+
+  config.upright_yaws = 0;
+  EXPECT_EQ(RegisterTemplate(*segment, tmpl, config).status, RegistrationStatus::kTooFewInliers);
+  config.upright_yaws = 4;
+  config.upright_min_extent = 0.8;  // a chair-sized template is not "large": no upright poses
+  EXPECT_EQ(RegisterTemplate(*segment, tmpl, config).status, RegistrationStatus::kTooFewInliers);
+}
+
 // A 180-degree flip about the object's vertical axis (pitfall 6 of notes/frontend.md): from a
 // flipped initial pose, the symmetry hypotheses find the true pose; with the hypotheses disabled,
 // the flipped pose GICP converges to is rejected by its shape or colour agreement.

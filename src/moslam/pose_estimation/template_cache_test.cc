@@ -96,8 +96,8 @@ TEST(TemplateCache, DamagedOrForeignBytesAreRejectedWithAReason) {
 
 TEST(TemplateCache, StoresLoadsAndReportsUnusableEntries) {
   const Built& b = TestBuilt();
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("moslam_template_cache_" + std::to_string(::getpid()));
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("moslam_template_cache_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   const TemplateCache cache((dir / "nested").string());
   std::string why;
