@@ -239,7 +239,7 @@ Runner RegisterDetect(CLI::App& app) {
   sub->add_option("--model", args->model, "ONNX model (or Darknet .weights with --format darknet)")
       ->required();
   sub->add_option("--format", args->format, "network output format")
-      ->check(CLI::IsMember({"moslam", "yolov5", "darknet"}))
+      ->check(CLI::IsMember({"moslam", "yolov5", "yolov8", "yolo11", "darknet"}))
       ->capture_default_str();
   sub->add_option("--cfg", args->cfg, "Darknet .cfg (with --format darknet)");
   sub->add_option("--classes", args->classes,

@@ -67,9 +67,10 @@ struct InputMapping {
 DetectorOutputFormat ParseDetectorOutputFormat(const std::string& name) {
   if (name == "moslam") return DetectorOutputFormat::kMoslam;
   if (name == "yolov5") return DetectorOutputFormat::kYolov5;
+  if (name == "yolov8" || name == "yolo11") return DetectorOutputFormat::kYolov8;
   if (name == "darknet") return DetectorOutputFormat::kDarknet;
   throw InvalidInputError("detector format '" + name +
-                          "' is unknown (expected moslam, yolov5 or darknet)");
+                          "' is unknown (expected moslam, yolov5, yolov8, yolo11 or darknet)");
 }
 
 std::string ToString(DetectorOutputFormat format) {
@@ -78,6 +79,8 @@ std::string ToString(DetectorOutputFormat format) {
       return "moslam";
     case DetectorOutputFormat::kYolov5:
       return "yolov5";
+    case DetectorOutputFormat::kYolov8:
+      return "yolov8";
     case DetectorOutputFormat::kDarknet:
       return "darknet";
   }
@@ -247,6 +250,32 @@ struct Detector::Impl {
     }
   }
 
+  // YOLOv8 / YOLO11: [1, 4 + C, N] (or [4 + C, N]), one column per box, no objectness.
+  void decodeColumns(std::size_t i, const cv::Mat& out, std::vector<Candidate>& cands) const {
+    const int C = numClasses();
+    int n = 0;
+    if (out.dims == 3 && out.size[0] == 1 && out.size[1] == 4 + C) {
+      n = out.size[2];
+    } else if (out.dims == 2 && out.size[0] == 4 + C) {
+      n = out.size[1];
+    } else {
+      badShape(i, out,
+               "[1, " + std::to_string(4 + C) + ", N] or [" + std::to_string(4 + C) + ", N]");
+    }
+    if (out.type() != CV_32F) badShape(i, out, "a float tensor");
+    const float* data = out.ptr<float>();
+    const auto at = [&](int row, int column) {
+      return data[static_cast<std::size_t>(row) * static_cast<std::size_t>(n) +
+                  static_cast<std::size_t>(column)];
+    };
+    const std::size_t stride = static_cast<std::size_t>(n);
+    for (int c = 0; c < n; ++c) {
+      const auto [cls, prob] =
+          BestClass(data + 4 * stride + static_cast<std::size_t>(c), C, stride);
+      Push(cands, at(0, c), at(1, c), at(2, c), at(3, c), prob, cls, config.confidence_threshold);
+    }
+  }
+
   std::vector<Detection> detect(const cv::Mat& image) {
     if (image.empty()) throw InvalidInputError("Detector::detect: the image is empty");
     cv::Mat bgr;
@@ -272,6 +301,8 @@ struct Detector::Impl {
     for (std::size_t i = 0; i < outs.size(); ++i) {
       if (config.format == DetectorOutputFormat::kMoslam) {
         decodeMoslam(i, outs[i], cands);
+      } else if (config.format == DetectorOutputFormat::kYolov8) {
+        decodeColumns(i, outs[i], cands);
       } else {
         decodeRows(i, outs[i], cands);
       }

@@ -7,8 +7,9 @@
 //   training/train_detector.py and of common YOLO exports.
 //   Boxes are cv::Rect2f in pixels of the INPUT image (x, y = top-left corner, width, height),
 //   clipped to the image.
-//   Score of a box = objectness x class probability of its best class; boxes with a score below
-//   confidence_threshold are dropped (0.3, the paper's class probability threshold), then
+//   Score of a box = objectness x class probability of its best class (formats without
+//   objectness: the class probability); boxes with a score below confidence_threshold are
+//   dropped (0.3, the paper's class probability threshold), then
 //   non-maximum suppression runs per class (cv::dnn::NMSBoxes), or over all boxes whatever their
 //   class when class_agnostic_nms is set (YOLOv5's --agnostic-nms). A box keeps only its best
 //   class.
@@ -24,6 +25,10 @@
 //   kYolov5  the common YOLOv5/YOLOv8-style ONNX export with objectness: output [1, N, 5 + C] (or
 //            [N, 5 + C]); per row cx, cy, w, h in network input pixels, objectness, C class
 //            probabilities (already sigmoid-activated, as `export.py` writes them).
+//   kYolov8  the YOLOv8 / YOLO11 ONNX export (what `yolo export format=onnx` writes today): output
+//            [1, 4 + C, N] (or [4 + C, N]), one COLUMN per box: cx, cy, w, h in network input
+//            pixels, then C class probabilities; no objectness column, so the score is the best
+//            class probability.
 //   kDarknet readNetFromDarknet(cfg, weights): the [N, 5 + C] rows of OpenCV's Region layers; cx,
 //            cy, w, h as fractions of the network input; OpenCV already multiplies the class
 //            scores by the objectness, so the score is the class column itself.
@@ -43,9 +48,9 @@ struct Detection {
   cv::Rect2f box;           // pixels of the input image
 };
 
-enum class DetectorOutputFormat { kMoslam, kYolov5, kDarknet };
+enum class DetectorOutputFormat { kMoslam, kYolov5, kYolov8, kDarknet };
 
-// "moslam", "yolov5", "darknet" -> the format; throws InvalidInputError for anything else.
+// "moslam", "yolov5", "yolov8" (or "yolo11"), "darknet" -> the format; throws InvalidInputError for anything else.
 DetectorOutputFormat ParseDetectorOutputFormat(const std::string& name);
 std::string ToString(DetectorOutputFormat format);
 

@@ -17,8 +17,9 @@ const std::string kTestData = MOSLAM_DETECTION_TESTDATA_DIR;
 DetectorConfig TinyConfig(DetectorOutputFormat format) {
   DetectorConfig c;
   c.format = format;
-  c.model_path = kTestData + (format == DetectorOutputFormat::kMoslam ? "/tiny_moslam.onnx"
-                                                                      : "/tiny_yolov5.onnx");
+  c.model_path = kTestData + (format == DetectorOutputFormat::kMoslam   ? "/tiny_moslam.onnx"
+                              : format == DetectorOutputFormat::kYolov8 ? "/tiny_yolov8.onnx"
+                                                                        : "/tiny_yolov5.onnx");
   c.class_names = {"chair", "table"};
   c.input_width = 8;
   c.input_height = 8;
@@ -110,6 +111,26 @@ TEST(DetectorYolov5, DecodesRowsThresholdsAndNms) {
   ExpectDetection(d[1], 1, "table", 0.4f, {1, 5, 2, 2});
 }
 
+// YOLOv8 / YOLO11 exports: [1, 4 + C, N], one column per box, no objectness; the fixture holds
+// the boxes of tiny_yolov5.onnx with objectness x class probability as class scores, so it must
+// give the same detections.
+TEST(DetectorYolov8, DecodesColumnsWithoutObjectness) {
+  Detector detector(TinyConfig(DetectorOutputFormat::kYolov8));
+  const auto d = detector.detect(Quadrants(1));
+  // Column 1 (0.56, IoU 0.78 with column 0) suppressed; column 3's best class scores 0.25.
+  ASSERT_EQ(d.size(), 2u);
+  ExpectDetection(d[0], 0, "chair", 0.81f, {2, 2, 4, 4});
+  ExpectDetection(d[1], 1, "table", 0.4f, {1, 5, 2, 2});
+  // The same file read as yolov5 rows does not fit: a typed error naming the expected shape.
+  DetectorConfig rows = TinyConfig(DetectorOutputFormat::kYolov8);
+  rows.format = DetectorOutputFormat::kYolov5;
+  EXPECT_THROW(Detector{rows}, InvalidInputError);
+  // Three classes configured for a two-class model: the column count does not fit either.
+  DetectorConfig three = TinyConfig(DetectorOutputFormat::kYolov8);
+  three.class_names = {"chair", "table", "sofa"};
+  EXPECT_THROW(Detector{three}, InvalidInputError);
+}
+
 TEST(DetectorYolov5, StretchAndLetterboxMapBackToTheImage) {
   const cv::Mat wide(8, 16, CV_8UC3, cv::Scalar::all(90));  // 16 wide, 8 high
   DetectorConfig c = TinyConfig(DetectorOutputFormat::kYolov5);
@@ -152,6 +173,8 @@ TEST(DetectorConfigTest, ValidateNamesTheBadField) {
   expect_bad([](DetectorConfig& c) { c.format = DetectorOutputFormat::kDarknet; },
              "darknet_cfg_path");
   EXPECT_EQ(ParseDetectorOutputFormat("yolov5"), DetectorOutputFormat::kYolov5);
+  EXPECT_EQ(ParseDetectorOutputFormat("yolov8"), DetectorOutputFormat::kYolov8);
+  EXPECT_EQ(ParseDetectorOutputFormat("yolo11"), DetectorOutputFormat::kYolov8);
   EXPECT_EQ(ToString(ParseDetectorOutputFormat("darknet")), "darknet");
   EXPECT_THROW(ParseDetectorOutputFormat("yolo"), InvalidInputError);
 }

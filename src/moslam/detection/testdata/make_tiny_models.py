@@ -10,6 +10,9 @@ tiny_moslam.onnx  output "grid" [1, 7, 2, 2] in the moslam grid format (detector
 tiny_yolov5.onnx  output "output" [1, 4, 7] in the yolov5 format: a zero 1x1 Conv of the
     globally averaged input, reshaped, plus the constant rows ROWS (below); the output does not
     depend on the input.
+tiny_yolov8.onnx  output "output0" [1, 6, 4] in the YOLOv8 / YOLO11 format (no objectness,
+    one column per box): built as tiny_yolov5, constant columns ROWS_V8 (below, one row per box
+    before the transpose).
 
 Run from this folder:  /usr/bin/python3 make_tiny_models.py
 """
@@ -35,6 +38,16 @@ ROWS = [
     [4.5, 4.0, 4.0, 4.0, 0.8, 0.7, 0.1],
     [2.0, 6.0, 2.0, 2.0, 0.5, 0.1, 0.8],
     [6.0, 2.0, 2.0, 2.0, 0.5, 0.4, 0.5],
+]
+
+
+# YOLOv8 boxes: cx, cy, w, h (network pixels), p0, p1 (no objectness). The scores are those of
+# ROWS (objectness x class probability), so both models detect the same boxes.
+ROWS_V8 = [
+    [4.0, 4.0, 4.0, 4.0, 0.81, 0.18],
+    [4.5, 4.0, 4.0, 4.0, 0.56, 0.08],
+    [2.0, 6.0, 2.0, 2.0, 0.05, 0.4],
+    [6.0, 2.0, 2.0, 2.0, 0.2, 0.25],
 ]
 
 
@@ -87,8 +100,30 @@ def tiny_yolov5():
     save(graph, "tiny_yolov5.onnx")
 
 
+def tiny_yolov8():
+    n = len(ROWS_V8)
+    w = np.zeros((n * (4 + C), 3, 1, 1), np.float32)
+    nodes = [
+        helper.make_node("GlobalAveragePool", ["images"], ["pooled"]),
+        helper.make_node("Conv", ["pooled", "W", "B"], ["conv"], kernel_shape=[1, 1]),
+        helper.make_node("Reshape", ["conv", "shape"], ["columns"]),
+        helper.make_node("Add", ["columns", "K"], ["output0"]),
+    ]
+    graph = helper.make_graph(
+        nodes, "tiny_yolov8",
+        [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, 8, 8])],
+        [helper.make_tensor_value_info("output0", TensorProto.FLOAT, [1, 4 + C, n])],
+        [numpy_helper.from_array(w, "W"),
+         numpy_helper.from_array(np.zeros(n * (4 + C), np.float32), "B"),
+         numpy_helper.from_array(np.array([1, 4 + C, n], np.int64), "shape"),
+         numpy_helper.from_array(np.array([ROWS_V8], np.float32).transpose(0, 2, 1).copy(),
+                                 "K")])
+    save(graph, "tiny_yolov8.onnx")
+
+
 if __name__ == "__main__":
     tiny_moslam()
     tiny_yolov5()
+    tiny_yolov8()
     with open("tiny_classes.txt", "w") as f:
         f.write("chair\ntable\n")
