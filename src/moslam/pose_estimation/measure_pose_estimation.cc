@@ -68,6 +68,7 @@ int main(int argc, char** argv) {
   app.add_option("--upright-yaws", config.upright_yaws, "upright hypotheses (0: none)");
   app.add_option("--upright-min-extent", config.upright_min_extent, "upright: min extent (m)");
   app.add_option("--coarse-distance", config.gicp_coarse_max_correspondence_distance, "m");
+  app.add_option("--feature-eps", config.feature_search_epsilon, "FLANN epsilon");
   app.add_option("--max-keypoints", config.max_segment_keypoints, "segment keypoint cap");
   app.add_option("--gicp-coarse-points", config.gicp_coarse_points, "coarse GICP points");
   app.add_option("--gicp-coarse-iterations", config.gicp_coarse_iterations, "coarse GICP its");

@@ -159,6 +159,8 @@ class MaxInlierPrerejective
  public:
   void setMinSampleDistance(float d) { min_sample_distance_sq_ = d * d; }
   void setSeed(unsigned seed) { rng_.seed(seed); }
+  // FLANN's approximation factor for the feature k-NN (0: exact).
+  void setFeatureSearchEpsilon(float eps) { feature_tree_->setEpsilon(eps); }
   // Per segment keypoint, its k nearest template features (empty if never sampled).
   const std::vector<pcl::Indices>& nearestFeatures() const { return similar_; }
 
@@ -695,6 +697,8 @@ void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl
   Eigen::Matrix4f initial = hypotheses.front();
   if (hypotheses.size() > 1) {
     const GicpSource coarse = MakeGicpSource(source, config.gicp_coarse_points);
+    // Coarse poses are ranked on at most 1000 segment points (the winner is scored on all).
+    const FeatureCloud::Ptr ranked = MakeGicpSource(source, 1000).cloud;
     double best_coarse = -1.0;
     start = -1;
     for (std::size_t h = 0; h < hypotheses.size(); ++h) {
@@ -702,7 +706,7 @@ void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl
           RunGicp(coarse, tmpl, hypotheses[h], config, config.gicp_coarse_iterations,
                   config.gicp_coarse_max_correspondence_distance);
       if (!g.ok) continue;
-      const double score = ScorePose(*source, tmpl, g.object_T_camera, config).score;
+      const double score = ScorePose(*ranked, tmpl, g.object_T_camera, config).score;
       if (score > best_coarse) {
         best_coarse = score;
         start = static_cast<int>(h);
@@ -841,6 +845,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     sac.setMaxCorrespondenceDistance(config.sac_max_correspondence_distance);
     sac.setInlierFraction(static_cast<float>(config.prerejective_inlier_fraction));
     sac.setSeed(config.seed);
+    sac.setFeatureSearchEpsilon(static_cast<float>(config.feature_search_epsilon));
     sac.align(aligned);
     nearest_features = sac.nearestFeatures();
     consensus_failed = !sac.hasConverged();
@@ -872,6 +877,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
       continue;
     }
     if (!feature_tree_ready) {
+      feature_tree.setEpsilon(static_cast<float>(config.feature_search_epsilon));
       feature_tree.setInputCloud(tmpl.features);
       feature_tree_ready = true;
     }

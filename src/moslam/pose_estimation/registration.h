@@ -29,7 +29,8 @@
 //             both clouds from their normals, I - (1 - 1e-3) n n^T), segment -> the template
 //             points whose outward normals face the camera at the initial pose (back faces
 //             removed). With several SYMMETRY HYPOTHESES (below), each is aligned coarsely
-//             (gicp_coarse_points, gicp_coarse_iterations) and scored, and the best is refined
+//             (gicp_coarse_points, gicp_coarse_iterations) and scored (on at most 1000 segment
+//             points), and the best is refined
 //             (gicp_max_source_points, gicp_max_iterations); kGicpFailed if no run converges to a
 //             finite transform;
 //   score   : the refined pose is scored (AGREEMENT RULE below);
@@ -125,6 +126,9 @@ struct RegistrationConfig {
   unsigned seed = 1;
   // SAC-IA only.
   int sac_iterations = 1000;  // 500 accepted 2/8 rendered chair views, 1000 5/8 (measured)
+  // Approximation factor of the PFHRGB nearest-neighbour search (FLANN k-d tree; 0 = exact). 1:
+  // the consensus 2.7x faster on sofas, 1.5x on chairs, the same views accepted (16 each).
+  double feature_search_epsilon = 1.0;
   // Prerejective only.
   int prerejective_iterations = 5000;
   double prerejective_similarity = 0.5;
