@@ -79,11 +79,22 @@ Gicp::MatricesVectorPtr PlaneCovariances(const FeatureCloud& cloud, double epsil
 class InlierGrid {
  public:
   InlierGrid(const FeatureCloud& target, float radius) : cell_(radius / 3.0f) {
+    if (target.empty()) return;  // nothing is an inlier
     Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
     Eigen::Vector3f hi = -lo;
     for (const auto& p : target.points) {
       lo = lo.cwiseMin(p.getVector3fMap());
       hi = hi.cwiseMax(p.getVector3fMap());
+    }
+    // A template tens of metres wide would need billions of cells: coarser cells then (the test
+    // loosens to half their diagonal), at most 2^26 of them.
+    for (;;) {
+      double cells = 1.0;
+      for (int a = 0; a < 3; ++a) {
+        cells *= std::ceil((hi[a] - lo[a] + 2.0f * (radius + cell_)) / cell_);
+      }
+      if (cells <= static_cast<double>(1 << 26)) break;
+      cell_ *= 2.0f;
     }
     origin_ = lo - Eigen::Vector3f::Constant(radius + cell_);
     for (int a = 0; a < 3; ++a) {
@@ -110,6 +121,7 @@ class InlierGrid {
   }
 
   int count(const FeatureCloud& source, const Eigen::Matrix4f& T) const {
+    if (marked_.empty()) return 0;
     const Eigen::Matrix3f R = T.topLeftCorner<3, 3>();
     const Eigen::Vector3f t = T.topRightCorner<3, 1>();
     int n = 0;
@@ -132,7 +144,7 @@ class InlierGrid {
   }
 
   float cell_;
-  Eigen::Vector3f origin_;
+  Eigen::Vector3f origin_ = Eigen::Vector3f::Zero();
   int size_[3] = {0, 0, 0};
   std::vector<unsigned char> marked_;
 };
@@ -396,9 +408,10 @@ namespace {
 void CheckInputs(const ObjectTemplate& tmpl, const RegistrationConfig& config) {
   config.validate();
   if (!tmpl.cloud || !tmpl.keypoints || !tmpl.features || tmpl.cloud->empty() ||
-      tmpl.keypoints->size() != tmpl.features->size()) {
+      tmpl.keypoints->empty() || tmpl.keypoints->size() != tmpl.features->size()) {
     throw InvalidInputError("RegisterTemplate: template '" + tmpl.label +
-                            "' is empty or its features do not match its keypoints");
+                            "' is empty (no points or keypoints) or its features do not match "
+                            "its keypoints");
   }
   if (!(tmpl.config == config.features)) {
     throw InvalidInputError("RegisterTemplate: template '" + tmpl.label +

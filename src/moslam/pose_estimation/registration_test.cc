@@ -276,6 +276,11 @@ TEST(Registration, ConfigValidationNamesTheField) {
   c = {};
   c.features.feature_radius = 0.06;
   EXPECT_THROW(RegisterTemplate(OrganizedCloud{}, TestTemplate(), c), InvalidInputError);
+  // So is a template without keypoints (nothing to match; the inlier grid would be empty).
+  ObjectTemplate hollow = TestTemplate();
+  hollow.keypoints = std::make_shared<FeatureCloud>();
+  hollow.features = std::make_shared<PfhrgbCloud>();
+  EXPECT_THROW(RegisterTemplate(OrganizedCloud{}, hollow, RegistrationConfig{}), InvalidInputError);
 }
 
 TEST(Registration, MeasurementInBodyFrame) {
