@@ -144,7 +144,7 @@ const ObjectTemplate* ObjectPerception::findTemplate(const std::string& label) {
       if (made) {
         ++templates_from_cache_;
       } else {
-        if (why_not.find(": no entry") == std::string::npos) template_notes_.push_back(why_not);
+        if (!why_not.empty()) template_notes_.push_back(why_not);
         made = build();
         try {
           cache.store(*made, key);

@@ -246,9 +246,12 @@ std::optional<ObjectTemplate> TemplateCache::load(const std::string& label,
                                                   const FeatureConfig& config,
                                                   std::string* why_not) const {
   const std::string file = path(label, fingerprint);
+  if (why_not) why_not->clear();
+  std::error_code ec;
+  if (!std::filesystem::exists(file, ec)) return std::nullopt;
   std::ifstream in(file, std::ios::binary);
   if (!in) {
-    if (why_not) *why_not = file + ": no entry";
+    if (why_not) *why_not = file + ": cannot be opened";
     return std::nullopt;
   }
   in.seekg(0, std::ios::end);

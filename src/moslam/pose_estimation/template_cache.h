@@ -54,7 +54,8 @@ class TemplateCache {
   // `dir` is created on the first store(). Throws InvalidInputError if dir is empty.
   explicit TemplateCache(std::string dir);
 
-  // The cached template, or nullopt (no entry, or an unusable one: `why_not` says which).
+  // The cached template, or nullopt: no entry (`why_not` left empty), or an unusable one
+  // (`why_not` says why: damaged, stale, unreadable).
   std::optional<ObjectTemplate> load(const std::string& label, std::uint64_t fingerprint,
                                      const FeatureConfig& config,
                                      std::string* why_not = nullptr) const;

@@ -101,8 +101,9 @@ TEST(TemplateCache, StoresLoadsAndReportsUnusableEntries) {
   std::filesystem::remove_all(dir);
   const TemplateCache cache((dir / "nested").string());
   std::string why;
+  why = "stale";
   EXPECT_FALSE(cache.load("test_chair", b.key, {}, &why));
-  EXPECT_NE(why.find("no entry"), std::string::npos) << why;
+  EXPECT_TRUE(why.empty()) << why;  // no entry is not a problem to report
   cache.store(b.tmpl, b.key);
   const auto loaded = cache.load("test_chair", b.key, {}, &why);
   ASSERT_TRUE(loaded) << why;
