@@ -56,8 +56,8 @@
 // segment's principal horizontal axis and its turns by 360 / upright_yaws degrees, translated so
 // that the template points facing the camera are centred on the segment. They go through the same
 // coarse GICP, score and gates (the 12-inlier gate counted at the refined pose); when the
-// consensus finds no pose, they are the only hypotheses (the prerejective consensus then no
-// longer ends the registration with kTooFewInliers).
+// consensus finds no pose, they are the only hypotheses (indices 0 .. upright_yaws - 1; the
+// prerejective consensus then no longer ends the registration with kTooFewInliers).
 //
 // Agreement rule (RegistrationResult::score, geometric_agreement, colour_agreement): with the
 // segment points y_i mapped into the object frame by the pose and T the template points facing
@@ -194,7 +194,7 @@ struct RegistrationResult {
   RegistrationStatus status = RegistrationStatus::kTooFewPoints;
   SE3 camera_T_object;            // valid if kAccepted (the consensus estimate if kGicpFailed or
                                   // kTooFewInliers, the rejected best pose if k*Mismatch)
-  SE3 sac_camera_T_object;        // the consensus estimate (diagnostics)
+  SE3 sac_camera_T_object;        // the consensus estimate (diagnostics; identity if none)
   int segment_points = 0;         // after voxelling (voxel_size), with a normal
   int segment_keypoints = 0;      // with a finite PFHRGB descriptor
   int correspondences = 0;        // feature correspondences examined by the gate
