@@ -49,6 +49,25 @@ bool FiniteFeature(const pcl::PFHRGBSignature250& f) {
   return true;
 }
 
+// At most `max_points` of `cloud`, evenly strided (the cloud itself when it is small enough or
+// max_points is 0).
+FeatureCloud::Ptr Subsample(const FeatureCloud::Ptr& cloud, int max_points) {
+  const std::size_t n = cloud->size();
+  if (max_points <= 0 || n <= static_cast<std::size_t>(max_points)) return cloud;
+  const auto cap = static_cast<std::size_t>(max_points);
+  auto out = std::make_shared<FeatureCloud>();
+  out->reserve(cap);
+  for (std::size_t j = 0; j < cap; ++j) out->push_back((*cloud)[j * n / cap]);
+  return out;
+}
+
+// Mean of the points (zero for an empty cloud).
+Eigen::Vector3f Centroid(const FeatureCloud& cloud) {
+  Eigen::Vector3f c = Eigen::Vector3f::Zero();
+  for (const auto& p : cloud.points) c += p.getVector3fMap();
+  return c / static_cast<float>(std::max<std::size_t>(1, cloud.size()));
+}
+
 SE3 ToSE3(const Eigen::Matrix4f& T) {
   const Eigen::Matrix4d M = T.cast<double>();
   return SE3(SO3::FromMatrixNormalized(M.topLeftCorner<3, 3>()), M.topRightCorner<3, 1>());
@@ -480,14 +499,7 @@ struct GicpSource {
 
 GicpSource MakeGicpSource(const FeatureCloud::Ptr& source, int max_points) {
   GicpSource out;
-  out.cloud = source;
-  const std::size_t n = source->size();
-  if (max_points > 0 && n > static_cast<std::size_t>(max_points)) {
-    const auto cap = static_cast<std::size_t>(max_points);
-    out.cloud = std::make_shared<FeatureCloud>();
-    out.cloud->reserve(cap);
-    for (std::size_t j = 0; j < cap; ++j) out.cloud->push_back((*source)[j * n / cap]);
-  }
+  out.cloud = Subsample(source, max_points);
   out.covariances = PlaneCovariances(*out.cloud);
   return out;
 }
@@ -571,9 +583,7 @@ std::vector<Eigen::Matrix4f> Hypotheses(const FeatureCloud& source, const Object
                                         const Eigen::Matrix4f& initial,
                                         const RegistrationConfig& config) {
   std::vector<Eigen::Matrix4f> out{initial};
-  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
-  for (const auto& p : source.points) centroid += p.getVector3fMap();
-  centroid /= static_cast<float>(std::max<std::size_t>(1, source.size()));
+  const Eigen::Vector3f centroid = Centroid(source);
   const Eigen::Vector3f horizontal(1.0f, 1.0f, 0.0f);
   const Eigen::Vector3f c = (Eigen::Affine3f(initial) * centroid).cwiseProduct(horizontal);
   for (int j = 1; j < config.symmetry_turns; ++j) {
@@ -586,10 +596,7 @@ std::vector<Eigen::Matrix4f> Hypotheses(const FeatureCloud& source, const Object
       out.push_back(turn * initial);
     }
     Eigen::Matrix4f recentred = out.back();
-    const FeatureCloud::Ptr front = FrontFaces(tmpl, recentred, config);
-    Eigen::Vector3f front_centroid = Eigen::Vector3f::Zero();
-    for (const auto& q : front->points) front_centroid += q.getVector3fMap();
-    front_centroid /= static_cast<float>(std::max<std::size_t>(1, front->size()));
+    const Eigen::Vector3f front_centroid = Centroid(*FrontFaces(tmpl, recentred, config));
     recentred.topRightCorner<3, 1>() += (front_centroid - c).cwiseProduct(horizontal);
     out.push_back(recentred);
   }
@@ -606,14 +613,12 @@ std::vector<Eigen::Matrix4f> UprightHypotheses(const FeatureCloud& source,
   std::vector<Eigen::Matrix4f> out;
   if (config.upright_yaws <= 0 || source.empty()) return out;
   Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
-  Eigen::Vector3f template_centroid = Eigen::Vector3f::Zero();
   for (const auto& q : tmpl.cloud->points) {
     lo = lo.cwiseMin(q.getVector3fMap());
     hi = hi.cwiseMax(q.getVector3fMap());
-    template_centroid += q.getVector3fMap();
   }
-  template_centroid /= static_cast<float>(tmpl.cloud->size());
   if (std::max(hi.x() - lo.x(), hi.y() - lo.y()) < config.upright_min_extent) return out;
+  const Eigen::Vector3f template_centroid = Centroid(*tmpl.cloud);
   // Level frame in the camera frame: z up, x the camera's forward axis made horizontal.
   const Eigen::Vector3f up = config.camera_up.cast<float>().normalized();
   Eigen::Vector3f forward = Eigen::Vector3f::UnitZ() - up * up.z();
@@ -621,9 +626,7 @@ std::vector<Eigen::Matrix4f> UprightHypotheses(const FeatureCloud& source,
   forward.normalize();
   Eigen::Matrix3f level;  // columns: the level frame's axes in the camera frame
   level << forward, up.cross(forward), up;
-  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
-  for (const auto& p : source.points) centroid += p.getVector3fMap();
-  centroid /= static_cast<float>(source.size());
+  const Eigen::Vector3f centroid = Centroid(source);
   Eigen::Matrix2f scatter = Eigen::Matrix2f::Zero();
   for (const auto& p : source.points) {
     const Eigen::Vector2f h = (level.transpose() * (p.getVector3fMap() - centroid)).head<2>();
@@ -643,11 +646,8 @@ std::vector<Eigen::Matrix4f> UprightHypotheses(const FeatureCloud& source,
     // depends on where the object is).
     for (int pass = 0; pass < 2; ++pass) {
       const Eigen::Matrix4f object_T_camera = camera_T_object.inverse();
-      const FeatureCloud::Ptr front = FrontFaces(tmpl, object_T_camera, config);
-      Eigen::Vector3f c = Eigen::Vector3f::Zero();
-      for (const auto& q : front->points) c += q.getVector3fMap();
-      c /= static_cast<float>(std::max<std::size_t>(1, front->size()));
-      camera_T_object.topRightCorner<3, 1>() = centroid - R * c;
+      camera_T_object.topRightCorner<3, 1>() =
+          centroid - R * Centroid(*FrontFaces(tmpl, object_T_camera, config));
     }
     out.push_back(camera_T_object.inverse());
   }
@@ -711,7 +711,7 @@ void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl
   if (hypotheses.size() > 1) {
     const GicpSource coarse = MakeGicpSource(source, config.gicp_coarse_points);
     // Coarse poses are ranked on at most 1000 segment points (the winner is scored on all).
-    const FeatureCloud::Ptr ranked = MakeGicpSource(source, 1000).cloud;
+    const FeatureCloud::Ptr ranked = Subsample(source, 1000);
     double best_coarse = -1.0;
     start = -1;
     for (std::size_t h = 0; h < hypotheses.size(); ++h) {
@@ -803,14 +803,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   }
   FeatureCloud::Ptr source_keypoints =
       pose_detail::Keypoints(*source, config.features.keypoint_voxel);
-  if (config.max_segment_keypoints > 0 &&
-      source_keypoints->size() > static_cast<std::size_t>(config.max_segment_keypoints)) {
-    const std::size_t n = source_keypoints->size();
-    const auto cap = static_cast<std::size_t>(config.max_segment_keypoints);
-    auto strided = std::make_shared<FeatureCloud>();
-    for (std::size_t j = 0; j < cap; ++j) strided->push_back((*source_keypoints)[j * n / cap]);
-    source_keypoints = strided;
-  }
+  source_keypoints = Subsample(source_keypoints, config.max_segment_keypoints);
   PfhrgbCloud::Ptr source_features = pose_detail::ComputePfhrgb(
       source, source_keypoints, config.features.feature_radius);
   result.segment_points = static_cast<int>(source->size());
