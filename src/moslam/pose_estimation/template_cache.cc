@@ -17,11 +17,6 @@ namespace {
 constexpr char kMagic[8] = {'M', 'O', 'S', 'L', 'T', 'P', 'L', '1'};
 constexpr std::size_t kHistogram = 250;  // pcl::PFHRGBSignature250
 constexpr std::size_t kPointBytes = 6 * sizeof(float) + sizeof(std::uint32_t);
-constexpr std::uint64_t kFnvPrime = 1099511628211ull;
-
-std::uint64_t Fnv(const void* data, std::size_t n, std::uint64_t h = kFnvOffset) {
-  return Fnv1a64(data, n, h);
-}
 
 class Writer {
  public:
@@ -119,19 +114,10 @@ std::string SafeLabel(const std::string& label) {
 
 }  // namespace
 
-std::uint64_t Fnv1a64(const void* data, std::size_t n, std::uint64_t state) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (std::size_t i = 0; i < n; ++i) {
-    state ^= p[i];
-    state *= kFnvPrime;
-  }
-  return state;
-}
-
 std::uint64_t CloudDigest(const FeatureCloud& cloud) {
   Writer w;
   for (const FeaturePoint& p : cloud.points) w.point(p);
-  return Fnv(w.str().data(), w.str().size());
+  return Fnv1a64(w.str().data(), w.str().size());
 }
 
 std::uint64_t TemplateFingerprint(const std::string& label, std::uint64_t source_digest,
@@ -145,7 +131,7 @@ std::uint64_t TemplateFingerprint(const std::string& label, std::uint64_t source
   w.put(config.normal_radius);
   w.put(config.feature_radius);
   w.put(config.keypoint_voxel);
-  return Fnv(w.str().data(), w.str().size());
+  return Fnv1a64(w.str().data(), w.str().size());
 }
 
 std::string EncodeTemplate(const ObjectTemplate& tmpl, std::uint64_t fingerprint) {
@@ -167,7 +153,7 @@ std::string EncodeTemplate(const ObjectTemplate& tmpl, std::uint64_t fingerprint
   w.put(static_cast<std::uint32_t>(tmpl.keypoints->size()));
   for (const FeaturePoint& p : tmpl.keypoints->points) w.point(p);
   for (const auto& f : tmpl.features->points) w.bytes(f.histogram, sizeof(f.histogram));
-  const std::uint64_t checksum = Fnv(w.str().data(), w.str().size());
+  const std::uint64_t checksum = Fnv1a64(w.str().data(), w.str().size());
   w.put(checksum);
   return std::move(w.str());
 }
@@ -180,7 +166,7 @@ ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
   const std::size_t body = bytes.size() - sizeof(std::uint64_t);
   std::uint64_t stored = 0;
   std::memcpy(&stored, bytes.data() + body, sizeof(stored));
-  if (Fnv(bytes.data(), body) != stored) {
+  if (Fnv1a64(bytes.data(), body) != stored) {
     throw InvalidInputError("template cache: checksum mismatch (damaged or partly written)");
   }
   Reader r(bytes.substr(0, body));

@@ -27,13 +27,10 @@
 #include <string>
 #include <string_view>
 
+#include "moslam/common/fnv.h"
 #include "moslam/pose_estimation/object_template.h"
 
 namespace moslam {
-
-// FNV-1a 64 of `n` bytes, continuing from `state` (chain calls to digest several buffers).
-constexpr std::uint64_t kFnvOffset = 1469598103934665603ull;
-std::uint64_t Fnv1a64(const void* data, std::size_t n, std::uint64_t state = kFnvOffset);
 
 // Digest of a cloud's points (x y z, normal, rgba, in order).
 std::uint64_t CloudDigest(const FeatureCloud& cloud);

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/fnv.h"
 #include "moslam/geometry/se3.h"
 #include "moslam/graph/key.h"
 
@@ -72,10 +73,7 @@ class RecordReader {
 // FNV-1a over what a run depends on: a journal is only replayed by the run that wrote it.
 class Fingerprint {
  public:
-  void add(const void* data, std::size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (std::size_t i = 0; i < n; ++i) h_ = (h_ ^ p[i]) * 1099511628211ull;
-  }
+  void add(const void* data, std::size_t n) { h_ = Fnv1a64(data, n, h_); }
   void add(double v) { add(&v, sizeof v); }
   void add(std::uint64_t v) { add(&v, sizeof v); }
   void add(const std::string& s) {
@@ -98,7 +96,7 @@ class Fingerprint {
   std::uint64_t value() const { return h_; }
 
  private:
-  std::uint64_t h_ = 1469598103934665603ull;
+  std::uint64_t h_ = kFnvOffset;
 };
 
 }  // namespace moslam::transport_detail
