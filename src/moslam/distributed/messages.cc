@@ -114,6 +114,19 @@ class Reader {
   std::size_t pos_ = 0;
 };
 
+// The first two bytes of every message: its magic byte and the protocol version. Throws
+// "<message>: bad magic byte (not <noun>)" or "<message>: unsupported version V".
+void ReadMagicAndVersion(Reader& r, std::uint8_t magic, const std::string& message,
+                         const std::string& noun) {
+  if (r.u8("magic") != magic) {
+    throw InvalidInputError(message + ": bad magic byte (not " + noun + ")");
+  }
+  const std::uint8_t version = r.u8("version");
+  if (version != kMessageVersion) {
+    throw InvalidInputError(message + ": unsupported version " + std::to_string(version));
+  }
+}
+
 std::uint64_t PackKey(const Key& key) {
   return (key.index << 1) | static_cast<std::uint64_t>(key.kind);
 }
@@ -170,13 +183,7 @@ Message DecodeMessage(const std::vector<std::uint8_t>& bytes) {
   Reader r(bytes);
   r.need(kMessageHeaderBytes, "header");
   Message m;
-  if (r.u8("magic") != kMessageMagic) {
-    throw InvalidInputError("DGS message: bad magic byte (not a DGS message)");
-  }
-  const std::uint8_t version = r.u8("version");
-  if (version != kMessageVersion) {
-    throw InvalidInputError("DGS message: unsupported version " + std::to_string(version));
-  }
+  ReadMagicAndVersion(r, kMessageMagic, "DGS message", "a DGS message");
   const std::uint8_t stage = r.u8("stage");
   if (!ValidStage(stage)) {
     throw InvalidInputError("DGS message: unknown stage " + std::to_string(stage));
@@ -284,13 +291,7 @@ ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes) {
                             " bytes, expected " + std::to_string(kControlMessageBytes));
   }
   Reader r(bytes);
-  if (r.u8("magic") != kControlMagic) {
-    throw InvalidInputError("DGS control message: bad magic byte (not a control message)");
-  }
-  const std::uint8_t version = r.u8("version");
-  if (version != kMessageVersion) {
-    throw InvalidInputError("DGS control message: unsupported version " + std::to_string(version));
-  }
+  ReadMagicAndVersion(r, kControlMagic, "DGS control message", "a control message");
   ControlMessage m;
   const std::uint8_t kind = r.u8("kind");
   if (!ValidControlKind(kind)) {
@@ -421,13 +422,7 @@ std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& m) {
 
 CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
   Reader r(bytes);
-  if (r.u8("magic") != kCoarseMagic) {
-    throw InvalidInputError("DGS coarse message: bad magic byte (not a coarse message)");
-  }
-  const std::uint8_t version = r.u8("version");
-  if (version != kMessageVersion) {
-    throw InvalidInputError("DGS coarse message: unsupported version " + std::to_string(version));
-  }
+  ReadMagicAndVersion(r, kCoarseMagic, "DGS coarse message", "a coarse message");
   CoarseMessage m;
   const std::uint8_t stage = r.u8("stage");
   if (stage < static_cast<std::uint8_t>(DgsStage::kRotation) ||
@@ -537,13 +532,7 @@ std::vector<std::uint8_t> EncodeWeightMessage(const WeightMessage& m) {
 
 WeightMessage DecodeWeightMessage(const std::vector<std::uint8_t>& bytes) {
   Reader r(bytes);
-  if (r.u8("magic") != kWeightMagic) {
-    throw InvalidInputError("DGS weight message: bad magic byte (not a weight message)");
-  }
-  const std::uint8_t version = r.u8("version");
-  if (version != kMessageVersion) {
-    throw InvalidInputError("DGS weight message: unsupported version " + std::to_string(version));
-  }
+  ReadMagicAndVersion(r, kWeightMagic, "DGS weight message", "a weight message");
   WeightMessage m;
   m.sender = r.u16("sender");
   m.receiver = r.u16("receiver");
@@ -613,9 +602,7 @@ CovarianceMessage DecodeCovarianceMessage(const std::vector<std::uint8_t>& bytes
   auto bad = [](const std::string& what) {
     throw InvalidInputError("DGS covariance message: " + what);
   };
-  if (r.u8("magic") != kCovarianceMagic) bad("bad magic byte (not a covariance message)");
-  const std::uint8_t version = r.u8("version");
-  if (version != kMessageVersion) bad("unsupported version " + std::to_string(version));
+  ReadMagicAndVersion(r, kCovarianceMagic, "DGS covariance message", "a covariance message");
   CovarianceMessage m;
   m.sender = r.u16("sender");
   m.receiver = r.u16("receiver");
