@@ -92,12 +92,7 @@ nlohmann::json PoseJson(const SE3& x) {
   return {{"t", {t.x(), t.y(), t.z()}}, {"q_xyzw", {q[1], q[2], q[3], q[0]}}};
 }
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+double Median(std::vector<double> v) { return Percentile(std::move(v), 0.5); }
 
 nlohmann::json Number(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);

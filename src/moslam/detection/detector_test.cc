@@ -102,13 +102,17 @@ TEST(DetectorMoslam, BoxesAreInInputImagePixels) {
   EXPECT_TRUE(detector.detect(cv::Mat::zeros(8, 8, CV_8UC3)).empty());
 }
 
-TEST(DetectorYolov5, DecodesRowsThresholdsAndNms) {
-  Detector detector(TinyConfig(DetectorOutputFormat::kYolov5));
-  const auto d = detector.detect(Quadrants(1));
-  // Row 1 (0.56, IoU 0.78 with row 0) suppressed; row 3 scores 0.25 < 0.3.
+// The detections of the tiny yolov5 and yolov8 fixtures (make_tiny_models.py): box 1 (0.56, IoU
+// 0.78 with box 0) suppressed; box 3 scores 0.25 < 0.3.
+void ExpectFixtureBoxes(const std::vector<Detection>& d) {
   ASSERT_EQ(d.size(), 2u);
   ExpectDetection(d[0], 0, "chair", 0.81f, {2, 2, 4, 4});
   ExpectDetection(d[1], 1, "table", 0.4f, {1, 5, 2, 2});
+}
+
+TEST(DetectorYolov5, DecodesRowsThresholdsAndNms) {
+  Detector detector(TinyConfig(DetectorOutputFormat::kYolov5));
+  ExpectFixtureBoxes(detector.detect(Quadrants(1)));
 }
 
 // YOLOv8 / YOLO11 exports: [1, 4 + C, N], one column per box, no objectness; the fixture holds
@@ -116,11 +120,7 @@ TEST(DetectorYolov5, DecodesRowsThresholdsAndNms) {
 // give the same detections.
 TEST(DetectorYolov8, DecodesColumnsWithoutObjectness) {
   Detector detector(TinyConfig(DetectorOutputFormat::kYolov8));
-  const auto d = detector.detect(Quadrants(1));
-  // Column 1 (0.56, IoU 0.78 with column 0) suppressed; column 3's best class scores 0.25.
-  ASSERT_EQ(d.size(), 2u);
-  ExpectDetection(d[0], 0, "chair", 0.81f, {2, 2, 4, 4});
-  ExpectDetection(d[1], 1, "table", 0.4f, {1, 5, 2, 2});
+  ExpectFixtureBoxes(detector.detect(Quadrants(1)));
   // The same file read as yolov5 rows does not fit: a typed error naming the expected shape.
   DetectorConfig rows = TinyConfig(DetectorOutputFormat::kYolov8);
   rows.format = DetectorOutputFormat::kYolov5;

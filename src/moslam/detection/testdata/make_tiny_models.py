@@ -80,45 +80,36 @@ def tiny_moslam():
     save(graph, "tiny_moslam.onnx")
 
 
-def tiny_yolov5():
-    n = len(ROWS)
-    w = np.zeros((n * (5 + C), 3, 1, 1), np.float32)
+def constant_output(name, reshaped, output, values, path):
+    """A model whose output `output` is the constant array `values` (shape [1, ...]): a zero 1x1
+    Conv of the globally averaged input, reshaped (tensor `reshaped`), plus the constant."""
+    k = np.asarray(values, np.float32)
+    size = int(k.size)
+    w = np.zeros((size, 3, 1, 1), np.float32)
     nodes = [
         helper.make_node("GlobalAveragePool", ["images"], ["pooled"]),
         helper.make_node("Conv", ["pooled", "W", "B"], ["conv"], kernel_shape=[1, 1]),
-        helper.make_node("Reshape", ["conv", "shape"], ["rows"]),
-        helper.make_node("Add", ["rows", "K"], ["output"]),
+        helper.make_node("Reshape", ["conv", "shape"], [reshaped]),
+        helper.make_node("Add", [reshaped, "K"], [output]),
     ]
     graph = helper.make_graph(
-        nodes, "tiny_yolov5",
+        nodes, name,
         [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, 8, 8])],
-        [helper.make_tensor_value_info("output", TensorProto.FLOAT, [1, n, 5 + C])],
+        [helper.make_tensor_value_info(output, TensorProto.FLOAT, list(k.shape))],
         [numpy_helper.from_array(w, "W"),
-         numpy_helper.from_array(np.zeros(n * (5 + C), np.float32), "B"),
-         numpy_helper.from_array(np.array([1, n, 5 + C], np.int64), "shape"),
-         numpy_helper.from_array(np.array([ROWS], np.float32), "K")])
-    save(graph, "tiny_yolov5.onnx")
+         numpy_helper.from_array(np.zeros(size, np.float32), "B"),
+         numpy_helper.from_array(np.array(k.shape, np.int64), "shape"),
+         numpy_helper.from_array(k, "K")])
+    save(graph, path)
+
+
+def tiny_yolov5():
+    constant_output("tiny_yolov5", "rows", "output", [ROWS], "tiny_yolov5.onnx")
 
 
 def tiny_yolov8():
-    n = len(ROWS_V8)
-    w = np.zeros((n * (4 + C), 3, 1, 1), np.float32)
-    nodes = [
-        helper.make_node("GlobalAveragePool", ["images"], ["pooled"]),
-        helper.make_node("Conv", ["pooled", "W", "B"], ["conv"], kernel_shape=[1, 1]),
-        helper.make_node("Reshape", ["conv", "shape"], ["columns"]),
-        helper.make_node("Add", ["columns", "K"], ["output0"]),
-    ]
-    graph = helper.make_graph(
-        nodes, "tiny_yolov8",
-        [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, 8, 8])],
-        [helper.make_tensor_value_info("output0", TensorProto.FLOAT, [1, 4 + C, n])],
-        [numpy_helper.from_array(w, "W"),
-         numpy_helper.from_array(np.zeros(n * (4 + C), np.float32), "B"),
-         numpy_helper.from_array(np.array([1, 4 + C, n], np.int64), "shape"),
-         numpy_helper.from_array(np.array([ROWS_V8], np.float32).transpose(0, 2, 1).copy(),
-                                 "K")])
-    save(graph, "tiny_yolov8.onnx")
+    constant_output("tiny_yolov8", "columns", "output0",
+                    np.array([ROWS_V8], np.float32).transpose(0, 2, 1).copy(), "tiny_yolov8.onnx")
 
 
 if __name__ == "__main__":
