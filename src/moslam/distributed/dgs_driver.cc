@@ -382,6 +382,9 @@ bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStat
     robots.push_back(r);
   }
   if (robots.empty()) return false;
+  // The coarse unknowns in robot id order: the order every robot of a network team assembles
+  // them in (robot_program.h), so both reach the same numbers.
+  std::sort(robots.begin(), robots.end());
   const int k = stage == DgsStage::kRotation ? 3 : 6;
   const int ncols = stage == DgsStage::kRotation ? 3 : 1;
   CoarseSystem coarse(robots, k);
@@ -580,6 +583,7 @@ std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsStage stage,
     robots.push_back(r);
   }
   if (robots.empty()) return nullptr;
+  std::sort(robots.begin(), robots.end());  // robot id order, as coarseCorrection()
   auto coarse = std::make_unique<CoarseSystem>(robots, 6);
   const int c = coordinator();
   for (int r : robots) {

@@ -1,0 +1,428 @@
+#include "moslam/distributed/robot_program.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <utility>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/coarse_system.h"
+
+namespace moslam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+class Program {
+ public:
+  Program(RobotAgent& agent, const DgsOptions& options, TeamChannel& channel)
+      : agent_(agent), options_(options), channel_(channel) {}
+
+  RobotProgramResult run() {
+    runStage(DgsStage::kRotation, result_.rotation);
+    runStage(DgsStage::kPose, result_.pose);
+    agent_.finish();
+    if (options_.refine) runRefinement();
+    return result_;
+  }
+
+ private:
+  // One channel step; the estimates received are delivered to the agent.
+  TeamStep step(DgsStage stage, bool send, TeamReport report,
+                const CoarseMessage* share = nullptr) {
+    std::vector<OutgoingMessage> out;
+    if (send) out = agent_.outgoing();
+    report.sent = !out.empty();
+    report.has_share = share != nullptr;
+    TeamStep got = channel_.step(stage, out, report, share);
+    ++result_.channel_steps;
+    for (const Message& m : got.estimates) agent_.receive(m);
+    return got;
+  }
+
+  TeamReport progressReport() const {
+    TeamReport r;
+    r.initialised = agent_.initialised();
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    r.change = r.initialised ? agent_.lastChange() : kInf;
+    r.bound = r.initialised ? agent_.errorBound(options_.error_bound_window) : kInf;
+    return r;
+  }
+
+  // The team's sum (robot id order, as DgsDriver::gather) or maximum of value[i].
+  static double Sum(const TeamStep& s, int i) {
+    double total = 0.0;
+    for (const auto& [r, report] : s.reports) total += report.value[i];
+    return total;
+  }
+  static double Max(const TeamStep& s, int i) {
+    double m = 0.0;
+    for (const auto& [r, report] : s.reports) m = std::max(m, report.value[i]);
+    return m;
+  }
+  static bool AllCoarseReady(const TeamStep& s) {
+    for (const auto& [r, report] : s.reports) {
+      if (!report.coarse_ready || !report.has_share) return false;
+    }
+    return !s.reports.empty();
+  }
+
+  // The coarse system of the robots that shared (id order), factorized; null when some live robot
+  // could not take part or the matrix is not positive definite (every robot decides alike).
+  static std::unique_ptr<CoarseSystem> Assemble(const TeamStep& s, int k, Eigen::MatrixXd* B,
+                                                int ncols) {
+    if (!AllCoarseReady(s)) return nullptr;
+    std::vector<int> robots;
+    for (const auto& [r, share] : s.shares) robots.push_back(r);
+    auto coarse = std::make_unique<CoarseSystem>(robots, k);
+    if (B) *B = Eigen::MatrixXd(coarse->rows(), ncols);
+    for (const auto& [r, share] : s.shares) {
+      const Eigen::MatrixXd residual = coarse->addShare(share);
+      if (B) B->middleRows(coarse->index(r), k) = residual;
+    }
+    if (!coarse->factorize()) return nullptr;
+    return coarse;
+  }
+
+  std::map<int, Eigen::MatrixXd> MySolution(const CoarseSystem& coarse, const Eigen::MatrixXd& Y,
+                                            DgsStage stage, std::uint32_t iteration, int k,
+                                            int ncols) const {
+    const CoarseMessage m = coarse.solutionFor(agent_.robot(), agent_.neighbourRobots(), Y, stage,
+                                               agent_.robot(), iteration);
+    std::map<int, Eigen::MatrixXd> y;
+    for (const auto& [s, block] : m.blocks) y[s] = UnflattenMatrix(block, k, ncols);
+    return y;
+  }
+
+  // ---- stages 1 and 2 -------------------------------------------------------------------
+  void runStage(DgsStage stage, DgsStageReport& report) {
+    const double eta = stage == DgsStage::kRotation ? options_.eta_rotation : options_.eta_pose;
+    if (stage == DgsStage::kRotation) {
+      agent_.startRotation();
+    } else {
+      agent_.startPose();
+    }
+    const bool by_cg = stage == DgsStage::kPose &&
+                       options_.pose_solver == DgsOptions::PoseSolver::kConjugateGradient;
+    if (!options_.flagged_initialisation || by_cg) {
+      step(stage, true, TeamReport());  // the initial estimates
+    }
+    if (by_cg) {
+      runPoseByConjugateGradients(report);
+      return;
+    }
+    report.status = StageStatus::kMaxIterations;
+    for (int it = 1; it <= options_.max_iterations; ++it) {
+      const bool solved = agent_.iterate();
+      TeamReport mine = progressReport();
+      mine.coarse_ready = options_.coarse_correction && agent_.coarseReady(channel_.absent());
+      const TeamStep got = step(stage, solved, mine);
+      bool converged = true;
+      double max_change = 0.0, max_bound = 0.0;
+      for (const auto& [r, rep] : got.reports) {
+        const double measure = options_.stopping == StageStopping::kChange ? rep.change : rep.bound;
+        max_change = std::max(max_change, rep.change);
+        max_bound = std::max(max_bound, rep.bound);
+        converged = converged && rep.initialised && measure <= eta;
+      }
+      bool all_ready = !got.reports.empty();
+      for (const auto& [r, rep] : got.reports) all_ready = all_ready && rep.coarse_ready;
+      if (!converged && options_.coarse_correction && all_ready) {
+        if (coarseCorrection(stage, it)) ++report.coarse_corrections;
+      }
+      report.iterations = it;
+      report.final_change = max_change;
+      report.final_error_bound = max_bound;
+      if (converged) {
+        report.status = StageStatus::kConverged;
+        break;
+      }
+    }
+  }
+
+  bool coarseCorrection(DgsStage stage, int iteration) {
+    const int k = stage == DgsStage::kRotation ? 3 : 6;
+    const int ncols = stage == DgsStage::kRotation ? 3 : 1;
+    const CoarseShare share = agent_.coarseShare();
+    CoarseMessage m;
+    m.kind = CoarseKind::kShare;
+    m.stage = stage;
+    m.sender = agent_.robot();
+    m.iteration = static_cast<std::uint32_t>(iteration);
+    m.k = k;
+    m.ncols = ncols;
+    if (stage == DgsStage::kPose) m.center = FlattenMatrix(share.center);
+    m.diagonal = FlattenMatrix(share.diagonal);
+    m.residual = FlattenMatrix(share.residual);
+    for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+    TeamReport mine;
+    mine.coarse_ready = true;
+    const TeamStep got = step(stage, false, mine, &m);
+    Eigen::MatrixXd B, Y;
+    const auto coarse = Assemble(got, k, &B, ncols);
+    if (!coarse || !coarse->solve(B, &Y)) return false;
+    agent_.applyCoarse(MySolution(*coarse, Y, stage, static_cast<std::uint32_t>(iteration), k,
+                                  ncols));
+    return true;
+  }
+
+  // ---- conjugate gradients (pose stage, refinement steps) -----------------------------------
+  struct CgGoal {
+    double tolerance = 0.0;
+    double eta_change = 0.0;
+    int max_sweeps = 1000;
+  };
+  struct CgOutcome {
+    int sweeps = 0;
+    bool converged = false;
+  };
+
+  CgOutcome solveByConjugateGradients(DgsStage stage, const CgGoal& goal) {
+    const DgsOptions::Refinement& opt = options_.refinement;
+    CgOutcome outcome;
+    int& sweeps = outcome.sweeps;
+    std::unique_ptr<CoarseSystem> coarse;
+    bool coarse_tried = false;
+    auto precondition = [&]() {
+      agent_.startPreconditioner();
+      if (opt.preconditioner == RefinePreconditioner::kTwoLevel && !coarse_tried) {
+        coarse_tried = true;
+        coarse = coarseMatrix(stage, static_cast<std::uint32_t>(sweeps));
+      }
+      const int passes = coarse ? 2 : 1;  // Jacobi: one sweep, or two around the correction
+      for (int pass = 0; pass < passes; ++pass) {
+        const bool solved = agent_.iterate();
+        step(stage, solved, progressReport());
+        ++sweeps;
+        if (pass == 0 && coarse) coarseResidualCorrection(stage, *coarse, sweeps);
+      }
+    };
+    auto reduce = [&](double value0, double value1) {
+      TeamReport mine;
+      mine.value[0] = value0;
+      mine.value[1] = value1;
+      return step(stage, false, mine);
+    };
+    precondition();
+    const double rz0 = Sum(reduce(agent_.residualDot(), 0.0), 0);
+    double rz = rz0;
+    if (!(rz0 > 0.0)) {  // the gradient is zero: delta = 0
+      outcome.converged = true;
+      return outcome;
+    }
+    agent_.firstDirection();
+    while (true) {
+      const double curvature = agent_.curvature();
+      const TeamStep got = reduce(curvature, agent_.directionNorm());
+      const double pq = Sum(got, 0);
+      const double max_direction = Max(got, 1);
+      if (!(pq > 0.0)) {  // no curvature left along p (rounding): keep delta
+        outcome.converged = true;
+        break;
+      }
+      const double alpha = rz / pq;
+      agent_.advance(alpha);
+      const double change = std::abs(alpha) * max_direction;
+      precondition();
+      const double rz_new = Sum(reduce(agent_.residualDot(), 0.0), 0);
+      const double relative = std::sqrt(std::max(rz_new, 0.0) / rz0);
+      outcome.converged = (goal.tolerance > 0.0 && relative <= goal.tolerance) ||
+                          (goal.eta_change > 0.0 && change <= goal.eta_change);
+      const bool stop = outcome.converged || sweeps + 2 > goal.max_sweeps;
+      const double beta = rz_new / rz;
+      if (stop) break;
+      agent_.nextDirection(beta);
+      rz = rz_new;
+    }
+    return outcome;
+  }
+
+  // The step's coarse matrix from every robot's rows (null: no two-level correction this step).
+  std::unique_ptr<CoarseSystem> coarseMatrix(DgsStage stage, std::uint32_t sweep) {
+    TeamReport mine;
+    CoarseMessage m;
+    const bool ready = agent_.refineCoarseReady();
+    if (ready) {
+      const CoarseShare share = agent_.refineCoarseMatrix();
+      m.kind = CoarseKind::kMatrix;
+      m.stage = stage;
+      m.sender = agent_.robot();
+      m.iteration = sweep;
+      m.k = 6;
+      m.ncols = 1;
+      m.center = FlattenMatrix(share.center);
+      m.diagonal = FlattenMatrix(share.diagonal);
+      for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+      mine.coarse_ready = true;
+    }
+    const TeamStep got = step(stage, false, mine, ready ? &m : nullptr);
+    return Assemble(got, 6, nullptr, 1);
+  }
+
+  void coarseResidualCorrection(DgsStage stage, const CoarseSystem& coarse, int sweep) {
+    CoarseMessage m;
+    m.kind = CoarseKind::kResidual;
+    m.stage = stage;
+    m.sender = agent_.robot();
+    m.iteration = static_cast<std::uint32_t>(sweep);
+    m.k = 6;
+    m.ncols = 1;
+    m.residual = FlattenMatrix(agent_.refineCoarseResidual());
+    TeamReport mine;
+    mine.coarse_ready = true;
+    const TeamStep got = step(stage, false, mine, &m);
+    // Robots of the system that left meanwhile contribute a zero residual (their variables stay).
+    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(coarse.rows(), 1);
+    for (const auto& [r, share] : got.shares) {
+      if (coarse.index(r) < 0 || share.kind != CoarseKind::kResidual) continue;
+      B.middleRows(coarse.index(r), 6) = UnflattenMatrix(share.residual, 6, 1);
+    }
+    Eigen::MatrixXd Y;
+    if (!coarse.solve(B, &Y)) return;
+    agent_.applyRefineCoarse(
+        MySolution(coarse, Y, stage, static_cast<std::uint32_t>(sweep), 6, 1));
+    ++(stage == DgsStage::kRefine ? result_.refine.coarse_corrections
+                                   : result_.pose.coarse_corrections);
+  }
+
+  void runPoseByConjugateGradients(DgsStageReport& report) {
+    CgGoal goal;
+    goal.eta_change = options_.eta_pose;
+    goal.max_sweeps = options_.max_iterations;
+    const CgOutcome outcome = solveByConjugateGradients(DgsStage::kPose, goal);
+    report.status = outcome.converged ? StageStatus::kConverged : StageStatus::kMaxIterations;
+    report.iterations = outcome.sweeps;
+  }
+
+  // Plain block Jacobi sweeps on the step's system; each robot reports its change and ||delta_r||.
+  void solveBySweeps(RefineStepSummary& summary) {
+    const DgsOptions::Refinement& opt = options_.refinement;
+    for (int sweep = 1; sweep <= opt.max_sweeps; ++sweep) {
+      const bool solved = agent_.iterate();
+      TeamReport mine;
+      mine.value[0] = agent_.initialised() ? agent_.lastChange() : 0.0;
+      mine.value[1] = agent_.incrementNorm();
+      const TeamStep got = step(DgsStage::kRefine, solved, mine);
+      const bool stop = Max(got, 0) <= opt.sweep_tolerance * Max(got, 1);
+      summary.sweeps = sweep;
+      summary.linear_converged = stop;
+      if (stop) break;
+    }
+  }
+
+  // ---- refinement -----------------------------------------------------------------------------
+  double teamCost(bool candidate) {
+    TeamReport mine;
+    mine.value[0] = agent_.costShare(candidate);
+    return Sum(step(DgsStage::kRefine, false, mine), 0);
+  }
+
+  void runRefinement() {
+    RefineReport& report = result_.refine;
+    const auto stage_start = Clock::now();
+    const DgsOptions::Refinement& opt = options_.refinement;
+    std::set<int> told;  // robots that left, told to the agent
+    auto tellAbsent = [&]() {
+      bool changed = false;
+      for (int r : channel_.absent()) {
+        if (!told.insert(r).second) continue;
+        agent_.setUnresponsive(r);
+        changed = true;
+      }
+      return changed;
+    };
+    agent_.startRefine();
+    tellAbsent();
+    double cost = teamCost(false);
+    report.initial_cost = cost;
+    report.final_cost = cost;
+    report.status = StageStatus::kMaxIterations;
+    double lambda = 0.0;
+    for (int s = 1; s <= opt.max_iterations; ++s) {
+      const auto step_start = Clock::now();
+      if (tellAbsent()) cost = teamCost(false);  // the shares changed
+      RefineStepSummary summary;
+      summary.iteration = s;
+      summary.lambda = lambda;
+      summary.cost_before = cost;
+      agent_.beginStep(lambda);
+      if (opt.solver == RefineSolver::kConjugateGradient) {
+        CgGoal goal;
+        goal.tolerance = opt.cg_tolerance;
+        goal.max_sweeps = opt.max_sweeps;
+        const CgOutcome outcome = solveByConjugateGradients(DgsStage::kRefine, goal);
+        summary.sweeps = outcome.sweeps;
+        summary.linear_converged = outcome.converged;
+      } else {
+        solveBySweeps(summary);
+      }
+      report.sweeps += summary.sweeps;
+      const double candidate = teamCost(true);
+      summary.cost_candidate = candidate;
+      const double tolerance = opt.relative_cost_tolerance * cost;
+      bool accept = false, finished = false;
+      if (candidate <= cost) {
+        accept = true;
+        finished = cost - candidate <= tolerance;
+        if (lambda > 0.0) {
+          lambda /= 10.0;
+          if (lambda < opt.initial_lambda) lambda = 0.0;
+        }
+      } else if (candidate - cost <= tolerance) {
+        finished = true;  // rounding at the optimum: nothing left to gain
+      } else {
+        ++report.rejected;
+        lambda = lambda == 0.0 ? opt.initial_lambda : 10.0 * lambda;
+        if (lambda > opt.max_lambda) {
+          finished = true;
+          report.status = StageStatus::kNoDecreasingStep;
+        }
+      }
+      if (finished && report.status != StageStatus::kNoDecreasingStep) {
+        report.status = StageStatus::kConverged;
+      }
+      if (s == opt.max_iterations) finished = true;
+      if (accept) {
+        agent_.acceptStep();
+        cost = candidate;
+      }
+      summary.accepted = accept;
+      summary.seconds = Since(step_start);
+      report.iterations = s;
+      report.final_cost = cost;
+      report.steps.push_back(summary);
+      if (finished) break;
+    }
+    agent_.finishRefine();
+    report.seconds = Since(stage_start);
+  }
+
+  RobotAgent& agent_;
+  const DgsOptions& options_;
+  TeamChannel& channel_;
+  RobotProgramResult result_;
+};
+
+}  // namespace
+
+RobotProgramResult RunRobotProgram(RobotAgent& agent, const DgsOptions& options,
+                                   TeamChannel& channel) {
+  options.validate();
+  if (options.order != SweepOrder::kJacobi) {
+    throw InvalidInputError("robot program: the robots of a team solve in parallel (Jacobi "
+                            "order); Gauss-Seidel order needs a central sequencer");
+  }
+  if (agent.state() != AgentState::kIdle) {
+    throw InvalidInputError("robot program: the agent must be new (state " +
+                            ToString(agent.state()) + ")");
+  }
+  return Program(agent, options, channel).run();
+}
+
+}  // namespace moslam

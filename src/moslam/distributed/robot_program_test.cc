@@ -1,0 +1,199 @@
+// The robot program (robot_program.h): a team of programs, one thread per robot over a shared
+// in-memory channel, reproduces the in-process driver in Jacobi order for every solver option
+// (two-level, error-bound rule, pose stage and refinement by conjugate gradients or sweeps).
+#include "moslam/distributed/robot_program.h"
+
+#include <gtest/gtest.h>
+
+#include <condition_variable>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/dgs_test_util.h"
+#include "moslam/distributed/partition.h"
+#include "moslam/io/g2o.h"
+#include "moslam/metrics/metrics.h"
+
+namespace moslam {
+namespace {
+
+// Every robot's step s completes once all robots have posted their step s.
+class SharedBoard {
+ public:
+  explicit SharedBoard(int robots) : robots_(robots) {}
+
+  TeamStep post(int robot, std::size_t s, const std::vector<OutgoingMessage>& out,
+                const TeamReport& report, const CoarseMessage* share) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    Round& round = rounds_[s];
+    for (const OutgoingMessage& o : out) round.inbox[o.to].push_back(o.message);
+    round.reports[robot] = report;
+    if (share) round.shares[robot] = DecodeCoarseMessage(EncodeCoarseMessage(*share));
+    if (static_cast<int>(round.reports.size()) == robots_) changed_.notify_all();
+    changed_.wait(lock, [&]() { return static_cast<int>(round.reports.size()) == robots_; });
+    TeamStep got;
+    for (const Message& m : round.inbox[robot]) {
+      got.estimates.push_back(DecodeMessage(EncodeMessage(m)));  // the bytes a network carries
+    }
+    got.reports = round.reports;
+    got.shares = round.shares;
+    return got;
+  }
+
+ private:
+  struct Round {
+    std::map<int, std::vector<Message>> inbox;
+    std::map<int, TeamReport> reports;
+    std::map<int, CoarseMessage> shares;
+  };
+  int robots_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::map<std::size_t, Round> rounds_;
+};
+
+class BoardChannel : public TeamChannel {
+ public:
+  BoardChannel(SharedBoard& board, int robot) : board_(board), robot_(robot) {}
+  TeamStep step(DgsStage, const std::vector<OutgoingMessage>& estimates, const TeamReport& report,
+                const CoarseMessage* share) override {
+    return board_.post(robot_, steps_++, estimates, report, share);
+  }
+  std::set<int> absent() const override { return {}; }
+
+ private:
+  SharedBoard& board_;
+  int robot_;
+  std::size_t steps_ = 0;
+};
+
+struct TeamOutcome {
+  Values values;
+  std::map<int, RobotProgramResult> results;
+};
+
+TeamOutcome RunPrograms(const PoseGraph& graph, const Values& initial, const DgsOptions& options) {
+  const std::vector<RobotSubgraph> parts = PartitionByRobot(graph);
+  const Key anchor = GaugeAnchor(graph);
+  SharedBoard board(static_cast<int>(parts.size()));
+  TeamOutcome outcome;
+  std::mutex mutex;
+  std::vector<std::thread> threads;
+  std::string error;
+  for (const RobotSubgraph& part : parts) {
+    threads.emplace_back([&, part]() {
+      AgentOptions ao;
+      ao.gamma = options.gamma;
+      ao.refine_gamma = options.refinement.gamma;
+      ao.flagged_initialisation = options.flagged_initialisation;
+      ao.weight_by_information = options.weight_by_information;
+      RobotAgent agent(part.robot, part.graph, initial, anchor, ao);
+      BoardChannel channel(board, part.robot);
+      try {
+        RobotProgramResult r = RunRobotProgram(agent, options, channel);
+        std::lock_guard<std::mutex> lock(mutex);
+        const Values v = agent.estimate();
+        outcome.values.insert(v.begin(), v.end());
+        outcome.results[part.robot] = std::move(r);
+      } catch (const std::exception& e) {
+        std::lock_guard<std::mutex> lock(mutex);
+        error = e.what();
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(error, "");
+  return outcome;
+}
+
+std::string BlocksWorld(int robots) { return test::BlocksWorldFolder(robots); }
+
+void ExpectSameAsDriver(const Dataset& data, const DgsOptions& options) {
+  const DgsResult reference = RunDgs(data.graph, data.initial, options);
+  const TeamOutcome team = RunPrograms(data.graph, data.initial, options);
+  ASSERT_FALSE(team.results.empty());
+  // The options at work in the reference (so that equal counts mean something).
+  EXPECT_GT(reference.rotation.iterations, 1);
+  if (options.coarse_correction) EXPECT_GT(reference.rotation.coarse_corrections, 0);
+  if (options.refine) EXPECT_GT(reference.refine.iterations, 0);
+  if (options.refine && options.refinement.solver == RefineSolver::kConjugateGradient &&
+      options.refinement.preconditioner == RefinePreconditioner::kTwoLevel) {
+    EXPECT_GT(reference.refine.coarse_corrections, 0);
+  }
+  EXPECT_LE(MaxPoseDifference(team.values, reference.values), 1e-9);
+  for (const auto& [robot, r] : team.results) {
+    SCOPED_TRACE("robot " + std::to_string(robot));
+    EXPECT_EQ(r.rotation.iterations, reference.rotation.iterations);
+    EXPECT_EQ(r.rotation.status, reference.rotation.status);
+    EXPECT_EQ(r.rotation.coarse_corrections, reference.rotation.coarse_corrections);
+    EXPECT_EQ(r.pose.iterations, reference.pose.iterations);
+    EXPECT_EQ(r.pose.status, reference.pose.status);
+    EXPECT_EQ(r.pose.coarse_corrections, reference.pose.coarse_corrections);
+    EXPECT_EQ(r.refine.iterations, reference.refine.iterations);
+    EXPECT_EQ(r.refine.sweeps, reference.refine.sweeps);
+    EXPECT_EQ(r.refine.status, reference.refine.status);
+    EXPECT_EQ(r.refine.coarse_corrections, reference.refine.coarse_corrections);
+    if (options.refine) {
+      EXPECT_NEAR(r.refine.final_cost, reference.refine.final_cost,
+                  1e-12 * reference.refine.final_cost);
+    }
+  }
+}
+
+DgsOptions Jacobi() {
+  DgsOptions o;
+  o.order = SweepOrder::kJacobi;
+  return o;
+}
+
+TEST(RobotProgram, TwoLevelErrorBoundAndRefinementEqualTheDriver) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  DgsOptions o = Jacobi();
+  o.coarse_correction = true;
+  o.stopping = StageStopping::kErrorBound;
+  o.refine = true;
+  ExpectSameAsDriver(data, o);
+}
+
+TEST(RobotProgram, OneLevelChangeRuleEqualsTheDriver) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  for (bool flagged : {true, false}) {
+    SCOPED_TRACE(flagged ? "flagged" : "initial exchange");
+    DgsOptions o = Jacobi();
+    o.flagged_initialisation = flagged;
+    ExpectSameAsDriver(data, o);
+  }
+}
+
+TEST(RobotProgram, PoseStageAndRefinementVariantsEqualTheDriver) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  DgsOptions cg = Jacobi();
+  cg.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+  cg.refine = true;
+  cg.refinement.preconditioner = RefinePreconditioner::kSweeps;
+  ExpectSameAsDriver(data, cg);
+  DgsOptions sweeps = Jacobi();
+  sweeps.coarse_correction = true;
+  sweeps.refine = true;
+  sweeps.refinement.solver = RefineSolver::kSweeps;
+  sweeps.refinement.max_iterations = 3;
+  sweeps.refinement.max_sweeps = 200;
+  ExpectSameAsDriver(data, sweeps);
+}
+
+TEST(RobotProgram, RefusesGaussSeidelOrderAndAUsedAgent) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(2));
+  const std::vector<RobotSubgraph> parts = PartitionByRobot(data.graph);
+  RobotAgent agent(parts[0].robot, parts[0].graph, data.initial, GaugeAnchor(data.graph));
+  SharedBoard board(1);
+  BoardChannel channel(board, parts[0].robot);
+  DgsOptions gs;  // Gauss-Seidel by default
+  EXPECT_THROW(RunRobotProgram(agent, gs, channel), InvalidInputError);
+  agent.startRotation();
+  EXPECT_THROW(RunRobotProgram(agent, Jacobi(), channel), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam
