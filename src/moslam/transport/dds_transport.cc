@@ -11,6 +11,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/transport/dds_entities.h"
+#include "moslam/transport/idl/DgsCoarse.h"
 #include "moslam/transport/idl/DgsEstimates.h"
 #include "moslam/transport/idl/ObjectList.h"
 #include "moslam/transport/idl/SharedObjects.h"
@@ -29,6 +30,7 @@ void DdsTransportOptions::validate() const {
 }
 
 std::string StatusTopicName() { return "rt/moslam/status"; }
+std::string CoarseTopicName() { return "rt/moslam/dgs_coarse"; }
 std::string ObjectsTopicName() { return "rt/moslam/objects"; }
 std::string EstimatesTopicName(int robot) {
   return "rt/moslam/robot" + std::to_string(robot) + "/dgs_estimates";
@@ -80,6 +82,7 @@ std::int64_t CdrSize(const dds_topic_descriptor_t& type, const void* sample) {
 
 using EstimatesSample = moslam_msg_dds__DgsEstimates_;
 using StatusSample = moslam_msg_dds__Status_;
+using CoarseSample = moslam_msg_dds__DgsCoarse_;
 using ObjectListSample = moslam_msg_dds__ObjectList_;
 using ObjectPoseSample = moslam_msg_dds__ObjectPose_;
 using SharedSample = moslam_msg_dds__SharedObjects_;
@@ -119,7 +122,51 @@ StatusPacket FromSample(const StatusSample& s) {
   p.initialised = s.initialised;
   p.done = s.done;
   p.change = s.change;
+  p.error_bound = s.error_bound;
+  p.coarse_ready = s.coarse_ready;
+  p.coarse = s.coarse;
+  p.value[0] = s.values[0];
+  p.value[1] = s.values[1];
   p.neighbours.assign(s.neighbours._buffer, s.neighbours._buffer + s.neighbours._length);
+  return p;
+}
+
+template <typename Seq>
+std::vector<double> Doubles(const Seq& seq) {
+  return std::vector<double>(seq._buffer, seq._buffer + seq._length);
+}
+
+template <typename T>
+auto View(const std::vector<T>& v) {
+  return std::make_pair(static_cast<std::uint32_t>(v.size()), const_cast<T*>(v.data()));
+}
+
+CoarsePacket FromSample(const CoarseSample& s) {
+  CoarsePacket p;
+  p.round = s.round;
+  CoarseMessage& m = p.message;
+  m.sender = s.sender;
+  m.stage = static_cast<DgsStage>(s.stage);
+  m.kind = static_cast<CoarseKind>(s.kind);
+  m.iteration = s.iteration;
+  m.k = s.k;
+  m.ncols = s.ncols;
+  m.center = Doubles(s.center);
+  m.diagonal = Doubles(s.diagonal);
+  m.residual = Doubles(s.residual);
+  const std::uint32_t n = s.block_robots._length;
+  if (n > 0) {
+    if (s.blocks._length % n != 0) {
+      throw InvalidInputError(fmt::format("{} coupling values for {} blocks", s.blocks._length, n));
+    }
+    const std::uint32_t size = s.blocks._length / n;
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const double* b = s.blocks._buffer + static_cast<std::size_t>(i) * size;
+      m.blocks.emplace_back(s.block_robots._buffer[i], std::vector<double>(b, b + size));
+    }
+  } else if (s.blocks._length != 0) {
+    throw InvalidInputError("coupling values without blocks");
+  }
   return p;
 }
 
@@ -171,6 +218,8 @@ class DdsTransport::Impl {
         writer_qos_(dds::Qos::Reliable(kTransportHistoryDepth, options.liveliness_lease)),
         reader_qos_(dds::Qos::ReliableKeepAll(options.liveliness_lease)),
         status_topic_(participant_, moslam_msg_dds__Status__desc, StatusTopicName(), writer_qos_),
+        coarse_topic_(participant_, moslam_msg_dds__DgsCoarse__desc, CoarseTopicName(),
+                      writer_qos_),
         objects_topic_(participant_, moslam_msg_dds__ObjectList__desc, ObjectsTopicName(),
                        writer_qos_),
         inbox_topic_(participant_, moslam_msg_dds__DgsEstimates__desc, EstimatesTopicName(robot),
@@ -178,14 +227,17 @@ class DdsTransport::Impl {
         shared_topic_(participant_, moslam_msg_dds__SharedObjects__desc,
                       SharedObjectsTopicName(robot), writer_qos_),
         status_writer_(participant_, status_topic_, writer_qos_),
+        coarse_writer_(participant_, coarse_topic_, writer_qos_),
         objects_writer_(participant_, objects_topic_, writer_qos_),
         status_reader_(participant_, status_topic_, reader_qos_),
+        coarse_reader_(participant_, coarse_topic_, reader_qos_),
         objects_reader_(participant_, objects_topic_, reader_qos_),
         inbox_reader_(participant_, inbox_topic_, reader_qos_),
         shared_reader_(participant_, shared_topic_, reader_qos_),
         waitset_(participant_) {
     if (!options_.transport.log) options_.transport.log = StderrLog(robot_);
     waitset_.attach(status_reader_);
+    waitset_.attach(coarse_reader_);
     waitset_.attach(objects_reader_);
     waitset_.attach(inbox_reader_);
     waitset_.attach(shared_reader_);
@@ -260,6 +312,11 @@ class DdsTransport::Impl {
     s.initialised = p.initialised;
     s.done = p.done;
     s.change = p.change;
+    s.error_bound = p.error_bound;
+    s.coarse_ready = p.coarse_ready;
+    s.coarse = p.coarse;
+    s.values[0] = p.value[0];
+    s.values[1] = p.value[1];
     s.neighbours = {static_cast<std::uint32_t>(neighbours.size()),
                     static_cast<std::uint32_t>(neighbours.size()), neighbours.data(), false};
     std::lock_guard<std::mutex> lock(mutex_);
@@ -269,6 +326,43 @@ class DdsTransport::Impl {
     stats_.sent_bytes += bytes;
     ++stats_.status_sent;
     stats_.status_bytes += bytes;
+  }
+
+  void publish(const CoarsePacket& p) {
+    const std::string why = CheckPacket(p, robot_, -1, {});
+    if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
+    const CoarseMessage& m = p.message;
+    std::vector<std::uint16_t> robots;
+    std::vector<double> blocks;
+    for (const auto& [r, block] : m.blocks) {
+      robots.push_back(static_cast<std::uint16_t>(r));
+      blocks.insert(blocks.end(), block.begin(), block.end());
+    }
+    auto seq = [](auto view, auto& field) {
+      field._length = field._maximum = view.first;
+      field._buffer = view.second;
+      field._release = false;
+    };
+    CoarseSample s{};
+    s.sender = static_cast<std::uint16_t>(robot_);
+    s.round = p.round;
+    s.stage = static_cast<std::uint8_t>(m.stage);
+    s.kind = static_cast<std::uint8_t>(m.kind);
+    s.iteration = m.iteration;
+    s.k = static_cast<std::uint8_t>(m.k);
+    s.ncols = static_cast<std::uint8_t>(m.ncols);
+    seq(View(m.center), s.center);
+    seq(View(m.diagonal), s.diagonal);
+    seq(View(m.residual), s.residual);
+    seq(View(robots), s.block_robots);
+    seq(View(blocks), s.blocks);
+    std::lock_guard<std::mutex> lock(mutex_);
+    coarse_writer_.write(&s);
+    const std::int64_t bytes = CdrSize(moslam_msg_dds__DgsCoarse__desc, &s);
+    ++stats_.sent_samples;
+    stats_.sent_bytes += bytes;
+    ++stats_.coarse_sent;
+    stats_.coarse_bytes += bytes;
   }
 
   void publish(const ObjectListPacket& p) {
@@ -412,6 +506,15 @@ class DdsTransport::Impl {
         reject(fmt::format("status from robot {}: {}", s.robot, e.what()));
       }
     });
+    coarse_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+      if (!info.valid_data) return;
+      const auto& s = *static_cast<const CoarseSample*>(data);
+      try {
+        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__DgsCoarse__desc, &s));
+      } catch (const std::exception& e) {
+        reject(fmt::format("coarse share from robot {}: {}", s.sender, e.what()));
+      }
+    });
     objects_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
       if (!info.valid_data) return;
       const auto& s = *static_cast<const ObjectListSample*>(data);
@@ -437,9 +540,9 @@ class DdsTransport::Impl {
   // Parents first: members are destroyed in reverse order.
   dds::Participant participant_;
   dds::Qos writer_qos_, reader_qos_;
-  dds::Topic status_topic_, objects_topic_, inbox_topic_, shared_topic_;
-  dds::Writer status_writer_, objects_writer_;
-  dds::Reader status_reader_, objects_reader_, inbox_reader_, shared_reader_;
+  dds::Topic status_topic_, coarse_topic_, objects_topic_, inbox_topic_, shared_topic_;
+  dds::Writer status_writer_, coarse_writer_, objects_writer_;
+  dds::Reader status_reader_, coarse_reader_, objects_reader_, inbox_reader_, shared_reader_;
   dds::WaitSet waitset_;
   std::map<int, Outbox> estimate_writers_, shared_writers_;
 
@@ -466,6 +569,7 @@ void DdsTransport::send(const EstimatesPacket& packet) { impl_->send(packet); }
 void DdsTransport::send(const SharedObjectsPacket& packet) { impl_->send(packet); }
 void DdsTransport::publish(const StatusPacket& packet) { impl_->publish(packet); }
 void DdsTransport::publish(const ObjectListPacket& packet) { impl_->publish(packet); }
+void DdsTransport::publish(const CoarsePacket& packet) { impl_->publish(packet); }
 std::vector<Received> DdsTransport::poll(std::chrono::milliseconds timeout) {
   return impl_->poll(timeout);
 }

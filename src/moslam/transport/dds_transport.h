@@ -1,6 +1,7 @@
 // The Transport of transport.h on Cyclone DDS (C API, wrapped in dds_entities.h), one
 // participant per robot process. Topics (ROS 2 naming, types from idl/*.idl):
 //   rt/moslam/status                    moslam/msg/Status       keyed by robot, every robot
+//   rt/moslam/dgs_coarse                moslam/msg/DgsCoarse    every robot (coarse shares)
 //   rt/moslam/objects                   moslam/msg/ObjectList   every robot
 //   rt/moslam/robot<R>/dgs_estimates    moslam/msg/DgsEstimates robot R's inbox: only R reads it,
 //                                                               so estimates go only to R
@@ -52,6 +53,7 @@ class DdsTransport final : public Transport {
   void send(const SharedObjectsPacket& packet) override;
   void publish(const StatusPacket& packet) override;
   void publish(const ObjectListPacket& packet) override;
+  void publish(const CoarsePacket& packet) override;
   std::vector<Received> poll(std::chrono::milliseconds timeout) override;
   std::set<int> alive() const override;
   void setKnownRobots(const std::set<int>& robots) override;

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 #include <tuple>
 #include <utility>
@@ -35,30 +36,23 @@ void DgsNodeOptions::validate() const {
 }
 
 DgsOptions DriverOptions(const DgsNodeOptions& o) {
-  DgsOptions d;
-  d.eta_rotation = o.eta_rotation;
-  d.eta_pose = o.eta_pose;
-  d.gamma = o.gamma;
+  DgsOptions d = o.solver;
   d.order = SweepOrder::kJacobi;
-  d.max_iterations = o.max_iterations;
-  d.flagged_initialisation = o.flagged_initialisation;
-  d.weight_by_information = o.weight_by_information;
   return d;
 }
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'J', 'N', 'L', '1'};
+constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'J', 'N', 'L', '2'};
 
 enum class RecordType : std::uint8_t {
-  kHeader = 1,    // magic, robot, fingerprint
-  kStart = 2,     // a process start
-  kTeam = 3,      // the team's robots
-  kRound = 4,     // stage, round, the estimates delivered (round 0: the stage starts)
-  kLeft = 5,      // a robot left: robot, stage, round
-  kStageEnd = 6,  // stage, rounds, converged
-  kDone = 7,      // finished
+  kHeader = 1,  // magic, robot, fingerprint
+  kStart = 2,   // a process start
+  kTeam = 3,    // the team's robots
+  kStep = 4,    // a completed channel step: its number, stage and what it returned
+  kLeft = 5,    // a robot left: robot, step
+  kDone = 7,    // finished
 };
 
 using transport_detail::Fingerprint;
@@ -66,15 +60,22 @@ using Bytes = transport_detail::RecordWriter;
 using Parse = transport_detail::RecordReader;
 
 std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initial,
-                             const DgsNodeOptions& o) {
+                             const DgsOptions& o) {
   Fingerprint f;
   f.add(static_cast<std::uint64_t>(robot));
-  f.add(o.eta_rotation);
-  f.add(o.eta_pose);
-  f.add(o.gamma);
-  f.add(static_cast<std::uint64_t>(o.max_iterations));
-  f.add(static_cast<std::uint64_t>(o.flagged_initialisation) * 2 +
-        static_cast<std::uint64_t>(o.weight_by_information));
+  for (double v : {o.eta_rotation, o.eta_pose, o.gamma, o.refinement.relative_cost_tolerance,
+                   o.refinement.sweep_tolerance, o.refinement.cg_tolerance, o.refinement.gamma,
+                   o.refinement.initial_lambda, o.refinement.max_lambda}) {
+    f.add(v);
+  }
+  for (int v : {o.max_iterations, o.error_bound_window, static_cast<int>(o.stopping),
+                static_cast<int>(o.pose_solver), static_cast<int>(o.flagged_initialisation),
+                static_cast<int>(o.weight_by_information), static_cast<int>(o.coarse_correction),
+                static_cast<int>(o.refine), static_cast<int>(o.refinement.solver),
+                static_cast<int>(o.refinement.preconditioner), o.refinement.max_iterations,
+                o.refinement.max_sweeps}) {
+    f.add(static_cast<std::uint64_t>(v));
+  }
   for (const RelativePoseFactor& factor : g.factors()) {
     f.add(factor.a());
     f.add(factor.b());
@@ -94,11 +95,42 @@ std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initia
   return f.value();
 }
 
-bool IsStage(std::uint8_t s) { return s >= 1 && s <= 2; }
+RobotState StateOf(DgsStage stage) {
+  switch (stage) {
+    case DgsStage::kRotation:
+      return RobotState::kRotation;
+    case DgsStage::kPose:
+      return RobotState::kPose;
+    case DgsStage::kRefine:
+      return RobotState::kRefine;
+  }
+  return RobotState::kFailed;
+}
+
+// A report's flags in a status or a journal record.
+std::uint8_t Flags(const TeamReport& r) {
+  return static_cast<std::uint8_t>((r.sent ? 1 : 0) | (r.initialised ? 2 : 0) |
+                                   (r.coarse_ready ? 4 : 0) | (r.has_share ? 8 : 0));
+}
+
+TeamReport ReportOf(const StatusPacket& s) {
+  TeamReport r;
+  r.sent = s.sent;
+  r.initialised = s.initialised;
+  r.coarse_ready = s.coarse_ready;
+  r.has_share = s.coarse;
+  r.change = s.change;
+  r.bound = s.error_bound;
+  r.value[0] = s.value[0];
+  r.value[1] = s.value[1];
+  return r;
+}
+
+bool IsStage(std::uint8_t s) { return s >= 1 && s <= 3; }
 
 }  // namespace
 
-class DgsNode::Impl {
+class DgsNode::Impl final : public TeamChannel {
  public:
   Impl(int robot, PoseGraph subgraph, Values initial, Transport& transport,
        DgsNodeOptions options)
@@ -108,6 +140,7 @@ class DgsNode::Impl {
         transport_(transport),
         options_(std::move(options)) {
     options_.validate();
+    solver_ = DriverOptions(options_);
     if (transport_.self() != robot_) {
       throw InvalidInputError(fmt::format("DGS node: robot {} given the transport of robot {}",
                                           robot_, transport_.self()));
@@ -116,9 +149,10 @@ class DgsNode::Impl {
     // robot 0 they do not own.
     const Key anchor = robot_ == 0 ? GaugeAnchor(subgraph_) : Key::Pose(0, 0);
     AgentOptions ao;
-    ao.gamma = options_.gamma;
-    ao.flagged_initialisation = options_.flagged_initialisation;
-    ao.weight_by_information = options_.weight_by_information;
+    ao.gamma = solver_.gamma;
+    ao.refine_gamma = solver_.refinement.gamma;
+    ao.flagged_initialisation = solver_.flagged_initialisation;
+    ao.weight_by_information = solver_.weight_by_information;
     agent_ = std::make_unique<RobotAgent>(robot_, subgraph_, initial_, anchor, ao);
     neighbours_ = agent_->neighbourRobots();
     neighbour_keys_ = agent_->neighbourVariables();
@@ -131,7 +165,7 @@ class DgsNode::Impl {
       journal_ = std::make_unique<Journal>(
           (std::filesystem::path(options_.state_dir) / "journal.bin").string());
     }
-    restore();
+    loadJournal();
   }
 
   DgsNodeResult run() {
@@ -142,16 +176,21 @@ class DgsNode::Impl {
       if (journal_) journal_->append(Bytes().u8(static_cast<std::uint8_t>(RecordType::kStart)).data());
       if (team_.empty()) formTeam();
       transport_.setKnownRobots(team_);
-      for (int r : team_) {
-        if (r != robot_ && !left_.count(r)) live_.insert(r);
-      }
-      if (!in_stage_) startStage(DgsStage::kRotation, true);
-      announce();
-      if (!finished_) runStages();
+      transport_.publish(baseStatus());  // alive for the others while it replays
+      result_.program = RunRobotProgram(*agent_, solver_, *this);
+      finishReplay();
+      const RobotProgramResult& p = result_.program;
+      result_.rotation_rounds = p.rotation.iterations;
+      result_.pose_rounds = p.pose.iterations;
+      result_.rotation_converged = p.rotation.status == StageStatus::kConverged;
+      result_.pose_converged = p.pose.status == StageStatus::kConverged;
+      if (!journal_done_) record(Bytes().u8(static_cast<std::uint8_t>(RecordType::kDone)).data());
+      done_ = true;
       saveResult();
+      transport_.publish(baseStatus());
       waitForPeers();
     } catch (const std::exception&) {
-      StatusPacket st = status();
+      StatusPacket st = baseStatus();
       st.state = RobotState::kFailed;
       try {
         transport_.publish(st);
@@ -167,15 +206,61 @@ class DgsNode::Impl {
     return result_;
   }
 
+  // ---- TeamChannel --------------------------------------------------------------------------
+  TeamStep step(DgsStage stage, const std::vector<OutgoingMessage>& estimates,
+                const TeamReport& report, const CoarseMessage* share) override {
+    const std::uint32_t s = ++step_;
+    Sent sent{stage, estimates, report, share ? std::optional<CoarseMessage>(*share) : std::nullopt};
+    if (std::optional<TeamStep> replayed = replayStep(s, stage)) {
+      last_sent_ = std::move(sent);
+      ++result_.replayed_rounds;
+      notify(stage, s, report, true);
+      return std::move(*replayed);
+    }
+    if (last_sent_) {  // the last replayed step's packets, in case they were lost in the crash
+      send(step_ - 1, *last_sent_);
+      last_sent_.reset();
+    }
+    send(s, sent);
+    waitFor(s);
+    TeamStep got = collect(s, report, share);
+    recordStep(s, stage, got);
+    notify(stage, s, report, false);
+    snapshot(stage != snapshot_stage_);
+    snapshot_stage_ = stage;
+    prune(s);
+    return got;
+  }
+
+  std::set<int> absent() const override { return left_; }
+
  private:
+  struct Sent {
+    DgsStage stage;
+    std::vector<OutgoingMessage> estimates;
+    TeamReport report;
+    std::optional<CoarseMessage> share;
+  };
+
   void log(const std::string& text) const {
     fmt::print(stderr, "moslam robot {}: {}\n", robot_, text);
     std::fflush(stderr);
   }
 
+  void notify(DgsStage stage, std::uint32_t s, const TeamReport& report, bool replayed) {
+    if (stage != round_stage_) stage_round_ = 0;
+    round_stage_ = stage;
+    ++stage_round_;
+    if (options_.on_round) {
+      options_.on_round({stage, s, stage_round_, report.sent, report.change, replayed});
+    }
+  }
+
   // ---- persistence ----------------------------------------------------------------------
-  void restore() {
-    const std::uint64_t fingerprint = RunFingerprint(robot_, subgraph_, initial_, options_);
+  // Checks the header, reads the team and the starts; the steps, leaves and the end are replayed
+  // as the program asks for them.
+  void loadJournal() {
+    const std::uint64_t fingerprint = RunFingerprint(robot_, subgraph_, initial_, solver_);
     if (!journal_) return;
     result_.journal_truncated_bytes = journal_->truncatedBytes();
     const auto& records = journal_->records();
@@ -200,8 +285,8 @@ class DgsNode::Impl {
             robot != robot_ || fp != fingerprint) {
           throw InvalidInputError(
               "state directory " + options_.state_dir +
-              " holds the journal of another run (other robot, data or options): remove it or "
-              "choose another --out");
+              " holds the journal of another run (other robot, data or options, or an older "
+              "moslam): remove it or choose another --out");
         }
         continue;
       }
@@ -214,57 +299,95 @@ class DgsNode::Impl {
           for (int k = 0; k < n; ++k) team_.insert(p.u16());
           break;
         }
-        case RecordType::kRound: {
-          const std::uint8_t stage = p.u8();
-          const std::uint32_t round = p.u32();
-          const std::uint32_t count = p.u32();
-          if (!IsStage(stage)) throw InvalidInputError(what + ": bad stage in a round record");
-          std::vector<Message> messages;
-          for (std::uint32_t k = 0; k < count; ++k) messages.push_back(DecodeMessage(p.raw()));
-          if (round == 0) {
-            startStage(static_cast<DgsStage>(stage), false, messages);
-          } else {
-            if (!in_stage_ || static_cast<std::uint8_t>(stage_) != stage || round != round_ + 1) {
-              throw InvalidInputError(what + ": round records out of sequence");
-            }
-            applyRound(messages, false);
-            ++result_.replayed_rounds;
-          }
-          break;
-        }
-        case RecordType::kLeft: {
-          const int r = p.u16();
-          left_.insert(r);
-          (void)p.u8();
-          (void)p.u32();
-          break;
-        }
-        case RecordType::kStageEnd: {
-          const std::uint8_t stage = p.u8();
-          const std::uint32_t rounds = p.u32();
-          const bool converged = p.u8() != 0;
-          noteStageEnd(static_cast<DgsStage>(stage), rounds, converged);
-          break;
-        }
+        case RecordType::kStep:
+        case RecordType::kLeft:
         case RecordType::kDone:
-          agent_->finish();
-          finished_ = true;
+          replay_.push_back(i);
           break;
         default:
           throw InvalidInputError(what + ": unknown journal record type " +
                                   std::to_string(static_cast<int>(type)));
       }
     }
-    if (result_.replayed_rounds > 0 || finished_) {
-      log(fmt::format("restart {}: replayed {} rounds from {} ({}{})", result_.incarnation,
-                      result_.replayed_rounds, journal_->path(),
-                      finished_ ? "finished" : ToString(stage_) + " round " + std::to_string(round_),
-                      journal_->truncatedBytes() ? ", torn tail cut" : ""));
-    }
   }
 
   void record(std::vector<std::uint8_t>& payload) {
     if (journal_) journal_->append(payload);
+  }
+
+  // Applies the leaves and the end recorded before the next step; returns that step if the
+  // journal holds it.
+  std::optional<TeamStep> replayStep(std::uint32_t s, DgsStage stage) {
+    const std::string what = journal_ ? journal_->path() : std::string();
+    while (next_replay_ < replay_.size()) {
+      Parse p(journal_->records()[replay_[next_replay_]], what);
+      const auto type = static_cast<RecordType>(p.u8());
+      if (type == RecordType::kLeft) {
+        left_.insert(p.u16());
+        (void)p.u32();
+        ++next_replay_;
+        continue;
+      }
+      if (type == RecordType::kDone) {
+        journal_done_ = true;
+        ++next_replay_;
+        continue;
+      }
+      ++next_replay_;
+      const std::uint32_t number = p.u32();
+      const std::uint8_t recorded_stage = p.u8();
+      if (number != s || recorded_stage != static_cast<std::uint8_t>(stage)) {
+        throw InvalidInputError(fmt::format(
+            "{}: journal step {} ({}) where the program takes step {} ({}): damaged journal",
+            what, number, recorded_stage, s, ToString(stage)));
+      }
+      TeamStep got;
+      const std::uint16_t reports = p.u16();
+      for (std::uint16_t k = 0; k < reports; ++k) {
+        const int r = p.u16();
+        const std::uint8_t flags = p.u8();
+        TeamReport rep;
+        rep.sent = flags & 1;
+        rep.initialised = flags & 2;
+        rep.coarse_ready = flags & 4;
+        rep.has_share = flags & 8;
+        rep.change = p.f64();
+        rep.bound = p.f64();
+        rep.value[0] = p.f64();
+        rep.value[1] = p.f64();
+        got.reports[r] = rep;
+      }
+      const std::uint32_t messages = p.u32();
+      for (std::uint32_t k = 0; k < messages; ++k) got.estimates.push_back(DecodeMessage(p.raw()));
+      const std::uint16_t shares = p.u16();
+      for (std::uint16_t k = 0; k < shares; ++k) {
+        CoarseMessage m = DecodeCoarseMessage(p.raw());
+        got.shares[m.sender] = std::move(m);
+      }
+      return got;
+    }
+    return std::nullopt;
+  }
+
+  void finishReplay() {
+    if (next_replay_ >= replay_.size()) return;
+    replayStep(step_ + 1, DgsStage::kRotation);  // leaves and the end only; a step throws
+  }
+
+  void recordStep(std::uint32_t s, DgsStage stage, const TeamStep& got) {
+    if (!journal_) return;
+    Bytes b;
+    b.u8(static_cast<std::uint8_t>(RecordType::kStep)).u32(s).u8(static_cast<std::uint8_t>(stage));
+    b.u16(static_cast<std::uint16_t>(got.reports.size()));
+    for (const auto& [r, rep] : got.reports) {
+      b.u16(static_cast<std::uint16_t>(r)).u8(Flags(rep));
+      b.f64(rep.change).f64(rep.bound).f64(rep.value[0]).f64(rep.value[1]);
+    }
+    b.u32(static_cast<std::uint32_t>(got.estimates.size()));
+    for (const Message& m : got.estimates) b.raw(EncodeMessage(m));
+    b.u16(static_cast<std::uint16_t>(got.shares.size()));
+    for (const auto& [r, m] : got.shares) b.raw(EncodeCoarseMessage(m));
+    record(b.data());
   }
 
   void snapshot(bool force) {
@@ -288,45 +411,57 @@ class DgsNode::Impl {
   }
 
   // ---- protocol ---------------------------------------------------------------------------
-  StatusPacket status() const {
+  StatusPacket baseStatus() const {
     StatusPacket st;
     st.robot = robot_;
     st.incarnation = result_.incarnation;
     st.neighbours.assign(neighbours_.begin(), neighbours_.end());
-    if (!in_stage_) return st;  // joining
-    st.state = finished_ ? RobotState::kDone
-                         : (stage_ == DgsStage::kRotation ? RobotState::kRotation
-                                                          : RobotState::kPose);
-    st.stage = static_cast<std::uint8_t>(stage_);
-    st.round = round_;
-    st.iteration = static_cast<std::uint32_t>(agent_->iteration());
-    st.sent = sent_;
-    st.initialised = agent_->initialised();
-    st.done = finished_;
-    st.change = agent_->initialised() ? agent_->lastChange()
-                                      : std::numeric_limits<double>::infinity();
+    st.round = step_;
+    if (done_) {
+      st.state = RobotState::kDone;
+      st.done = true;
+    }
     return st;
   }
 
-  // Publishes this round's estimates (if it sent any) and status.
-  void announce() {
-    if (sent_ && !finished_) {
-      for (const OutgoingMessage& o : agent_->outgoing()) {
-        EstimatesPacket p;
-        p.receiver = o.to;
-        p.round = round_;
-        p.message = o.message;
-        transport_.send(p);
-        ++result_.estimate_messages;
-        result_.estimate_binary_bytes += static_cast<std::int64_t>(EncodeMessage(p.message).size());
-      }
+  void send(std::uint32_t s, const Sent& what) {
+    for (const OutgoingMessage& o : what.estimates) {
+      EstimatesPacket p;
+      p.receiver = o.to;
+      p.round = s;
+      p.message = o.message;
+      transport_.send(p);
+      ++result_.estimate_messages;
+      result_.estimate_binary_bytes += static_cast<std::int64_t>(EncodeMessage(p.message).size());
     }
-    transport_.publish(status());
+    if (what.share) {
+      CoarsePacket c;
+      c.round = s;
+      c.message = *what.share;
+      transport_.publish(c);
+      ++result_.coarse_messages;
+      result_.coarse_binary_bytes +=
+          static_cast<std::int64_t>(EncodeCoarseMessage(c.message).size());
+    }
+    StatusPacket st = baseStatus();
+    st.round = s;
+    st.state = StateOf(what.stage);
+    st.stage = static_cast<std::uint8_t>(what.stage);
+    st.iteration = static_cast<std::uint32_t>(std::max(agent_->iteration(), 0));
+    st.sent = what.report.sent;
+    st.initialised = what.report.initialised;
+    st.coarse_ready = what.report.coarse_ready;
+    st.coarse = what.report.has_share;
+    st.change = what.report.change;
+    st.error_bound = what.report.bound;
+    st.value[0] = what.report.value[0];
+    st.value[1] = what.report.value[1];
+    transport_.publish(st);
   }
 
   void formTeam() {
     const auto deadline = Clock::now() + options_.join_timeout;
-    transport_.publish(status());
+    transport_.publish(baseStatus());
     std::set<int> known = neighbours_;
     known.insert(robot_);
     heard_.insert(robot_);
@@ -365,85 +500,26 @@ class DgsNode::Impl {
     log(fmt::format("team of {}: robots {}", team_.size(), fmt::join(team_, ", ")));
   }
 
-  // `last`: the estimates of the previous stage's last round, delivered before the stage starts
-  // (the driver delivers them at the end of that sweep: startPose() projects them).
-  void startStage(DgsStage stage, bool write, const std::vector<Message>& last = {}) {
-    if (write) {
-      Bytes b;
-      b.u8(static_cast<std::uint8_t>(RecordType::kRound))
-          .u8(static_cast<std::uint8_t>(stage))
-          .u32(0)
-          .u32(static_cast<std::uint32_t>(last.size()));
-      for (const Message& m : last) b.raw(EncodeMessage(m));
-      record(b.data());
-    }
-    for (const Message& m : last) agent_->receive(m);
-    if (stage == DgsStage::kRotation) {
-      agent_->startRotation();
-    } else {
-      agent_->startPose();
-    }
-    in_stage_ = true;
-    stage_ = stage;
-    round_ = 0;
-    sent_ = !options_.flagged_initialisation;
-    if (options_.on_round) options_.on_round({stage_, 0, sent_, 0.0, !write});
-  }
-
-  void noteStageEnd(DgsStage stage, std::uint32_t rounds, bool converged) {
-    if (stage == DgsStage::kRotation) {
-      result_.rotation_rounds = static_cast<int>(rounds);
-      result_.rotation_converged = converged;
-    } else {
-      result_.pose_rounds = static_cast<int>(rounds);
-      result_.pose_converged = converged;
-    }
-  }
-
-  // Delivers the previous round's estimates, solves once.
-  void applyRound(const std::vector<Message>& messages, bool write) {
-    if (write) {
-      Bytes b;
-      b.u8(static_cast<std::uint8_t>(RecordType::kRound))
-          .u8(static_cast<std::uint8_t>(stage_))
-          .u32(round_ + 1)
-          .u32(static_cast<std::uint32_t>(messages.size()));
-      for (const Message& m : messages) b.raw(EncodeMessage(m));
-      record(b.data());
-    }
-    for (const Message& m : messages) agent_->receive(m);
-    sent_ = agent_->iterate();
-    ++round_;
-    if (options_.on_round) {
-      options_.on_round({stage_, round_, sent_,
-                         agent_->initialised() ? agent_->lastChange()
-                                               : std::numeric_limits<double>::infinity(),
-                         !write});
-    }
-  }
-
-  static std::pair<int, std::uint32_t> at(const StatusPacket& s) {
-    return {s.stage, s.round};
-  }
-
   void ingest(std::vector<Received> packets) {
     for (Received& r : packets) {
       if (auto* st = std::get_if<StatusPacket>(&r.packet)) {
         heard_.insert(r.sender);
-        // The most advanced status; `done` is final; a restarted robot's re-announcement (same
-        // round) replaces a failure it reported before.
+        // The most advanced status; `done` is final; a restart (higher incarnation) replaces
+        // what the robot reported before, a failure included.
         const auto it = latest_.find(r.sender);
         if (it == latest_.end()) {
           latest_.emplace(r.sender, *st);
-        } else if (!it->second.done && (st->done || at(*st) >= at(it->second))) {
+        } else if (st->incarnation > it->second.incarnation ||
+                   (!it->second.done && (st->done || st->round >= it->second.round))) {
           it->second = *st;
         }
         if (st->state == RobotState::kFailed) {
           log(fmt::format("robot {} reports a failure", r.sender));
         }
-        // A failure report is not the status of a round.
-        if (IsStage(st->stage) && st->state != RobotState::kFailed) {
-          statuses_[r.sender].emplace(at(*st), *st);
+        // A failure report is not the status of a step.
+        if (IsStage(st->stage) && st->state != RobotState::kFailed &&
+            st->state != RobotState::kDone && st->round > 0) {
+          statuses_[r.sender][st->round] = *st;
         }
       } else if (auto* e = std::get_if<EstimatesPacket>(&r.packet)) {
         const Message& m = e->message;
@@ -465,161 +541,105 @@ class DgsNode::Impl {
           log("rejected: " + why);
           continue;
         }
-        if (!IsStage(static_cast<std::uint8_t>(m.stage))) continue;  // refinement: not here
-        inbox_.emplace(std::make_tuple(static_cast<int>(m.stage), e->round, m.sender), m);
+        inbox_[{e->round, m.sender}] = m;
+      } else if (auto* c = std::get_if<CoarsePacket>(&r.packet)) {
+        coarse_[{c->round, c->message.sender}] = c->message;
       }
       // Object lists: rendezvous data, not used by the DGS protocol.
     }
   }
 
-  // Has `r` decided past `stage` (a later stage, done)?
-  bool movedOn(int r, DgsStage stage) const {
-    const auto it = latest_.find(r);
-    if (it == latest_.end()) return false;
-    const StatusPacket& s = it->second;
-    return s.done || s.stage > static_cast<std::uint8_t>(stage);
-  }
   // A robot that reported a failure counts as not alive (it may be restarted).
   bool failed(int r) const {
     const auto it = latest_.find(r);
     return it != latest_.end() && it->second.state == RobotState::kFailed;
   }
 
-  const StatusPacket* statusOf(int r, std::uint32_t round) const {
+  std::vector<int> live() const {
+    std::vector<int> out;
+    for (int r : team_) {
+      if (r != robot_ && !left_.count(r)) out.push_back(r);
+    }
+    return out;
+  }
+
+  const StatusPacket* statusOf(int r, std::uint32_t s) const {
     const auto it = statuses_.find(r);
     if (it == statuses_.end()) return nullptr;
-    const auto jt = it->second.find({static_cast<int>(stage_), round});
+    const auto jt = it->second.find(s);
     return jt == it->second.end() ? nullptr : &jt->second;
   }
 
-  bool expectsEstimates(int r, const StatusPacket& s) const {
-    return s.sent && neighbours_.count(r) &&
-           std::binary_search(s.neighbours.begin(), s.neighbours.end(), robot_);
+  bool expectsEstimates(int r, const StatusPacket& st) const {
+    return st.sent && neighbours_.count(r) &&
+           std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
   }
 
-  // The robots the current round still waits for.
-  std::vector<int> waitingFor() const {
+  // The robots step s still waits for.
+  std::vector<int> waitingFor(std::uint32_t s) const {
     std::vector<int> out;
-    for (int r : live_) {
-      const StatusPacket* s = statusOf(r, round_);
-      if (s) {
-        if (expectsEstimates(r, *s) &&
-            !inbox_.count(std::make_tuple(static_cast<int>(stage_), round_, r))) {
-          out.push_back(r);
-        }
-      } else if (!movedOn(r, stage_)) {
+    for (int r : live()) {
+      const StatusPacket* st = statusOf(r, s);
+      if (!st || (expectsEstimates(r, *st) && !inbox_.count({s, r})) ||
+          (st->coarse && !coarse_.count({s, r}))) {
         out.push_back(r);
       }
     }
     return out;
   }
 
-  bool converged() const {
-    if (round_ == 0) return false;
-    const double eta =
-        stage_ == DgsStage::kRotation ? options_.eta_rotation : options_.eta_pose;
-    const StatusPacket mine = status();
-    bool ok = mine.initialised && mine.change <= eta;
-    for (int r : live_) {
-      const StatusPacket* s = statusOf(r, round_);
-      if (s) ok = ok && s->initialised && s->change <= eta;
-    }
-    return ok;
-  }
-
-  void runStages() {
-    auto last_progress = Clock::now();
+  void waitFor(std::uint32_t s) {
+    const auto start = Clock::now();
     std::map<int, Clock::time_point> not_alive_since;
     while (true) {
-      // Wait for the round's statuses and estimates.
-      while (true) {
-        const std::vector<int> waiting = waitingFor();
-        if (waiting.empty()) break;
-        ingest(transport_.poll(std::chrono::milliseconds(100)));
-        const auto now = Clock::now();
-        const std::set<int> alive = transport_.alive();
-        for (int r : waiting) {
-          if (alive.count(r) && !failed(r)) {
-            not_alive_since.erase(r);
-            continue;
-          }
-          const auto [it, inserted] = not_alive_since.emplace(r, now);
-          if (now - it->second >= options_.leave_timeout) {
-            log(fmt::format("robot {} left ({} round {}): continuing without it", r,
-                            ToString(stage_), round_));
-            live_.erase(r);
-            left_.insert(r);
-            record(Bytes()
-                       .u8(static_cast<std::uint8_t>(RecordType::kLeft))
-                       .u16(static_cast<std::uint16_t>(r))
-                       .u8(static_cast<std::uint8_t>(stage_))
-                       .u32(round_)
-                       .data());
-          }
-        }
-        if (now - last_progress > options_.stall_timeout) {
-          throw Error(fmt::format("robot {}: no progress for {} ms in {} round {}, waiting for "
-                                  "robot(s) {}",
-                                  robot_, options_.stall_timeout.count(), ToString(stage_),
-                                  round_, fmt::join(waiting, ", ")));
-        }
-      }
-      last_progress = Clock::now();
-
-      const bool done_converged = converged();
-      if (done_converged || round_ >= static_cast<std::uint32_t>(options_.max_iterations)) {
-        record(Bytes()
-                   .u8(static_cast<std::uint8_t>(RecordType::kStageEnd))
-                   .u8(static_cast<std::uint8_t>(stage_))
-                   .u32(round_)
-                   .u8(done_converged ? 1 : 0)
-                   .data());
-        noteStageEnd(stage_, round_, done_converged);
-        snapshot(true);
-        if (stage_ == DgsStage::kRotation) {
-          for (auto& [r, by_round] : statuses_) {
-            by_round.erase(by_round.begin(), by_round.lower_bound({static_cast<int>(DgsStage::kPose), 0}));
-          }
-          startStage(DgsStage::kPose, true, takeRoundMessages());
-          announce();
+      const std::vector<int> waiting = waitingFor(s);
+      if (waiting.empty()) return;
+      ingest(transport_.poll(std::chrono::milliseconds(100)));
+      const auto now = Clock::now();
+      const std::set<int> alive = transport_.alive();
+      for (int r : waiting) {
+        if (alive.count(r) && !failed(r)) {
+          not_alive_since.erase(r);
           continue;
         }
-        record(Bytes().u8(static_cast<std::uint8_t>(RecordType::kDone)).data());
-        agent_->finish();
-        finished_ = true;
-        announce();
-        return;
+        const auto [it, inserted] = not_alive_since.emplace(r, now);
+        if (now - it->second >= options_.leave_timeout) {
+          log(fmt::format("robot {} left (step {}): continuing without it", r, s));
+          left_.insert(r);
+          record(Bytes()
+                     .u8(static_cast<std::uint8_t>(RecordType::kLeft))
+                     .u16(static_cast<std::uint16_t>(r))
+                     .u32(s)
+                     .data());
+        }
       }
-
-      applyRound(takeRoundMessages(), true);
-      announce();
-      snapshot(false);
-      // Statuses older than the previous round are no longer needed.
-      for (auto& [r, by_round] : statuses_) {
-        by_round.erase(by_round.begin(),
-                       by_round.lower_bound({static_cast<int>(stage_), round_ > 0 ? round_ - 1 : 0}));
+      if (now - start > options_.stall_timeout) {
+        throw Error(fmt::format("robot {}: no progress for {} ms at step {}, waiting for "
+                                "robot(s) {}",
+                                robot_, options_.stall_timeout.count(), s,
+                                fmt::join(waiting, ", ")));
       }
     }
   }
 
-  // The estimates of the current round (by sender), removed from the inbox with older ones.
-  std::vector<Message> takeRoundMessages() {
-    std::vector<Message> messages;
-    for (auto it = inbox_.begin(); it != inbox_.end();) {
-      const auto& [stage, round, sender] = it->first;
-      if (stage < static_cast<int>(stage_) ||
-          (stage == static_cast<int>(stage_) && round < round_)) {
-        it = inbox_.erase(it);  // late (a robot that left): the agent moved on
-        continue;
-      }
-      if (stage == static_cast<int>(stage_) && round == round_) {
-        messages.push_back(std::move(it->second));
-        it = inbox_.erase(it);
-        continue;
-      }
-      ++it;
+  TeamStep collect(std::uint32_t s, const TeamReport& mine, const CoarseMessage* share) {
+    TeamStep got;
+    got.reports[robot_] = mine;
+    if (share) got.shares[robot_] = *share;
+    for (int r : live()) {
+      const StatusPacket& st = *statusOf(r, s);
+      got.reports[r] = ReportOf(st);
+      if (expectsEstimates(r, st)) got.estimates.push_back(inbox_.at({s, r}));
+      if (st.coarse) got.shares[r] = coarse_.at({s, r});
     }
-    return messages;
+    return got;
+  }
+
+  // Drops what steps before s received (late packets of robots that left included).
+  void prune(std::uint32_t s) {
+    for (auto& [r, by_step] : statuses_) by_step.erase(by_step.begin(), by_step.lower_bound(s));
+    inbox_.erase(inbox_.begin(), inbox_.lower_bound({s, 0}));
+    coarse_.erase(coarse_.begin(), coarse_.lower_bound({s, 0}));
   }
 
   void waitForPeers() {
@@ -629,7 +649,7 @@ class DgsNode::Impl {
       std::vector<int> pending;
       const std::set<int> alive = transport_.alive();
       const auto now = Clock::now();
-      for (int r : live_) {
+      for (int r : live()) {
         const auto it = latest_.find(r);
         if (it != latest_.end() && it->second.done) continue;
         if (!alive.count(r) || failed(r)) {
@@ -651,23 +671,29 @@ class DgsNode::Impl {
   Values initial_;
   Transport& transport_;
   DgsNodeOptions options_;
+  DgsOptions solver_;
   std::unique_ptr<RobotAgent> agent_;
   std::set<int> neighbours_;
   std::set<Key> neighbour_keys_;
   std::unique_ptr<Journal> journal_;
   G2oWriteOptions g2o_options_;
 
-  std::set<int> team_, live_, left_, heard_;
-  bool in_stage_ = false;
-  DgsStage stage_ = DgsStage::kRotation;
-  std::uint32_t round_ = 0;
-  bool sent_ = false;
-  bool finished_ = false;
+  std::set<int> team_, left_, heard_;
+  std::uint32_t step_ = 0;
+  bool done_ = false;
+  bool journal_done_ = false;
   bool ran_ = false;
+  std::vector<std::size_t> replay_;  // journal records still to replay (steps, leaves, end)
+  std::size_t next_replay_ = 0;
+  std::optional<Sent> last_sent_;    // the last replayed step's packets, re-sent once live
+  std::optional<DgsStage> snapshot_stage_;
+  std::optional<DgsStage> round_stage_;  // on_round: the stage of the last step, steps in it
+  int stage_round_ = 0;
 
   std::map<int, StatusPacket> latest_;  // per robot: its most advanced status
-  std::map<int, std::map<std::pair<int, std::uint32_t>, StatusPacket>> statuses_;
-  std::map<std::tuple<int, std::uint32_t, int>, Message> inbox_;  // (stage, round, sender)
+  std::map<int, std::map<std::uint32_t, StatusPacket>> statuses_;  // per robot, per step
+  std::map<std::pair<std::uint32_t, int>, Message> inbox_;         // (step, sender)
+  std::map<std::pair<std::uint32_t, int>, CoarseMessage> coarse_;  // (step, sender)
   Clock::time_point last_snapshot_{};
   DgsNodeResult result_;
 };

@@ -1,36 +1,35 @@
-// One robot of a distributed Gauss-Seidel solve that runs over a Transport (transport.h): the
-// protocol between robot processes, with no central server. It wraps a RobotAgent
-// (distributed/robot_agent.h) and its persistent journal.
+// One robot of the distributed solve over a Transport (transport.h): the protocol between robot
+// processes, with no central server. It runs the robot program (distributed/robot_program.h:
+// the two DGS stages with the change or error-bound rule, the two-level correction, the
+// refinement) on a RobotAgent, as a TeamChannel over the transport, with a persistent journal.
 //
-// Protocol (every robot runs the same rules on the same information, so all decide alike):
+// Protocol (every robot runs the same program on the same information, so all decide alike):
 //   1. Join: publish a status listing its neighbours (the robots its separators reach); collect
 //      statuses until every robot of the closure (itself, its neighbours, theirs, ...) has been
 //      heard. That closure is the team; robot 0 (owner of the gauge anchor) must be in it.
-//   2. Stages rotation then pose, each in rounds (Jacobi sweeps). Round 0 starts the stage (and
-//      without flagged initialisation sends the initial estimates). Round k >= 1 waits until it
-//      holds every live team robot's status of round k-1 and the estimates of round k-1 of every
-//      neighbour whose status says it sent some; then, when every live robot's status of round
-//      k-1 says initialised and change <= eta (or k-1 = max_iterations), the stage ends;
-//      otherwise it delivers exactly those round k-1 estimates to the agent, solves once
-//      (RobotAgent::iterate), sends its estimates to its neighbours and publishes its status of
-//      round k. Estimates of round k-1 only: the result is the in-process driver's with
+//   2. Steps: the program's channel steps, numbered 1, 2, ... over the whole solve (the `round`
+//      of the packets). At step s the robot sends its estimates to its neighbours, its coarse
+//      share (if any) and its status (the program's TeamReport) to every robot, then waits until
+//      it holds the status of step s of every live team robot, the step-s estimates of every
+//      neighbour whose status says it sent some and the step-s share of every robot whose status
+//      says it has one. Only step-s packets are used: the result is the in-process driver's with
 //      SweepOrder::kJacobi (dgs_driver.h), whatever the timing.
-//   3. After the pose stage: finish, save, publish `done`, wait (bounded) until every live
-//      robot is done or gone, return.
+//   3. After the program: save, publish `done`, wait (bounded) until every live robot is done or
+//      gone, return.
 // Leaving: a team robot whose liveliness is lost for leave_timeout while it is waited for has
-// left: the others drop it from the stage (its last estimates stay in use, as a silent robot of
-// the driver) and never wait for it again. A robot seen in a later stage than ours moved on
-// (decided without us): it is not waited for in this stage.
+// left: the others drop it (its last estimates stay in use, as a silent robot of the driver;
+// the program's absent()) and never wait for it again.
 //
-// Persistence (state_dir): the journal (journal.h) records the team and, per round, the exact
-// estimates delivered to the agent, the stage starts, the robots that left and the end. A
-// restarted process replays it (the agent is deterministic: the same state, bit for bit),
-// re-sends its last round's estimates and status (duplicates are ignored by the receivers) and
-// continues; the peers wait for it meanwhile (lock-step rounds), and their transports deliver
-// the recent history it missed. Snapshots: estimate.g2o (the robot's variables and subgraph, at
-// most once a second and at every stage end), result.g2o when done. A journal written for other
-// data or options is refused (InvalidInputError). Snapshots of a subgraph with object landmarks
-// are written with KeyScheme::kWithObjects (robots 0..25 only: io/g2o.h).
+// Persistence (state_dir): the journal (journal.h) records the team, every completed step
+// (the reports, estimates and shares it returned to the program), the robots that left and the
+// end. A restarted process replays the program on the journal (the agent and the program are
+// deterministic: the same state, bit for bit, with nothing sent), re-sends its last step's
+// packets (duplicates are ignored by the receivers) and continues; the peers wait for it
+// meanwhile (lock-step), and their transports deliver the recent history it missed. Snapshots:
+// estimate.g2o (the robot's variables and subgraph, at most once a second and at every stage
+// end), result.g2o when done. A journal written for other data or options is refused
+// (InvalidInputError). Snapshots of a subgraph with object landmarks are written with
+// KeyScheme::kWithObjects (robots 0..25 only: io/g2o.h).
 #pragma once
 
 #include <chrono>
@@ -40,6 +39,7 @@
 #include <vector>
 
 #include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/robot_program.h"
 #include "moslam/graph/pose_graph.h"
 #include "moslam/transport/transport.h"
 
@@ -47,32 +47,29 @@ namespace moslam {
 
 struct DgsNodeRound {
   DgsStage stage = DgsStage::kRotation;
-  std::uint32_t round = 0;
-  bool sent = false;
-  double change = 0.0;
-  bool replayed = false;  // restored from the journal rather than computed now
+  std::uint32_t round = 0;  // the channel step (1-based, over the whole solve)
+  int stage_round = 0;      // the step's number within its stage (1-based)
+  bool sent = false;        // this robot sent estimates in it
+  double change = 0.0;      // its report: lastChange() (+inf before a solve of the stage)
+  bool replayed = false;    // restored from the journal rather than computed now
 };
 
 struct DgsNodeOptions {
-  double eta_rotation = 1e-2;
-  double eta_pose = 1e-2;
-  int max_iterations = 1000;  // rounds per stage
-  double gamma = 1.0;
-  bool flagged_initialisation = true;
-  bool weight_by_information = false;
+  // The solver (dgs_driver.h); the robots solve in parallel, so `order` is ignored (Jacobi).
+  DgsOptions solver;
 
   std::chrono::milliseconds join_timeout{60000};    // forming the team
   std::chrono::milliseconds leave_timeout{15000};   // a waited-for robot not alive this long left
-  std::chrono::milliseconds stall_timeout{300000};  // no round completed for this long: fail
+  std::chrono::milliseconds stall_timeout{300000};  // no step completed for this long: fail
   std::chrono::milliseconds finish_timeout{10000};  // waiting for the others to be done
   std::string state_dir;  // journal.bin, estimate.g2o, result.g2o; empty: nothing persisted
-  std::function<void(const DgsNodeRound&)> on_round;  // after every round (also replayed ones)
+  std::function<void(const DgsNodeRound&)> on_round;  // after every step (also replayed ones)
 
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
 
-// The in-process driver options that give the same result (Jacobi order).
+// The in-process driver options that give the same result (solver with Jacobi order).
 DgsOptions DriverOptions(const DgsNodeOptions& options);
 
 struct DgsNodeResult {
@@ -81,13 +78,16 @@ struct DgsNodeResult {
   int pose_rounds = 0;
   bool rotation_converged = false;
   bool pose_converged = false;
+  RobotProgramResult program;   // the stages and the refinement as this robot saw them
   std::vector<int> team;        // robots of the solve, this one included
   std::vector<int> left;        // robots that left during the solve
   std::uint32_t incarnation = 0;  // earlier starts of this robot found in the journal
-  int replayed_rounds = 0;
+  int replayed_rounds = 0;      // channel steps replayed from the journal
   std::int64_t journal_truncated_bytes = 0;
   std::int64_t estimate_messages = 0;      // DGS estimates sent by this process
   std::int64_t estimate_binary_bytes = 0;  // their size in the binary encoding (messages.h)
+  std::int64_t coarse_messages = 0;        // coarse shares published by this process
+  std::int64_t coarse_binary_bytes = 0;    // their size in the binary encoding
   std::int64_t rejected_estimates = 0;     // valid samples the protocol refused (not a neighbour,
                                            // keys it does not need)
   TransportStats transport;

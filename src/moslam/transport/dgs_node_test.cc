@@ -109,7 +109,7 @@ TEST(DgsNode, EqualsTheInProcessDriverInJacobiOrder) {
   for (bool flagged : {true, false}) {
     SCOPED_TRACE(flagged ? "flagged initialisation" : "initial exchange");
     DgsNodeOptions o = Options();
-    o.flagged_initialisation = flagged;
+    o.solver.flagged_initialisation = flagged;
     const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(o));
     InProcessNetwork net;
     const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
@@ -149,8 +149,8 @@ TEST(DgsNode, ARobotThatCrashesAndRestartsFromItsJournalLosesNothing) {
       // Crashes in the rotation stage at round 5, then in the pose stage at round 3.
       s.options.on_round = [&](const DgsNodeRound& r) {
         if (r.replayed) return;
-        if ((r.stage == DgsStage::kRotation && r.round == 5 && crashes == 0) ||
-            (r.stage == DgsStage::kPose && r.round == 3 && crashes == 1)) {
+        if ((r.stage == DgsStage::kRotation && r.stage_round == 5 && crashes == 0) ||
+            (r.stage == DgsStage::kPose && r.stage_round == 3 && crashes == 1)) {
           ++crashes;
           throw Crash();
         }
@@ -197,7 +197,7 @@ TEST(DgsNode, ACutLinkDelaysButDoesNotChangeTheResult) {
     RobotSetup s{base, false};
     if (robot == 0) {
       s.options.on_round = [&](const DgsNodeRound& r) {
-        if (r.stage == DgsStage::kRotation && r.round == 3) {
+        if (r.stage == DgsStage::kRotation && r.stage_round == 3) {
           net.setLink(0, 1, false);
           net.setLink(0, 2, false);
           std::lock_guard<std::mutex> lock(m);
@@ -224,17 +224,17 @@ TEST(DgsNode, TheOthersFinishWithoutARobotThatLeaves) {
   const Dataset data = ReadG2oFolder(BlocksWorld(4));
   DgsNodeOptions base = Options();
   base.leave_timeout = std::chrono::milliseconds(200);
-  // Robot 3 solves round 4 of the rotation stage and dies before sending it: for the others it
-  // is the driver's robot that stops answering at the start of sweep 4.
+  // Robot 3 completes round 4 of the rotation stage and dies: for the others it is the driver's
+  // robot that stops answering at the start of sweep 5.
   FaultInjection faults;
-  faults.silent = {{3, DgsStage::kRotation, 4}};
+  faults.silent = {{3, DgsStage::kRotation, 5}};
   const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base), faults);
   InProcessNetwork net;
   const TeamResult team = RunTeam(net, data, [&](int robot) {
     RobotSetup s{base, false};
     if (robot == 3) {
       s.options.on_round = [](const DgsNodeRound& r) {
-        if (r.stage == DgsStage::kRotation && r.round == 4) throw Crash();
+        if (r.stage == DgsStage::kRotation && r.stage_round == 4) throw Crash();
       };
     }
     return s;
@@ -252,6 +252,112 @@ TEST(DgsNode, TheOthersFinishWithoutARobotThatLeaves) {
     it = it->first.robot == 3 ? survivors.erase(it) : std::next(it);
   }
   EXPECT_LE(MaxPoseDifference(reference.values, survivors), 1e-9);
+}
+
+// The whole solver: the two-level stages with the error-bound rule, then the refinement.
+DgsNodeOptions WholeSolver() {
+  DgsNodeOptions o = Options();
+  o.solver.coarse_correction = true;
+  o.solver.stopping = StageStopping::kErrorBound;
+  o.solver.refine = true;
+  o.solver.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+  return o;
+}
+
+TEST(DgsNode, TheWholeSolverEqualsTheInProcessDriver) {
+  for (int robots : {4, 9}) {
+    SCOPED_TRACE(std::to_string(robots) + " robots");
+    const Dataset data = ReadG2oFolder(BlocksWorld(robots));
+    const DgsNodeOptions o = WholeSolver();
+    const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(o));
+    ASSERT_GT(reference.rotation.coarse_corrections, 0);
+    ASSERT_GT(reference.refine.iterations, 0);
+    InProcessNetwork net;
+    const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
+    ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+    ASSERT_EQ(team.results.size(), static_cast<std::size_t>(robots));
+    EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+    for (const auto& [r, res] : team.results) {
+      const RobotProgramResult& p = res.program;
+      EXPECT_EQ(p.rotation.iterations, reference.rotation.iterations);
+      EXPECT_EQ(p.rotation.coarse_corrections, reference.rotation.coarse_corrections);
+      EXPECT_EQ(p.pose.iterations, reference.pose.iterations);
+      EXPECT_EQ(p.refine.iterations, reference.refine.iterations);
+      EXPECT_EQ(p.refine.sweeps, reference.refine.sweeps);
+      EXPECT_NEAR(p.refine.final_cost, reference.refine.final_cost,
+                  1e-12 * reference.refine.final_cost);
+      EXPECT_GT(res.coarse_messages, 0);
+      EXPECT_EQ(res.transport.coarse_sent, res.coarse_messages);
+    }
+  }
+}
+
+TEST(DgsNode, TheLowestRobotKilledInTheRefinementAndRestartedChangesNothing) {
+  // No robot coordinates: every robot solves the coarse system and takes the step decisions
+  // from the reports of all. Robot 0, the one a coordinator rule would pick, dies twice (in the
+  // two-level stage and in the refinement's conjugate gradients) and restarts from its journal.
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const DgsNodeOptions base = WholeSolver();
+  const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
+  const fs::path dir = FreshDir("restart_refine");
+  std::atomic<int> crashes{0};
+  InProcessNetwork net;
+  const TeamResult team = RunTeam(net, data, [&](int robot) {
+    RobotSetup s{base, false};
+    s.options.state_dir = (dir / std::to_string(robot)).string();
+    if (robot == 0) {
+      s.restart_after_crash = true;
+      s.options.on_round = [&](const DgsNodeRound& r) {
+        if (r.replayed) return;
+        if ((r.stage == DgsStage::kRotation && r.stage_round == 6 && crashes == 0) ||
+            (r.stage == DgsStage::kRefine && r.stage_round == 9 && crashes == 1)) {
+          ++crashes;
+          throw Crash();
+        }
+      };
+    }
+    return s;
+  });
+  ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+  EXPECT_EQ(crashes, 2);
+  EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+  const DgsNodeResult& r0 = team.results.at(0);
+  EXPECT_EQ(r0.incarnation, 2u);
+  EXPECT_GT(r0.replayed_rounds, reference.rotation.iterations);
+  EXPECT_NEAR(r0.program.refine.final_cost, reference.refine.final_cost,
+              1e-12 * reference.refine.final_cost);
+  for (const auto& [r, res] : team.results) EXPECT_TRUE(res.left.empty());
+  fs::remove_all(dir);
+}
+
+TEST(DgsNode, TheOthersFinishTheRefinementWithoutARobotThatLeaves) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  DgsNodeOptions base = WholeSolver();
+  base.leave_timeout = std::chrono::milliseconds(200);
+  const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
+  InProcessNetwork net;
+  const TeamResult team = RunTeam(net, data, [&](int robot) {
+    RobotSetup s{base, false};
+    if (robot == 0) {
+      s.options.on_round = [](const DgsNodeRound& r) {
+        if (r.stage == DgsStage::kRefine && r.stage_round == 5) throw Crash();
+      };
+    }
+    return s;
+  });
+  ASSERT_EQ(team.errors.size(), 1u);
+  EXPECT_EQ(team.errors.at(0), "crashed");
+  ASSERT_EQ(team.results.size(), 3u);
+  for (const auto& [r, res] : team.results) {
+    EXPECT_EQ(res.left, std::vector<int>{0});
+    EXPECT_EQ(res.rotation_rounds, reference.rotation.iterations);
+    EXPECT_EQ(res.pose_rounds, reference.pose.iterations);
+    // The survivors refine on without robot 0 (its variables fixed) and agree on every decision.
+    EXPECT_EQ(res.program.refine.iterations, team.results.begin()->second.program.refine.iterations);
+    EXPECT_EQ(res.program.refine.final_cost, team.results.begin()->second.program.refine.final_cost);
+    EXPECT_LE(res.program.refine.final_cost, res.program.refine.initial_cost);
+    EXPECT_NE(res.program.refine.status, StageStatus::kNotRun);
+  }
 }
 
 TEST(RobotData, EachRobotFileHoldsItsPartitionOfTheFolder) {
@@ -281,9 +387,9 @@ TEST(DgsNode, RefusesTheJournalOfAnotherRun) {
   DgsNodeOptions o = Options();
   o.state_dir = dir.string();
   { DgsNode node(1, parts[1].graph, data.initial, *t, o); }  // writes the journal header
-  o.eta_pose = 0.5;
+  o.solver.eta_pose = 0.5;
   EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
-  o.eta_pose = Options().eta_pose;
+  o.solver.eta_pose = Options().solver.eta_pose;
   EXPECT_THROW(DgsNode(0, parts[0].graph, data.initial, *net.connect(0), o), InvalidInputError);
   EXPECT_NO_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o));
   fs::remove_all(dir);
@@ -295,7 +401,7 @@ TEST(DgsNode, ValidatesOptions) {
   InProcessNetwork net;
   auto t = net.connect(1);
   DgsNodeOptions o = Options();
-  o.eta_rotation = 0.0;
+  o.solver.eta_rotation = 0.0;
   EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
   o = Options();
   o.leave_timeout = std::chrono::milliseconds(0);

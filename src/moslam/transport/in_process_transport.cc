@@ -13,11 +13,12 @@ namespace moslam {
 
 namespace {
 
-// History slot of a packet: status and objects per sender, estimates per (sender, receiver)
+// History slot of a packet: status, objects and coarse shares per sender, estimates per (sender, receiver)
 // (slot = receiver), shared objects per (sender, receiver) (slot = kSharedTopic - receiver).
 constexpr int kStatusTopic = -1;
 constexpr int kObjectsTopic = -2;
-constexpr int kSharedTopic = -3;
+constexpr int kCoarseTopic = -3;
+constexpr int kSharedTopic = -4;
 // The robot a history slot is addressed to, or -1 (every robot).
 int SlotReceiver(int topic) {
   if (topic >= 0) return topic;
@@ -107,6 +108,11 @@ class InProcessTransport final : public Transport {
     if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
     transmit(packet, kObjectsTopic, -1);
   }
+  void publish(const CoarsePacket& packet) override {
+    const std::string why = CheckPacket(packet, robot_, -1, {});
+    if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
+    transmit(packet, kCoarseTopic, -1);
+  }
 
   std::vector<Received> poll(std::chrono::milliseconds timeout) override {
     std::deque<Received> raw;
@@ -156,6 +162,9 @@ class InProcessTransport final : public Transport {
     } else if (std::holds_alternative<StatusPacket>(packet)) {
       ++stats_.status_sent;
       stats_.status_bytes += bytes;
+    } else if (std::holds_alternative<CoarsePacket>(packet)) {
+      ++stats_.coarse_sent;
+      stats_.coarse_bytes += bytes;
     } else {
       ++stats_.objects_sent;
       stats_.objects_bytes += bytes;

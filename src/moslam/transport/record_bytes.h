@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,11 @@ class RecordWriter {
   RecordWriter& u16(std::uint16_t v) { return le(v, 2); }
   RecordWriter& u32(std::uint32_t v) { return le(v, 4); }
   RecordWriter& u64(std::uint64_t v) { return le(v, 8); }
+  RecordWriter& f64(double v) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    return le(bits, 8);
+  }
   RecordWriter& raw(const std::vector<std::uint8_t>& v) {
     u32(static_cast<std::uint32_t>(v.size()));
     b_.insert(b_.end(), v.begin(), v.end());
@@ -44,6 +50,12 @@ class RecordReader {
   std::uint16_t u16() { return static_cast<std::uint16_t>(le(2)); }
   std::uint32_t u32() { return static_cast<std::uint32_t>(le(4)); }
   std::uint64_t u64() { return le(8); }
+  double f64() {
+    const std::uint64_t bits = le(8);
+    double v;
+    std::memcpy(&v, &bits, sizeof v);
+    return v;
+  }
   std::vector<std::uint8_t> raw() {
     const std::uint32_t n = u32();
     need(n);

@@ -166,6 +166,7 @@ class PrefetchedTransport final : public Transport {
   void send(const SharedObjectsPacket& p) override { inner_.send(p); }
   void publish(const StatusPacket& p) override { inner_.publish(p); }
   void publish(const ObjectListPacket& p) override { inner_.publish(p); }
+  void publish(const CoarsePacket& p) override { inner_.publish(p); }
   std::vector<Received> poll(std::chrono::milliseconds timeout) override {
     if (pending_.empty()) return inner_.poll(timeout);
     std::vector<Received> out = std::move(pending_);

@@ -43,6 +43,12 @@ std::string CheckStatus(const StatusPacket& p, int sender) {
   if (std::isnan(p.change) || p.change < 0.0) {
     return fmt::format("status with invalid change {}", p.change);
   }
+  if (std::isnan(p.error_bound) || p.error_bound < 0.0) {
+    return fmt::format("status with invalid error bound {}", p.error_bound);
+  }
+  if (!std::isfinite(p.value[0]) || !std::isfinite(p.value[1])) {
+    return "status with non-finite values";
+  }
   if (p.neighbours.size() > kMaxNeighbours) return "status with too many neighbours";
   for (std::size_t i = 0; i < p.neighbours.size(); ++i) {
     const int n = p.neighbours[i];
@@ -96,6 +102,20 @@ std::string CheckShared(const SharedObjectsPacket& p, int sender, int self) {
   return {};
 }
 
+std::string CheckCoarse(const CoarsePacket& p, int sender) {
+  if (p.message.sender != sender) {
+    return fmt::format("coarse share claims sender {} but came from robot {}", p.message.sender,
+                       sender);
+  }
+  if (p.message.kind == CoarseKind::kSolution) return "a coarse solution is not a share";
+  try {
+    (void)EncodeCoarseMessage(p.message);  // stage, kind, sizes, finiteness, block robots
+  } catch (const InvalidInputError& e) {
+    return std::string("malformed coarse share: ") + e.what();
+  }
+  return {};
+}
+
 }  // namespace
 
 std::string ToString(RobotState state) {
@@ -129,6 +149,7 @@ std::string CheckPacket(const Packet& packet, int sender, int self, const std::s
   if (const auto* h = std::get_if<SharedObjectsPacket>(&packet)) {
     return CheckShared(*h, sender, self);
   }
+  if (const auto* c = std::get_if<CoarsePacket>(&packet)) return CheckCoarse(*c, sender);
   return CheckObjects(std::get<ObjectListPacket>(packet), sender);
 }
 
@@ -138,9 +159,12 @@ std::int64_t BinarySize(const Packet& packet) {
     return static_cast<std::int64_t>(EncodeMessage(e->message).size()) + 6;
   }
   if (const auto* s = std::get_if<StatusPacket>(&packet)) {
-    // robot u16, incarnation u32, state/stage/flags 3 x u8, round/iteration u32, change f64,
-    // neighbour count u16 + u16 each.
-    return 2 + 4 + 3 + 8 + 8 + 2 + 2 * static_cast<std::int64_t>(s->neighbours.size());
+    // robot u16, incarnation u32, state/stage/flags 3 x u8, round/iteration u32, change and
+    // error bound f64, two f64 values, neighbour count u16 + u16 each.
+    return 2 + 4 + 3 + 8 + 4 * 8 + 2 + 2 * static_cast<std::int64_t>(s->neighbours.size());
+  }
+  if (const auto* c = std::get_if<CoarsePacket>(&packet)) {
+    return static_cast<std::int64_t>(EncodeCoarseMessage(c->message).size()) + 4;  // + round
   }
   if (const auto* h = std::get_if<SharedObjectsPacket>(&packet)) {
     // sender, receiver u16, step u32, count u32, two u64 ids per pair.

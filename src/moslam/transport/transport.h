@@ -5,7 +5,10 @@
 // Packets (one DDS topic each, idl/*.idl, ROS 2 naming moslam/msg/<Name>):
 //   EstimatesPacket  DGS estimates for ONE receiver in one stage and protocol round
 //                    (topic rt/moslam/robot<R>/dgs_estimates: the receiver's inbox);
-//   StatusPacket     a robot's progress, to every robot (rt/moslam/status), after every round;
+//   StatusPacket     a robot's progress, to every robot (rt/moslam/status), after every protocol
+//                    step: what it reports to the team (robot_program.h, TeamReport);
+//   CoarsePacket     a robot's rows of a coarse system (two-level DGS, the refinement's
+//                    preconditioner), to every robot (rt/moslam/dgs_coarse): each robot solves it;
 //   ObjectListPacket the objects a robot shares at a rendezvous, label + pose each
 //                    (rt/moslam/objects: every robot in range);
 //   SharedObjectsPacket the answer to an object list: the pairs of shared objects found by the
@@ -74,7 +77,17 @@ struct StatusPacket {
   bool initialised = false;       // it has solved in this stage
   bool done = false;              // its result is final and saved
   double change = std::numeric_limits<double>::infinity();  // RobotAgent::lastChange()
+  double error_bound = std::numeric_limits<double>::infinity();  // RobotAgent::errorBound()
+  bool coarse_ready = false;      // it can take part in a coarse correction
+  bool coarse = false;            // a CoarsePacket of this round comes with the status
+  double value[2] = {0.0, 0.0};   // its inputs to the round's team-wide sums and maxima
   std::vector<int> neighbours;    // robots its separators reach, increasing
+};
+
+// A robot's coarse share of one protocol round, to every robot.
+struct CoarsePacket {
+  std::uint32_t round = 0;
+  CoarseMessage message;  // sender, stage, kind (share, matrix or residual), blocks
 };
 
 struct ObjectObservation {
@@ -99,7 +112,8 @@ struct SharedObjectsPacket {
   std::vector<std::pair<std::uint64_t, std::uint64_t>> pairs;
 };
 
-using Packet = std::variant<EstimatesPacket, StatusPacket, ObjectListPacket, SharedObjectsPacket>;
+using Packet = std::variant<EstimatesPacket, StatusPacket, ObjectListPacket, SharedObjectsPacket,
+                            CoarsePacket>;
 
 struct Received {
   int sender = 0;
@@ -118,6 +132,8 @@ struct TransportStats {
   std::int64_t estimates_bytes = 0;
   std::int64_t status_sent = 0;
   std::int64_t status_bytes = 0;
+  std::int64_t coarse_sent = 0;       // coarse shares (two-level DGS, refinement)
+  std::int64_t coarse_bytes = 0;
   std::int64_t objects_sent = 0;      // object lists and shared-object answers (rendezvous)
   std::int64_t objects_bytes = 0;
 };
@@ -139,6 +155,7 @@ class Transport {
   // To every robot. Throws InvalidInputError as send().
   virtual void publish(const StatusPacket& packet) = 0;
   virtual void publish(const ObjectListPacket& packet) = 0;
+  virtual void publish(const CoarsePacket& packet) = 0;
   // The valid packets that arrived since the last call; when none has, waits up to `timeout`
   // for one. Never throws on received content.
   virtual std::vector<Received> poll(std::chrono::milliseconds timeout) = 0;
@@ -152,7 +169,9 @@ class Transport {
 // Empty when `packet`, received by robot `self` from `sender`, is valid; else the reason.
 // `known`: accepted senders (empty: any). Estimates must be addressed to `self`; their content is
 // what EncodeMessage accepts. Status: state and stage in range, change >= 0 (+inf allowed),
-// neighbours distinct, increasing, without the robot itself. Objects: finite poses, unit
+// error bound >= 0 (+inf allowed), values finite, neighbours distinct, increasing, without the
+// robot itself. Coarse: the sender's own share, what EncodeCoarseMessage accepts, kind share,
+// matrix or residual. Objects: finite poses, unit
 // quaternions (checked before conversion, tolerance 1e-6), labels of 1..64 printable characters,
 // distinct ids < 2^56, at most kMaxObjects. Shared objects: addressed to `self`, at most
 // kMaxObjects pairs, ids < 2^56, no id twice on either side.
