@@ -12,6 +12,7 @@
 
 #include "commands.h"
 #include "robust_flags.h"
+#include "solver_flags.h"
 #include "moslam/common/errors.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_driver.h"
@@ -30,25 +31,8 @@ namespace {
 struct DgsArgs {
   std::string input;
   int robots = 0;  // 0: the robots the keys name
-  double eta_rotation = 1e-2;
-  double eta_pose = 1e-2;
-  std::string stopping = "change";
-  int stop_window = 10;
-  double gamma = 1.0;
   std::string order = "gs";
-  int max_iterations = 1000;
-  bool no_flagged = false;
-  bool weighted = false;
-  std::string stages = "auto";  // auto: two-level with --refine, one-level (the paper's) without
-  bool refine = false;
-  std::string pose_solver = "auto";  // auto: cg with --refine, sweeps (DGS.md) without
-  std::string refine_solver = "cg";
-  std::string refine_preconditioner = "two-level";
-  int refine_max_iterations = 100;
-  double refine_tolerance = 1e-10;
-  int refine_max_sweeps = 1000;
-  double refine_linear_tolerance = -1.0;  // < 0: the solver's default
-  double refine_gamma = 1.0;
+  SolverArgs solver;    // the stages, their stopping rule, two-level, the refinement
   G2oReadOptions read;  // --objects, --drop-indefinite-coupling
   bool json = false;
   bool robust = false;
@@ -184,7 +168,7 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
 
 int RunDgsCommand(const DgsArgs& a_in) {
   DgsArgs a = a_in;
-  if (a.robust) a.refine = true;  // every robust round solves to the optimum
+  if (a.robust) a.solver.refine = true;  // every robust round solves to the optimum
   const auto t_start = std::chrono::steady_clock::now();
   const G2oReadOptions& read_options = a.read;
   const Dataset data = ReadG2o(a.input, read_options);
@@ -206,34 +190,8 @@ int RunDgsCommand(const DgsArgs& a_in) {
     initial = std::move(split.initial);
   }
 
-  DgsOptions options;
-  options.eta_rotation = a.eta_rotation;
-  options.eta_pose = a.eta_pose;
-  options.stopping = StageStoppingFromString(a.stopping);
-  options.error_bound_window = a.stop_window;
-  options.gamma = a.gamma;
-  options.order = a.order == "jacobi" ? SweepOrder::kJacobi : SweepOrder::kGaussSeidel;
-  options.max_iterations = a.max_iterations;
-  options.flagged_initialisation = !a.no_flagged;
-  options.weight_by_information = a.weighted;
-  options.coarse_correction =
-      a.stages == "two-level" || (a.stages == "auto" && a.refine);
-  options.refine = a.refine;
-  options.pose_solver = a.pose_solver == "cg" || (a.pose_solver == "auto" && a.refine)
-                            ? DgsOptions::PoseSolver::kConjugateGradient
-                            : DgsOptions::PoseSolver::kSweeps;
-  options.refinement.solver =
-      a.refine_solver == "sweeps" ? RefineSolver::kSweeps : RefineSolver::kConjugateGradient;
-  options.refinement.preconditioner = RefinePreconditionerFromString(a.refine_preconditioner);
-  options.refinement.max_iterations = a.refine_max_iterations;
-  options.refinement.relative_cost_tolerance = a.refine_tolerance;
-  options.refinement.max_sweeps = a.refine_max_sweeps;
-  if (a.refine_linear_tolerance >= 0.0) {
-    options.refinement.sweep_tolerance = a.refine_linear_tolerance;
-    options.refinement.cg_tolerance = a.refine_linear_tolerance;
-  }
-  options.refinement.gamma = a.refine_gamma;
-  options.validate();
+  const DgsOptions options =
+      a.solver.options(a.order == "jacobi" ? SweepOrder::kJacobi : SweepOrder::kGaussSeidel);
   if (a.robust) return RunRobustDgsCommand(a, graph, initial, options, t_start);
 
   // The reference: centralized Gauss-Newton from the chordal initialisation, in the same gauge
@@ -281,11 +239,11 @@ int RunDgsCommand(const DgsArgs& a_in) {
   const Values two_stage = driver.result().values;
   // The fixed point of the two stages, solved centrally: what DGS converges to (DGS.md).
   TwoStageOptions two_stage_options;
-  two_stage_options.weight_by_information = a.weighted;
+  two_stage_options.weight_by_information = a.solver.weighted;
   const Values central_two_stage = CentralizedTwoStage(graph, initial, two_stage_options).values;
   const TrajectoryErrors to_fixed_point = CompareEstimates(two_stage, central_two_stage);
   const double two_stage_cost = graph.cost(two_stage);
-  if (a.refine) driver.runRefineStage();
+  if (a.solver.refine) driver.runRefineStage();
   const DgsResult r = driver.result();
   WriteEstimate(a.out, graph, r.values, a.read);
   const double final_cost = graph.cost(r.values);
@@ -302,15 +260,15 @@ int RunDgsCommand(const DgsArgs& a_in) {
         {"variables", graph.keys().size()},
         {"factors", graph.factors().size()},
         {"repaired_information", data.repaired_information},
-        {"eta_rotation", a.eta_rotation},
-        {"eta_pose", a.eta_pose},
-        {"gamma", a.gamma},
+        {"eta_rotation", a.solver.eta_rotation},
+        {"eta_pose", a.solver.eta_pose},
+        {"gamma", a.solver.gamma},
         {"order", a.order},
-        {"flagged_initialisation", !a.no_flagged},
-        {"weighted", a.weighted},
+        {"flagged_initialisation", !a.solver.no_flagged},
+        {"weighted", a.solver.weighted},
         {"coarse", options.coarse_correction},
         {"coarse_corrections", r.rotation.coarse_corrections + r.pose.coarse_corrections},
-        {"refine", a.refine},
+        {"refine", a.solver.refine},
         {"two_stage_cost", two_stage_cost},
         {"final_cost", final_cost},
         {"centralized_cost", central.final_cost},
@@ -333,7 +291,7 @@ int RunDgsCommand(const DgsArgs& a_in) {
         {"are_poses_deg", errors.poses.are_deg},
         {"two_stage_ate_poses", two_stage_errors.poses.ate},
         {"two_stage_are_poses_deg", two_stage_errors.poses.are_deg},
-        {"stopping", a.stopping},
+        {"stopping", a.solver.stopping},
         {"final_error_bound_rotation", Number(r.rotation.final_error_bound)},
         {"final_error_bound_pose", Number(r.pose.final_error_bound)},
         {"centralized_two_stage_cost", graph.cost(central_two_stage)},
@@ -354,7 +312,7 @@ int RunDgsCommand(const DgsArgs& a_in) {
         {"seconds_per_iteration", iterations_total > 0 ? r.seconds / iterations_total : 0.0},
         {"total_seconds", total_seconds},
     };
-    if (a.refine) {
+    if (a.solver.refine) {
       // Per Gauss-Newton step: the accepted cost and the bytes so far (two stages included), and
       // the bytes when the estimate first came within 1e-6 relative of the centralized optimum.
       const std::int64_t two_stage_bytes = r.rotation.bytes + r.pose.bytes;
@@ -394,7 +352,7 @@ int RunDgsCommand(const DgsArgs& a_in) {
   } else {
     fmt::print("rotation: {} after {} sweep(s); pose: {} after {} sweep(s)", ToString(r.rotation.status),
                r.rotation.iterations, ToString(r.pose.status), r.pose.iterations);
-    if (a.refine) {
+    if (a.solver.refine) {
       fmt::print("; refine: {} after {} step(s), {} sweep(s)", ToString(r.refine.status),
                  r.refine.iterations, r.refine.sweeps);
     }
@@ -427,72 +385,10 @@ Runner RegisterDgs(CLI::App& app) {
   sub->add_option("--robots", args->robots,
                   "split a single-robot file into N robots of contiguous pose blocks")
       ->check(CLI::Range(1, kMaxMessageRobot + 1));
-  sub->add_option("--eta-rot", args->eta_rotation, "stage 1 stops when every change <= this")
-      ->capture_default_str();
-  sub->add_option("--eta-pose", args->eta_pose, "stage 2 stops when every change <= this")
-      ->capture_default_str();
-  sub->add_option("--stop", args->stopping,
-                  "what eta bounds: change (each robot's change per sweep, DGS.md) or "
-                  "error-bound (each robot's estimated distance to the fixed point, "
-                  "change * rho / (1 - rho))")
-      ->check(CLI::IsMember({"change", "error-bound"}))
-      ->capture_default_str();
-  sub->add_option("--stop-window", args->stop_window,
-                  "error-bound: rho is the largest ratio of successive changes over this many "
-                  "solves")
-      ->check(CLI::Range(1, 64))
-      ->capture_default_str();
-  sub->add_option("--gamma", args->gamma, "over-relaxation of the two stages, in (0, 2)")
-      ->capture_default_str();
   sub->add_option("--order", args->order, "gs (Gauss-Seidel) or jacobi")
       ->check(CLI::IsMember({"gs", "jacobi"}))
       ->capture_default_str();
-  sub->add_option("--max-iter", args->max_iterations, "maximum sweeps per stage")
-      ->capture_default_str();
-  sub->add_flag("--no-flagged", args->no_flagged, "without flagged initialisation");
-  sub->add_flag("--weighted", args->weighted,
-                "weight the two stages by the information matrices (the reference: unit)");
-  sub->add_option("--stages", args->stages,
-                  "the two stages: one-level (DGS.md, the paper's), two-level (after each sweep "
-                  "a coarse correction of every robot's motion as a whole, solved by one "
-                  "coordinator robot), or auto: two-level with --refine (the stages then only "
-                  "start the refinement), one-level without")
-      ->check(CLI::IsMember({"auto", "one-level", "two-level"}))
-      ->capture_default_str();
-  sub->add_flag_callback(
-      "--coarse", [args] { args->stages = "two-level"; }, "the same as --stages two-level");
-  sub->add_flag("--refine", args->refine,
-                "after the two stages, distributed Gauss-Newton on the SE(3) cost");
-  sub->add_option("--refine-solver", args->refine_solver,
-                  "linear steps by cg (conjugate gradients preconditioned by the sweeps) or "
-                  "sweeps (plain block Gauss-Seidel / Jacobi)")
-      ->check(CLI::IsMember({"cg", "sweeps"}))
-      ->capture_default_str();
-  sub->add_option("--pose-solver", args->pose_solver,
-                  "the pose stage: sweeps (DGS.md), cg (conjugate gradients on the same system, "
-                  "preconditioned as the refinement's), or auto: cg with --refine, sweeps without")
-      ->check(CLI::IsMember({"auto", "sweeps", "cg"}))
-      ->capture_default_str();
-  sub->add_option("--refine-preconditioner", args->refine_preconditioner,
-                  "preconditioner of the refinement's conjugate gradients: two-level (the "
-                  "sweeps around a coarse correction over the robots' rigid motions) or sweeps")
-      ->check(CLI::IsMember({"two-level", "sweeps"}))
-      ->capture_default_str();
-  sub->add_option("--refine-max-iter", args->refine_max_iterations,
-                  "maximum Gauss-Newton steps")
-      ->capture_default_str();
-  sub->add_option("--refine-tol", args->refine_tolerance,
-                  "stop when a step lowers the cost by at most this fraction")
-      ->capture_default_str();
-  sub->add_option("--refine-max-sweeps", args->refine_max_sweeps,
-                  "maximum sweeps per Gauss-Newton step")
-      ->capture_default_str();
-  sub->add_option("--refine-linear-tol", args->refine_linear_tolerance,
-                  "linear-step tolerance (cg: relative residual, default 1e-2; sweeps: change "
-                  "relative to the increment, default 1e-3)");
-  sub->add_option("--refine-gamma", args->refine_gamma,
-                  "over-relaxation of the refinement sweeps, in (0, 2)")
-      ->capture_default_str();
+  AddSolverFlags(sub, &args->solver);
   AddG2oReadFlags(sub, &args->read);
   sub->add_flag("--robust", args->robust,
                 "outlier-robust: graduated non-convexity with a truncated least-squares cost on "

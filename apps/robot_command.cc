@@ -22,11 +22,15 @@
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/partition.h"
 #include "moslam/io/g2o.h"
+#include "moslam/io/tum.h"
 #include "moslam/metrics/metrics.h"
+#include "moslam/solver/initialization.h"
+#include "moslam/solver/optimizer.h"
 #include "moslam/transport/dds_transport.h"
 #include "moslam/transport/dgs_node.h"
 #include "moslam/transport/robot_data.h"
 #include "moslam/transport/robot_session.h"
+#include "solver_flags.h"
 
 namespace moslam::cli {
 namespace {
@@ -35,24 +39,14 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 struct SolveFlags {
-  double eta_rotation = 1e-2;
-  double eta_pose = 1e-2;
-  int max_iterations = 1000;
-  bool no_flagged = false;
+  SolverArgs solver;  // the same solver flags as `moslam dgs` (the robots solve in Jacobi order)
   double leave_timeout = 15.0;  // seconds
   double join_timeout = 60.0;
   double stall_timeout = 300.0;
 };
 
 void AddSolveFlags(CLI::App* sub, SolveFlags& f) {
-  sub->add_option("--eta-rot", f.eta_rotation, "Stage 1 stops when every change is <= this")
-      ->check(CLI::PositiveNumber);
-  sub->add_option("--eta-pose", f.eta_pose, "Stage 2 stops when every change is <= this")
-      ->check(CLI::PositiveNumber);
-  sub->add_option("--max-iter", f.max_iterations, "Rounds (Jacobi sweeps) per stage")
-      ->check(CLI::PositiveNumber);
-  sub->add_flag("--no-flagged", f.no_flagged,
-                "Exchange initial estimates instead of flagged initialisation");
+  AddSolverFlags(sub, &f.solver);
   sub->add_option("--leave-timeout", f.leave_timeout,
                   "Seconds a waited-for robot may be unreachable before it counts as gone")
       ->check(CLI::PositiveNumber);
@@ -68,10 +62,7 @@ std::chrono::milliseconds Ms(double seconds) {
 
 DgsNodeOptions NodeOptions(const SolveFlags& f) {
   DgsNodeOptions o;
-  o.eta_rotation = f.eta_rotation;
-  o.eta_pose = f.eta_pose;
-  o.max_iterations = f.max_iterations;
-  o.flagged_initialisation = !f.no_flagged;
+  o.solver = f.solver.options(SweepOrder::kJacobi);
   o.leave_timeout = Ms(f.leave_timeout);
   o.join_timeout = Ms(f.join_timeout);
   o.stall_timeout = Ms(f.stall_timeout);
@@ -80,13 +71,13 @@ DgsNodeOptions NodeOptions(const SolveFlags& f) {
 }
 
 std::vector<std::string> SolveArgs(const SolveFlags& f) {
-  std::vector<std::string> a = {"--eta-rot", fmt::format("{}", f.eta_rotation), "--eta-pose",
-                                fmt::format("{}", f.eta_pose), "--max-iter",
-                                std::to_string(f.max_iterations), "--leave-timeout",
-                                fmt::format("{}", f.leave_timeout), "--join-timeout",
-                                fmt::format("{}", f.join_timeout), "--stall-timeout",
-                                fmt::format("{}", f.stall_timeout)};
-  if (f.no_flagged) a.push_back("--no-flagged");
+  std::vector<std::string> a = f.solver.args();
+  for (const std::string& s :
+       {std::string("--leave-timeout"), fmt::format("{}", f.leave_timeout),
+        std::string("--join-timeout"), fmt::format("{}", f.join_timeout),
+        std::string("--stall-timeout"), fmt::format("{}", f.stall_timeout)}) {
+    a.push_back(s);
+  }
   return a;
 }
 
@@ -162,7 +153,17 @@ nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
   j["replayed_rounds"] = r.replayed_rounds;
   j["estimate_messages"] = r.estimate_messages;
   j["estimate_binary_bytes"] = r.estimate_binary_bytes;
+  j["coarse_messages"] = r.coarse_messages;
+  j["coarse_binary_bytes"] = r.coarse_binary_bytes;
+  j["rotation_coarse_corrections"] = r.program.rotation.coarse_corrections;
+  j["pose_coarse_corrections"] = r.program.pose.coarse_corrections;
+  j["refine_steps"] = r.program.refine.iterations;
+  j["refine_sweeps"] = r.program.refine.sweeps;
+  j["refine_status"] = ToString(r.program.refine.status);
+  j["refine_final_cost"] = r.program.refine.final_cost;
+  j["protocol_steps"] = r.program.channel_steps;
   j["dds_estimate_bytes"] = r.transport.estimates_bytes;
+  j["dds_coarse_bytes"] = r.transport.coarse_bytes;
   j["dds_status_samples"] = r.transport.status_sent;
   j["dds_status_bytes"] = r.transport.status_bytes;
   j["dds_sent_samples"] = r.transport.sent_samples;
@@ -203,8 +204,8 @@ int RunScenarioRobot(const RobotArgs& a) {
   options.rendezvous_timeout = Ms(a.scenario.rendezvous_timeout);
   if (a.progress) {
     options.dgs.on_round = [](const DgsNodeRound& r) {
-      fmt::print("progress: {} {} {}{}\n", ToString(r.stage), r.round, r.sent ? "sent" : "-",
-                 r.replayed ? " replayed" : "");
+      fmt::print("progress: {} {} step {} {}{}\n", ToString(r.stage), r.stage_round, r.round,
+                 r.sent ? "sent" : "-", r.replayed ? " replayed" : "");
       std::fflush(stdout);
     };
     options.on_rendezvous = [](const SessionRendezvous& r) {
@@ -258,8 +259,8 @@ int RunRobot(const RobotArgs& a) {
   options.state_dir = a.out;
   if (a.progress) {
     options.on_round = [](const DgsNodeRound& r) {
-      fmt::print("progress: {} {} {}{}\n", ToString(r.stage), r.round, r.sent ? "sent" : "-",
-                 r.replayed ? " replayed" : "");
+      fmt::print("progress: {} {} step {} {}{}\n", ToString(r.stage), r.stage_round, r.round,
+                 r.sent ? "sent" : "-", r.replayed ? " replayed" : "");
       std::fflush(stdout);
     };
   }
@@ -370,7 +371,9 @@ struct TeamResults {
   std::map<int, nlohmann::json> summaries;             // robot -> summary, those that finished
   Values merged;  // each finished robot's own variables, from its result.g2o
   std::int64_t binary = 0, cdr = 0, status_bytes = 0, messages = 0;
-  int rotation_rounds = 0, pose_rounds = 0;
+  std::int64_t coarse_binary = 0, coarse_cdr = 0, coarse_messages = 0;
+  int rotation_rounds = 0, pose_rounds = 0, refine_steps = 0, protocol_steps = 0;
+  double refine_cost = 0.0;  // the refinement's final cost as the robots summed it
   double seconds = 0.0;  // from starting the processes to the last one ending
 };
 
@@ -405,6 +408,12 @@ TeamResults CollectTeam(const fs::path& out, int n, const std::map<int, int>& ex
     t.cdr += s["dds_estimate_bytes"].get<std::int64_t>();
     t.status_bytes += s["dds_status_bytes"].get<std::int64_t>();
     t.messages += s["estimate_messages"].get<std::int64_t>();
+    t.coarse_binary += s["coarse_binary_bytes"].get<std::int64_t>();
+    t.coarse_cdr += s["dds_coarse_bytes"].get<std::int64_t>();
+    t.coarse_messages += s["coarse_messages"].get<std::int64_t>();
+    t.refine_steps = std::max(t.refine_steps, s["refine_steps"].get<int>());
+    t.protocol_steps = std::max(t.protocol_steps, s["protocol_steps"].get<int>());
+    t.refine_cost = s["refine_final_cost"].get<double>();
     t.rotation_rounds = std::max(t.rotation_rounds, s["rotation_rounds"].get<int>());
     t.pose_rounds = std::max(t.pose_rounds, s["pose_rounds"].get<int>());
     t.summaries[r] = s;
@@ -434,10 +443,14 @@ TeamResults RunTeamProcesses(const TeamArgs& a, const fs::path& out, int n,
   return t;
 }
 
-// The team's estimate against the in-process driver's on the same graph: JSON fields and the
-// DGS line of the report.
+// The team's estimate against the in-process driver's on the same graph (and, with the
+// refinement, against the centralized optimum): JSON fields and the DGS lines of the report.
+// Writes the merged map into `out`: merged.g2o (every variable and factor) and robot_<r>.tum.
 void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const DgsResult& reference,
-                          nlohmann::json& j) {
+                          const fs::path& out, const G2oWriteOptions& write, nlohmann::json& j) {
+  WriteG2oFile((out / "merged.g2o").string(), graph, t.merged, write);
+  WriteTumTrajectories(out.string(), t.merged);
+  j["merged_map"] = (out / "merged.g2o").string();
   j["cost"] = graph.cost(t.merged);
   j["cost_in_process"] = graph.cost(reference.values);
   j["max_difference"] = MaxPoseDifference(t.merged, reference.values);
@@ -453,14 +466,43 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
   j["in_process_bytes"] = reference.bytes;
   j["dds_estimate_bytes"] = t.cdr;
   j["dds_status_bytes"] = t.status_bytes;
+  j["coarse_messages"] = t.coarse_messages;
+  j["coarse_binary_bytes"] = t.coarse_binary;
+  j["dds_coarse_bytes"] = t.coarse_cdr;
+  j["in_process_coarse_bytes"] = reference.refine.coarse_bytes;
+  j["protocol_steps"] = t.protocol_steps;
+  j["refine_steps"] = t.refine_steps;
+  j["in_process_refine_steps"] = reference.refine.iterations;
   const int rounds = t.rotation_rounds + t.pose_rounds;
   j["dds_payload_bytes_per_round"] =
       rounds ? static_cast<double>(t.cdr + t.status_bytes) / rounds : 0.0;
+  j["dds_payload_bytes"] = t.cdr + t.status_bytes + t.coarse_cdr;
+  if (reference.refine.status != StageStatus::kNotRun) {
+    // The centralized optimum in the same gauge (the anchor at its initial value).
+    const Key anchor = GaugeAnchor(graph);
+    const auto it = reference.values.find(anchor);
+    const SE3 anchor_pose = it != reference.values.end() ? it->second : SE3();
+    const OptimizerResult central = Optimize(graph, ChordalInitialization(graph, anchor_pose));
+    j["refine_final_cost"] = t.refine_cost;
+    j["in_process_refine_final_cost"] = reference.refine.final_cost;
+    j["cost_centralized"] = central.final_cost;
+    j["cost_relative_to_centralized"] = (j["cost"].get<double>() - central.final_cost) /
+                                        central.final_cost;
+    fmt::print("refinement: {} steps (in-process {}), cost F = {:.12g} (in-process {:.12g}, "
+               "centralized optimum {:.12g}: {:+.2e} relative)\n",
+               t.refine_steps, reference.refine.iterations, j["cost"].get<double>(),
+               reference.refine.final_cost, central.final_cost,
+               j["cost_relative_to_centralized"].get<double>());
+  }
   fmt::print("DGS: rotation {} rounds, pose {} rounds (in-process {}, {}); {} messages, {} B "
              "binary (in-process {}, {} B), {} B CDR payload, status {} B\n",
              t.rotation_rounds, t.pose_rounds, reference.rotation.iterations,
              reference.pose.iterations, t.messages, t.binary, reference.messages, reference.bytes,
              t.cdr, t.status_bytes);
+  if (t.coarse_messages > 0) {
+    fmt::print("coarse shares: {} published, {} B binary, {} B CDR payload; {} protocol steps\n",
+               t.coarse_messages, t.coarse_binary, t.coarse_cdr, t.protocol_steps);
+  }
   fmt::print("cost F = {:.9g} (in-process {:.9g}), largest difference {:.3g}\n",
              j["cost"].get<double>(), j["cost_in_process"].get<double>(),
              j["max_difference"].get<double>());
@@ -550,7 +592,9 @@ int RunScenarioTeam(const TeamArgs& a) {
                  slam.bytes, rdv_dds, rdv_samples);
       const DgsResult reference =
           RunDgs(joint.graph, joint.initial, DriverOptions(NodeOptions(a.solve)));
-      CompareWithInProcess(t, joint.graph, reference, j);
+      G2oWriteOptions write;
+      write.scheme = KeyScheme::kWithObjects;
+      CompareWithInProcess(t, joint.graph, reference, out, write, j);
     }
   } else {
     ReportFailedRobots(t.per_robot);
@@ -603,7 +647,7 @@ int RunTeam(const TeamArgs& args) {
     fmt::print("team of {} on loopback (domain {}): {:.2f} s\n", n, a.domain, t.seconds);
     const DgsResult reference =
         RunDgs(full.graph, full.initial, DriverOptions(NodeOptions(a.solve)));
-    CompareWithInProcess(t, full.graph, reference, j);
+    CompareWithInProcess(t, full.graph, reference, out, G2oWriteOptions{}, j);
   } else {
     ReportFailedRobots(t.per_robot);
   }

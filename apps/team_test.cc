@@ -187,6 +187,78 @@ TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
   fs::remove_all(out);
 }
 
+TEST(Team, TheWholeSolverOverDdsReachesTheCentralizedOptimum) {
+  const fs::path out = FreshDir("whole");
+  Child team({"team", "--data", BlocksWorld(4), "--domain", "55", "--out", out.string(),
+              "--timeout", "120", "--json", "--coarse", "--refine", "--stop", "error-bound"},
+             "", out / "team.log");
+  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
+  const nlohmann::json j = LastJson(team.output());
+  ASSERT_TRUE(j.is_object()) << team.output();
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  EXPECT_EQ(j["rotation_rounds"], j["in_process_rotation_iterations"]);
+  EXPECT_EQ(j["pose_rounds"], j["in_process_pose_iterations"]);
+  EXPECT_EQ(j["refine_steps"], j["in_process_refine_steps"]);
+  EXPECT_GT(j["refine_steps"].get<int>(), 0);
+  EXPECT_GT(j["coarse_messages"].get<int>(), 0);
+  EXPECT_LE(std::abs(j["cost_relative_to_centralized"].get<double>()), 1e-6);
+  EXPECT_TRUE(fs::exists(out / "merged.g2o"));
+  EXPECT_TRUE(fs::exists(out / "robot_3.tum"));
+  fs::remove_all(out);
+}
+
+TEST(Team, RobotZeroKilledInTheRefinementAndRestartedChangesNothing) {
+  // Robot 0 (the lowest id: a coordinator rule's choice; here every robot decides alike) is
+  // killed with SIGKILL in the refinement's conjugate gradients and restarted with its --out.
+  const int domain = 54, n = 4, victim = 0;
+  const std::string data = BlocksWorld(n);
+  const std::string uri = LoopbackConfigXml(domain, n);
+  const fs::path out = FreshDir("restart_refine");
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  const std::vector<std::string> solver = {"--coarse", "--refine", "--stop", "error-bound"};
+  auto args = [&](int r) {
+    std::vector<std::string> a = RobotArgs(r, data, domain, out / std::to_string(r));
+    a.insert(a.end(), solver.begin(), solver.end());
+    return a;
+  };
+  std::vector<std::unique_ptr<Child>> robots;
+  for (int r = 0; r < n; ++r) {
+    robots.push_back(std::make_unique<Child>(args(r), uri, out / ("stderr" + std::to_string(r))));
+  }
+  ASSERT_TRUE(robots[victim]->waitForLine(
+      [](const std::string& l) { return l.rfind("progress: refine 12 ", 0) == 0; }, deadline))
+      << robots[victim]->output();
+  robots[victim]->kill9();
+  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
+  robots[victim] = std::make_unique<Child>(args(victim), uri,
+                                           out / ("stderr" + std::to_string(victim)));
+  Values merged;
+  for (int r = 0; r < n; ++r) {
+    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
+    const nlohmann::json j = LastJson(robots[r]->output());
+    ASSERT_TRUE(j.is_object());
+    EXPECT_TRUE(j["left"].empty()) << j.dump();
+    if (r == victim) {
+      EXPECT_EQ(j["incarnation"].get<int>(), 1);
+      EXPECT_GE(j["replayed_rounds"].get<int>(), 12);
+    }
+    const Dataset result = ReadRobotG2o((out / std::to_string(r) / "result.g2o").string());
+    merged.insert(result.initial.begin(), result.initial.end());
+  }
+  const Dataset full = ReadG2oFolder(data);
+  DgsNodeOptions o;
+  o.solver.coarse_correction = true;
+  o.solver.refine = true;
+  o.solver.stopping = StageStopping::kErrorBound;
+  o.solver.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;  // --pose-solver auto
+  const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(o));
+  ASSERT_GT(reference.refine.iterations, 0);
+  EXPECT_EQ(merged.size(), reference.values.size());
+  EXPECT_LE(MaxPoseDifference(reference.values, merged), 1e-9);
+  fs::remove_all(out);
+}
+
 TEST(Team, ARobotKilledMidRunAndRestartedLosesNothing) {
   const int domain = 51, n = 4, victim = 2;
   const std::string data = BlocksWorld(n);
