@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for a bounded time: the g2o
-# reader, the decoders of the messages robots send one another (fuzz/messages_fuzz.cc), and the
+# reader, the decoders of the messages robots send one another (fuzz/messages_fuzz.cc), the
+# journal a restarted robot replays (fuzz/journal_fuzz.cc), and the
 # template cache decoder (fuzz/template_cache_fuzz.cc).
 # Usage: scripts/fuzz.sh [seconds per target, default 60]
 # Exits non-zero when the fuzzer finds a crash, a sanitizer report, a leak or a timeout; the input
@@ -23,7 +24,7 @@ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER="$CC_BIN" -DCMAKE_CXX_COMPILER="$CXX_BIN" \
   -DMOSLAM_BUILD_FUZZ=ON -DMOSLAM_BUILD_TESTS=OFF -DMOSLAM_BUILD_BENCH=OFF >/dev/null
-cmake --build "$build" --target g2o_reader_fuzz messages_fuzz template_cache_fuzz
+cmake --build "$build" --target g2o_reader_fuzz messages_fuzz template_cache_fuzz journal_fuzz
 
 # Seed corpus, made fresh at every run from short snippets (datasets are never copied into the
 # repository).
@@ -99,6 +100,21 @@ run_target() {  # name corpus dict max_len
 }
 run_target g2o_reader_fuzz "$corpus" "$dict" 4096
 run_target messages_fuzz "$mcorpus" "$mdict" 4096
+
+# Journals: one framed record (type 2, a start), and a step record with one report.
+jcorpus="$work/journal"
+mkdir -p "$jcorpus"
+printf '\x00\x01\x00\x00\x00\xa1\x8e\x0c\x3c\x02' >"$jcorpus/framed_start"
+printf '\x01\x01\x00\x00\x00\x01\x01\x00\x00\x00\x03\x00\x00\x00\x00\x00\x00\xe0\x3f\x00\x00\x00\x00\x00\x00\xf0\x7f\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00' >"$jcorpus/step_one_report"
+jdict="$work/journal.dict"
+cat >"$jdict" <<'DICT'
+"\x00\x00\x00\x00\x00\x00\xf0\x7f"
+"\x00\x00\x00\x00\x00\x00\xf8\x7f"
+"\xd6\x01"
+"\xd8\x01"
+"\x01\x00\x00\x00"
+DICT
+run_target journal_fuzz "$jcorpus" "$jdict" 4096
 
 # Template cache files (without their checksum, which the harness appends): a header that asks
 # for label "chair" and holds a few points.

@@ -19,6 +19,7 @@
 #include "moslam/io/g2o.h"
 #include "moslam/transport/journal.h"
 #include "moslam/transport/record_bytes.h"
+#include "moslam/transport/step_record.h"
 
 namespace moslam {
 
@@ -58,6 +59,9 @@ enum class RecordType : std::uint8_t {
 using transport_detail::Fingerprint;
 using Bytes = transport_detail::RecordWriter;
 using Parse = transport_detail::RecordReader;
+using transport_detail::AppendStepRecord;
+using transport_detail::ReadStepRecord;
+using transport_detail::StepRecord;
 
 std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initial,
                              const DgsOptions& o) {
@@ -105,12 +109,6 @@ RobotState StateOf(DgsStage stage) {
       return RobotState::kRefine;
   }
   return RobotState::kFailed;
-}
-
-// A report's flags in a status or a journal record.
-std::uint8_t Flags(const TeamReport& r) {
-  return static_cast<std::uint8_t>((r.sent ? 1 : 0) | (r.initialised ? 2 : 0) |
-                                   (r.coarse_ready ? 4 : 0) | (r.has_share ? 8 : 0));
 }
 
 TeamReport ReportOf(const StatusPacket& s) {
@@ -334,36 +332,13 @@ class DgsNode::Impl final : public TeamChannel {
         continue;
       }
       ++next_replay_;
-      const std::uint32_t number = p.u32();
-      const std::uint8_t recorded_stage = p.u8();
-      if (number != s || recorded_stage != static_cast<std::uint8_t>(stage)) {
+      StepRecord rec = ReadStepRecord(journal_->records()[replay_[next_replay_ - 1]], 1, what);
+      if (rec.step != s || rec.stage != stage) {
         throw InvalidInputError(fmt::format(
             "{}: journal step {} ({}) where the program takes step {} ({}): damaged journal",
-            what, number, recorded_stage, s, ToString(stage)));
+            what, rec.step, ToString(rec.stage), s, ToString(stage)));
       }
-      TeamStep got;
-      const std::uint16_t reports = p.u16();
-      for (std::uint16_t k = 0; k < reports; ++k) {
-        const int r = p.u16();
-        const std::uint8_t flags = p.u8();
-        TeamReport rep;
-        rep.sent = flags & 1;
-        rep.initialised = flags & 2;
-        rep.coarse_ready = flags & 4;
-        rep.has_share = flags & 8;
-        rep.change = p.f64();
-        rep.bound = p.f64();
-        rep.value[0] = p.f64();
-        rep.value[1] = p.f64();
-        got.reports[r] = rep;
-      }
-      const std::uint32_t messages = p.u32();
-      for (std::uint32_t k = 0; k < messages; ++k) got.estimates.push_back(DecodeMessage(p.raw()));
-      const std::uint16_t shares = p.u16();
-      for (std::uint16_t k = 0; k < shares; ++k) {
-        CoarseMessage m = DecodeCoarseMessage(p.raw());
-        got.shares[m.sender] = std::move(m);
-      }
+      TeamStep got = std::move(rec.result);
       return got;
     }
     return std::nullopt;
@@ -376,18 +351,9 @@ class DgsNode::Impl final : public TeamChannel {
 
   void recordStep(std::uint32_t s, DgsStage stage, const TeamStep& got) {
     if (!journal_) return;
-    Bytes b;
-    b.u8(static_cast<std::uint8_t>(RecordType::kStep)).u32(s).u8(static_cast<std::uint8_t>(stage));
-    b.u16(static_cast<std::uint16_t>(got.reports.size()));
-    for (const auto& [r, rep] : got.reports) {
-      b.u16(static_cast<std::uint16_t>(r)).u8(Flags(rep));
-      b.f64(rep.change).f64(rep.bound).f64(rep.value[0]).f64(rep.value[1]);
-    }
-    b.u32(static_cast<std::uint32_t>(got.estimates.size()));
-    for (const Message& m : got.estimates) b.raw(EncodeMessage(m));
-    b.u16(static_cast<std::uint16_t>(got.shares.size()));
-    for (const auto& [r, m] : got.shares) b.raw(EncodeCoarseMessage(m));
-    record(b.data());
+    std::vector<std::uint8_t> bytes = {static_cast<std::uint8_t>(RecordType::kStep)};
+    AppendStepRecord({s, stage, got}, bytes);
+    record(bytes);
   }
 
   void snapshot(bool force) {

@@ -1,0 +1,83 @@
+#include "moslam/transport/step_record.h"
+
+#include <cmath>
+
+#include "moslam/common/errors.h"
+#include "moslam/transport/record_bytes.h"
+
+namespace moslam::transport_detail {
+
+void AppendStepRecord(const StepRecord& record, std::vector<std::uint8_t>& out) {
+  RecordWriter b;
+  b.u32(record.step).u8(static_cast<std::uint8_t>(record.stage));
+  const TeamStep& got = record.result;
+  b.u16(static_cast<std::uint16_t>(got.reports.size()));
+  for (const auto& [r, rep] : got.reports) {
+    const auto flags = static_cast<std::uint8_t>((rep.sent ? 1 : 0) | (rep.initialised ? 2 : 0) |
+                                                 (rep.coarse_ready ? 4 : 0) |
+                                                 (rep.has_share ? 8 : 0));
+    b.u16(static_cast<std::uint16_t>(r)).u8(flags);
+    b.f64(rep.change).f64(rep.bound).f64(rep.value[0]).f64(rep.value[1]);
+  }
+  b.u32(static_cast<std::uint32_t>(got.estimates.size()));
+  for (const Message& m : got.estimates) b.raw(EncodeMessage(m));
+  b.u16(static_cast<std::uint16_t>(got.shares.size()));
+  for (const auto& [r, m] : got.shares) b.raw(EncodeCoarseMessage(m));
+  out.insert(out.end(), b.data().begin(), b.data().end());
+}
+
+StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
+                          const std::string& what) {
+  if (offset > bytes.size()) throw InvalidInputError(what + ": truncated step record");
+  const std::vector<std::uint8_t> body(bytes.begin() + static_cast<std::ptrdiff_t>(offset),
+                                       bytes.end());
+  RecordReader p(body, what);
+  StepRecord record;
+  record.step = p.u32();
+  const std::uint8_t stage = p.u8();
+  if (stage < 1 || stage > 3) {
+    throw InvalidInputError(what + ": step record with unknown stage " + std::to_string(stage));
+  }
+  record.stage = static_cast<DgsStage>(stage);
+  TeamStep& got = record.result;
+  const std::uint16_t reports = p.u16();
+  int previous = -1;
+  for (std::uint16_t k = 0; k < reports; ++k) {
+    const int r = p.u16();
+    const std::uint8_t flags = p.u8();
+    if (r <= previous) throw InvalidInputError(what + ": step record reports out of order");
+    if (flags > 15) throw InvalidInputError(what + ": step record with unknown report flags");
+    previous = r;
+    TeamReport rep;
+    rep.sent = (flags & 1) != 0;
+    rep.initialised = (flags & 2) != 0;
+    rep.coarse_ready = (flags & 4) != 0;
+    rep.has_share = (flags & 8) != 0;
+    rep.change = p.f64();
+    rep.bound = p.f64();
+    rep.value[0] = p.f64();
+    rep.value[1] = p.f64();
+    if (std::isnan(rep.change) || rep.change < 0.0 || std::isnan(rep.bound) || rep.bound < 0.0 ||
+        !std::isfinite(rep.value[0]) || !std::isfinite(rep.value[1])) {
+      throw InvalidInputError(what + ": step record with an invalid report of robot " +
+                              std::to_string(r));
+    }
+    got.reports[r] = rep;
+  }
+  const std::uint32_t messages = p.u32();
+  for (std::uint32_t k = 0; k < messages; ++k) got.estimates.push_back(DecodeMessage(p.raw()));
+  const std::uint16_t shares = p.u16();
+  for (std::uint16_t k = 0; k < shares; ++k) {
+    CoarseMessage m = DecodeCoarseMessage(p.raw());
+    const auto it = got.reports.find(m.sender);
+    if (it == got.reports.end() || !it->second.has_share || got.shares.count(m.sender)) {
+      throw InvalidInputError(what + ": step record with an unannounced coarse share of robot " +
+                              std::to_string(m.sender));
+    }
+    got.shares[m.sender] = std::move(m);
+  }
+  if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a step record");
+  return record;
+}
+
+}  // namespace moslam::transport_detail
