@@ -57,11 +57,10 @@ std::vector<std::string> SolverArgs::args() const {
 }
 
 void AddSolverFlags(CLI::App* sub, SolverArgs* args) {
+  // Values are checked by DgsOptions::validate(), whose messages name the field.
   sub->add_option("--eta-rot", args->eta_rotation, "stage 1 stops when every change <= this")
-      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   sub->add_option("--eta-pose", args->eta_pose, "stage 2 stops when every change <= this")
-      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   sub->add_option("--stop", args->stopping,
                   "what eta bounds: change (each robot's change per sweep, DGS.md) or "
@@ -77,7 +76,6 @@ void AddSolverFlags(CLI::App* sub, SolverArgs* args) {
   sub->add_option("--gamma", args->gamma, "over-relaxation of the two stages, in (0, 2)")
       ->capture_default_str();
   sub->add_option("--max-iter", args->max_iterations, "maximum sweeps per stage")
-      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   sub->add_flag("--no-flagged", args->no_flagged, "without flagged initialisation");
   sub->add_flag("--weighted", args->weighted,

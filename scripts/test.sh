@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Configures and builds moslam, fuzzes the g2o reader, the message decoders and the template cache
+# Configures and builds moslam, fuzzes the g2o reader, the message decoders, the journal and the template cache
 # decoder for a bounded time each, then runs every test
 # (ctest's summary is the last thing printed).
 #   BUILD_DIR (default build), MOSLAM_FUZZ_SECONDS (default 30; 0 skips the fuzz run).

@@ -175,6 +175,10 @@ class DgsNode::Impl final : public TeamChannel {
       if (team_.empty()) formTeam();
       transport_.setKnownRobots(team_);
       transport_.publish(baseStatus());  // alive for the others while it replays
+      if (options_.on_round) {
+        options_.on_round({DgsStage::kRotation, 0, 0, false,
+                           std::numeric_limits<double>::infinity(), false});
+      }
       result_.program = RunRobotProgram(*agent_, solver_, *this);
       finishReplay();
       const RobotProgramResult& p = result_.program;

@@ -45,9 +45,11 @@
 
 namespace moslam {
 
+// Progress: once when the solve starts (round 0, stage_round 0: the team is formed), then after
+// every protocol step.
 struct DgsNodeRound {
   DgsStage stage = DgsStage::kRotation;
-  std::uint32_t round = 0;  // the channel step (1-based, over the whole solve)
+  std::uint32_t round = 0;  // the protocol step (1-based, over the whole solve)
   int stage_round = 0;      // the step's number within its stage (1-based)
   bool sent = false;        // this robot sent estimates in it
   double change = 0.0;      // its report: lastChange() (+inf before a solve of the stage)
