@@ -806,29 +806,7 @@ const RefineReport& DgsDriver::runRefineStage() {
       // The step's cost; the coordinator's decision, broadcast.
       const double candidate = costOf(true);
       summary.cost_candidate = candidate;
-      const double tolerance = opt.relative_cost_tolerance * cost;
-      bool accept = false, finished = false;
-      if (candidate <= cost) {
-        accept = true;
-        finished = cost - candidate <= tolerance;
-        if (lambda > 0.0) {
-          lambda /= 10.0;
-          if (lambda < opt.initial_lambda) lambda = 0.0;
-        }
-      } else if (candidate - cost <= tolerance) {
-        finished = true;  // rounding at the optimum: nothing left to gain
-      } else {
-        ++report.rejected;
-        lambda = lambda == 0.0 ? opt.initial_lambda : 10.0 * lambda;
-        if (lambda > opt.max_lambda) {
-          finished = true;
-          report.status = StageStatus::kNoDecreasingStep;
-        }
-      }
-      if (finished && report.status != StageStatus::kNoDecreasingStep) {
-        report.status = StageStatus::kConverged;
-      }
-      if (step == opt.max_iterations) finished = true;
+      const auto [accept, finished] = DecideRefineStep(cost, candidate, step, opt, lambda, report);
       const int c = coordinator();
       for (int r : order_) {
         if (!live(r)) continue;
@@ -866,6 +844,35 @@ const RefineReport& DgsDriver::runRefineStage() {
   report.seconds = Since(stage_start);
   result_.seconds += report.seconds;
   return report;
+}
+
+RefineDecision DecideRefineStep(double cost, double candidate, int step,
+                                const DgsOptions::Refinement& opt, double& lambda,
+                                RefineReport& report) {
+  const double tolerance = opt.relative_cost_tolerance * cost;
+  RefineDecision d;
+  if (candidate <= cost) {
+    d.accept = true;
+    d.finished = cost - candidate <= tolerance;
+    if (lambda > 0.0) {
+      lambda /= 10.0;
+      if (lambda < opt.initial_lambda) lambda = 0.0;
+    }
+  } else if (candidate - cost <= tolerance) {
+    d.finished = true;  // rounding at the optimum: nothing left to gain
+  } else {
+    ++report.rejected;
+    lambda = lambda == 0.0 ? opt.initial_lambda : 10.0 * lambda;
+    if (lambda > opt.max_lambda) {
+      d.finished = true;
+      report.status = StageStatus::kNoDecreasingStep;
+    }
+  }
+  if (d.finished && report.status != StageStatus::kNoDecreasingStep) {
+    report.status = StageStatus::kConverged;
+  }
+  if (step == opt.max_iterations) d.finished = true;
+  return d;
 }
 
 DgsResult DgsDriver::result() const {

@@ -227,6 +227,20 @@ struct RefineReport {
   double seconds = 0.0;
 };
 
+// The Gauss-Newton step decision of the refinement (see the top), taken on F at the current
+// estimate (`cost`) and at x Exp(delta) (`candidate`) after step `step`: accept when F does not
+// rise; finished when the gain (or a rise) is within relative_cost_tolerance * F, when lambda
+// passes max_lambda (report.status kNoDecreasingStep) or at max_iterations. Updates `lambda`,
+// counts a rejection in report.rejected and sets report.status kConverged when finished so.
+// The in-process driver and every robot of a network team (robot_program.h) decide with it.
+struct RefineDecision {
+  bool accept = false;
+  bool finished = false;
+};
+RefineDecision DecideRefineStep(double cost, double candidate, int step,
+                                const DgsOptions::Refinement& options, double& lambda,
+                                RefineReport& report);
+
 struct SilentRobotReport {
   int robot = 0;
   DgsStage stage = DgsStage::kRotation;

@@ -365,29 +365,7 @@ class Program {
       report.sweeps += summary.sweeps;
       const double candidate = teamCost(true);
       summary.cost_candidate = candidate;
-      const double tolerance = opt.relative_cost_tolerance * cost;
-      bool accept = false, finished = false;
-      if (candidate <= cost) {
-        accept = true;
-        finished = cost - candidate <= tolerance;
-        if (lambda > 0.0) {
-          lambda /= 10.0;
-          if (lambda < opt.initial_lambda) lambda = 0.0;
-        }
-      } else if (candidate - cost <= tolerance) {
-        finished = true;  // rounding at the optimum: nothing left to gain
-      } else {
-        ++report.rejected;
-        lambda = lambda == 0.0 ? opt.initial_lambda : 10.0 * lambda;
-        if (lambda > opt.max_lambda) {
-          finished = true;
-          report.status = StageStatus::kNoDecreasingStep;
-        }
-      }
-      if (finished && report.status != StageStatus::kNoDecreasingStep) {
-        report.status = StageStatus::kConverged;
-      }
-      if (s == opt.max_iterations) finished = true;
+      const auto [accept, finished] = DecideRefineStep(cost, candidate, s, opt, lambda, report);
       if (accept) {
         agent_.acceptStep();
         cost = candidate;

@@ -116,8 +116,12 @@ void ExpectSameAsDriver(const Dataset& data, const DgsOptions& options) {
   ASSERT_FALSE(team.results.empty());
   // The options at work in the reference (so that equal counts mean something).
   EXPECT_GT(reference.rotation.iterations, 1);
-  if (options.coarse_correction) EXPECT_GT(reference.rotation.coarse_corrections, 0);
-  if (options.refine) EXPECT_GT(reference.refine.iterations, 0);
+  if (options.coarse_correction) {
+    EXPECT_GT(reference.rotation.coarse_corrections, 0);
+  }
+  if (options.refine) {
+    EXPECT_GT(reference.refine.iterations, 0);
+  }
   if (options.refine && options.refinement.solver == RefineSolver::kConjugateGradient &&
       options.refinement.preconditioner == RefinePreconditioner::kTwoLevel) {
     EXPECT_GT(reference.refine.coarse_corrections, 0);
