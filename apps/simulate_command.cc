@@ -6,6 +6,7 @@
 //                   [--table accuracy|association|memory|scale|perception|all ...] [--json]
 //                   [--plot FILE.svg] [--perception sampled|rendered [--model M.onnx]
 //                   [--classes classes.txt] [--templates DIR] [--perceive-every K]]
+//   moslam simulate --online --scenario house --robots 6 --runs 10 [--plot FILE.svg] [--json]
 //
 // --perception rendered: the object measurements come from the front-end (detector, PCL
 // segmentation, PFHRGB + SAC-IA + GICP) run on rendered RGB-D frames of every K-th pose
@@ -13,6 +14,10 @@
 // One row per (robots, noise pair): --robots and the noise pairs (--sigma-rot[i], --sigma-trans[i])
 // are crossed. Prints Markdown tables; with --json the last line is one JSON object
 // (ResultsToJson). --plot writes the Fig. 4 style SVG of run 0 of the first row.
+// --online: the online mission (experiments/online_experiment.h): the robots in range solve
+// their joint graph at every rendezvous (two-level DGS, error-bound rule, refinement, Jacobi
+// order as the robot processes), one table row per (robots, noise pair); --plot then draws the
+// team's map error after each rendezvous for every run of the first row.
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -23,6 +28,7 @@
 
 #include "commands.h"
 #include "moslam/common/errors.h"
+#include "moslam/experiments/online_experiment.h"
 #include "moslam/experiments/simulation_experiment.h"
 
 namespace moslam::cli {
@@ -53,6 +59,7 @@ struct SimulateArgs {
   std::string templates;
   std::string template_cache = DefaultTemplateCacheDir();
   int perceive_every = 1;
+  bool online = false;
 };
 }  // namespace
 
@@ -107,6 +114,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "table(s) to print: accuracy | association | memory | scale | perception | all")
       ->check(CLI::IsMember(
           {"accuracy", "association", "memory", "scale", "perception", "robust", "all"}));
+  sub->add_flag("--online", args->online,
+                "the online mission: the robots in range solve their joint graph at every "
+                "rendezvous; the team's map error after each, the final maps against the batch "
+                "optimum, bytes per rendezvous");
   sub->add_flag("--json", args->json, "print the results as one JSON object on the last line");
   sub->add_option("--plot", args->plot, "write an SVG of run 0 of the first row (Fig. 4)");
   sub->add_option("--perception", args->perception,
@@ -139,6 +150,39 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
     const bool rendered = a.perception == "rendered";
     if (rendered) perceive = make_perception(
           {a.model, a.classes, a.templates, a.perceive_every, a.template_cache});
+    if (a.online) {
+      if (rendered || a.robust || a.outliers > 0.0 || a.information != "noise") {
+        throw InvalidInputError(
+            "simulate --online: perception rendered, --robust, --outliers and --information "
+            "fixed are not part of the online mission");
+      }
+      std::vector<OnlineExperimentResult> results;
+      for (int robots : a.robots) {
+        for (std::size_t i = 0; i < a.sigma_rot.size(); ++i) {
+          OnlineExperimentConfig c;
+          c.base.scenario = a.scenario;
+          c.base.robots = robots;
+          c.base.runs = a.runs;
+          c.base.seed = a.seed;
+          c.base.sigma_rotation_deg = a.sigma_rot[i];
+          c.base.sigma_translation = a.sigma_trans[i];
+          c.base.poses_per_robot = a.poses;
+          c.base.known_initial_poses = a.initial_poses == "known";
+          results.push_back(RunOnlineExperiment(c));
+        }
+      }
+      fmt::print("{}", FormatOnlineTable(results));
+      if (!a.plot.empty()) {
+        std::ofstream out(a.plot);
+        const ExperimentConfig& c = results.front().config.base;
+        out << PlotOnlineSvg(results.front(),
+                             fmt::format("{}, {} robots, {} runs from seed {}: online mapping",
+                                         c.scenario, c.robots, c.runs, c.seed));
+        if (!out) throw Error("simulate: cannot write the plot to '" + a.plot + "'");
+      }
+      if (a.json) fmt::print("{}\n", OnlineResultsToJson(results));
+      return 0;
+    }
     std::vector<ExperimentResult> results;
     RunEstimates first;
     for (int robots : a.robots) {

@@ -1,5 +1,7 @@
 #include "moslam/experiments/simulation_experiment.h"
 
+#include "moslam/experiments/simulated_run.h"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -237,29 +239,36 @@ void ExperimentConfig::validate() const {
   }
 }
 
-RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimates* estimates) {
+SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& metrics) {
   config.validate();
-  const auto t0 = Clock::now();
-  const unsigned seed = config.seed + static_cast<unsigned>(run);
-  const World world = MakeScenarioWorld(config.scenario, seed, config.robots);
-
+  SimulatedRun out;
+  out.seed = config.seed + static_cast<unsigned>(run);
+  const World world = MakeScenarioWorld(config.scenario, out.seed, config.robots);
   SimulationConfig sim;
   sim.trajectory.num_robots = config.robots;
   sim.trajectory.poses_per_robot = config.poses_per_robot;
-  sim.trajectory.seed = seed;
-  sim.sensing.seed = seed;
+  sim.trajectory.seed = out.seed;
+  sim.sensing.seed = out.seed;
   for (NoiseModel* n : {&sim.sensing.odometry, &sim.sensing.objects}) {
     n->sigma_rotation_deg = config.sigma_rotation_deg;
     n->sigma_translation = config.sigma_translation;
   }
-  SimulationData data = Simulate(world, sim);
-  RunMetrics m;
-  if (config.perceive) config.perceive(data, m);
+  out.data = Simulate(world, sim);
+  if (config.perceive) config.perceive(out.data, metrics);
+  out.slam = MultiRobotSlamConfigForNoise(sim.sensing);
+  out.slam.known_initial_poses = config.known_initial_poses;
+  out.slam.outlier_fraction = config.outlier_fraction;
+  out.slam.outlier_seed = out.seed;
+  return out;
+}
 
-  MultiRobotSlamConfig slam_config = MultiRobotSlamConfigForNoise(sim.sensing);
-  slam_config.known_initial_poses = config.known_initial_poses;
-  slam_config.outlier_fraction = config.outlier_fraction;
-  slam_config.outlier_seed = seed;
+RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimates* estimates) {
+  const auto t0 = Clock::now();
+  RunMetrics m;
+  SimulatedRun simulated = SimulateRun(config, run, m);
+  const unsigned seed = simulated.seed;
+  const SimulationData& data = simulated.data;
+  const MultiRobotSlamConfig& slam_config = simulated.slam;
   const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, slam_config);
   JointProblem joint =
       AssembleJointProblem(slam.robots, slam.shared, slam_config.rendezvous.lambda());
@@ -271,7 +280,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   }
   if (config.information == InformationMode::kFixed) {
     NoiseModel paper;  // 5 deg, 0.2 m
-    joint.graph = WithInformation(joint.graph, paper.information(sim.sensing.information_sigma_floor));
+    joint.graph = WithInformation(joint.graph, paper.information(SensingConfig().information_sigma_floor));
   }
   m.seconds_slam = slam.seconds;
   m.poses = joint.num_poses;

@@ -13,6 +13,31 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
+// The robots of `events` grouped by connection through them, each group sorted, groups by
+// their lowest robot.
+std::vector<RendezvousGroup> GroupsInRange(int step, const std::vector<RendezvousEvent>& events) {
+  std::map<int, int> parent;
+  const auto find = [&](int r) {
+    while (parent.at(r) != r) r = parent[r] = parent.at(parent.at(r));
+    return r;
+  };
+  for (const auto& e : events) {
+    parent.emplace(e.alpha, e.alpha);
+    parent.emplace(e.beta, e.beta);
+    const int a = find(e.alpha), b = find(e.beta);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+  std::map<int, RendezvousGroup> groups;  // by root = lowest robot of the group
+  for (const auto& [r, p] : parent) {
+    auto& g = groups[find(r)];
+    g.step = step;
+    g.robots.push_back(r);  // parent is ordered: robots come sorted
+  }
+  std::vector<RendezvousGroup> out;
+  for (auto& [root, g] : groups) out.push_back(std::move(g));
+  return out;
+}
+
 std::set<int> MappedObjects(const ObjectSlam& robot) {
   std::set<int> out;
   for (const auto& lm : robot.landmarks()) {
@@ -88,6 +113,7 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
   std::mt19937_64 outlier_rng(config.outlier_seed);
   std::size_t next_event = 0;
   for (int t = 0; t < steps; ++t) {
+    std::vector<RendezvousEvent> events_now;
     for (int r = 0; r < n; ++r) {
       auto& robot = out.robots[static_cast<std::size_t>(r)];
       const auto& m = data.measurements[static_cast<std::size_t>(r)];
@@ -101,6 +127,7 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
     for (; next_event < data.rendezvous.size() && data.rendezvous[next_event].step == t;
          ++next_event) {
       const RendezvousEvent& e = data.rendezvous[next_event];
+      events_now.push_back(e);
       auto& alpha = out.robots[static_cast<std::size_t>(e.alpha)];
       auto& beta = out.robots[static_cast<std::size_t>(e.beta)];
       alpha.refresh(config.slam.iterations_per_update);
@@ -186,6 +213,9 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
       out.rendezvous.push_back(rec);
       auto& both = possible[{std::min(e.alpha, e.beta), std::max(e.alpha, e.beta)}];
       both.insert(now.begin(), now.end());
+    }
+    if (config.on_rendezvous) {
+      for (const RendezvousGroup& g : GroupsInRange(t, events_now)) config.on_rendezvous(g, out);
     }
   }
   if (next_event != data.rendezvous.size()) {

@@ -24,6 +24,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -33,6 +34,14 @@
 #include "moslam/slam/rendezvous.h"
 
 namespace moslam {
+
+struct MultiRobotSlamResult;
+
+// The robots in range at one time step: connected through that step's rendezvous events.
+struct RendezvousGroup {
+  int step = 0;
+  std::vector<int> robots;  // increasing ids, 2 or more
+};
 
 struct MultiRobotSlamConfig {
   ObjectSlamConfig slam;
@@ -48,6 +57,12 @@ struct MultiRobotSlamConfig {
   double outlier_fraction = 0.0;
   std::uint32_t outlier_seed = 1;
   int final_iterations = 10;  // Gauss-Newton iterations per robot after the last step
+  // Called after the rendezvous events of a time step, once per group of robots in range
+  // (groups in the order of their lowest robot id), with the team as it is then: online
+  // mapping solves the group's joint graph here (online/online_team.h), an evaluation can
+  // measure the maps. Null: nothing (the batch mode).
+  using OnRendezvous = std::function<void(const RendezvousGroup&, MultiRobotSlamResult&)>;
+  OnRendezvous on_rendezvous;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };

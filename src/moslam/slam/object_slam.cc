@@ -313,23 +313,77 @@ void ObjectSlam::maybeUpdate() {
 }
 
 double ObjectSlam::refresh(int max_iterations) {
-  if (local_graph_.factors().size() == factors_at_last_optimize_) {
-    return local_graph_.cost(local_values_);
+  if (local_graph_.factors().size() == factors_at_last_optimize_ && !stale_) {
+    PoseGraph g = local_graph_;
+    for (const auto& f : local_team_factors_) g.add(f);
+    return g.cost(local_values_);
   }
   return optimize(max_iterations);
 }
 
 double ObjectSlam::optimize(int max_iterations) {
   factors_at_last_optimize_ = local_graph_.factors().size();
+  stale_ = false;
   if (local_graph_.empty()) return 0.0;
-  if (max_iterations <= 0) return local_graph_.cost(local_values_);
+  PoseGraph g = local_graph_;
+  for (const auto& f : local_team_factors_) g.add(f);
+  if (max_iterations <= 0) return g.cost(local_values_);
   OptimizerOptions options;
   options.max_iterations = max_iterations;
   options.relative_cost_tolerance = 1e-6;
-  NonlinearOptimizer opt(local_graph_, local_values_, options);
+  NonlinearOptimizer opt(g, local_values_, options);
   const OptimizerResult& r = opt.optimize();
   local_values_ = r.values;
   return r.final_cost;
+}
+
+void ObjectSlam::setTeamFactors(const std::vector<RelativePoseFactor>& factors) {
+  std::vector<RelativePoseFactor> local;
+  local.reserve(factors.size());
+  for (const auto& f : factors) {
+    const bool pose_first = f.a() == Key::Pose(robot_, 0) && f.b().isObject();
+    const bool pose_second = f.b() == Key::Pose(robot_, 0) && f.a().isObject();
+    const Key object = pose_first ? f.b() : f.a();
+    if (!(pose_first || pose_second) || object.robot != robot_ ||
+        object.index >= landmarks_.size()) {
+      throw InvalidInputError("ObjectSlam::setTeamFactors: robot " + std::to_string(robot_) +
+                              " got a team factor between " + ToString(f.a()) + " and " +
+                              ToString(f.b()) +
+                              "; a team factor joins the robot's first pose and one of its "
+                              "landmarks");
+    }
+    local.emplace_back(Rekey(f.a(), 0), Rekey(f.b(), 0), f.measured(), f.information());
+  }
+  team_factors_ = factors;
+  local_team_factors_ = std::move(local);
+  stale_ = true;
+}
+
+void ObjectSlam::setEstimate(const Values& estimate) {
+  const auto fail = [&](const std::string& why) {
+    throw InvalidInputError("ObjectSlam::setEstimate: robot " + std::to_string(robot_) + ": " +
+                            why);
+  };
+  if (estimate.size() != local_values_.size()) {
+    fail(std::to_string(estimate.size()) + " values for " +
+         std::to_string(local_values_.size()) + " variables");
+  }
+  Values local;
+  for (const auto& [k, x] : estimate) {
+    if (k.robot != robot_ || local_values_.count(Rekey(k, 0)) == 0) {
+      fail("no variable " + ToString(k));
+    }
+    if (!x.matrix().allFinite()) fail("the value of " + ToString(k) + " is not finite");
+    local.emplace_hint(local.end(), Rekey(k, 0), x);
+  }
+  const Vector6 first = SE3::Log(local.at(Key::Pose(0, 0)));
+  if (!(first.norm() <= 1e-9)) {
+    fail("the first pose is not the identity (|Log| = " + std::to_string(first.norm()) +
+         "): give the estimate in the robot's own frame");
+  }
+  local_values_ = std::move(local);
+  local_values_[Key::Pose(0, 0)] = SE3();
+  stale_ = true;
 }
 
 PoseGraph ObjectSlam::graph() const {

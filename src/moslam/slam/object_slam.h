@@ -143,8 +143,22 @@ class ObjectSlam {
   // At most `max_iterations` Gauss-Newton iterations on the whole graph from the current estimate
   // (first pose held); returns the cost after them. No-op (cost 0) while the graph is empty.
   double optimize(int max_iterations);
-  // optimize(max_iterations) when factors were added since the last optimize(); else the cost.
+  // optimize(max_iterations) when factors were added (or the team factors or the estimate
+  // replaced) since the last optimize(); else the cost.
   double refresh(int max_iterations);
+
+  // Online mapping (online/group_solve.h). Team factors tie the robot's landmarks to other
+  // robots' landmarks held fixed in this robot's frame: each is a factor between this robot's
+  // first pose and one of its landmarks (keys of this robot). optimize() and refresh() include
+  // them; graph() does not (the joint graph of a batch solve has the object-object factors
+  // instead). Replaces the previous set. Throws InvalidInputError on a factor that is not between
+  // pose 0 and an existing landmark of this robot (nothing changes then).
+  void setTeamFactors(const std::vector<RelativePoseFactor>& factors);
+  const std::vector<RelativePoseFactor>& teamFactors() const { return team_factors_; }
+  // Replaces the estimate (keys of this robot; every variable present, finite, first pose the
+  // identity to 1e-9: the robot's own frame). Throws InvalidInputError otherwise (nothing
+  // changes then). The next pose is predicted from the new estimate of the last one.
+  void setEstimate(const Values& estimate);
 
   int robot() const { return robot_; }
   int numPoses() const { return num_poses_; }
@@ -186,6 +200,9 @@ class ObjectSlam {
   std::vector<std::size_t> last_associations_;
   std::vector<int> factor_objects_;  // parallel to local_graph_.factors()
   std::size_t factors_at_last_optimize_ = 0;
+  bool stale_ = false;  // team factors or estimate replaced since the last optimize()
+  std::vector<RelativePoseFactor> team_factors_;        // keys of this robot
+  std::vector<RelativePoseFactor> local_team_factors_;  // the same, robot-0 keys
 };
 
 }  // namespace moslam

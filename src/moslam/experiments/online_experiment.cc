@@ -1,0 +1,354 @@
+#include "moslam/experiments/online_experiment.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/centralized_two_stage.h"
+#include "moslam/experiments/simulated_run.h"
+#include "moslam/metrics/metrics.h"
+#include "moslam/solver/optimizer.h"
+
+namespace moslam {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+Values RobotValues(const Values& values, int robot) {
+  Values out;
+  for (const auto& [k, x] : values) {
+    if (k.robot == robot) out.emplace_hint(out.end(), k, x);
+  }
+  return out;
+}
+
+// ATE / ARE of one robot's map (its poses in `estimate`) against ground truth, aligned alone;
+// nullopt while the robot's positions so far do not fix an alignment.
+struct MapError {
+  double ate = 0.0, are = 0.0;
+};
+std::optional<MapError> RobotMapError(const Values& estimate, const Values& truth, int robot) {
+  Values gt;
+  for (const auto& [k, x] : truth) {
+    if (k.robot == robot && k.isPose() && estimate.count(k) > 0) gt.emplace(k, x);
+  }
+  try {
+    const GroundTruthErrors e = CompareToGroundTruth(RobotValues(estimate, robot), gt);
+    return MapError{e.aligned.poses.ate, e.aligned.poses.are_deg};
+  } catch (const UnderdeterminedError&) {
+    return std::nullopt;  // fewer than 3 non-collinear positions yet
+  }
+}
+
+// The mean over the robots of their map's ATE, and how many robots it averages.
+std::pair<double, int> TeamMapError(const SimulationData& data,
+                                    const std::vector<ObjectSlam>& robots) {
+  const Values truth = JointGroundTruth(data, robots);
+  double sum = 0.0;
+  int n = 0;
+  for (const ObjectSlam& r : robots) {
+    if (const auto e = RobotMapError(r.estimate(), truth, r.robot())) {
+      sum += e->ate;
+      ++n;
+    }
+  }
+  return {n > 0 ? sum / n : std::numeric_limits<double>::quiet_NaN(), n};
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+double Mean(const std::vector<double>& v) {
+  double s = 0.0;
+  for (double x : v) s += x;
+  return v.empty() ? std::numeric_limits<double>::quiet_NaN() : s / static_cast<double>(v.size());
+}
+
+}  // namespace
+
+void OnlineExperimentConfig::validate() const {
+  base.validate();
+  online.validate();
+  if (base.perceive || base.outlier_fraction > 0.0 || base.robust) {
+    throw InvalidInputError(
+        "online experiment: perception, injected outliers and the robust solve are not part of "
+        "the online mission yet");
+  }
+  if (base.information != InformationMode::kNoise) {
+    throw InvalidInputError("online experiment: the robots solve with the information of their "
+                            "measurements (information mode 'noise')");
+  }
+  if (base.robots < 2) {
+    throw InvalidInputError("online experiment: a team is two robots or more");
+  }
+}
+
+OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, int run) {
+  config.validate();
+  const auto t0 = Clock::now();
+  RunMetrics unused;
+  SimulatedRun sim = SimulateRun(config.base, run, unused);
+  OnlineRunMetrics m;
+  m.seed = sim.seed;
+  OnlineOptions options = config.online;
+  options.lambda = sim.slam.rendezvous.lambda();
+
+  // Solo first: the team's map error at every step with a rendezvous.
+  std::map<int, double> solo_at_step;
+  MultiRobotSlamConfig solo_config = sim.slam;
+  solo_config.on_rendezvous = [&](const RendezvousGroup& g, MultiRobotSlamResult& team) {
+    if (solo_at_step.count(g.step) == 0) {
+      solo_at_step[g.step] = TeamMapError(sim.data, team.robots).first;
+    }
+  };
+  const MultiRobotSlamResult solo = RunMultiRobotObjectSlam(sim.data, solo_config);
+
+  OnlineTeam team(options);
+  MultiRobotSlamConfig online_config = sim.slam;
+  online_config.on_rendezvous = team.hook([&](const RendezvousGroup& g,
+                                              const MultiRobotSlamResult& state) {
+    // The rendezvous records of this step among these robots (appended before the hook).
+    double bytes_objects = 0.0;
+    for (const RendezvousRecord& r : state.rendezvous) {
+      if (r.event.step != g.step) continue;
+      if (std::binary_search(g.robots.begin(), g.robots.end(), r.event.alpha)) {
+        bytes_objects += static_cast<double>(r.bytes_alpha_to_beta + r.bytes_beta_to_alpha);
+      }
+    }
+    const auto [team_ate, measured] = TeamMapError(sim.data, state.robots);
+    bool first = true;
+    for (const GroupSolveRecord& s : team.solves()) {
+      if (s.step != g.step || !std::includes(g.robots.begin(), g.robots.end(), s.robots.begin(),
+                                             s.robots.end())) {
+        continue;
+      }
+      OnlineRendezvousPoint p;
+      p.step = g.step;
+      p.robots = s.robots;
+      p.team_ate = team_ate;
+      p.solo_ate = solo_at_step.count(g.step) > 0 ? solo_at_step.at(g.step)
+                                                  : std::numeric_limits<double>::quiet_NaN();
+      p.robots_measured = measured;
+      p.rotation_sweeps = s.rotation_sweeps;
+      p.pose_sweeps = s.pose_sweeps;
+      p.refine_steps = s.refine_steps;
+      p.object_object = s.object_object;
+      p.team_factors = s.team_factors;
+      p.bytes_objects = first ? bytes_objects : 0.0;  // the group's messages, once
+      first = false;
+      p.bytes_dgs = static_cast<double>(s.bytes);
+      p.bytes_point_clouds = static_cast<double>(s.robots.size()) *
+                             config.base.point_cloud.points_per_frame *
+                             config.base.point_cloud.bytes_per_point;
+      p.seconds = s.seconds;
+      m.points.push_back(std::move(p));
+    }
+  });
+  const MultiRobotSlamResult online = RunMultiRobotObjectSlam(sim.data, online_config);
+  m.rendezvous = static_cast<double>(online.rendezvous.size());
+  m.solves = static_cast<double>(team.solves().size());
+  m.bytes_objects = static_cast<double>(online.bytes);
+  for (const GroupSolveRecord& s : team.solves()) m.bytes_dgs += static_cast<double>(s.bytes);
+
+  // The batch optimum of the online run's factors.
+  const JointProblem joint =
+      AssembleJointProblem(online.robots, online.shared, options.lambda);
+  if (!joint.unanchored_robots.empty()) {
+    throw UnlinkedRobotError(fmt::format(
+        "online experiment {} with {} robots, seed {}: robot {} never linked to robot 0 through "
+        "rendezvous (try another seed or more poses per robot)",
+        config.base.scenario, config.base.robots, sim.seed, joint.unanchored_robots.front()));
+  }
+  const Values batch =
+      Optimize(joint.graph, CentralizedTwoStage(joint.graph, joint.initial).values).values;
+  const Values truth = JointGroundTruth(sim.data, online.robots);
+  for (const ObjectSlam& r : online.robots) {
+    const auto on = RobotMapError(r.estimate(), truth, r.robot());
+    const auto ba = RobotMapError(batch, truth, r.robot());
+    const auto so = RobotMapError(solo.robots[static_cast<std::size_t>(r.robot())].estimate(),
+                                  truth, r.robot());
+    if (!on || !ba || !so) {
+      throw UnderdeterminedError(fmt::format(
+          "online experiment: robot {} of seed {} has no three non-collinear positions",
+          r.robot(), sim.seed));
+    }
+    m.online_ate.push_back(on->ate);
+    m.online_are.push_back(on->are);
+    m.batch_ate.push_back(ba->ate);
+    m.batch_are.push_back(ba->are);
+    m.solo_ate.push_back(so->ate);
+    m.worst_ratio = std::max(m.worst_ratio, on->ate / ba->ate);
+  }
+  m.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  return m;
+}
+
+OnlineExperimentResult RunOnlineExperiment(const OnlineExperimentConfig& config) {
+  config.validate();
+  OnlineExperimentResult out;
+  out.config = config;
+  for (int i = 0; i < config.base.runs; ++i) out.runs.push_back(RunOnlineSimulationOnce(config, i));
+  return out;
+}
+
+std::string FormatOnlineTable(const std::vector<OnlineExperimentResult>& results) {
+  std::string s =
+      "| scenario | robots | runs | rendezvous / run | solves / run | final ATE online (m) | "
+      "batch optimum (m) | solo (m) | online / batch: median robot | worst robot | robots "
+      "within 1.1x | kB per solve: objects | DGS | point clouds |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const OnlineExperimentResult& r : results) {
+    std::vector<double> online, batch, solo, ratios;
+    double rendezvous = 0, solves = 0, objects = 0, dgs = 0, pcd = 0, points = 0;
+    int within = 0, robots = 0;
+    for (const OnlineRunMetrics& m : r.runs) {
+      rendezvous += m.rendezvous;
+      solves += m.solves;
+      for (std::size_t i = 0; i < m.online_ate.size(); ++i) {
+        online.push_back(m.online_ate[i]);
+        batch.push_back(m.batch_ate[i]);
+        solo.push_back(m.solo_ate[i]);
+        ratios.push_back(m.online_ate[i] / m.batch_ate[i]);
+        within += ratios.back() <= 1.1 ? 1 : 0;
+        ++robots;
+      }
+      for (const OnlineRendezvousPoint& p : m.points) {
+        objects += p.bytes_objects;
+        dgs += p.bytes_dgs;
+        pcd += p.bytes_point_clouds;
+        points += 1;
+      }
+    }
+    const double runs = static_cast<double>(r.runs.size());
+    s += fmt::format(
+        "| {} | {} | {} | {:.1f} | {:.1f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | {} of {} "
+        "| {:.2f} | {:.1f} | {:.0f} |\n",
+        r.config.base.scenario, r.config.base.robots, r.runs.size(), rendezvous / runs,
+        solves / runs, Mean(online), Mean(batch), Mean(solo), Median(ratios),
+        ratios.empty() ? 0.0 : *std::max_element(ratios.begin(), ratios.end()), within, robots,
+        objects / points / 1e3, dgs / points / 1e3, pcd / points / 1e3);
+  }
+  return s;
+}
+
+std::string OnlineResultsToJson(const std::vector<OnlineExperimentResult>& results) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (const OnlineExperimentResult& r : results) {
+    nlohmann::json runs = nlohmann::json::array();
+    for (const OnlineRunMetrics& m : r.runs) {
+      nlohmann::json points = nlohmann::json::array();
+      for (const OnlineRendezvousPoint& p : m.points) {
+        points.push_back({{"step", p.step}, {"robots", p.robots}, {"team_ate", p.team_ate},
+                          {"solo_ate", p.solo_ate}, {"robots_measured", p.robots_measured},
+                          {"rotation_sweeps", p.rotation_sweeps}, {"pose_sweeps", p.pose_sweeps},
+                          {"refine_steps", p.refine_steps}, {"object_object", p.object_object},
+                          {"team_factors", p.team_factors}, {"bytes_objects", p.bytes_objects},
+                          {"bytes_dgs", p.bytes_dgs},
+                          {"bytes_point_clouds", p.bytes_point_clouds}, {"seconds", p.seconds}});
+      }
+      runs.push_back({{"seed", m.seed}, {"online_ate", m.online_ate}, {"batch_ate", m.batch_ate},
+                      {"solo_ate", m.solo_ate}, {"online_are", m.online_are},
+                      {"batch_are", m.batch_are}, {"worst_ratio", m.worst_ratio},
+                      {"rendezvous", m.rendezvous}, {"solves", m.solves},
+                      {"bytes_objects", m.bytes_objects}, {"bytes_dgs", m.bytes_dgs},
+                      {"seconds", m.seconds}, {"points", std::move(points)}});
+    }
+    const ExperimentConfig& c = r.config.base;
+    const DgsOptions& o = r.config.online.solver;
+    rows.push_back({{"config",
+                     {{"scenario", c.scenario}, {"robots", c.robots}, {"runs", c.runs},
+                      {"seed", c.seed}, {"poses_per_robot", c.poses_per_robot},
+                      {"sigma_rotation_deg", c.sigma_rotation_deg},
+                      {"sigma_translation", c.sigma_translation},
+                      {"known_initial_poses", c.known_initial_poses},
+                      {"order", ToString(o.order)}, {"two_level", o.coarse_correction},
+                      {"stop", ToString(o.stopping)}, {"refine", o.refine},
+                      {"eta_rotation", o.eta_rotation}, {"eta_pose", o.eta_pose}}},
+                    {"runs", std::move(runs)}});
+  }
+  return nlohmann::json{{"rows", std::move(rows)}}.dump();
+}
+
+std::string PlotOnlineSvg(const OnlineExperimentResult& result, const std::string& title) {
+  double max_step = 1.0, max_ate = 1e-3;
+  std::vector<double> batch;
+  for (const OnlineRunMetrics& m : result.runs) {
+    for (const OnlineRendezvousPoint& p : m.points) {
+      max_step = std::max(max_step, static_cast<double>(p.step));
+      for (double v : {p.team_ate, p.solo_ate}) {
+        if (std::isfinite(v)) max_ate = std::max(max_ate, v);
+      }
+    }
+    batch.push_back(Mean(m.batch_ate));
+  }
+  max_step = std::max(max_step, static_cast<double>(result.config.base.poses_per_robot));
+  const double left = 60, right = 20, top = 66, bottom = 45, width = 720, height = 400;
+  const double plot_w = width - left - right, plot_h = height - top - bottom;
+  const auto px = [&](double step) { return left + step / max_step * plot_w; };
+  const auto py = [&](double ate) { return top + plot_h - ate / (1.05 * max_ate) * plot_h; };
+  std::string svg = fmt::format(
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" "
+      "width=\"{0:.0f}\" height=\"{1:.0f}\" viewBox=\"0 0 {0:.0f} {1:.0f}\">\n"
+      "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+      "<text x=\"{2:.0f}\" y=\"18\" font-family=\"sans-serif\" font-size=\"14\">{3}</text>\n"
+      "<text x=\"{2:.0f}\" y=\"34\" font-family=\"sans-serif\" font-size=\"11\">team map error "
+      "after each rendezvous: mean over the robots of each map's ATE (m), one colour per run"
+      "</text>\n<text x=\"{2:.0f}\" y=\"49\" font-family=\"sans-serif\" font-size=\"11\">"
+      "solid: online; dashed: solo SLAM; grey line: batch optimum at the end (mean of runs)"
+      "</text>\n",
+      width, height, left, title);
+  // Axes and ticks.
+  svg += fmt::format("<line x1=\"{0:.1f}\" y1=\"{1:.1f}\" x2=\"{0:.1f}\" y2=\"{2:.1f}\" "
+                     "stroke=\"black\"/>\n<line x1=\"{0:.1f}\" y1=\"{2:.1f}\" x2=\"{3:.1f}\" "
+                     "y2=\"{2:.1f}\" stroke=\"black\"/>\n",
+                     left, top, top + plot_h, left + plot_w);
+  for (int i = 0; i <= 5; ++i) {
+    const double a = 1.05 * max_ate * i / 5.0, st = max_step * i / 5.0;
+    svg += fmt::format(
+        "<text x=\"{:.1f}\" y=\"{:.1f}\" font-family=\"sans-serif\" font-size=\"10\" "
+        "text-anchor=\"end\">{:.2f}</text>\n<text x=\"{:.1f}\" y=\"{:.1f}\" "
+        "font-family=\"sans-serif\" font-size=\"10\" text-anchor=\"middle\">{:.0f}</text>\n",
+        left - 4, py(a) + 3, a, px(st), top + plot_h + 14, st);
+  }
+  svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" font-family=\"sans-serif\" font-size=\"11\" "
+                     "text-anchor=\"middle\">time step</text>\n",
+                     left + plot_w / 2, height - 8);
+  static const char* kColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
+                                   "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"};
+  for (std::size_t run = 0; run < result.runs.size(); ++run) {
+    const char* colour = kColours[run % 10];
+    for (int pass = 0; pass < 2; ++pass) {
+      std::string points;
+      int last_step = -1;
+      for (const OnlineRendezvousPoint& p : result.runs[run].points) {
+        const double v = pass == 0 ? p.team_ate : p.solo_ate;
+        if (!std::isfinite(v) || p.step == last_step) continue;
+        last_step = p.step;
+        points += fmt::format("{:.1f},{:.1f} ", px(p.step), py(v));
+      }
+      svg += fmt::format("<polyline fill=\"none\" stroke=\"{}\" stroke-width=\"1.2\"{} "
+                         "points=\"{}\"/>\n",
+                         colour, pass == 0 ? "" : " stroke-dasharray=\"4,3\"", points);
+    }
+  }
+  const double b = Mean(batch);
+  if (std::isfinite(b)) {
+    svg += fmt::format("<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" "
+                       "stroke=\"#999\" stroke-width=\"2\"/>\n",
+                       left, py(b), left + plot_w, py(b));
+  }
+  svg += "</svg>\n";
+  return svg;
+}
+
+}  // namespace moslam

@@ -1,0 +1,166 @@
+#include "moslam/online/group_solve.h"
+
+#include <algorithm>
+#include <string>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+namespace {
+
+Key Relabel(Key k, int robot) {
+  k.robot = robot;
+  return k;
+}
+
+bool Contains(const std::vector<int>& sorted, int robot) {
+  return std::binary_search(sorted.begin(), sorted.end(), robot);
+}
+
+}  // namespace
+
+RelativePoseFactor HeldFactor(const RelativePoseFactor& shared, int robot, const SE3& held) {
+  const bool owns_a = shared.a().robot == robot, owns_b = shared.b().robot == robot;
+  if (owns_a == owns_b) {
+    throw InvalidInputError("HeldFactor: the factor between " + ToString(shared.a()) + " and " +
+                            ToString(shared.b()) + " does not join robot " +
+                            std::to_string(robot) + " to another robot");
+  }
+  const Key first = Key::Pose(robot, 0);
+  const SE3& z = shared.measured();
+  if (owns_b) {
+    // Log(z^-1 (x0 y)^-1 b) = Log((y z)^-1 x0^-1 b).
+    return RelativePoseFactor(first, shared.b(), held * z, shared.information());
+  }
+  // Log(z^-1 a^-1 x0 y) = -Ad(z^-1) Log((y z^-1)^-1 x0^-1 a): the same cost with the
+  // information seen through Ad(z^-1).
+  const Matrix6 ad = z.inverse().Adjoint();
+  const Matrix6 info = ad.transpose() * shared.information() * ad;
+  return RelativePoseFactor(first, shared.a(), held * z.inverse(), 0.5 * (info + info.transpose()));
+}
+
+std::vector<RelativePoseFactor> TeamFactors(int robot, const std::vector<SharedObject>& shared,
+                                            const HeldEstimates& held, const Matrix6& lambda,
+                                            const std::set<int>& in_range) {
+  std::vector<RelativePoseFactor> out;
+  for (const auto& s : shared) {
+    const Key mine = s.alpha_object.robot == robot ? s.alpha_object : s.beta_object;
+    const Key other = s.alpha_object.robot == robot ? s.beta_object : s.alpha_object;
+    if (mine.robot != robot || other.robot == robot || in_range.count(other.robot) > 0) continue;
+    const auto it = held.find(other);
+    if (it == held.end()) continue;
+    out.push_back(HeldFactor(ObjectObjectFactor(s, lambda), robot, it->second));
+  }
+  return out;
+}
+
+std::vector<std::vector<int>> LinkedGroups(const std::vector<int>& robots,
+                                           const std::vector<SharedObject>& shared) {
+  std::vector<int> sorted = robots;
+  std::sort(sorted.begin(), sorted.end());
+  sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+  std::map<int, int> parent;
+  for (int r : sorted) parent[r] = r;
+  const auto find = [&](int r) {
+    while (parent.at(r) != r) r = parent[r] = parent.at(parent.at(r));
+    return r;
+  };
+  for (const auto& s : shared) {
+    const int a = s.alpha_object.robot, b = s.beta_object.robot;
+    if (a == b || !Contains(sorted, a) || !Contains(sorted, b)) continue;
+    const int ra = find(a), rb = find(b);
+    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  }
+  std::map<int, std::vector<int>> groups;
+  for (int r : sorted) groups[find(r)].push_back(r);
+  std::vector<std::vector<int>> out;
+  for (auto& [root, g] : groups) out.push_back(std::move(g));
+  return out;
+}
+
+GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
+                               const std::vector<SharedObject>& shared,
+                               const std::map<int, HeldEstimates>& held, const Matrix6& lambda) {
+  GroupProblem p;
+  for (const ObjectSlam* robot : group) {
+    if (robot == nullptr) throw InvalidInputError("BuildGroupProblem: a null robot");
+    p.robots.push_back(robot->robot());
+  }
+  std::vector<const ObjectSlam*> ordered = group;
+  std::sort(ordered.begin(), ordered.end(),
+            [](const ObjectSlam* a, const ObjectSlam* b) { return a->robot() < b->robot(); });
+  std::sort(p.robots.begin(), p.robots.end());
+  if (p.robots.size() < 2 ||
+      std::adjacent_find(p.robots.begin(), p.robots.end()) != p.robots.end()) {
+    throw InvalidInputError("BuildGroupProblem: a group is two or more distinct robots");
+  }
+  if (LinkedGroups(p.robots, shared).size() != 1) {
+    throw InvalidInputError(
+        "BuildGroupProblem: the robots are not linked by shared objects among them (split them "
+        "with LinkedGroups first)");
+  }
+  std::map<int, int> label;
+  for (std::size_t i = 0; i < p.robots.size(); ++i) label[p.robots[i]] = static_cast<int>(i);
+  const std::set<int> in_range(p.robots.begin(), p.robots.end());
+  const auto relabel = [&](Key k) { return Relabel(k, label.at(k.robot)); };
+  const auto add = [&](const RelativePoseFactor& f) {
+    p.graph.add(RelativePoseFactor(relabel(f.a()), relabel(f.b()), f.measured(),
+                                   f.information()));
+  };
+  for (const ObjectSlam* robot : ordered) {
+    const PoseGraph own = robot->graph();
+    for (const auto& f : own.factors()) add(f);
+    const auto h = held.find(robot->robot());
+    if (h != held.end()) {
+      for (const auto& f : TeamFactors(robot->robot(), shared, h->second, lambda, in_range)) {
+        add(f);
+        ++p.team_factors;
+      }
+    }
+    for (const auto& [k, x] : robot->estimate()) p.initial.emplace(relabel(k), x);
+  }
+  for (const auto& s : shared) {
+    if (in_range.count(s.alpha_object.robot) == 0 || in_range.count(s.beta_object.robot) == 0 ||
+        s.alpha_object.robot == s.beta_object.robot) {
+      continue;
+    }
+    add(ObjectObjectFactor(s, lambda));
+    ++p.object_object;
+  }
+  return p;
+}
+
+std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const Values& solution,
+                                            const std::vector<SharedObject>& shared) {
+  const auto value = [&](Key k) -> const SE3& {
+    const auto it = solution.find(k);
+    if (it == solution.end()) {
+      throw InvalidInputError("SplitGroupSolution: the solution has no value for " + ToString(k));
+    }
+    return it->second;
+  };
+  std::vector<GroupUpdate> out;
+  for (std::size_t i = 0; i < problem.robots.size(); ++i) {
+    const int solve_robot = static_cast<int>(i);
+    GroupUpdate u;
+    u.robot = problem.robots[i];
+    const SE3 to_own = value(Key::Pose(solve_robot, 0)).inverse();
+    for (const auto& [k, x] : problem.initial) {
+      if (k.robot == solve_robot) u.estimate.emplace(Relabel(k, u.robot), to_own * value(k));
+    }
+    u.estimate[Key::Pose(u.robot, 0)] = SE3();
+    for (const auto& s : shared) {
+      for (const auto& [mine, other] : {std::pair{s.alpha_object, s.beta_object},
+                                        std::pair{s.beta_object, s.alpha_object}}) {
+        if (mine.robot != u.robot || other.robot == u.robot) continue;
+        const auto j = std::lower_bound(problem.robots.begin(), problem.robots.end(), other.robot);
+        if (j == problem.robots.end() || *j != other.robot) continue;
+        u.held[other] = to_own * value(Relabel(other, static_cast<int>(j - problem.robots.begin())));
+      }
+    }
+    out.push_back(std::move(u));
+  }
+  return out;
+}
+
+}  // namespace moslam

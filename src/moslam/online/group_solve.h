@@ -1,0 +1,80 @@
+// Online mapping at a rendezvous: the joint graph of the robots in range, and its solution
+// handed back to each robot (issue 13; online_team.h runs it in one process).
+//
+// Each robot keeps its own SLAM in its own frame (first pose at the identity, object_slam.h).
+// At a rendezvous the robots in range solve the joint graph of their maps: their own graphs,
+// one object-object factor per shared pair between two of them, and for every shared pair with
+// a robot out of range a *team factor*: the partner's landmark held fixed at its last received
+// estimate. A robot holds that estimate in its own frame, y = x_{r,0}^-1 o_c (x_{r,0} its first
+// pose, o_c the partner landmark, both from the same solve), so the factor is between the
+// robot's first pose and its landmark (HeldFactor) and the joint graph has relative factors only:
+// its cost does not change under a rigid motion of the whole group, and holding the lowest robot's
+// first pose (the solve's gauge, after re-labelling the group's robots 0..k-1) constrains
+// nothing. After the solve each robot takes its variables back into its own frame
+// (x_{r,0}^-1 x) and holds the landmarks of its partners in range the same way.
+// Each holder keeps its own copy of a partner's landmarks (received at its own last meeting with
+// that partner), so two robots in range that both hold landmarks of the same robot out of range
+// are not tied to each other through them, as they would be through one fixed copy in a common
+// frame; with one holder per robot out of range, the group's optimum with the partners held at
+// the joint optimum is the joint optimum (test WithThePartnerHeldAtTheJointOptimumSolvesToIt).
+#pragma once
+
+#include <map>
+#include <set>
+#include <vector>
+
+#include "moslam/graph/pose_graph.h"
+#include "moslam/slam/object_slam.h"
+#include "moslam/slam/rendezvous.h"
+
+namespace moslam {
+
+// The partner landmarks a robot holds, by the partner landmark's key, in the robot's own frame.
+using HeldEstimates = std::map<Key, SE3>;
+
+// The factor between Key::Pose(robot, 0) and robot's landmark that has the cost of `shared` (an
+// object-object factor with one end robot's landmark) with the partner landmark at
+// x_{robot,0} * held, whatever x_{robot,0}. Throws InvalidInputError when `shared` has no end, or
+// two ends, of `robot`.
+RelativePoseFactor HeldFactor(const RelativePoseFactor& shared, int robot, const SE3& held);
+
+// The team factors of `robot`: HeldFactor of each shared pair of the robot whose partner is not
+// in `in_range` and whose partner landmark it holds (pairs found but never solved together have
+// none yet).
+std::vector<RelativePoseFactor> TeamFactors(int robot, const std::vector<SharedObject>& shared,
+                                            const HeldEstimates& held, const Matrix6& lambda,
+                                            const std::set<int>& in_range = {});
+
+// The robots of `robots` linked through shared pairs between two of them, each group sorted,
+// groups by their lowest robot; a robot with no such pair is a group of one.
+std::vector<std::vector<int>> LinkedGroups(const std::vector<int>& robots,
+                                           const std::vector<SharedObject>& shared);
+
+struct GroupProblem {
+  std::vector<int> robots;  // increasing ids: robot i of the solve is robots[i]
+  PoseGraph graph;          // keys re-labelled robots[i] -> i; the gauge is robots[0]'s first pose
+  Values initial;           // each robot's own estimate (its own frame), re-labelled
+  int object_object = 0;    // shared pairs between robots of the group
+  int team_factors = 0;     // shared pairs with robots out of range, as held factors
+};
+
+// The joint graph of `group` (2 or more distinct robots, linked: LinkedGroups) with the pairs of
+// `shared` and each robot's held estimates (`held`, by robot id; a robot may have none).
+// Throws InvalidInputError on fewer than two robots, a repeated robot, or robots not linked.
+GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
+                               const std::vector<SharedObject>& shared,
+                               const std::map<int, HeldEstimates>& held, const Matrix6& lambda);
+
+// What one robot of the group takes from a solution of the problem.
+struct GroupUpdate {
+  int robot = 0;
+  Values estimate;      // its variables, in its own frame (first pose the identity)
+  HeldEstimates held;   // the landmarks of its partners in the group, in its own frame
+};
+
+// Per robot of the problem (in its order). `solution`: re-labelled keys, every variable of the
+// problem. Throws InvalidInputError when a variable is missing.
+std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const Values& solution,
+                                            const std::vector<SharedObject>& shared);
+
+}  // namespace moslam

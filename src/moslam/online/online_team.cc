@@ -1,0 +1,79 @@
+#include "moslam/online/online_team.h"
+
+#include <chrono>
+#include <set>
+#include <utility>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+
+DgsOptions OnlineOptions::DefaultSolver() {
+  DgsOptions o;
+  o.order = SweepOrder::kJacobi;
+  o.coarse_correction = true;
+  o.stopping = StageStopping::kErrorBound;
+  o.refine = true;
+  return o;
+}
+
+void OnlineOptions::validate() const {
+  solver.validate();
+  ValidateInformation(lambda, "OnlineOptions: lambda");
+}
+
+OnlineTeam::OnlineTeam(OnlineOptions options) : options_(std::move(options)) {
+  options_.validate();
+}
+
+void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult& team) {
+  const auto robot = [&](int r) -> ObjectSlam& {
+    if (r < 0 || r >= static_cast<int>(team.robots.size())) {
+      throw InvalidInputError("OnlineTeam: the group names robot " + std::to_string(r) +
+                              ", which the team does not have");
+    }
+    return team.robots[static_cast<std::size_t>(r)];
+  };
+  for (const std::vector<int>& part : LinkedGroups(group.robots, team.shared)) {
+    if (part.size() < 2) continue;  // nothing shared with the others yet
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<const ObjectSlam*> members;
+    for (int r : part) members.push_back(&robot(r));
+    const GroupProblem problem = BuildGroupProblem(members, team.shared, held_, options_.lambda);
+    const DgsResult solved = RunDgs(problem.graph, problem.initial, options_.solver);
+    GroupSolveRecord rec;
+    rec.step = group.step;
+    rec.robots = part;
+    rec.object_object = problem.object_object;
+    rec.team_factors = problem.team_factors;
+    rec.rotation_sweeps = solved.rotation.iterations;
+    rec.pose_sweeps = solved.pose.iterations;
+    rec.refine_steps = solved.refine.iterations;
+    rec.refine_status = solved.refine.status;
+    rec.initial_cost = problem.graph.cost(problem.initial);
+    rec.final_cost = problem.graph.cost(solved.values);
+    rec.messages = solved.messages;
+    rec.bytes = solved.bytes;
+    for (GroupUpdate& u : SplitGroupSolution(problem, solved.values, team.shared)) {
+      HeldEstimates& h = held_[u.robot];
+      for (auto& [k, x] : u.held) h[k] = x;
+      ObjectSlam& r = robot(u.robot);
+      r.setEstimate(u.estimate);
+      r.setTeamFactors(TeamFactors(u.robot, team.shared, h, options_.lambda));
+    }
+    rec.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    solves_.push_back(std::move(rec));
+  }
+}
+
+MultiRobotSlamConfig::OnRendezvous OnlineTeam::hook(
+    std::function<void(const RendezvousGroup&, const MultiRobotSlamResult&)> after) {
+  return [this, after = std::move(after)](const RendezvousGroup& group,
+                                          MultiRobotSlamResult& team) {
+    onRendezvous(group, team);
+    if (after) after(group, team);
+  };
+}
+
+}  // namespace moslam
