@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/statistics.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/experiments/simulated_run.h"
 #include "moslam/metrics/metrics.h"
@@ -59,19 +60,6 @@ std::pair<double, int> TeamMapError(const SimulationData& data,
     }
   }
   return {n > 0 ? sum / n : std::numeric_limits<double>::quiet_NaN(), n};
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
-
-double Mean(const std::vector<double>& v) {
-  double s = 0.0;
-  for (double x : v) s += x;
-  return v.empty() ? std::numeric_limits<double>::quiet_NaN() : s / static_cast<double>(v.size());
 }
 
 }  // namespace

@@ -6,22 +6,12 @@
 #include <limits>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/statistics.h"
 
 namespace moslam {
 namespace {
 
 constexpr double kRadToDeg = 57.29577951308232;
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const std::size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  double m = v[mid];
-  if (v.size() % 2 == 0) {
-    m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid)));
-  }
-  return m;
-}
 
 }  // namespace
 

@@ -17,6 +17,7 @@
 #include <random>
 #include <vector>
 
+#include "moslam/common/statistics.h"
 #include "moslam/pose_estimation/registration.h"
 #include "moslam/pose_estimation/segmentation.h"
 #include "moslam/render/object_models.h"
@@ -25,20 +26,9 @@
 
 namespace {
 
+using moslam::Mean;
+
 constexpr double kPi = 3.14159265358979323846;
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-double Mean(const std::vector<double>& v) {
-  double s = 0.0;
-  for (double x : v) s += x;
-  return v.empty() ? std::nan("") : s / static_cast<double>(v.size());
-}
 
 }  // namespace
 
