@@ -1,12 +1,30 @@
 #include "moslam/distributed/coarse_system.h"
 
 #include "moslam/common/errors.h"
+#include "moslam/distributed/coarse_correction.h"
 #include "moslam/geometry/so3.h"
 
 namespace moslam {
 
 std::vector<double> FlattenMatrix(const Eigen::MatrixXd& m) {
   return std::vector<double>(m.data(), m.data() + m.size());
+}
+
+CoarseMessage ShareMessage(CoarseKind kind, DgsStage stage, int sender, std::uint32_t iteration,
+                           const CoarseShare& share) {
+  const bool rotation = stage == DgsStage::kRotation;
+  CoarseMessage m;
+  m.kind = kind;
+  m.stage = stage;
+  m.sender = sender;
+  m.iteration = iteration;
+  m.k = rotation ? 3 : 6;
+  m.ncols = rotation ? 3 : 1;
+  if (!rotation) m.center = FlattenMatrix(share.center);
+  m.diagonal = FlattenMatrix(share.diagonal);
+  if (kind == CoarseKind::kShare) m.residual = FlattenMatrix(share.residual);
+  for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+  return m;
 }
 
 Eigen::MatrixXd UnflattenMatrix(const std::vector<double>& v, int rows, int cols) {

@@ -23,6 +23,14 @@
 
 namespace moslam {
 
+struct CoarseShare;  // coarse_correction.h
+
+// The message carrying robot `sender`'s coarse rows to the coordinator: kShare (a stage's
+// correction, with its residual) or kMatrix (the refinement preconditioner's matrix, without);
+// k = 3 and 3 columns in stage 1, k = 6 and 1 column after it, where the centre is sent too.
+CoarseMessage ShareMessage(CoarseKind kind, DgsStage stage, int sender, std::uint32_t iteration,
+                           const CoarseShare& share);
+
 class CoarseSystem {
  public:
   // The robots whose coarse unknowns form the system (k each), in this order.

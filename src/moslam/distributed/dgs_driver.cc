@@ -392,18 +392,9 @@ bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStat
   const int c = coordinator();
   // Every robot sends its rows to the coordinator.
   for (int r : robots) {
-    const CoarseShare share = agents_.at(r)->coarseShare();
-    CoarseMessage m;
-    m.kind = CoarseKind::kShare;
-    m.stage = stage;
-    m.sender = r;
-    m.iteration = static_cast<std::uint32_t>(iteration);
-    m.k = k;
-    m.ncols = ncols;
-    if (stage == DgsStage::kPose) m.center = FlattenMatrix(share.center);
-    m.diagonal = FlattenMatrix(share.diagonal);
-    m.residual = FlattenMatrix(share.residual);
-    for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+    const CoarseMessage m = ShareMessage(CoarseKind::kShare, stage, r,
+                                         static_cast<std::uint32_t>(iteration),
+                                         agents_.at(r)->coarseShare());
     B.middleRows(coarse.index(r), k) = coarse.addShare(sendCoarse(m, c, stats));
   }
   Eigen::MatrixXd Y;
@@ -587,17 +578,8 @@ std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsStage stage,
   auto coarse = std::make_unique<CoarseSystem>(robots, 6);
   const int c = coordinator();
   for (int r : robots) {
-    const CoarseShare share = agents_.at(r)->refineCoarseMatrix();
-    CoarseMessage m;
-    m.kind = CoarseKind::kMatrix;
-    m.stage = stage;
-    m.sender = r;
-    m.iteration = sweep;
-    m.k = 6;
-    m.ncols = 1;
-    m.center = FlattenMatrix(share.center);
-    m.diagonal = FlattenMatrix(share.diagonal);
-    for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+    const CoarseMessage m =
+        ShareMessage(CoarseKind::kMatrix, stage, r, sweep, agents_.at(r)->refineCoarseMatrix());
     coarse->addShare(sendCoarse(m, c, stats));
   }
   if (!coarse->factorize()) return nullptr;

@@ -149,18 +149,8 @@ class Program {
   bool coarseCorrection(DgsStage stage, int iteration) {
     const int k = stage == DgsStage::kRotation ? 3 : 6;
     const int ncols = stage == DgsStage::kRotation ? 3 : 1;
-    const CoarseShare share = agent_.coarseShare();
-    CoarseMessage m;
-    m.kind = CoarseKind::kShare;
-    m.stage = stage;
-    m.sender = agent_.robot();
-    m.iteration = static_cast<std::uint32_t>(iteration);
-    m.k = k;
-    m.ncols = ncols;
-    if (stage == DgsStage::kPose) m.center = FlattenMatrix(share.center);
-    m.diagonal = FlattenMatrix(share.diagonal);
-    m.residual = FlattenMatrix(share.residual);
-    for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+    CoarseMessage m = ShareMessage(CoarseKind::kShare, stage, agent_.robot(),
+                                   static_cast<std::uint32_t>(iteration), agent_.coarseShare());
     TeamReport mine;
     mine.coarse_ready = true;
     const TeamStep got = step(stage, false, mine, &m);
@@ -249,16 +239,8 @@ class Program {
     CoarseMessage m;
     const bool ready = agent_.refineCoarseReady();
     if (ready) {
-      const CoarseShare share = agent_.refineCoarseMatrix();
-      m.kind = CoarseKind::kMatrix;
-      m.stage = stage;
-      m.sender = agent_.robot();
-      m.iteration = sweep;
-      m.k = 6;
-      m.ncols = 1;
-      m.center = FlattenMatrix(share.center);
-      m.diagonal = FlattenMatrix(share.diagonal);
-      for (const auto& [s, block] : share.coupling) m.blocks.emplace_back(s, FlattenMatrix(block));
+      m = ShareMessage(CoarseKind::kMatrix, stage, agent_.robot(), sweep,
+                       agent_.refineCoarseMatrix());
       mine.coarse_ready = true;
     }
     const TeamStep got = step(stage, false, mine, ready ? &m : nullptr);
