@@ -4,6 +4,7 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/slam/multi_robot.h"
 
 namespace moslam {
 namespace {
@@ -11,10 +12,6 @@ namespace {
 Key Relabel(Key k, int robot) {
   k.robot = robot;
   return k;
-}
-
-bool Contains(const std::vector<int>& sorted, int robot) {
-  return std::binary_search(sorted.begin(), sorted.end(), robot);
 }
 
 }  // namespace
@@ -56,26 +53,9 @@ std::vector<RelativePoseFactor> TeamFactors(int robot, const std::vector<SharedO
 
 std::vector<std::vector<int>> LinkedGroups(const std::vector<int>& robots,
                                            const std::vector<SharedObject>& shared) {
-  std::vector<int> sorted = robots;
-  std::sort(sorted.begin(), sorted.end());
-  sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
-  std::map<int, int> parent;
-  for (int r : sorted) parent[r] = r;
-  const auto find = [&](int r) {
-    while (parent.at(r) != r) r = parent[r] = parent.at(parent.at(r));
-    return r;
-  };
-  for (const auto& s : shared) {
-    const int a = s.alpha_object.robot, b = s.beta_object.robot;
-    if (a == b || !Contains(sorted, a) || !Contains(sorted, b)) continue;
-    const int ra = find(a), rb = find(b);
-    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
-  }
-  std::map<int, std::vector<int>> groups;
-  for (int r : sorted) groups[find(r)].push_back(r);
-  std::vector<std::vector<int>> out;
-  for (auto& [root, g] : groups) out.push_back(std::move(g));
-  return out;
+  std::vector<std::pair<int, int>> links;
+  for (const auto& s : shared) links.emplace_back(s.alpha_object.robot, s.beta_object.robot);
+  return ConnectedRobots(robots, links);
 }
 
 GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,

@@ -13,31 +13,6 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
-// The robots of `events` grouped by connection through them, each group sorted, groups by
-// their lowest robot.
-std::vector<RendezvousGroup> GroupsInRange(int step, const std::vector<RendezvousEvent>& events) {
-  std::map<int, int> parent;
-  const auto find = [&](int r) {
-    while (parent.at(r) != r) r = parent[r] = parent.at(parent.at(r));
-    return r;
-  };
-  for (const auto& e : events) {
-    parent.emplace(e.alpha, e.alpha);
-    parent.emplace(e.beta, e.beta);
-    const int a = find(e.alpha), b = find(e.beta);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  }
-  std::map<int, RendezvousGroup> groups;  // by root = lowest robot of the group
-  for (const auto& [r, p] : parent) {
-    auto& g = groups[find(r)];
-    g.step = step;
-    g.robots.push_back(r);  // parent is ordered: robots come sorted
-  }
-  std::vector<RendezvousGroup> out;
-  for (auto& [root, g] : groups) out.push_back(std::move(g));
-  return out;
-}
-
 std::set<int> MappedObjects(const ObjectSlam& robot) {
   std::set<int> out;
   for (const auto& lm : robot.landmarks()) {
@@ -51,6 +26,26 @@ int TrueObject(const std::vector<ObjectSlam>& robots, const Key& k) {
 }
 
 }  // namespace
+
+std::vector<std::vector<int>> ConnectedRobots(const std::vector<int>& robots,
+                                              const std::vector<std::pair<int, int>>& links) {
+  std::map<int, int> parent;  // union-find, each root the lowest robot of its group
+  for (int r : robots) parent[r] = r;
+  const auto find = [&](int r) {
+    while (parent.at(r) != r) r = parent[r] = parent.at(parent.at(r));
+    return r;
+  };
+  for (const auto& [a, b] : links) {
+    if (a == b || parent.count(a) == 0 || parent.count(b) == 0) continue;
+    const int ra = find(a), rb = find(b);
+    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  }
+  std::map<int, std::vector<int>> groups;
+  for (const auto& [r, p] : parent) groups[find(r)].push_back(r);  // robots come sorted
+  std::vector<std::vector<int>> out;
+  for (auto& [root, g] : groups) out.push_back(std::move(g));
+  return out;
+}
 
 void MultiRobotSlamConfig::validate() const {
   slam.validate();
@@ -215,7 +210,15 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
       both.insert(now.begin(), now.end());
     }
     if (config.on_rendezvous) {
-      for (const RendezvousGroup& g : GroupsInRange(t, events_now)) config.on_rendezvous(g, out);
+      std::vector<int> robots;
+      std::vector<std::pair<int, int>> links;
+      for (const RendezvousEvent& e : events_now) {
+        robots.insert(robots.end(), {e.alpha, e.beta});
+        links.emplace_back(e.alpha, e.beta);
+      }
+      for (std::vector<int>& g : ConnectedRobots(robots, links)) {
+        config.on_rendezvous(RendezvousGroup{t, std::move(g)}, out);
+      }
     }
   }
   if (next_event != data.rendezvous.size()) {
