@@ -298,6 +298,15 @@ std::vector<OutgoingMessage> RobotAgent::outgoing() const {
   return out;
 }
 
+Values RobotAgent::neighbourEstimates() const {
+  Values out;
+  if (!refinement_.started()) return out;
+  for (const Key& k : graph_.neighbourKeys()) {
+    if (const SE3* x = refinement_.knownPose(k)) out.emplace(k, *x);
+  }
+  return out;
+}
+
 Values RobotAgent::estimate() const {
   if (refinement_.started()) return refinement_.estimate();
   Values values;

@@ -220,6 +220,10 @@ class RobotAgent {
   // with zero translation (kRotation), R_hat Exp(dtheta), t (kPose, kDone), the last accepted
   // refinement estimate (kRefine, kDone after it). The anchor is always its initial value.
   Values estimate() const;
+  // Its copies of the neighbours' variables after startRefine() (each owner's increments applied
+  // to the pose it sent: the owner's own estimate, bitwise, in the in-process driver); variables
+  // never received are left out. Empty before the refinement.
+  Values neighbourEstimates() const;
   // The stage-1 relaxed rotations (row by row), own variables.
   std::map<Key, Eigen::VectorXd> relaxedRotations() const;
 

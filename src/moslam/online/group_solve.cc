@@ -1,6 +1,8 @@
 #include "moslam/online/group_solve.h"
 
 #include <algorithm>
+#include <functional>
+#include <set>
 #include <string>
 
 #include "moslam/common/errors.h"
@@ -12,6 +14,21 @@ namespace {
 Key Relabel(Key k, int robot) {
   k.robot = robot;
   return k;
+}
+
+// The index of `robot` in `robots` (increasing, distinct, 2 or more), the robot's id in the solve.
+int LocalIndex(const std::vector<int>& robots, int robot, const char* who) {
+  if (robots.size() < 2 || std::adjacent_find(robots.begin(), robots.end(),
+                                              std::greater_equal<int>()) != robots.end()) {
+    throw InvalidInputError(std::string(who) +
+                            ": a group is two or more distinct robots in increasing order");
+  }
+  const auto it = std::lower_bound(robots.begin(), robots.end(), robot);
+  if (it == robots.end() || *it != robot) {
+    throw InvalidInputError(std::string(who) + ": robot " + std::to_string(robot) +
+                            " is not in the group");
+  }
+  return static_cast<int>(it - robots.begin());
 }
 
 }  // namespace
@@ -112,35 +129,76 @@ GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
 
 std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const Values& solution,
                                             const std::vector<SharedObject>& shared) {
+  for (const auto& [k, x] : problem.initial) {
+    if (solution.count(k) == 0) {
+      throw InvalidInputError("SplitGroupSolution: the solution has no value for " + ToString(k));
+    }
+  }
+  std::vector<GroupUpdate> out;
+  for (int r : problem.robots) out.push_back(RobotGroupUpdate(problem.robots, r, solution, shared));
+  return out;
+}
+
+RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<int>& robots,
+                                   const std::vector<SharedObject>& shared,
+                                   const HeldEstimates& held, const Matrix6& lambda) {
+  const int self = robot.robot();
+  const int local = LocalIndex(robots, self, "BuildRobotGroupPart");
+  RobotGroupPart part;
+  part.local = local;
+  const std::set<int> in_range(robots.begin(), robots.end());
+  const auto relabel = [&](Key k) {
+    return Relabel(k, LocalIndex(robots, k.robot, "BuildRobotGroupPart"));
+  };
+  const auto add = [&](const RelativePoseFactor& f) {
+    part.subgraph.add(RelativePoseFactor(relabel(f.a()), relabel(f.b()), f.measured(),
+                                         f.information()));
+  };
+  const PoseGraph own = robot.graph();
+  for (const auto& f : own.factors()) add(f);
+  for (const auto& f : TeamFactors(self, shared, held, lambda, in_range)) {
+    add(f);
+    ++part.team_factors;
+  }
+  for (const auto& [k, x] : robot.estimate()) part.initial.emplace(Relabel(k, local), x);
+  for (const auto& s : shared) {
+    const int a = s.alpha_object.robot, b = s.beta_object.robot;
+    if (a == b || (a != self && b != self) || in_range.count(a) == 0 || in_range.count(b) == 0) {
+      continue;
+    }
+    add(ObjectObjectFactor(s, lambda));
+    ++part.object_object;
+  }
+  return part;
+}
+
+GroupUpdate RobotGroupUpdate(const std::vector<int>& robots, int robot, const Values& solution,
+                             const std::vector<SharedObject>& shared) {
+  const int local = LocalIndex(robots, robot, "RobotGroupUpdate");
   const auto value = [&](Key k) -> const SE3& {
     const auto it = solution.find(k);
     if (it == solution.end()) {
-      throw InvalidInputError("SplitGroupSolution: the solution has no value for " + ToString(k));
+      throw InvalidInputError("RobotGroupUpdate: the solution has no value for " + ToString(k));
     }
     return it->second;
   };
-  std::vector<GroupUpdate> out;
-  for (std::size_t i = 0; i < problem.robots.size(); ++i) {
-    const int solve_robot = static_cast<int>(i);
-    GroupUpdate u;
-    u.robot = problem.robots[i];
-    const SE3 to_own = value(Key::Pose(solve_robot, 0)).inverse();
-    for (const auto& [k, x] : problem.initial) {
-      if (k.robot == solve_robot) u.estimate.emplace(Relabel(k, u.robot), to_own * value(k));
-    }
-    u.estimate[Key::Pose(u.robot, 0)] = SE3();
-    for (const auto& s : shared) {
-      for (const auto& [mine, other] : {std::pair{s.alpha_object, s.beta_object},
-                                        std::pair{s.beta_object, s.alpha_object}}) {
-        if (mine.robot != u.robot || other.robot == u.robot) continue;
-        const auto j = std::lower_bound(problem.robots.begin(), problem.robots.end(), other.robot);
-        if (j == problem.robots.end() || *j != other.robot) continue;
-        u.held[other] = to_own * value(Relabel(other, static_cast<int>(j - problem.robots.begin())));
-      }
-    }
-    out.push_back(std::move(u));
+  GroupUpdate u;
+  u.robot = robot;
+  const SE3 to_own = value(Key::Pose(local, 0)).inverse();
+  for (const auto& [k, x] : solution) {
+    if (k.robot == local) u.estimate.emplace(Relabel(k, robot), to_own * x);
   }
-  return out;
+  u.estimate[Key::Pose(robot, 0)] = SE3();
+  for (const auto& s : shared) {
+    for (const auto& [mine, other] : {std::pair{s.alpha_object, s.beta_object},
+                                      std::pair{s.beta_object, s.alpha_object}}) {
+      if (mine.robot != robot || other.robot == robot) continue;
+      const auto j = std::lower_bound(robots.begin(), robots.end(), other.robot);
+      if (j == robots.end() || *j != other.robot) continue;
+      u.held[other] = to_own * value(Relabel(other, static_cast<int>(j - robots.begin())));
+    }
+  }
+  return u;
 }
 
 }  // namespace moslam

@@ -65,6 +65,23 @@ GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
                                const std::vector<SharedObject>& shared,
                                const std::map<int, HeldEstimates>& held, const Matrix6& lambda);
 
+// One robot's part of the group problem, for a solve in which each robot holds only its own
+// part (the robot processes, transport/robot_session.h): the factors of BuildGroupProblem that
+// touch its variables, in the same order (its own graph, its team factors, then the shared pairs
+// with the group's robots in the order of `shared`), and its own estimate, re-labelled. `robots`:
+// the group (increasing ids, 2 or more, this robot among them; LinkedGroups). Throws
+// InvalidInputError otherwise.
+struct RobotGroupPart {
+  int local = 0;          // the robot's id in the solve (its index in `robots`)
+  PoseGraph subgraph;     // re-labelled keys
+  Values initial;         // its own estimate (its own frame), re-labelled
+  int object_object = 0;  // shared pairs with robots of the group
+  int team_factors = 0;
+};
+RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<int>& robots,
+                                   const std::vector<SharedObject>& shared,
+                                   const HeldEstimates& held, const Matrix6& lambda);
+
 // What one robot of the group takes from a solution of the problem.
 struct GroupUpdate {
   int robot = 0;
@@ -76,5 +93,12 @@ struct GroupUpdate {
 // problem. Throws InvalidInputError when a variable is missing.
 std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const Values& solution,
                                             const std::vector<SharedObject>& shared);
+
+// The update of `robot` (one of `robots`, the group as in BuildRobotGroupPart) from `solution`
+// (re-labelled keys): every variable of that robot it holds and the landmarks of its partners in
+// the group (a robot process: its own estimate and its copies of its neighbours' variables).
+// Throws InvalidInputError when its first pose or a partner landmark is missing.
+GroupUpdate RobotGroupUpdate(const std::vector<int>& robots, int robot, const Values& solution,
+                             const std::vector<SharedObject>& shared);
 
 }  // namespace moslam

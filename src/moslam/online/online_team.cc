@@ -14,6 +14,7 @@ DgsOptions OnlineOptions::DefaultSolver() {
   o.coarse_correction = true;
   o.stopping = StageStopping::kErrorBound;
   o.refine = true;
+  o.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;  // as the CLI's --refine
   return o;
 }
 
@@ -74,6 +75,22 @@ MultiRobotSlamConfig::OnRendezvous OnlineTeam::hook(
     onRendezvous(group, team);
     if (after) after(group, team);
   };
+}
+
+OnlineRun RunOnline(const SimulationData& data, MultiRobotSlamConfig slam, OnlineOptions options) {
+  OnlineRun run;
+  OnlineTeam team(std::move(options));
+  std::size_t seen = 0;
+  slam.on_rendezvous = team.hook([&](const RendezvousGroup& g, const MultiRobotSlamResult& r) {
+    for (; seen < team.solves().size(); ++seen) {
+      for (int robot : team.solves()[seen].robots) {
+        run.maps[{g.step, robot}] = r.robots[static_cast<std::size_t>(robot)].estimate();
+      }
+    }
+  });
+  run.slam = RunMultiRobotObjectSlam(data, slam);
+  run.solves = team.solves();
+  return run;
 }
 
 }  // namespace moslam

@@ -17,10 +17,12 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <utility>
 #include <vector>
 
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/online/group_solve.h"
+#include "moslam/sim/sensing.h"
 #include "moslam/slam/multi_robot.h"
 
 namespace moslam {
@@ -70,5 +72,15 @@ class OnlineTeam {
   std::vector<GroupSolveRecord> solves_;
   std::map<int, HeldEstimates> held_;
 };
+
+// A whole online run in one process: RunMultiRobotObjectSlam(data, slam) with an OnlineTeam of
+// `options` at every rendezvous, and each robot's map right after every solve it took part in
+// (what the robot processes save, transport/robot_session.h).
+struct OnlineRun {
+  MultiRobotSlamResult slam;             // the maps at the end
+  std::vector<GroupSolveRecord> solves;  // in order
+  std::map<std::pair<int, int>, Values> maps;  // (step, robot) -> its map after that solve
+};
+OnlineRun RunOnline(const SimulationData& data, MultiRobotSlamConfig slam, OnlineOptions options);
 
 }  // namespace moslam

@@ -95,6 +95,7 @@ std::uint64_t WireKey(const Key& k) { return k.index << 1 | static_cast<std::uin
 EstimatesPacket FromSample(const EstimatesSample& s) {
   EstimatesPacket p;
   p.receiver = s.receiver;
+  p.solve = s.solve;
   p.round = s.round;
   p.message.stage = static_cast<DgsStage>(s.stage);
   p.message.iteration = s.iteration;
@@ -113,6 +114,7 @@ EstimatesPacket FromSample(const EstimatesSample& s) {
 StatusPacket FromSample(const StatusSample& s) {
   StatusPacket p;
   p.robot = s.robot;
+  p.solve = s.solve;
   p.incarnation = s.incarnation;
   p.state = static_cast<RobotState>(s.state);
   p.stage = s.stage;
@@ -143,6 +145,7 @@ auto View(const std::vector<T>& v) {
 
 CoarsePacket FromSample(const CoarseSample& s) {
   CoarsePacket p;
+  p.solve = s.solve;
   p.round = s.round;
   CoarseMessage& m = p.message;
   m.sender = s.sender;
@@ -252,6 +255,7 @@ class DdsTransport::Impl {
     EstimatesSample s{};
     s.sender = static_cast<std::uint16_t>(robot_);
     s.receiver = static_cast<std::uint16_t>(p.receiver);
+    s.solve = p.solve;
     s.stage = static_cast<std::uint8_t>(p.message.stage);
     s.round = p.round;
     s.iteration = p.message.iteration;
@@ -303,6 +307,7 @@ class DdsTransport::Impl {
     std::vector<std::uint16_t> neighbours(p.neighbours.begin(), p.neighbours.end());
     StatusSample s{};
     s.robot = static_cast<std::uint16_t>(robot_);
+    s.solve = p.solve;
     s.incarnation = p.incarnation;
     s.state = static_cast<std::uint8_t>(p.state);
     s.stage = p.stage;
@@ -345,6 +350,7 @@ class DdsTransport::Impl {
     };
     CoarseSample s{};
     s.sender = static_cast<std::uint16_t>(robot_);
+    s.solve = p.solve;
     s.round = p.round;
     s.stage = static_cast<std::uint8_t>(m.stage);
     s.kind = static_cast<std::uint8_t>(m.kind);

@@ -75,9 +75,11 @@ EstimatesPacket Estimates(int from, int to, std::uint32_t round) {
 TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   Fixture f(40);
   DdsTransport t0(0, f.options()), t1(1, f.options());
-  const EstimatesPacket e = Estimates(0, 1, 17);
+  EstimatesPacket e = Estimates(0, 1, 17);
+  e.solve = 73;
   StatusPacket s;
   s.robot = 0;
+  s.solve = 74;
   s.incarnation = 2;
   s.state = RobotState::kPose;
   s.stage = 2;
@@ -127,6 +129,8 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   EXPECT_EQ(go->step, 31u);
   EXPECT_EQ(ge->receiver, 1);
   EXPECT_EQ(ge->round, 17u);
+  EXPECT_EQ(ge->solve, 73u);
+  EXPECT_EQ(gs->solve, 74u);
   EXPECT_EQ(ge->message.stage, e.message.stage);
   EXPECT_EQ(ge->message.iteration, e.message.iteration);
   EXPECT_EQ(ge->message.initialised, e.message.initialised);

@@ -201,6 +201,7 @@ class DgsNode::Impl final : public TeamChannel {
       throw;
     }
     result_.estimate = agent_->estimate();
+    result_.neighbours = agent_->neighbourEstimates();
     result_.team.assign(team_.begin(), team_.end());
     result_.left.assign(left_.begin(), left_.end());
     result_.transport = transport_.stats();
@@ -245,6 +246,7 @@ class DgsNode::Impl final : public TeamChannel {
   };
 
   void log(const std::string& text) const {
+    if (options_.log) return options_.log(text);
     fmt::print(stderr, "moslam robot {}: {}\n", robot_, text);
     std::fflush(stderr);
   }
@@ -262,7 +264,8 @@ class DgsNode::Impl final : public TeamChannel {
   // Checks the header, reads the team and the starts; the steps, leaves and the end are replayed
   // as the program asks for them.
   void loadJournal() {
-    const std::uint64_t fingerprint = RunFingerprint(robot_, subgraph_, initial_, solver_);
+    const std::uint64_t fingerprint =
+        RunFingerprint(robot_, subgraph_, initial_, solver_) ^ options_.solve;
     if (!journal_) return;
     result_.journal_truncated_bytes = journal_->truncatedBytes();
     const auto& records = journal_->records();
@@ -384,6 +387,7 @@ class DgsNode::Impl final : public TeamChannel {
   StatusPacket baseStatus() const {
     StatusPacket st;
     st.robot = robot_;
+    st.solve = options_.solve;
     st.incarnation = result_.incarnation;
     st.neighbours.assign(neighbours_.begin(), neighbours_.end());
     st.round = step_;
@@ -398,6 +402,7 @@ class DgsNode::Impl final : public TeamChannel {
     for (const OutgoingMessage& o : what.estimates) {
       EstimatesPacket p;
       p.receiver = o.to;
+      p.solve = options_.solve;
       p.round = s;
       p.message = o.message;
       transport_.send(p);
@@ -406,6 +411,7 @@ class DgsNode::Impl final : public TeamChannel {
     }
     if (what.share) {
       CoarsePacket c;
+      c.solve = options_.solve;
       c.round = s;
       c.message = *what.share;
       transport_.publish(c);
@@ -473,6 +479,7 @@ class DgsNode::Impl final : public TeamChannel {
   void ingest(std::vector<Received> packets) {
     for (Received& r : packets) {
       if (auto* st = std::get_if<StatusPacket>(&r.packet)) {
+        if (st->solve != options_.solve) continue;  // another solve (online mapping)
         heard_.insert(r.sender);
         // The most advanced status; `done` is final; a restart (higher incarnation) replaces
         // what the robot reported before, a failure included.
@@ -492,6 +499,7 @@ class DgsNode::Impl final : public TeamChannel {
           statuses_[r.sender][st->round] = *st;
         }
       } else if (auto* e = std::get_if<EstimatesPacket>(&r.packet)) {
+        if (e->solve != options_.solve) continue;
         const Message& m = e->message;
         std::string why;
         if (!neighbours_.count(m.sender)) {
@@ -513,6 +521,7 @@ class DgsNode::Impl final : public TeamChannel {
         }
         inbox_[{e->round, m.sender}] = m;
       } else if (auto* c = std::get_if<CoarsePacket>(&r.packet)) {
+        if (c->solve != options_.solve) continue;
         coarse_[{c->round, c->message.sender}] = c->message;
       }
       // Object lists: rendezvous data, not used by the DGS protocol.

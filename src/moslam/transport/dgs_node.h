@@ -65,7 +65,11 @@ struct DgsNodeOptions {
   std::chrono::milliseconds stall_timeout{300000};  // no step completed for this long: fail
   std::chrono::milliseconds finish_timeout{10000};  // waiting for the others to be done
   std::string state_dir;  // journal.bin, estimate.g2o, result.g2o; empty: nothing persisted
+  // The solve its packets carry (transport.h): 0, the batch solve; packets of other solves are
+  // ignored (online mapping runs one solve per rendezvous over the same transport).
+  std::uint32_t solve = 0;
   std::function<void(const DgsNodeRound&)> on_round;  // after every step (also replayed ones)
+  std::function<void(const std::string&)> log;  // team, leaves, failures; default: stderr
 
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
@@ -76,6 +80,8 @@ DgsOptions DriverOptions(const DgsNodeOptions& options);
 
 struct DgsNodeResult {
   Values estimate;              // the robot's own variables, final
+  Values neighbours;            // its copies of the neighbours' variables after the refinement
+                                // (RobotAgent::neighbourEstimates; empty without it)
   int rotation_rounds = 0;      // sweeps of each stage (as DgsStageReport::iterations)
   int pose_rounds = 0;
   bool rotation_converged = false;

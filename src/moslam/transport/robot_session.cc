@@ -1,6 +1,7 @@
 #include "moslam/transport/robot_session.h"
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -13,8 +14,12 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/io/g2o.h"
+#include "moslam/io/tum.h"
+#include "moslam/online/group_solve.h"
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
+#include "moslam/transport/group_transport.h"
 #include "moslam/transport/journal.h"
 #include "moslam/transport/record_bytes.h"
 
@@ -96,6 +101,11 @@ void RobotSessionOptions::validate() const {
   }
   if (rendezvous_timeout.count() <= 0) {
     throw InvalidInputError("robot session: rendezvous_timeout must be positive");
+  }
+  if (online && !dgs.solver.refine) {
+    throw InvalidInputError(
+        "robot session: online mapping needs the refinement (dgs.solver.refine): a robot holds "
+        "its partners' landmarks as its refined copies of them");
   }
 }
 
@@ -220,8 +230,8 @@ class RobotSession::Impl {
         std::fflush(stderr);
       };
     }
-    if (!options_.dgs.state_dir.empty()) {
-      std::filesystem::create_directories(options_.dgs.state_dir);
+    if (!options_.dgs.state_dir.empty()) std::filesystem::create_directories(options_.dgs.state_dir);
+    if (!options_.dgs.state_dir.empty() && !options_.online) {
       journal_ = std::make_unique<Journal>(
           (std::filesystem::path(options_.dgs.state_dir) / "rendezvous.bin").string());
       restore();
@@ -308,8 +318,21 @@ class RobotSession::Impl {
       for (auto it = lists_.begin(); it != lists_.end();) {
         it = it->first.second <= static_cast<std::uint32_t>(t) ? lists_.erase(it) : std::next(it);
       }
+      if (options_.online) groupSolve(slam, t);
     }
     slam.optimize(options_.slam.final_iterations);
+    if (options_.online) {
+      result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+      result_.rendezvous_transport = transport_.stats();
+      result_.shared = shared_;
+      result_.initial = slam.estimate();
+      result_.final_estimate = slam.estimate();
+      result_.poses = slam.numPoses();
+      result_.landmarks = static_cast<int>(slam.landmarks().size());
+      saveMap(slam, "final");
+      result_.seconds = result_.slam_seconds;
+      return result_;
+    }
     result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     result_.rendezvous_transport = transport_.stats();
     result_.shared = shared_;
@@ -327,6 +350,164 @@ class RobotSession::Impl {
   }
 
  private:
+  // ---- online mapping ---------------------------------------------------------------------
+  // The group solve of step t (RobotSessionOptions::online; OnlineTeam::onRendezvous is the
+  // in-process twin): the robots connected to this one through the step's events, split by the
+  // shared pairs among them. Each robot knows only its own pairs, so the split is found as the
+  // DgsNode forms a team: every robot publishes a joining status of solve 1 + t listing its
+  // partners in range, and the group is the closure of those lists.
+  void groupSolve(ObjectSlam& slam, int t) {
+    const auto t0 = Clock::now();
+    const TransportStats before = transport_.stats();
+    std::vector<int> in_range;
+    std::vector<std::pair<int, int>> links;
+    for (const RendezvousEvent& e : data_.events) {
+      if (e.step != t) continue;
+      in_range.insert(in_range.end(), {e.alpha, e.beta});
+      links.emplace_back(e.alpha, e.beta);
+    }
+    std::set<int> range;
+    for (const std::vector<int>& g : ConnectedRobots(in_range, links)) {
+      if (std::binary_search(g.begin(), g.end(), robot_)) range.insert(g.begin(), g.end());
+    }
+    std::set<int> partners;
+    for (const SharedObject& o : shared_) {
+      const int a = o.alpha_object.robot, b = o.beta_object.robot;
+      const int other = a == robot_ ? b : (b == robot_ ? a : robot_);
+      if (other != robot_ && range.count(other)) partners.insert(other);
+    }
+    if (partners.empty()) return;  // linked to no robot in range: nothing to solve together
+    const auto solve = static_cast<std::uint32_t>(t + 1);
+    StatusPacket join;
+    join.robot = robot_;
+    join.solve = solve;
+    join.neighbours.assign(partners.begin(), partners.end());
+    transport_.publish(join);
+    // Drop what earlier solves left; wait for the joining statuses of the closure.
+    pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
+                                  [&](const Received& r) { return SolveOf(r) < solve; }),
+                   pending_.end());
+    std::set<int> group{robot_};
+    group.insert(partners.begin(), partners.end());
+    const auto deadline = Clock::now() + options_.dgs.join_timeout;
+    while (true) {
+      std::map<int, std::vector<int>> heard;
+      for (const Received& r : pending_) {
+        const auto* st = std::get_if<StatusPacket>(&r.packet);
+        if (st && st->solve == solve && range.count(r.sender)) heard[r.sender] = st->neighbours;
+      }
+      for (bool grew = true; grew;) {
+        grew = false;
+        for (int r : std::vector<int>(group.begin(), group.end())) {
+          const auto it = heard.find(r);
+          if (it == heard.end()) continue;
+          for (int n : it->second) grew = (range.count(n) && group.insert(n).second) || grew;
+        }
+      }
+      std::vector<int> missing;
+      for (int r : group) {
+        if (r != robot_ && !heard.count(r)) missing.push_back(r);
+      }
+      if (missing.empty()) break;
+      if (Clock::now() > deadline) {
+        throw Error(fmt::format("robot {}: the group solve of step {} did not form within {} ms: "
+                                "no status from robot(s) {}",
+                                robot_, t, options_.dgs.join_timeout.count(),
+                                fmt::join(missing, ", ")));
+      }
+      ingest(transport_.poll(std::chrono::milliseconds(50)));
+    }
+    const std::vector<int> robots(group.begin(), group.end());
+    const Matrix6 lambda = options_.slam.rendezvous.lambda();
+    RobotGroupPart part = BuildRobotGroupPart(slam, robots, shared_, held_, lambda);
+    std::vector<Received> mine;
+    for (auto it = pending_.begin(); it != pending_.end();) {
+      if (SolveOf(*it) == solve) {
+        mine.push_back(std::move(*it));
+        it = pending_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    GroupTransport group_transport(
+        transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
+        std::move(mine));
+    DgsNodeOptions node_options = options_.dgs;
+    node_options.solve = solve;
+    node_options.state_dir.clear();
+    node_options.log = [this, t, robots](const std::string& text) {
+      options_.log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t,
+                               fmt::join(robots, ","), robots.size() - 1, text));
+    };
+    DgsNode node(part.local, std::move(part.subgraph), std::move(part.initial), group_transport,
+                 node_options);
+    const DgsNodeResult solved = node.run();
+    Values solution = solved.estimate;
+    solution.insert(solved.neighbours.begin(), solved.neighbours.end());
+    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_);
+    for (auto& [k, x] : update.held) held_[k] = x;
+    slam.setEstimate(update.estimate);
+    slam.setTeamFactors(TeamFactors(robot_, shared_, held_, lambda));
+
+    SessionSolve rec;
+    rec.step = t;
+    rec.robots = robots;
+    rec.object_object = part.object_object;
+    rec.team_factors = part.team_factors;
+    rec.rotation_rounds = solved.rotation_rounds;
+    rec.pose_rounds = solved.pose_rounds;
+    rec.refine_steps = solved.program.refine.iterations;
+    rec.refine_status = solved.program.refine.status;
+    rec.protocol_steps = solved.program.channel_steps;
+    rec.estimate = slam.estimate();
+    rec.sent = Difference(transport_.stats(), before);
+    rec.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    saveMap(slam, fmt::format("step_{:04d}", t));
+    result_.solves.push_back(rec);
+    if (options_.on_solve) options_.on_solve(result_.solves.back());
+  }
+
+  // The robot's map (its graph and estimate, g2o with objects, and TUM) in
+  // <state_dir>/maps/<name>/, written to a temporary folder first.
+  void saveMap(const ObjectSlam& slam, const std::string& name) const {
+    if (options_.dgs.state_dir.empty()) return;
+    const std::filesystem::path dir = std::filesystem::path(options_.dgs.state_dir) / "maps";
+    const std::filesystem::path tmp = dir / (name + ".tmp"), final_dir = dir / name;
+    std::filesystem::remove_all(tmp);
+    std::filesystem::create_directories(tmp);
+    G2oWriteOptions write;
+    write.scheme = KeyScheme::kWithObjects;
+    WriteG2oFile((tmp / "map.g2o").string(), slam.graph(), slam.estimate(), write);
+    WriteTumTrajectories(tmp.string(), slam.estimate());
+    std::filesystem::remove_all(final_dir);
+    std::filesystem::rename(tmp, final_dir);
+  }
+
+  static std::uint32_t SolveOf(const Received& r) {
+    if (const auto* e = std::get_if<EstimatesPacket>(&r.packet)) return e->solve;
+    if (const auto* s = std::get_if<StatusPacket>(&r.packet)) return s->solve;
+    if (const auto* c = std::get_if<CoarsePacket>(&r.packet)) return c->solve;
+    return 0;
+  }
+
+  static TransportStats Difference(const TransportStats& a, const TransportStats& b) {
+    TransportStats d;
+    d.sent_samples = a.sent_samples - b.sent_samples;
+    d.sent_bytes = a.sent_bytes - b.sent_bytes;
+    d.received_samples = a.received_samples - b.received_samples;
+    d.received_bytes = a.received_bytes - b.received_bytes;
+    d.rejected = a.rejected - b.rejected;
+    d.estimates_sent = a.estimates_sent - b.estimates_sent;
+    d.estimates_bytes = a.estimates_bytes - b.estimates_bytes;
+    d.status_sent = a.status_sent - b.status_sent;
+    d.status_bytes = a.status_bytes - b.status_bytes;
+    d.coarse_sent = a.coarse_sent - b.coarse_sent;
+    d.coarse_bytes = a.coarse_bytes - b.coarse_bytes;
+    d.objects_sent = a.objects_sent - b.objects_sent;
+    d.objects_bytes = a.objects_bytes - b.objects_bytes;
+    return d;
+  }
+
   // ---- journal ------------------------------------------------------------------------------
   void restore() {
     const std::uint64_t fingerprint = SessionFingerprint(data_, options_.slam);
@@ -516,6 +697,7 @@ class RobotSession::Impl {
   std::map<std::pair<int, std::uint32_t>, std::deque<ObjectListPacket>> lists_;
   std::map<std::pair<int, std::uint32_t>, std::deque<SharedObjectsPacket>> answers_;
   std::vector<Received> pending_;  // DGS packets
+  std::map<Key, SE3> held_;        // online: partner landmarks held (online/group_solve.h)
   RobotSessionResult result_;
 };
 

@@ -95,9 +95,30 @@ struct SessionRendezvous {
   double seconds = 0.0;          // waiting for the peer
 };
 
+// One group solve of online mapping, as this robot took part in it.
+struct SessionSolve {
+  int step = 0;
+  std::vector<int> robots;        // the group (real ids, increasing)
+  int object_object = 0;          // this robot's shared pairs with robots of the group
+  int team_factors = 0;           // its held factors (pairs with robots out of range)
+  int rotation_rounds = 0, pose_rounds = 0, refine_steps = 0, protocol_steps = 0;
+  StageStatus refine_status = StageStatus::kNotRun;
+  Values estimate;                // its map after the solve (its own frame)
+  TransportStats sent;            // what this robot sent for the solve (join included)
+  double seconds = 0.0;
+};
+
 struct RobotSessionOptions {
   MultiRobotSlamConfig slam;
   DgsNodeOptions dgs;  // dgs.state_dir also holds rendezvous.bin
+  // Online mapping (online/group_solve.h; the in-process twin: online/online_team.h): after the
+  // rendezvous events of a step, the robots connected through them and linked by shared objects
+  // solve their joint graph with DgsNode (dgs.solver, which must refine: the partners' landmarks
+  // a robot holds afterwards are its refined copies), each from its own part, as solve 1 + step;
+  // no batch solve at the end. dgs.state_dir then receives the map after every solve
+  // (maps/step_<t>/map.g2o and robot_<r>.tum) and no journal: an online robot does not resume.
+  bool online = false;
+  std::function<void(const SessionSolve&)> on_solve;  // after each group solve
   std::chrono::milliseconds rendezvous_timeout{60000};  // per event
   std::function<void(const std::string&)> log;          // default: stderr
   std::function<void(const SessionRendezvous&)> on_rendezvous;  // after each event
@@ -116,7 +137,9 @@ struct RobotSessionResult {
   std::int64_t rendezvous_binary_bytes = 0;   // sum of binary_bytes
   TransportStats rendezvous_transport;        // counters when the rendezvous phase ended
   double slam_seconds = 0.0;                  // SLAM and rendezvous phase
-  DgsNodeResult dgs;
+  DgsNodeResult dgs;                          // the batch solve (not online)
+  std::vector<SessionSolve> solves;           // online: the group solves, in order
+  Values final_estimate;                      // online: its map at the end (own frame)
   double seconds = 0.0;
 };
 

@@ -155,16 +155,16 @@ std::string CheckPacket(const Packet& packet, int sender, int self, const std::s
 
 std::int64_t BinarySize(const Packet& packet) {
   if (const auto* e = std::get_if<EstimatesPacket>(&packet)) {
-    // The binary Message plus receiver (u16) and round (u32).
-    return static_cast<std::int64_t>(EncodeMessage(e->message).size()) + 6;
+    // The binary Message plus receiver (u16), solve and round (u32).
+    return static_cast<std::int64_t>(EncodeMessage(e->message).size()) + 10;
   }
   if (const auto* s = std::get_if<StatusPacket>(&packet)) {
-    // robot u16, incarnation u32, state/stage/flags 3 x u8, round/iteration u32, change and
-    // error bound f64, two f64 values, neighbour count u16 + u16 each.
-    return 2 + 4 + 3 + 8 + 4 * 8 + 2 + 2 * static_cast<std::int64_t>(s->neighbours.size());
+    // robot u16, solve and incarnation u32, state/stage/flags 3 x u8, round/iteration u32,
+    // change and error bound f64, two f64 values, neighbour count u16 + u16 each.
+    return 2 + 4 + 4 + 3 + 8 + 4 * 8 + 2 + 2 * static_cast<std::int64_t>(s->neighbours.size());
   }
   if (const auto* c = std::get_if<CoarsePacket>(&packet)) {
-    return static_cast<std::int64_t>(EncodeCoarseMessage(c->message).size()) + 4;  // + round
+    return static_cast<std::int64_t>(EncodeCoarseMessage(c->message).size()) + 8;  // + solve, round
   }
   if (const auto* h = std::get_if<SharedObjectsPacket>(&packet)) {
     // sender, receiver u16, step u32, count u32, two u64 ids per pair.

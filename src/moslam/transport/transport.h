@@ -49,8 +49,12 @@ inline constexpr std::size_t kMaxObjectLabel = 64;
 inline constexpr std::size_t kMaxObjects = 4096;
 inline constexpr std::size_t kMaxNeighbours = 1024;
 
+// The distributed solve a DGS packet (estimates, status, coarse share) belongs to: 0 for the
+// batch solve after the mission; with online mapping, 1 + the time step of the rendezvous whose
+// group solves (a robot takes part in at most one solve per step).
 struct EstimatesPacket {
   int receiver = 0;
+  std::uint32_t solve = 0;
   std::uint32_t round = 0;  // protocol round of message.stage (0: before any solve)
   Message message;          // sender, stage, iteration, initialised, keys, values
 };
@@ -68,6 +72,7 @@ std::string ToString(RobotState state);
 
 struct StatusPacket {
   int robot = 0;
+  std::uint32_t solve = 0;
   std::uint32_t incarnation = 0;  // process starts of this robot minus one
   RobotState state = RobotState::kJoining;
   std::uint8_t stage = 0;         // DgsStage of `round`, 0 while joining
@@ -86,6 +91,7 @@ struct StatusPacket {
 
 // A robot's coarse share of one protocol round, to every robot.
 struct CoarsePacket {
+  std::uint32_t solve = 0;
   std::uint32_t round = 0;
   CoarseMessage message;  // sender, stage, kind (share, matrix or residual), blocks
 };

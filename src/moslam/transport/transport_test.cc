@@ -69,7 +69,7 @@ TEST(InProcessTransport, DeliversEstimatesToTheReceiverAndStatusToEveryone) {
   EXPECT_TRUE(t2->poll(milliseconds(1)).empty());
   EXPECT_EQ(t0->stats().estimates_sent, 1);
   EXPECT_EQ(t0->stats().estimates_bytes,
-            static_cast<std::int64_t>(EncodeMessage(Estimates(0, 1, 4).message).size()) + 6);
+            static_cast<std::int64_t>(EncodeMessage(Estimates(0, 1, 4).message).size()) + 10);
 }
 
 TEST(InProcessTransport, ALateOrRestartedRobotReceivesTheRecentHistory) {
