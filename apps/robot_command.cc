@@ -24,6 +24,7 @@
 #include "moslam/io/g2o.h"
 #include "moslam/io/tum.h"
 #include "moslam/metrics/metrics.h"
+#include "moslam/online/online_team.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/optimizer.h"
 #include "moslam/transport/dds_transport.h"
@@ -136,9 +137,35 @@ struct RobotArgs {
   int domain = 0;
   std::string out;
   SolveFlags solve;
+  bool online = false;
   bool progress = false;
   bool json = false;
 };
+
+// --online: the whole solver at every rendezvous (two-level, error-bound rule, refinement), as
+// `moslam simulate --online` (OnlineOptions::DefaultSolver); the other solver flags still apply.
+SolveFlags OnlineSolveFlags(SolveFlags f) {
+  f.solver.refine = true;
+  f.solver.stopping = "error-bound";
+  return f;
+}
+
+nlohmann::json SolveJson(const SessionSolve& s) {
+  return {{"step", s.step},
+          {"robots", s.robots},
+          {"object_object", s.object_object},
+          {"team_factors", s.team_factors},
+          {"rotation_rounds", s.rotation_rounds},
+          {"pose_rounds", s.pose_rounds},
+          {"refine_steps", s.refine_steps},
+          {"protocol_steps", s.protocol_steps},
+          {"refine_status", ToString(s.refine_status)},
+          {"dds_estimate_bytes", s.sent.estimates_bytes},
+          {"dds_status_bytes", s.sent.status_bytes},
+          {"dds_coarse_bytes", s.sent.coarse_bytes},
+          {"dds_sent_bytes", s.sent.sent_bytes},
+          {"seconds", s.seconds}};
+}
 
 nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
   nlohmann::json j;
@@ -185,6 +212,51 @@ nlohmann::json SharedJson(const std::vector<SharedObject>& shared) {
   return j;
 }
 
+nlohmann::json RendezvousJson(const RobotSessionResult& r) {
+  nlohmann::json events = nlohmann::json::array();
+  for (const SessionRendezvous& e : r.rendezvous) {
+    events.push_back({{"step", e.event.step}, {"alpha", e.event.alpha}, {"beta", e.event.beta},
+                      {"objects_sent", e.objects_sent}, {"new_shared", e.new_shared},
+                      {"binary_bytes", e.binary_bytes}, {"replayed", e.replayed},
+                      {"seconds", e.seconds}});
+  }
+  return events;
+}
+
+// `moslam robot --scenario ... --online`: its summary (the group solves) and the last line.
+int ReportOnlineRobot(const RobotArgs& a, const ScenarioSpec& spec, const RobotSessionResult& r) {
+  nlohmann::json j;
+  j["robot"] = a.robot;
+  j["online"] = true;
+  j["scenario"] = spec.scenario;
+  j["seed"] = spec.seed;
+  j["poses"] = r.poses;
+  j["landmarks"] = r.landmarks;
+  j["shared"] = SharedJson(r.shared);
+  j["rendezvous"] = RendezvousJson(r);
+  j["rendezvous_binary_bytes"] = r.rendezvous_binary_bytes;
+  j["rendezvous_dds_samples"] = r.rendezvous_transport.objects_sent;
+  j["rendezvous_dds_bytes"] = r.rendezvous_transport.objects_bytes;
+  nlohmann::json solves = nlohmann::json::array();
+  std::int64_t dgs_bytes = 0;
+  for (const SessionSolve& s : r.solves) {
+    solves.push_back(SolveJson(s));
+    dgs_bytes += s.sent.sent_bytes;
+  }
+  j["solves"] = solves;
+  j["solve_dds_bytes"] = dgs_bytes;
+  j["seconds"] = r.seconds;
+  j["out"] = a.out;
+  if (!a.out.empty()) std::ofstream(fs::path(a.out) / "summary.json") << j.dump(2) << "\n";
+  fmt::print("robot {}: {} rendezvous, {} shared objects ({} B DDS payload sent), {} group solves "
+             "({} B DDS payload sent), {:.3f} s{}\n",
+             a.robot, r.rendezvous.size(), r.shared.size(), r.rendezvous_transport.objects_bytes,
+             r.solves.size(), dgs_bytes, r.seconds,
+             a.out.empty() ? "" : fmt::format("; maps in {}/maps", a.out));
+  if (a.json) fmt::print("{}\n", j.dump());
+  return 0;
+}
+
 // `moslam robot --scenario ...`: SLAM, rendezvous over DDS, DGS (transport/robot_session.h).
 int RunScenarioRobot(const RobotArgs& a) {
   const ScenarioSpec spec = a.scenario.get();
@@ -199,8 +271,9 @@ int RunScenarioRobot(const RobotArgs& a) {
   }
   RobotSessionOptions options;
   options.slam = ScenarioSlamConfig(spec);
-  options.dgs = NodeOptions(a.solve);
+  options.dgs = NodeOptions(a.online ? OnlineSolveFlags(a.solve) : a.solve);
   options.dgs.state_dir = a.out;
+  options.online = a.online;
   options.rendezvous_timeout = Ms(a.scenario.rendezvous_timeout);
   if (a.progress) {
     options.dgs.on_round = [](const DgsNodeRound& r) {
@@ -214,26 +287,30 @@ int RunScenarioRobot(const RobotArgs& a) {
       std::fflush(stdout);
     };
   }
+  if (a.online) {
+    options.on_solve = [&a](const SessionSolve& s) {
+      fmt::print("group solve: step {} robots {} rounds {} + {}, {} refinement steps, {} B sent, "
+                 "{:.3f} s{}\n",
+                 s.step, fmt::join(s.robots, ","), s.rotation_rounds, s.pose_rounds,
+                 s.refine_steps, s.sent.sent_bytes, s.seconds,
+                 a.out.empty() ? "" : fmt::format(", map in {}/maps/step_{:04d}", a.out, s.step));
+      std::fflush(stdout);
+    };
+  }
   DdsTransportOptions transport_options;
   transport_options.domain = a.domain;
   DdsTransport transport(a.robot, transport_options);
   // Every process simulates the same scenario and keeps only its own slice.
   RobotSession session(SliceForRobot(SimulateScenario(spec), a.robot), transport, options);
   const RobotSessionResult r = session.run();
+  if (a.online) return ReportOnlineRobot(a, spec, r);
   nlohmann::json j = Summary(a, r.dgs);
   j["scenario"] = spec.scenario;
   j["seed"] = spec.seed;
   j["poses"] = r.poses;
   j["landmarks"] = r.landmarks;
   j["shared"] = SharedJson(r.shared);
-  nlohmann::json events = nlohmann::json::array();
-  for (const SessionRendezvous& e : r.rendezvous) {
-    events.push_back({{"step", e.event.step}, {"alpha", e.event.alpha}, {"beta", e.event.beta},
-                      {"objects_sent", e.objects_sent}, {"new_shared", e.new_shared},
-                      {"binary_bytes", e.binary_bytes}, {"replayed", e.replayed},
-                      {"seconds", e.seconds}});
-  }
-  j["rendezvous"] = events;
+  j["rendezvous"] = RendezvousJson(r);
   j["rendezvous_binary_bytes"] = r.rendezvous_binary_bytes;
   j["rendezvous_dds_samples"] = r.rendezvous_transport.objects_sent;
   j["rendezvous_dds_bytes"] = r.rendezvous_transport.objects_bytes;
@@ -252,6 +329,7 @@ int RunScenarioRobot(const RobotArgs& a) {
 
 int RunRobot(const RobotArgs& a) {
   if (!a.scenario.name.empty()) return RunScenarioRobot(a);
+  if (a.online) throw InvalidInputError("robot: --online needs --scenario (it maps as it goes)");
   if (a.data.empty()) throw InvalidInputError("robot: give --data <folder> or --scenario <name>");
   const std::string file = RobotFile(a.data, a.robot);
   const Dataset data = ReadRobotG2o(file);
@@ -292,6 +370,7 @@ struct TeamArgs {
   std::string out;
   SolveFlags solve;
   double timeout = 600.0;
+  bool online = false;
   bool prepare_only = false;
   bool collect_only = false;
   bool json = false;
@@ -517,6 +596,132 @@ void ReportFailedRobots(const nlohmann::json& per_robot) {
   }
 }
 
+// `moslam team --scenario ... --online`: the robots map online as processes; compared with the
+// in-process twin (online/online_team.h, RunOnline with the processes' solver): the same group
+// solves, and every map each robot saved (after each solve, and at the end) equal to the twin's.
+int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFlags& flags,
+                  const fs::path& out) {
+  const int n = spec.robots;
+  std::vector<std::string> source = ScenarioArgs(flags);
+  source.push_back("--online");
+  std::vector<std::vector<std::string>> argvs;
+  for (int r = 0; r < n; ++r) {
+    std::vector<std::string> argv = {"moslam", "robot", "--robot", std::to_string(r), "--domain",
+                                     std::to_string(a.domain), "--out",
+                                     (out / fmt::format("robot{}", r)).string()};
+    argv.insert(argv.end(), source.begin(), source.end());
+    for (const std::string& x : SolveArgs(a.solve)) argv.push_back(x);
+    argvs.push_back(argv);
+  }
+  const auto t0 = Clock::now();
+  const std::map<int, int> exit_codes =
+      RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
+  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+
+  nlohmann::json j;
+  j["scenario"] = spec.scenario;
+  j["robots"] = n;
+  j["seed"] = spec.seed;
+  j["poses_per_robot"] = spec.poses_per_robot;
+  j["online"] = true;
+  j["out"] = out.string();
+  j["seconds"] = seconds;
+  bool ok = true;
+  std::map<int, nlohmann::json> summaries;
+  nlohmann::json per_robot = nlohmann::json::array();
+  for (int r = 0; r < n; ++r) {
+    const fs::path dir = out / fmt::format("robot{}", r);
+    const int code = exit_codes.count(r) ? exit_codes.at(r) : 0;
+    if (code != 0 || !fs::exists(dir / "summary.json")) {
+      ok = false;
+      per_robot.push_back({{"robot", r}, {"exit_code", code}, {"log", (dir / "log.txt").string()}});
+      continue;
+    }
+    std::ifstream in(dir / "summary.json");
+    summaries[r] = nlohmann::json::parse(in);
+    per_robot.push_back({{"robot", r}, {"exit_code", 0}, {"solves", summaries[r]["solves"].size()}});
+  }
+  if (!ok) {
+    ReportFailedRobots(per_robot);
+    j["ok"] = false;
+    j["per_robot"] = per_robot;
+    if (a.json) fmt::print("{}\n", j.dump());
+    return 1;
+  }
+  OnlineOptions twin_options;
+  twin_options.solver = DriverOptions(NodeOptions(OnlineSolveFlags(a.solve)));
+  const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
+  twin_options.lambda = config.rendezvous.lambda();
+  const OnlineRun twin = RunOnline(SimulateScenario(spec), config, twin_options);
+
+  // Every map a robot saved against the twin's map of the same robot at the same time.
+  double largest = 0.0;
+  int maps = 0, mismatched = 0;
+  std::int64_t objects_bytes = 0, solve_bytes = 0;
+  int events = 0;
+  const auto compare = [&](const fs::path& file, const Values& reference) {
+    const Dataset saved = ReadRobotG2o(file.string(), WithObjects());
+    ++maps;
+    if (saved.initial.size() != reference.size()) ++mismatched;
+    largest = std::max(largest, MaxPoseDifference(saved.initial, reference));
+  };
+  for (const auto& [r, s] : summaries) {
+    const fs::path dir = out / fmt::format("robot{}", r);
+    std::vector<std::pair<int, std::vector<int>>> expected;
+    for (const GroupSolveRecord& g : twin.solves) {
+      if (std::find(g.robots.begin(), g.robots.end(), r) != g.robots.end()) {
+        expected.emplace_back(g.step, g.robots);
+      }
+    }
+    std::vector<std::pair<int, std::vector<int>>> got;
+    for (const auto& g : s["solves"]) {
+      got.emplace_back(g["step"].get<int>(), g["robots"].get<std::vector<int>>());
+      solve_bytes += g["dds_sent_bytes"].get<std::int64_t>();
+      compare(dir / "maps" / fmt::format("step_{:04d}", got.back().first) / "map.g2o",
+              twin.maps.at({got.back().first, r}));
+    }
+    if (got != expected) {
+      ok = false;
+      fmt::print(stderr, "moslam: robot {} took part in {} group solves, the in-process twin's "
+                 "robot in {} (or in other groups)\n", r, got.size(), expected.size());
+    }
+    compare(dir / "maps" / "final" / "map.g2o",
+            twin.slam.robots[static_cast<std::size_t>(r)].estimate());
+    objects_bytes += s["rendezvous_dds_bytes"].get<std::int64_t>();
+    for (const auto& e : s["rendezvous"]) events += e["alpha"].get<int>() == r ? 1 : 0;
+  }
+  std::int64_t cloud_bytes = 0;  // the paper's alternative: one 640 x 480 x 32 B frame per robot
+  for (const GroupSolveRecord& g : twin.solves) {
+    cloud_bytes += static_cast<std::int64_t>(g.robots.size()) * 640 * 480 * 32;
+  }
+  const double solves = std::max<double>(1.0, static_cast<double>(twin.solves.size()));
+  ok = ok && mismatched == 0;
+  j["rendezvous_events"] = events;
+  j["group_solves"] = twin.solves.size();
+  j["maps_compared"] = maps;
+  j["max_difference"] = largest;
+  j["rendezvous_dds_bytes"] = objects_bytes;
+  j["solve_dds_bytes"] = solve_bytes;
+  j["dds_bytes_per_solve"] = static_cast<double>(objects_bytes + solve_bytes) / solves;
+  j["point_cloud_bytes_per_solve"] = static_cast<double>(cloud_bytes) / solves;
+  fmt::print("{} with {} robots (seed {}, {} poses each), online, as processes on loopback: "
+             "{:.2f} s\n",
+             spec.scenario, n, spec.seed, spec.poses_per_robot, seconds);
+  fmt::print("{} rendezvous, {} group solves; {} saved maps against the in-process twin: largest "
+             "difference {:.3g}{}\n",
+             events, twin.solves.size(), maps, largest,
+             mismatched ? fmt::format(" ({} of other sizes)", mismatched) : "");
+  fmt::print("DDS payload: objects {} B, group solves {} B; {:.1f} kB per group solve (point "
+             "clouds, one frame per robot: {:.0f} kB)\n",
+             objects_bytes, solve_bytes, j["dds_bytes_per_solve"].get<double>() / 1e3,
+             j["point_cloud_bytes_per_solve"].get<double>() / 1e3);
+  j["ok"] = ok;
+  j["per_robot"] = per_robot;
+  fmt::print("maps in {}/robot<R>/maps\n", out.string());
+  if (a.json) fmt::print("{}\n", j.dump());
+  return ok ? 0 : 1;
+}
+
 // `moslam team --scenario ...`: the robots of a simulated scenario as processes, compared with
 // the in-process pipeline (RunMultiRobotObjectSlam, AssembleJointProblem, RunDgs in Jacobi order).
 int RunScenarioTeam(const TeamArgs& a) {
@@ -534,6 +739,7 @@ int RunScenarioTeam(const TeamArgs& a) {
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
   fs::create_directories(out);
+  if (a.online) return RunOnlineTeam(a, spec, flags, out);
   const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
   bool ok = t.ok;
   std::set<std::vector<std::uint64_t>> shared;
@@ -609,6 +815,7 @@ int RunScenarioTeam(const TeamArgs& a) {
 int RunTeam(const TeamArgs& args) {
   if (!args.scenario.name.empty()) return RunScenarioTeam(args);
   if (args.data.empty()) throw InvalidInputError("team: give --data <folder | file> or --scenario <name>");
+  if (args.online) throw InvalidInputError("team: --online needs --scenario (the robots map as they go)");
   TeamArgs a = args;
   const fs::path out = a.out.empty() ? fs::temp_directory_path() /
                                            fmt::format("moslam_team_{}", ::getpid())
@@ -673,6 +880,10 @@ Runner RegisterRobot(CLI::App& app) {
                   "State directory: journal, estimate.g2o, result.g2o, summary.json (a restart "
                   "with the same --out resumes)");
   AddSolveFlags(sub, args->solve);
+  sub->add_flag("--online", args->online,
+                "With --scenario: solve with the robots in range at every rendezvous (the whole "
+                "solver: --refine --stop error-bound implied) and save the map after each in "
+                "<out>/maps/; no solve after the mission, no restart");
   sub->add_flag("--progress", args->progress, "Print a line per round");
   sub->add_flag("--json", args->json, "Last line: one JSON object with the summary");
   return [args]() { return RunRobot(*args); };
@@ -700,6 +911,9 @@ Runner RegisterTeam(CLI::App& app) {
   AddSolveFlags(sub, args->solve);
   sub->add_option("--timeout", args->timeout, "Seconds before the robots are killed")
       ->check(CLI::PositiveNumber);
+  sub->add_flag("--online", args->online,
+                "With --scenario: the robots solve with the robots in range at every rendezvous "
+                "(moslam robot --online) and save their maps; compared with the in-process twin");
   sub->add_flag("--json", args->json, "Last line: one JSON object with the summary");
   return [args]() { return RunTeam(*args); };
 }

@@ -3,7 +3,8 @@
 // (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies for good
 // is noticed through liveliness and the others finish. Simulated scenarios (--scenario): object
 // SLAM and rendezvous in each process give the in-process pipeline's shared objects and
-// estimate; robots killed in the rendezvous phase and in the DGS and restarted lose nothing.
+// estimate; robots killed in the rendezvous phase and in the DGS and restarted lose nothing;
+// online (--online), every map the robots save equals the in-process twin's.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -356,6 +357,30 @@ TEST(Team, AScenarioAsProcessesEqualsTheInProcessPipeline) {
   for (const auto& r : j["per_robot"]) {
     EXPECT_EQ(r["rejected_samples"].get<int>(), 0) << r.dump();
     EXPECT_EQ(r["team"].size(), 6u);
+  }
+  fs::remove_all(out);
+}
+
+TEST(Team, OnlineScenarioProcessesSaveEveryMapOfTheInProcessTwin) {
+  const fs::path out = FreshDir("online");
+  std::vector<std::string> args = {"team", "--domain", "58", "--out", out.string(), "--timeout",
+                                   "120", "--online", "--json"};
+  args.insert(args.end(), kScenario.begin(), kScenario.end());
+  Child team(args, "", out / "team.log");
+  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
+  const nlohmann::json j = LastJson(team.output());
+  ASSERT_TRUE(j.is_object()) << team.output();
+  EXPECT_TRUE(j["ok"].get<bool>());
+  // Every robot's map after each of its group solves, and at the end, as the twin's.
+  const int solves = j["group_solves"].get<int>();
+  EXPECT_GE(solves, 5);
+  EXPECT_GT(j["maps_compared"].get<int>(), 2 * solves);
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  EXPECT_GT(j["solve_dds_bytes"].get<std::int64_t>(), 0);
+  for (int r = 0; r < 6; ++r) {
+    const fs::path maps = out / ("robot" + std::to_string(r)) / "maps" / "final";
+    EXPECT_TRUE(fs::exists(maps / "map.g2o"));
+    EXPECT_TRUE(fs::exists(maps / ("robot_" + std::to_string(r) + ".tum")));
   }
   fs::remove_all(out);
 }
