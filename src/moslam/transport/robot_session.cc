@@ -697,7 +697,7 @@ class RobotSession::Impl {
   std::map<std::pair<int, std::uint32_t>, std::deque<ObjectListPacket>> lists_;
   std::map<std::pair<int, std::uint32_t>, std::deque<SharedObjectsPacket>> answers_;
   std::vector<Received> pending_;  // DGS packets
-  std::map<Key, SE3> held_;        // online: partner landmarks held (online/group_solve.h)
+  HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
   RobotSessionResult result_;
 };
 
