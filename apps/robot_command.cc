@@ -500,10 +500,16 @@ TeamResults CollectTeam(const fs::path& out, int n, const std::map<int, int>& ex
   return t;
 }
 
+// The robot processes' exit codes and the time from starting them to the last one ending.
+struct TeamRun {
+  std::map<int, int> exit_codes;
+  double seconds = 0.0;
+};
+
 // Runs `moslam robot` for robots 0 .. n-1 (each with its --robot, --domain and --out
-// <out>/robot<R>, then `source`: what the robot solves, and the solve flags) and collects them.
-TeamResults RunTeamProcesses(const TeamArgs& a, const fs::path& out, int n,
-                             const std::vector<std::string>& source, bool scenario) {
+// <out>/robot<R>, then `source`: what the robot solves, and the solve flags).
+TeamRun RunTeamRobots(const TeamArgs& a, const fs::path& out, int n,
+                      const std::vector<std::string>& source) {
   std::vector<std::vector<std::string>> argvs;
   for (int r = 0; r < n; ++r) {
     std::vector<std::string> argv = {"moslam", "robot", "--robot", std::to_string(r), "--domain",
@@ -514,11 +520,18 @@ TeamResults RunTeamProcesses(const TeamArgs& a, const fs::path& out, int n,
     argvs.push_back(argv);
   }
   const auto t0 = Clock::now();
-  const std::map<int, int> exit_codes =
-      RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
-  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-  TeamResults t = CollectTeam(out, n, exit_codes, scenario);
-  t.seconds = seconds;
+  TeamRun run;
+  run.exit_codes = RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
+  run.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  return run;
+}
+
+// RunTeamRobots, then the results collected (CollectTeam).
+TeamResults RunTeamProcesses(const TeamArgs& a, const fs::path& out, int n,
+                             const std::vector<std::string>& source, bool scenario) {
+  const TeamRun run = RunTeamRobots(a, out, n, source);
+  TeamResults t = CollectTeam(out, n, run.exit_codes, scenario);
+  t.seconds = run.seconds;
   return t;
 }
 
@@ -604,19 +617,9 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
   const int n = spec.robots;
   std::vector<std::string> source = ScenarioArgs(flags);
   source.push_back("--online");
-  std::vector<std::vector<std::string>> argvs;
-  for (int r = 0; r < n; ++r) {
-    std::vector<std::string> argv = {"moslam", "robot", "--robot", std::to_string(r), "--domain",
-                                     std::to_string(a.domain), "--out",
-                                     (out / fmt::format("robot{}", r)).string()};
-    argv.insert(argv.end(), source.begin(), source.end());
-    for (const std::string& x : SolveArgs(a.solve)) argv.push_back(x);
-    argvs.push_back(argv);
-  }
-  const auto t0 = Clock::now();
-  const std::map<int, int> exit_codes =
-      RunRobotProcesses(argvs, a.domain, out, a.timeout, a.collect_only);
-  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  const TeamRun run = RunTeamRobots(a, out, n, source);
+  const std::map<int, int>& exit_codes = run.exit_codes;
+  const double seconds = run.seconds;
 
   nlohmann::json j;
   j["scenario"] = spec.scenario;
