@@ -61,12 +61,12 @@ done
 echo
 
 first="${CONSENSUS%% *}"
-echo "### Per class, the four sequences together ($first)"
+echo "### Per class, the four sequences together ($first; last row: every detection)"
 echo
 echo "| class | detections | registered | accepted | ms per detection: median / p90 | median pose error |"
 echo "|---|---|---|---|---|---|"
 jq -rs "$JQ_STATS"'
-  [.[].frames[].objects[]] | group_by(.label)[] |
+  [.[].frames[].objects[]] | (group_by(.label)[], map(.label = "all classes")) |
   { label: .[0].label, n: length,
     registered: [.[] | select(.register_ms != null)] | length,
     accepted: [.[] | select(.status == "accepted")] | length,

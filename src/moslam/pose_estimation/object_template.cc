@@ -10,6 +10,7 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/pose_estimation/feature_index.h"
 
 namespace moslam {
 namespace {
@@ -53,6 +54,7 @@ ObjectTemplate MakeObjectTemplate(const std::string& label, const FeatureCloud& 
     throw InvalidInputError("MakeObjectTemplate(" + label +
                             "): fewer than 10 keypoints have finite PFHRGB features");
   }
+  t.feature_index = std::make_shared<const TemplateFeatureIndex>(t.features);
   return t;
 }
 

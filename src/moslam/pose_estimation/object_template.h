@@ -11,6 +11,7 @@
 // SaveObjectTemplate writes the voxelled cloud in that format (binary).
 #pragma once
 
+#include <memory>
 #include <string>
 
 #include "moslam/pose_estimation/features.h"
@@ -18,12 +19,18 @@
 
 namespace moslam {
 
+class TemplateFeatureIndex;  // pose_estimation/feature_index.h
+
 struct ObjectTemplate {
   std::string label;
   FeatureConfig config;      // the parameters the features were computed with
   FeatureCloud::Ptr cloud;     // voxelled (voxel_size), object frame, outward unit normals
   FeatureCloud::Ptr keypoints; // keypoint_voxel centroids of cloud
   PfhrgbCloud::Ptr features;   // features->at(i) describes keypoints->at(i)
+  // The k-d tree of `features`, built on first use and shared by copies (set by
+  // MakeObjectTemplate and the template cache; a registration builds its own if it is missing or
+  // indexes other features than `features`).
+  std::shared_ptr<const TemplateFeatureIndex> feature_index;
   std::size_t size() const { return cloud ? cloud->size() : 0; }
 };
 

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "moslam/common/errors.h"
+#include "moslam/pose_estimation/feature_index.h"
 #include "moslam/render/rgbd.h"
 
 namespace moslam {
@@ -190,8 +191,13 @@ class MaxInlierPrerejective
  public:
   void setMinSampleDistance(float d) { min_sample_distance_sq_ = d * d; }
   void setSeed(unsigned seed) { rng_.seed(seed); }
-  // FLANN's approximation factor for the feature k-NN (0: exact).
-  void setFeatureSearchEpsilon(float eps) { feature_tree_->setEpsilon(eps); }
+  // The template's descriptors with a k-d tree already built on them (PCL's setTargetFeatures
+  // builds one at every call).
+  void setTargetFeatures(const PfhrgbCloud::ConstPtr& features,
+                         const TemplateFeatureIndex::Tree::Ptr& tree) {
+    target_features_ = features;
+    feature_tree_ = tree;
+  }
   // Per segment keypoint, its k nearest template features (empty if never sampled).
   const std::vector<pcl::Indices>& nearestFeatures() const { return similar_; }
 
@@ -423,6 +429,15 @@ SE3 ObjectMeasurementInBody(const SE3& camera_T_object) {
 }
 
 namespace {
+
+// A search handle on the template's feature index; a template assembled by hand (no index, or
+// one of other features) gets one built here.
+TemplateFeatureIndex::Tree::Ptr FeatureTree(const ObjectTemplate& tmpl, float epsilon) {
+  if (tmpl.feature_index && tmpl.feature_index->features() == tmpl.features.get()) {
+    return tmpl.feature_index->tree(epsilon);
+  }
+  return TemplateFeatureIndex(tmpl.features).tree(epsilon);
+}
 
 void CheckInputs(const ObjectTemplate& tmpl, const RegistrationConfig& config) {
   config.validate();
@@ -820,6 +835,13 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   Eigen::Matrix4f object_T_camera_sac = Eigen::Matrix4f::Identity();
   FeatureCloud aligned;
   std::vector<pcl::Indices> nearest_features;  // per keypoint, from the consensus when it has them
+  TemplateFeatureIndex::Tree::Ptr template_tree;  // the template's, on first use
+  auto feature_tree = [&] {
+    if (!template_tree) {
+      template_tree = FeatureTree(tmpl, static_cast<float>(config.feature_search_epsilon));
+    }
+    return template_tree;
+  };
   const std::vector<Eigen::Matrix4f> upright = UprightHypotheses(*source, tmpl, config);
   bool consensus_failed = false;
   if (config.consensus == Consensus::kSacIa) {
@@ -842,7 +864,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     sac.setInputSource(source_keypoints);
     sac.setSourceFeatures(source_features);
     sac.setInputTarget(tmpl.keypoints);
-    sac.setTargetFeatures(tmpl.features);
+    sac.setTargetFeatures(tmpl.features, feature_tree());
     sac.setNumberOfSamples(3);
     sac.setCorrespondenceRandomness(config.sac_correspondence_randomness);
     sac.setSimilarityThreshold(static_cast<float>(config.prerejective_similarity));
@@ -851,7 +873,6 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     sac.setMaxCorrespondenceDistance(config.sac_max_correspondence_distance);
     sac.setInlierFraction(static_cast<float>(config.prerejective_inlier_fraction));
     sac.setSeed(config.seed);
-    sac.setFeatureSearchEpsilon(static_cast<float>(config.feature_search_epsilon));
     sac.align(aligned);
     nearest_features = sac.nearestFeatures();
     consensus_failed = !sac.hasConverged();
@@ -870,8 +891,6 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
 
   // --- gate: feature correspondences agreeing under the SAC-IA transform.
   t0 = std::chrono::steady_clock::now();
-  pcl::KdTreeFLANN<pcl::PFHRGBSignature250> feature_tree;  // built on first use
-  bool feature_tree_ready = false;
   const Eigen::Affine3f T_sac(object_T_camera_sac);
   const float inlier_sq = static_cast<float>(config.inlier_distance * config.inlier_distance);
   std::vector<int> nn_index(1);
@@ -882,12 +901,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
       matches.emplace_back(i, static_cast<std::size_t>(nearest_features[i][0]));
       continue;
     }
-    if (!feature_tree_ready) {
-      feature_tree.setEpsilon(static_cast<float>(config.feature_search_epsilon));
-      feature_tree.setInputCloud(tmpl.features);
-      feature_tree_ready = true;
-    }
-    if (feature_tree.nearestKSearch((*source_features)[i], 1, nn_index, nn_sq) != 1) continue;
+    if (feature_tree()->nearestKSearch((*source_features)[i], 1, nn_index, nn_sq) != 1) continue;
     matches.emplace_back(i, static_cast<std::size_t>(nn_index[0]));
   }
   result.correspondences = static_cast<int>(matches.size());

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "moslam/common/errors.h"
+#include "moslam/pose_estimation/feature_index.h"
 #include "moslam/pose_estimation/test_shapes.h"
 #include "moslam/render/rgbd.h"
 
@@ -84,7 +85,8 @@ INSTANTIATE_TEST_SUITE_P(BothMethods, RegistrationByConsensus,
                          });
 
 // The default consensus draws from its own seeded generator: the same seed gives the same pose,
-// serially or with two registrations running at once; another seed may give another sample path
+// serially or with two registrations running at once (sharing the template's feature index, or
+// without one); another seed may give another sample path
 // but the same accepted object.
 TEST(Registration, PrerejectiveDependsOnTheSeedOnlyAndRunsOnThreads) {
   const ObjectTemplate& tmpl = TestTemplate();
@@ -93,12 +95,20 @@ TEST(Registration, PrerejectiveDependsOnTheSeedOnlyAndRunsOnThreads) {
   RegistrationConfig config;
   const RegistrationResult serial = RegisterTemplate(*segment, tmpl, config);
   ASSERT_EQ(serial.status, RegistrationStatus::kAccepted) << ToString(serial.status);
+  // Two threads on a template whose feature index is not built yet (both race to build it), and
+  // a template assembled by hand without one (the registration builds its own).
+  ObjectTemplate fresh = tmpl;
+  fresh.feature_index = std::make_shared<const TemplateFeatureIndex>(tmpl.features);
+  ObjectTemplate by_hand = tmpl;
+  by_hand.feature_index = nullptr;
   RegistrationResult a, b;
-  std::thread ta([&] { a = RegisterTemplate(*segment, tmpl, config); });
-  std::thread tb([&] { b = RegisterTemplate(*segment, tmpl, config); });
+  std::thread ta([&] { a = RegisterTemplate(*segment, fresh, config); });
+  std::thread tb([&] { b = RegisterTemplate(*segment, fresh, config); });
   ta.join();
   tb.join();
-  for (const RegistrationResult* r : {&a, &b}) {
+  const RegistrationResult c = RegisterTemplate(*segment, by_hand, config);
+  const RegistrationResult* const results[] = {&a, &b, &c};
+  for (const RegistrationResult* r : results) {
     EXPECT_EQ(r->status, serial.status);
     EXPECT_EQ(r->inliers, serial.inliers);
     EXPECT_EQ(r->sac_camera_T_object.matrix(), serial.sac_camera_T_object.matrix());

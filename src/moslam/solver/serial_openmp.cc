@@ -8,10 +8,14 @@
 // context switches with threads; 25 ms instead of 32 ms per whole `moslam solve` without them
 // (README, the solve table). Our systems are too small for the parallel copy loops to pay.
 //
-// Linked as an object library into the executables that use CHOLMOD and want no OpenMP threads
-// (moslam, moslam-robot, the tests, the benchmarks): their definitions take precedence over
-// libgomp's, so libgomp need not be loaded at all. An executable whose other libraries use
-// OpenMP for real (moslam-perception: PCL) links libgomp instead (OpenMP::OpenMP_CXX).
+// Linked as an object library into every executable (moslam, moslam-robot, moslam-perception,
+// the tests, the benchmarks): their definitions take precedence over libgomp's, so libgomp need
+// not be loaded at all where only CHOLMOD uses it. moslam-perception loads libgomp for PCL, whose
+// other OpenMP entry points (worksharing, barriers) handle a region run this way as a team of
+// one. There the reason is FLANN, which opens a region of one thread (SearchParams::cores = 1)
+// around every k-d tree query PCL makes: through libgomp each costs a futex call and an
+// allocation, and GICP ran 4-6x slower (README, the perception table). Nothing moslam calls in
+// PCL asks for more than one thread (PCL's *OMP classes do; moslam uses none of them).
 extern "C" {
 
 void GOMP_parallel(void (*fn)(void*), void* data, unsigned /*num_threads*/, unsigned /*flags*/) {
