@@ -151,7 +151,16 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
   if (options.check_separators) check = CheckSeparators(graph, options, robust);
   std::vector<std::size_t> index;
   const PoseGraph kept = SubGraph(graph, check.kept, &index);
-  RobustDgsResult r = RunGncByRobots(kept, initial, Select(robust, index), options);
+  RobustDgsResult r;
+  try {
+    r = RunGncByRobots(kept, initial, Select(robust, index), options);
+  } catch (const UnderdeterminedError& e) {
+    if (check.rejected == 0) throw;
+    throw UnderdeterminedError(
+        "RunRobustDgs: the separator check left " + std::to_string(check.rejected) +
+        " separator(s) out and with them every link of some robot (a robot pair with fewer "
+        "than consistency.min_support pairwise-consistent separators keeps none): " + e.what());
+  }
   std::vector<double> weights(n, 0.0);
   for (std::size_t j = 0; j < index.size(); ++j) weights[index[j]] = r.weights[j];
   r.weights = std::move(weights);

@@ -200,6 +200,23 @@ TEST(RobustDgs, WithoutOutliersIsTheLeastSquaresSolve) {
   EXPECT_LT(MaxDistance(r.values, ls.values), 1e-6);
 }
 
+// Two robots linked by one or two separators: the check keeps none (too few to confirm one
+// another), so no robust estimate can place the second robot: a typed error naming the check.
+TEST(RobustDgs, ATeamTheCheckUnlinksIsAnUnderdeterminedErrorNamingTheCheck) {
+  Values initial;
+  const PoseGraph two = test::ChainOfRobots(2, 5, &initial);
+  RobustDgsOptions options;
+  options.consistency.map_uncertainty = false;
+  try {
+    RunRobustDgs(two, initial, DefaultRobustFactors(two), options);
+    FAIL() << "expected UnderdeterminedError";
+  } catch (const UnderdeterminedError& e) {
+    EXPECT_NE(std::string(e.what()).find("separator check"), std::string::npos) << e.what();
+  }
+  options.check_separators = false;  // without the check, the least-squares links stay
+  EXPECT_NO_THROW(RunRobustDgs(two, initial, DefaultRobustFactors(two), options));
+}
+
 TEST(RobustDgs, RejectsAMaskOfTheWrongSize) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   EXPECT_THROW(RunRobustDgs(data.graph, data.initial, {true, false}), InvalidInputError);

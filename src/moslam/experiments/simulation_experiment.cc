@@ -397,7 +397,14 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     options.dgs.coarse_correction = config.two_level_dgs;
     options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
     options.gnc.threshold = config.gnc_threshold;
-    const RobustDgsResult r = RunRobustDgs(joint.graph, joint.initial, robust, options);
+    RobustDgsResult r;
+    try {
+      r = RunRobustDgs(joint.graph, joint.initial, robust, options);
+    } catch (const UnderdeterminedError& e) {
+      // The separator check refused every link of a robot: unlinked for the robust solve.
+      throw UnlinkedRobotError(fmt::format("experiment {} with {} robots, seed {}: {}",
+                                           config.scenario, config.robots, seed, e.what()));
+    }
     // Precision and recall of the rejections, separators and observations apart.
     auto score = [&](bool separators, double* count, double* precision, double* recall) {
       int flagged = 0, flagged_wrong = 0, wrong_count = 0;

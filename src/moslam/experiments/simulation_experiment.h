@@ -94,8 +94,9 @@ struct ExperimentConfig {
   bool robust = false;
   // GNC's threshold on r^T Omega r of an object-object factor (0: GncOptions' default).
   double gnc_threshold = 0.0;
-  // A run in which some robot never gets linked to robot 0 (no rendezvous aligned) is left out
-  // of the mean and counted (ExperimentResult::skipped), instead of failing the experiment.
+  // A run in which some robot never gets linked to robot 0 (no rendezvous aligned, or, with
+  // robust, the separator check refused all its links) is left out of the mean and counted
+  // (ExperimentResult::skipped), instead of failing the experiment.
   bool skip_unlinked = false;
   // The DGS of the tables: two-level (DgsOptions::coarse_correction, the default) or one-level
   // (the paper's). The other one runs too, for its sweep counts only (iterations_*_other).
@@ -179,7 +180,8 @@ struct RunEstimates {
   int robots = 0;
 };
 
-// A run in which some robot never got linked to robot 0 through rendezvous.
+// A run in which some robot never got linked to robot 0 through rendezvous (or through the
+// separators the robust solve's check kept).
 class UnlinkedRobotError : public UnderdeterminedError {
  public:
   using UnderdeterminedError::UnderdeterminedError;
