@@ -4,9 +4,11 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <thread>
 
 #include "moslam/common/errors.h"
+#include "moslam/pose_estimation/feature_index.h"
 #include "moslam/pose_estimation/organized_cloud.h"
 #include "moslam/pose_estimation/template_cache.h"
 #include "moslam/render/object_models.h"
@@ -153,6 +155,11 @@ const ObjectTemplate* ObjectPerception::findTemplate(const std::string& label) {
         }
       }
     }
+  }
+  // A template from the cache has no feature index yet (the decoder stays free of PCL's k-d
+  // trees); every registration of this class shares the one built here on first use.
+  if (made && !made->feature_index) {
+    made->feature_index = std::make_shared<const TemplateFeatureIndex>(made->features);
   }
   template_seconds_ += MsSince(t0) / 1000.0;
   it = templates_.emplace(label, std::move(made)).first;

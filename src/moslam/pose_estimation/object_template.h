@@ -28,8 +28,8 @@ struct ObjectTemplate {
   FeatureCloud::Ptr keypoints; // keypoint_voxel centroids of cloud
   PfhrgbCloud::Ptr features;   // features->at(i) describes keypoints->at(i)
   // The k-d tree of `features`, built on first use and shared by copies (set by
-  // MakeObjectTemplate and the template cache; a registration builds its own if it is missing or
-  // indexes other features than `features`).
+  // MakeObjectTemplate, not by the template cache's decoder: ObjectPerception adds it to cached
+  // templates; a registration builds its own if it is missing or indexes other features).
   std::shared_ptr<const TemplateFeatureIndex> feature_index;
   std::size_t size() const { return cloud ? cloud->size() : 0; }
 };

@@ -10,7 +10,6 @@
 #include <unistd.h>
 
 #include "moslam/common/errors.h"
-#include "moslam/pose_estimation/feature_index.h"
 
 namespace moslam {
 namespace {
@@ -215,7 +214,6 @@ ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
   if (t.cloud->size() < 10 || t.keypoints->size() < 10) {
     throw InvalidInputError("template cache: fewer than 10 points or keypoints");
   }
-  t.feature_index = std::make_shared<const TemplateFeatureIndex>(t.features);
   return t;
 }
 
