@@ -120,6 +120,17 @@ TEST(Constellation, TooFewObjectsAreRefused) {
   EXPECT_EQ(r.support, 2);
   EXPECT_TRUE(r.pairs.empty());
   EXPECT_FALSE(r.reason.empty());
+  // Three shared objects: too few by default (min_support 4: three agree by chance too often in
+  // a team of 16), not with min_support 3 (which still refuses them as ambiguous here: on this
+  // grid a pair of other objects reads them otherwise).
+  const auto a3 = Mapped(world, {0, 1, 2, 3}, SE3(), 0.0, 0.0, 1, 0);
+  const auto b3 = Mapped(world, {1, 2, 3, 10, 11}, SE3(), 0.0, 0.0, 2, 100);
+  const ConstellationAlignment three = AlignConstellations(a3, b3, ConstellationConfig());
+  EXPECT_EQ(three.status, AlignmentStatus::kTooFew) << three.reason;
+  EXPECT_EQ(three.support, 3);
+  ConstellationConfig three_enough;
+  three_enough.min_support = 3;
+  EXPECT_EQ(AlignConstellations(a3, b3, three_enough).status, AlignmentStatus::kAmbiguous);
   // Different labels: no candidate at all.
   std::vector<ConstellationObject> tables = a;
   for (auto& o : tables) o.label = "table";
