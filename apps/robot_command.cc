@@ -223,11 +223,8 @@ nlohmann::json RendezvousJson(const RobotSessionResult& r) {
   return events;
 }
 
-// `moslam robot --scenario ... --online`: its summary (the group solves) and the last line.
-int ReportOnlineRobot(const RobotArgs& a, const ScenarioSpec& spec, const RobotSessionResult& r) {
-  nlohmann::json j;
-  j["robot"] = a.robot;
-  j["online"] = true;
+// What a scenario robot's summary says in both modes: its map and its rendezvous.
+void AddSessionSummary(const ScenarioSpec& spec, const RobotSessionResult& r, nlohmann::json& j) {
   j["scenario"] = spec.scenario;
   j["seed"] = spec.seed;
   j["poses"] = r.poses;
@@ -237,6 +234,14 @@ int ReportOnlineRobot(const RobotArgs& a, const ScenarioSpec& spec, const RobotS
   j["rendezvous_binary_bytes"] = r.rendezvous_binary_bytes;
   j["rendezvous_dds_samples"] = r.rendezvous_transport.objects_sent;
   j["rendezvous_dds_bytes"] = r.rendezvous_transport.objects_bytes;
+}
+
+// `moslam robot --scenario ... --online`: its summary (the group solves) and the last line.
+int ReportOnlineRobot(const RobotArgs& a, const ScenarioSpec& spec, const RobotSessionResult& r) {
+  nlohmann::json j;
+  j["robot"] = a.robot;
+  j["online"] = true;
+  AddSessionSummary(spec, r, j);
   nlohmann::json solves = nlohmann::json::array();
   std::int64_t dgs_bytes = 0;
   for (const SessionSolve& s : r.solves) {
@@ -305,15 +310,7 @@ int RunScenarioRobot(const RobotArgs& a) {
   const RobotSessionResult r = session.run();
   if (a.online) return ReportOnlineRobot(a, spec, r);
   nlohmann::json j = Summary(a, r.dgs);
-  j["scenario"] = spec.scenario;
-  j["seed"] = spec.seed;
-  j["poses"] = r.poses;
-  j["landmarks"] = r.landmarks;
-  j["shared"] = SharedJson(r.shared);
-  j["rendezvous"] = RendezvousJson(r);
-  j["rendezvous_binary_bytes"] = r.rendezvous_binary_bytes;
-  j["rendezvous_dds_samples"] = r.rendezvous_transport.objects_sent;
-  j["rendezvous_dds_bytes"] = r.rendezvous_transport.objects_bytes;
+  AddSessionSummary(spec, r, j);
   j["slam_seconds"] = r.slam_seconds;
   j["seconds"] = r.seconds;
   if (!a.out.empty()) std::ofstream(fs::path(a.out) / "summary.json") << j.dump(2) << "\n";
