@@ -3,6 +3,7 @@
 #include <Eigen/SVD>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "moslam/common/errors.h"
 #include "moslam/geometry/so3.h"
@@ -59,6 +60,29 @@ ConsistencyGraph BuildGraph(const std::vector<ConstellationObject>& a,
   return g;
 }
 
+// The distinct objects a set of candidates stands for (constellation.h, step 4): the most
+// candidates no two of which may be one object (their objects of a, or of b, of one label and
+// within same_object_radius): a maximum clique of the complement of "may be one object".
+int DistinctObjects(const std::vector<ConstellationObject>& a,
+                    const std::vector<ConstellationObject>& b,
+                    const std::vector<std::pair<std::size_t, std::size_t>>& set,
+                    const ConstellationConfig& c) {
+  const auto near = [&](const ConstellationObject& x, const ConstellationObject& y) {
+    return x.label == y.label &&
+           (x.pose.translation() - y.pose.translation()).norm() <= c.same_object_radius;
+  };
+  const int n = static_cast<int>(set.size());
+  ConsistencyGraph distinct(n);
+  for (int p = 0; p < n; ++p) {
+    for (int q = p + 1; q < n; ++q) {
+      const auto [i, j] = set[static_cast<std::size_t>(p)];
+      const auto [k, l] = set[static_cast<std::size_t>(q)];
+      if (!near(a[i], a[k]) && !near(b[j], b[l])) distinct.connect(p, q);
+    }
+  }
+  return static_cast<int>(MaximumClique(distinct, {}, c.max_search_nodes).nodes.size());
+}
+
 SE3 FitTransform(const std::vector<ConstellationObject>& a,
                  const std::vector<ConstellationObject>& b,
                  const std::vector<std::pair<std::size_t, std::size_t>>& pairs) {
@@ -94,6 +118,9 @@ void ConstellationConfig::validate() const {
   }
   if (ambiguity_margin < 0) {
     throw InvalidInputError("constellation config: ambiguity_margin must be >= 0");
+  }
+  if (!(same_object_radius >= 0.0) || !std::isfinite(same_object_radius)) {
+    throw InvalidInputError("constellation config: same_object_radius must be finite and >= 0");
   }
   if (max_search_nodes < 1) {
     throw InvalidInputError("constellation config: max_search_nodes must be positive");
@@ -131,9 +158,9 @@ ConstellationAlignment AlignConstellations(const std::vector<ConstellationObject
   const ConsistencyGraph graph = BuildGraph(a, b, candidates, config);
   const CliqueResult best = MaximumClique(graph, {}, config.max_search_nodes);
   out.exact = best.exact;
-  out.support = static_cast<int>(best.nodes.size());
   std::vector<std::pair<std::size_t, std::size_t>> set;
   for (int p : best.nodes) set.push_back(candidates[static_cast<std::size_t>(p)]);
+  out.support = DistinctObjects(a, b, set, config);
   const SE3 T = FitTransform(a, b, set);
   // The rival: the best set among the candidates that associate the best set's objects
   // otherwise (an object of the best set with another partner): another reading of the same
@@ -160,7 +187,9 @@ ConstellationAlignment AlignConstellations(const std::vector<ConstellationObject
   out.exact = out.exact && rival.exact;
   bool any_other = false;
   for (bool o : other) any_other = any_other || o;
-  out.rival = any_other ? static_cast<int>(rival.nodes.size()) : 0;
+  std::vector<std::pair<std::size_t, std::size_t>> rival_set;
+  for (int p : rival.nodes) rival_set.push_back(candidates[static_cast<std::size_t>(p)]);
+  out.rival = any_other ? DistinctObjects(a, b, rival_set, config) : 0;
   if (out.support < config.min_support) {
     out.status = AlignmentStatus::kTooFew;
     out.reason = std::to_string(out.support) + " consistent object(s), " +

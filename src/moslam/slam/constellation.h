@@ -16,7 +16,14 @@
 //    objects are what tells a symmetric layout's positions apart (a grid of chairs).
 // 3. The largest set of pairwise consistent candidates, each object at most once: a maximum
 //    clique (robust/max_clique.h).
-// 4. Refusal: fewer than min_support objects (kTooFew), or a rival set of at least
+// 4. Support: the objects a set stands for. Two of its candidates whose objects of a, or of b,
+//    have one label and lie within same_object_radius of each other may be one world object
+//    mapped twice (a landmark the robot's association gate did not join to the first: a
+//    duplicate); the support is the most candidates no two of which may be one object (a
+//    maximum clique again, on at most the set's size); otherwise a robot's duplicates, each paired with the other
+//    robot's duplicates of another object, inflate a chance set (two wrong alignments of about
+//    600 per run on generated with 64 robots, 3 distinct objects each, counted 4).
+//    Refusal: fewer than min_support objects (kTooFew), or a rival set of at least
 //    support - ambiguity_margin objects that reads the best set's objects otherwise: each of its
 //    candidates gives an object of the best set another partner that the best set's transform
 //    does not put there (a grid read one cell off; not a duplicate landmark of the same object)
@@ -45,6 +52,10 @@ struct ConstellationConfig {
   // Objects in the accepted set. 3 accepted one wrong alignment in 475 on generated with 16
   // robots (README); 4 none, and as many of the rendezvous with 4 or more shared objects.
   int min_support = 4;
+  // m: two objects of one label closer than this in one map may be one object (step 4). The
+  // robots' association gate at the paper's noise, 2 x 0.69 m (object_slam.h): a robot joins a
+  // detection to a landmark within it, so two of its landmarks that close are not told apart.
+  double same_object_radius = 1.3856406460551018;
   int ambiguity_margin = 1;         // a rival of support - margin objects or more: ambiguous
   long long max_search_nodes = 2000000;  // bound of the clique search (MaximumClique)
   // Throws InvalidInputError naming the first bad field.
@@ -64,8 +75,8 @@ struct ConstellationAlignment {
   AlignmentStatus status = AlignmentStatus::kTooFew;
   SE3 b_T_a;                                               // when aligned
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;  // (a id, b id): the consistent set
-  int support = 0;     // objects in the best consistent set
-  int rival = 0;       // objects in the best rival set (another reading of the same objects)
+  int support = 0;     // distinct objects in the best consistent set (step 4)
+  int rival = 0;       // distinct objects in the best rival set (another reading of them)
   int candidates = 0;  // label-consistent pairs considered
   bool exact = true;   // the clique searches finished (not cut at max_search_nodes)
   std::string reason;  // why it was refused

@@ -140,6 +140,33 @@ TEST(Constellation, TooFewObjectsAreRefused) {
   EXPECT_THROW(AlignConstellations(a, b, bad), InvalidInputError);
 }
 
+TEST(Constellation, DuplicateLandmarksCountOnce) {
+  // Both robots map chairs 0-2, and each maps chair 2 twice (a second landmark 1.2 m and 10 deg
+  // off, the same offset in both maps): four pairwise consistent candidates, three objects.
+  const std::vector<ConstellationObject> world = Room(true, 5);
+  auto a = Mapped(world, {0, 1, 2}, Yawed(0.4, 1.0, 2.0), 0.0, 0.0, 1, 0);
+  auto b = Mapped(world, {0, 1, 2}, Yawed(-1.1, -3.0, 0.5), 0.0, 0.0, 2, 100);
+  const SE3 offset(SO3::Exp(Vector3(0.0, 0.0, 10.0 * kPi / 180.0)), Vector3(1.2, 0.0, 0.0));
+  a.push_back({3, "chair", a[2].pose * offset});
+  b.push_back({103, "chair", b[2].pose * offset});
+  const ConstellationAlignment r = AlignConstellations(a, b, ConstellationConfig());
+  EXPECT_EQ(r.status, AlignmentStatus::kTooFew) << r.reason;
+  EXPECT_EQ(r.support, 3);
+  ConstellationConfig three;
+  three.min_support = 3;
+  const ConstellationAlignment aligned = AlignConstellations(a, b, three);
+  ASSERT_EQ(aligned.status, AlignmentStatus::kAligned) << aligned.reason;
+  EXPECT_EQ(aligned.support, 3);
+  EXPECT_EQ(aligned.pairs.size(), 4u);  // the duplicates are shared with each other
+  // Told apart when the radius says so: four objects then.
+  ConstellationConfig apart;
+  apart.same_object_radius = 1.0;
+  EXPECT_EQ(AlignConstellations(a, b, apart).support, 4);
+  ConstellationConfig bad;
+  bad.same_object_radius = -1.0;
+  EXPECT_THROW(AlignConstellations(a, b, bad), InvalidInputError);
+}
+
 TEST(Constellation, NoisyMapsAlignAndAWrongPairFailsConsistency) {
   const std::vector<ConstellationObject> world = Room(true, 11);
   std::vector<int> seen_a, seen_b;
