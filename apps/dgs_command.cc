@@ -133,6 +133,7 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
         {"bytes_control", r.control_bytes},
         {"bytes_consistency", r.consistency_bytes},
         {"consistency_rejected", r.consistency_rejected},
+        {"consistency_deferred", r.consistency_deferred},
         {"sweeps", r.sweeps},
         {"seconds", r.seconds},
         {"total_seconds", total_seconds},
@@ -157,7 +158,9 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
                central_cost > 0 ? cost / central_cost - 1.0 : 0.0);
     fmt::print("vs centralized GNC (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses\n",
                errors.poses.ate, errors.poses.are_deg, errors.poses.count);
-    fmt::print("separator check: {} rejected before GNC\n", r.consistency_rejected);
+    fmt::print("separator check: {} rejected before GNC, {} left to it (too few to confirm "
+               "themselves, their robots linked otherwise)\n",
+               r.consistency_rejected, r.consistency_deferred);
     fmt::print("traffic: {} bytes (solves {}, weights {} in {} messages, control {}, separator "
                "check {}); {} sweeps; {:.3f} s\n",
                r.bytes(), r.solve_bytes, r.weight_bytes, r.weight_messages, r.control_bytes,

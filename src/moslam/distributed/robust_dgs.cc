@@ -74,7 +74,11 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
   const int readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
   if (readmitted > 0 || !AllWeightsOne(r.weights)) {
     try {
-      r.values = Optimize(SubGraph(graph, Inliers(r.weights)), r.values, solver).values;
+      // A variable only rejected factors touch is not in it: it keeps GNC's estimate.
+      for (const auto& [k, x] :
+           Optimize(SubGraph(graph, Inliers(r.weights)), r.values, solver).values) {
+        r.values[k] = x;
+      }
     } catch (const UnderdeterminedError&) {
       // The inliers leave part of the graph unanchored: keep GNC's estimate.
     }
@@ -159,13 +163,15 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     throw UnderdeterminedError(
         "RunRobustDgs: the separator check left " + std::to_string(check.rejected) +
         " separator(s) out and with them every link of some robot (a robot pair with fewer "
-        "than consistency.min_support pairwise-consistent separators keeps none): " + e.what());
+        "than consistency.min_support pairwise-consistent separators keeps none unless its "
+        "robots are linked through confirmed pairs): " + e.what());
   }
   std::vector<double> weights(n, 0.0);
   for (std::size_t j = 0; j < index.size(); ++j) weights[index[j]] = r.weights[j];
   r.weights = std::move(weights);
   r.consistency_bytes = check.bytes;
   r.consistency_rejected = check.rejected;
+  r.consistency_deferred = check.deferred;
   // The separators the check left out that agree with the estimate come back: the robot of
   // higher id sends the other its estimates of their poses (one message per robot pair).
   std::map<std::pair<int, int>, std::set<Key>> ask;
@@ -196,7 +202,9 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
       DgsOptions dgs = options.dgs;
       dgs.refine = true;
       const DgsResult polish = RunDgs(final_graph, r.values, dgs);
-      r.values = polish.values;
+      // A variable only rejected factors touch (a landmark whose observations and shared pairs
+      // were all rejected) is not in it: it keeps the rounds' estimate.
+      for (const auto& [k, x] : polish.values) r.values[k] = x;
       r.solve_bytes += polish.bytes;
       r.sweeps += polish.rotation.iterations + polish.pose.iterations + polish.refine.sweeps;
       r.polished = true;

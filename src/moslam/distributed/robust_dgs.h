@@ -42,7 +42,7 @@ struct RobustDgsOptions {
   // (separator_consistency.h); the separators it rejects are left out of every solve. Its
   // threshold 0: GNC's c2 (both are chi-square quantiles of a 6-vector).
   bool check_separators = true;
-  SeparatorConsistencyOptions consistency{0.0, 3};
+  SeparatorConsistencyOptions consistency{0.0, 3, 2};
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
@@ -69,6 +69,7 @@ struct RobustDgsResult {
   std::int64_t control_bytes = 0;  // the GNC's reports and broadcasts
   std::int64_t consistency_bytes = 0;  // the separator check's local estimates and covariances
   int consistency_rejected = 0;        // separators the check left out
+  int consistency_deferred = 0;        // too few to confirm themselves, left to GNC
   int readmitted = 0;   // of those, back after GNC: their residual at the estimate within c2
   bool polished = false;  // a last solve of the inliers alone (weights not all 1)
   std::int64_t bytes() const {

@@ -87,6 +87,83 @@ TEST(SeparatorConsistency, KeepsTheRightSeparatorsAtNinetyPercentOutliers) {
   EXPECT_EQ(lone.rejected, lone.separators);
 }
 
+// Three robots, noise-free: 0-1 and 1-2 linked by three separators each, 0-2 by two. Two do not
+// confirm themselves (min_support 3), but robots 0 and 2 are linked through robot 1: two right
+// ones that agree are left to GNC, which keeps them (the loop through robot 1 tests them); two
+// wrong ones that disagree with each other (two wrong associations) are rejected by the check, as
+// one alone. With linked_min_support = min_support the right pair is rejected too.
+// (Failure mode, measured on this layout: two wrong separators that agree, one wrong transform,
+// are left to GNC too, and GNC rejected every separator of the three pairs.)
+TEST(SeparatorConsistency, TwoAgreeingSeparatorsOfLinkedRobotsAreLeftToGnc) {
+  const int n = 6;
+  Values truth;
+  for (int r = 0; r < 3; ++r) {
+    for (int i = 0; i < n; ++i) {
+      truth[Key::Pose(r, static_cast<std::uint64_t>(i))] =
+          SE3(SO3::Exp(Vector3(0.0, 0.0, 0.2 * i + r)), Vector3(i + 0.5 * r, 0.4 * r * i, 0.0));
+    }
+  }
+  // The 0-2 separators: robot 2 seen from robot 0 as if moved by moved[k].
+  const auto build = [&](const std::vector<SE3>& moved) {
+    PoseGraph g;
+    const auto edge = [&](int ra, int ia, int rb, int ib, const SE3& m) {
+      const Key a = Key::Pose(ra, static_cast<std::uint64_t>(ia));
+      const Key b = Key::Pose(rb, static_cast<std::uint64_t>(ib));
+      g.add(RelativePoseFactor(a, b, truth.at(a).between(m * truth.at(b)),
+                               1e4 * Matrix6::Identity()));  // 1 cm / 0.01 rad
+    };
+    for (int r = 0; r < 3; ++r) {
+      for (int i = 0; i + 1 < n; ++i) edge(r, i, r, i + 1, SE3());
+    }
+    for (int i : {0, 2, 4}) {
+      edge(0, i, 1, i + 1, SE3());
+      edge(1, i, 2, i, SE3());
+    }
+    for (std::size_t k = 0; k < moved.size(); ++k) {
+      edge(0, 3 + static_cast<int>(k), 2, 5 - 2 * static_cast<int>(k), moved[k]);
+    }
+    return g;
+  };
+  RobustDgsOptions options;
+  options.consistency.map_uncertainty = false;
+  options.dgs.coarse_correction = true;
+  SeparatorConsistencyOptions check = options.consistency;
+  check.threshold = options.gnc.threshold2();
+  const std::vector<bool> robust_of_right = DefaultRobustFactors(build({SE3(), SE3()}));
+
+  const PoseGraph right = build({SE3(), SE3()});
+  const std::size_t last = right.factors().size() - 1;
+  const SeparatorConsistencyResult deferred = CheckSeparatorConsistency(right, check);
+  EXPECT_EQ(deferred.rejected, 0);
+  EXPECT_EQ(deferred.deferred, 2);
+  EXPECT_EQ(deferred.robot_pairs_deferred, 1);
+  EXPECT_TRUE(deferred.kept[last] && deferred.kept[last - 1]);
+  const RobustDgsResult r = RunRobustDgs(right, truth, robust_of_right, options);
+  EXPECT_EQ(r.consistency_deferred, 2);
+  EXPECT_GT(r.weights[last], 0.5);
+  EXPECT_GT(r.weights[last - 1], 0.5);
+  EXPECT_LT(MaxDistance(r.values, truth), 1e-6);
+  check.linked_min_support = check.min_support;
+  const SeparatorConsistencyResult strict = CheckSeparatorConsistency(right, check);
+  EXPECT_EQ(strict.rejected, 2);
+  EXPECT_EQ(strict.robot_pairs_rejected, 1);
+  check.linked_min_support = 2;
+  EXPECT_EQ(CheckSeparatorConsistency(build({SE3()}), check).rejected, 1);  // one alone
+
+  const SE3 w1(SO3::Exp(Vector3(0.3, -1.2, 2.0)), Vector3(4.0, -3.0, 1.0));
+  const SE3 w2(SO3::Exp(Vector3(-0.5, 0.4, -1.0)), Vector3(-2.0, 1.0, 3.0));
+  const PoseGraph wrong = build({w1, w2});
+  EXPECT_EQ(CheckSeparatorConsistency(wrong, check).rejected, 2);
+  const RobustDgsResult rw = RunRobustDgs(wrong, truth, robust_of_right, options);
+  EXPECT_LT(rw.weights[last], 0.5);
+  EXPECT_LT(rw.weights[last - 1], 0.5);
+  EXPECT_LT(MaxDistance(rw.values, truth), 1e-6);
+
+  SeparatorConsistencyOptions bad;
+  bad.linked_min_support = 4;
+  EXPECT_THROW(CheckSeparatorConsistency(right, bad), InvalidInputError);
+}
+
 // Two robots dead-reckoning 60 poses each (0.5 deg / 3 cm of odometry noise per step, information
 // to match) and meeting every 10 poses: their maps drift apart by far more than the separators'
 // noise. With each map's marginal covariances every right separator agrees with every other (PCM's

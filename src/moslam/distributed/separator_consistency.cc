@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <algorithm>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -23,6 +24,9 @@ void SeparatorConsistencyOptions::validate() const {
     throw InvalidInputError("separator consistency: threshold must be positive");
   }
   if (min_support < 1) throw InvalidInputError("separator consistency: min_support must be >= 1");
+  if (linked_min_support < 1 || linked_min_support > min_support) {
+    throw InvalidInputError("separator consistency: linked_min_support must be in [1, min_support]");
+  }
 }
 
 namespace {
@@ -154,6 +158,28 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     }
     return *it->second;
   };
+  // The robots linked through confirmed pairs (a union-find over robot ids), and the pairs too
+  // small to confirm themselves.
+  std::map<int, int> parent;
+  const std::function<int(int)> root = [&](int r) {
+    auto it = parent.find(r);
+    if (it == parent.end() || it->second == r) return r;
+    return it->second = root(it->second);
+  };
+  const auto link = [&](int a, int b) { parent[root(a)] = root(b); };
+  struct Unconfirmed {
+    std::pair<int, int> pair;
+    std::vector<std::size_t> list, best;  // its separators; its largest consistent set
+  };
+  std::vector<Unconfirmed> unconfirmed;
+  const auto reject_except = [&](const std::vector<std::size_t>& list,
+                                 const std::vector<std::size_t>& keep) {
+    for (std::size_t i : list) {
+      if (std::find(keep.begin(), keep.end(), i) != keep.end()) continue;
+      out.kept[i] = false;
+      ++out.rejected;
+    }
+  };
   for (const auto& [pair, list] : pairs) {
     ++out.robot_pairs;
     const auto [ra, rb] = pair;
@@ -236,18 +262,24 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
         if (stat <= options.threshold) g.connect(static_cast<int>(i), static_cast<int>(j));
       }
     }
-    const CliqueResult best = MaximumClique(g);
-    std::vector<bool> in(list.size(), false);
-    if (static_cast<int>(best.nodes.size()) >= options.min_support) {
-      for (int p : best.nodes) in[static_cast<std::size_t>(p)] = true;
+    std::vector<std::size_t> best;
+    for (int p : MaximumClique(g).nodes) best.push_back(list[static_cast<std::size_t>(p)]);
+    if (static_cast<int>(best.size()) >= options.min_support) {
+      reject_except(list, best);
+      link(ra, rb);
+    } else {
+      unconfirmed.push_back({pair, list, best});  // judged below, once every pair is known
+    }
+  }
+  for (const Unconfirmed& u : unconfirmed) {
+    if (root(u.pair.first) == root(u.pair.second) &&
+        static_cast<int>(u.best.size()) >= options.linked_min_support) {
+      ++out.robot_pairs_deferred;
+      out.deferred += static_cast<int>(u.best.size());
+      reject_except(u.list, u.best);
     } else {
       ++out.robot_pairs_rejected;
-    }
-    for (std::size_t p = 0; p < list.size(); ++p) {
-      if (!in[p]) {
-        out.kept[list[p]] = false;
-        ++out.rejected;
-      }
+      reject_except(u.list, {});
     }
   }
   return out;

@@ -663,6 +663,10 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
                  Sci(m.ls_are_poses) + " / " + Sci(m.robust_are_poses) + " / " +
                      Sci(m.free_are_poses),
                  Sci(worst_ate) + " / " + Sci(worst_are), Sci(m.robust_extra_bytes)};
+        if (!c.robust) {
+          // The rest is what the robust solve measures: not run, nothing to show.
+          std::fill(extra.begin() + 5, extra.end(), "-");
+        }
         break;
       }
     }
