@@ -9,21 +9,27 @@
 #      outlier-free one on its worst run.
 # generated: runs in which a robot never links to robot 0 are left out and counted
 # (--skip-unlinked). Environment: as scripts/table1.sh (RUNS default 10, SEED default 1),
-# SCENARIOS (default "chairs25 house generated"), FRACTIONS (default "0 0.1 0.3 0.5 0.7 0.9").
-# Extra arguments go to every `moslam simulate` call (e.g. --perception rendered).
+# SCENARIOS (default "chairs25 house generated"), FRACTIONS (default "0 0.1 0.3 0.5 0.7 0.9"),
+# ROBOTS (default "2 4 6"), POSES (default "known unknown"; empty: no table 1), JSON (default
+# docs/robust_tables.json). Extra arguments go to every `moslam simulate` call (e.g.
+# --perception rendered).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib/simulate-table.sh"
 SCENARIOS="${SCENARIOS:-chairs25 house generated}"
 FRACTIONS="${FRACTIONS:-0 0.1 0.3 0.5 0.7 0.9}"
+ROBOTS="${ROBOTS:-2 4 6}"
+POSES="${POSES-known unknown}"
+JSON="${JSON:-$ROOT/docs/robust_tables.json}"
+read -ra robots <<< "$ROBOTS"
 
 for scenario in $SCENARIOS; do
-  for poses in known unknown; do
-    run "Initial poses $poses, $scenario" --scenario "$scenario" --robots 2 4 6 \
+  for poses in $POSES; do
+    run "Initial poses $poses, $scenario" --scenario "$scenario" --robots "${robots[@]}" \
       --initial-poses "$poses" --robust --skip-unlinked --table robust "$@"
   done
   for p in $FRACTIONS; do
-    run "Outliers P = $p, $scenario" --scenario "$scenario" --robots 2 4 6 --outliers "$p" \
+    run "Outliers P = $p, $scenario" --scenario "$scenario" --robots "${robots[@]}" --outliers "$p" \
       --robust --skip-unlinked --table robust "$@"
   done
 done
-finish "$ROOT/docs/robust_tables.json"
+finish "$JSON"
