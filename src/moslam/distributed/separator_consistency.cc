@@ -3,7 +3,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <algorithm>
-#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -11,6 +10,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
+#include "moslam/graph/robot_groups.h"
 #include "moslam/geometry/so3.h"
 #include "moslam/robust/max_clique.h"
 #include "moslam/solver/initialization.h"
@@ -158,15 +158,8 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     }
     return *it->second;
   };
-  // The robots linked through confirmed pairs (a union-find over robot ids), and the pairs too
-  // small to confirm themselves.
-  std::map<int, int> parent;
-  const std::function<int(int)> root = [&](int r) {
-    auto it = parent.find(r);
-    if (it == parent.end() || it->second == r) return r;
-    return it->second = root(it->second);
-  };
-  const auto link = [&](int a, int b) { parent[root(a)] = root(b); };
+  // The robot pairs confirmed (min_support), and those too small to confirm themselves.
+  std::vector<std::pair<int, int>> confirmed;
   struct Unconfirmed {
     std::pair<int, int> pair;
     std::vector<std::size_t> list, best;  // its separators; its largest consistent set
@@ -266,13 +259,21 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     for (int p : MaximumClique(g).nodes) best.push_back(list[static_cast<std::size_t>(p)]);
     if (static_cast<int>(best.size()) >= options.min_support) {
       reject_except(list, best);
-      link(ra, rb);
+      confirmed.push_back(pair);
     } else {
       unconfirmed.push_back({pair, list, best});  // judged below, once every pair is known
     }
   }
+  // The robots linked through confirmed pairs: the same group.
+  std::vector<int> robots;
+  for (const auto& [pair, list] : pairs) robots.insert(robots.end(), {pair.first, pair.second});
+  std::map<int, std::size_t> group_of;
+  const std::vector<std::vector<int>> groups = ConnectedRobots(robots, confirmed);
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    for (int r : groups[g]) group_of[r] = g;
+  }
   for (const Unconfirmed& u : unconfirmed) {
-    if (root(u.pair.first) == root(u.pair.second) &&
+    if (group_of.at(u.pair.first) == group_of.at(u.pair.second) &&
         static_cast<int>(u.best.size()) >= options.linked_min_support) {
       ++out.robot_pairs_deferred;
       out.deferred += static_cast<int>(u.best.size());

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/graph/robot_groups.h"
 #include "moslam/slam/multi_robot.h"
 
 namespace moslam {

@@ -115,12 +115,6 @@ struct MultiRobotSlamResult {
   double seconds = 0.0;
 };
 
-// `robots` (any order; repeats count once) grouped by connection through `links` (pairs of
-// robots; a link with an end outside `robots`, or a robot to itself, is ignored): each group
-// sorted, groups by their lowest robot.
-std::vector<std::vector<int>> ConnectedRobots(const std::vector<int>& robots,
-                                              const std::vector<std::pair<int, int>>& links);
-
 // Throws InvalidInputError on a bad config or inconsistent simulation data.
 MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
                                              const MultiRobotSlamConfig& config);

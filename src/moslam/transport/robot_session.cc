@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/graph/robot_groups.h"
 #include "moslam/io/g2o.h"
 #include "moslam/io/tum.h"
 #include "moslam/online/group_solve.h"
