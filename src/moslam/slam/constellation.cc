@@ -60,23 +60,24 @@ ConsistencyGraph BuildGraph(const std::vector<ConstellationObject>& a,
   return g;
 }
 
-// The distinct objects a set of candidates stands for (constellation.h, step 4): the most
-// candidates no two of which may be one object (their objects of a, or of b, of one label and
-// within same_object_radius): a maximum clique of the complement of "may be one object".
+// The distinct objects a set of candidates (`nodes`, indices into `candidates`) stands for
+// (constellation.h, step 4): the most of them no two of which may be one object (their objects of
+// a, or of b, of one label and within same_object_radius): a maximum clique of the complement of
+// "may be one object".
 int DistinctObjects(const std::vector<ConstellationObject>& a,
                     const std::vector<ConstellationObject>& b,
-                    const std::vector<std::pair<std::size_t, std::size_t>>& set,
-                    const ConstellationConfig& c) {
+                    const std::vector<std::pair<std::size_t, std::size_t>>& candidates,
+                    const std::vector<int>& nodes, const ConstellationConfig& c) {
   const auto near = [&](const ConstellationObject& x, const ConstellationObject& y) {
     return x.label == y.label &&
            (x.pose.translation() - y.pose.translation()).norm() <= c.same_object_radius;
   };
-  const int n = static_cast<int>(set.size());
+  const int n = static_cast<int>(nodes.size());
   ConsistencyGraph distinct(n);
   for (int p = 0; p < n; ++p) {
     for (int q = p + 1; q < n; ++q) {
-      const auto [i, j] = set[static_cast<std::size_t>(p)];
-      const auto [k, l] = set[static_cast<std::size_t>(q)];
+      const auto [i, j] = candidates[static_cast<std::size_t>(nodes[static_cast<std::size_t>(p)])];
+      const auto [k, l] = candidates[static_cast<std::size_t>(nodes[static_cast<std::size_t>(q)])];
       if (!near(a[i], a[k]) && !near(b[j], b[l])) distinct.connect(p, q);
     }
   }
@@ -160,7 +161,7 @@ ConstellationAlignment AlignConstellations(const std::vector<ConstellationObject
   out.exact = best.exact;
   std::vector<std::pair<std::size_t, std::size_t>> set;
   for (int p : best.nodes) set.push_back(candidates[static_cast<std::size_t>(p)]);
-  out.support = DistinctObjects(a, b, set, config);
+  out.support = DistinctObjects(a, b, candidates, best.nodes, config);
   const SE3 T = FitTransform(a, b, set);
   // The rival: the best set among the candidates that associate the best set's objects
   // otherwise (an object of the best set with another partner): another reading of the same
@@ -187,9 +188,7 @@ ConstellationAlignment AlignConstellations(const std::vector<ConstellationObject
   out.exact = out.exact && rival.exact;
   bool any_other = false;
   for (bool o : other) any_other = any_other || o;
-  std::vector<std::pair<std::size_t, std::size_t>> rival_set;
-  for (int p : rival.nodes) rival_set.push_back(candidates[static_cast<std::size_t>(p)]);
-  out.rival = any_other ? DistinctObjects(a, b, rival_set, config) : 0;
+  out.rival = any_other ? DistinctObjects(a, b, candidates, rival.nodes, config) : 0;
   if (out.support < config.min_support) {
     out.status = AlignmentStatus::kTooFew;
     out.reason = std::to_string(out.support) + " consistent object(s), " +

@@ -20,9 +20,10 @@
 //    have one label and lie within same_object_radius of each other may be one world object
 //    mapped twice (a landmark the robot's association gate did not join to the first: a
 //    duplicate); the support is the most candidates no two of which may be one object (a
-//    maximum clique again, on at most the set's size); otherwise a robot's duplicates, each paired with the other
-//    robot's duplicates of another object, inflate a chance set (two wrong alignments of about
-//    600 per run on generated with 64 robots, 3 distinct objects each, counted 4).
+//    maximum clique again, on at most the set's size); otherwise a robot's duplicates, each
+//    paired with the other robot's duplicates of another object, inflate a chance set (two
+//    wrong alignments of about 600 per run on generated with 64 robots, 3 distinct objects
+//    each, counted 4).
 //    Refusal: fewer than min_support objects (kTooFew), or a rival set of at least
 //    support - ambiguity_margin objects that reads the best set's objects otherwise: each of its
 //    candidates gives an object of the best set another partner that the best set's transform
