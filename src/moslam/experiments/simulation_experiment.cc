@@ -671,20 +671,19 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
                                        Fix(m.refused_ambiguous), Fix(m.alignments_wrong))
                          : "-",
                  unknown && m.alignable > 0 ? Fix(100.0 * m.alignable_aligned / m.alignable, 1) + " %"
-                                            : "-",
-                 Fix(m.wrong_factors) + " (" + Fix(m.injected) + ")",
-                 Fix(m.outlier_precision, 3) + " / " + Fix(m.outlier_recall, 3),
-                 Fix(m.wrong_observations),
-                 Fix(m.observation_precision, 3) + " / " + Fix(m.observation_recall, 3),
-                 Sci(m.ls_ate_poses) + " / " + Sci(m.robust_ate_poses) + " / " +
-                     Sci(m.free_ate_poses),
-                 Sci(m.ls_are_poses) + " / " + Sci(m.robust_are_poses) + " / " +
-                     Sci(m.free_are_poses),
-                 Sci(worst_ate) + " / " + Sci(worst_are), Sci(m.robust_extra_bytes)};
-        if (!c.robust) {
-          // The rest is what the robust solve measures: not run, nothing to show.
-          std::fill(extra.begin() + 5, extra.end(), "-");
-        }
+                                            : "-"};
+        // What the robust solve measures: "-" when it did not run.
+        const std::vector<std::string> solved = {
+            Fix(m.wrong_factors) + " (" + Fix(m.injected) + ")",
+            Fix(m.outlier_precision, 3) + " / " + Fix(m.outlier_recall, 3),
+            Fix(m.wrong_observations),
+            Fix(m.observation_precision, 3) + " / " + Fix(m.observation_recall, 3),
+            Sci(m.ls_ate_poses) + " / " + Sci(m.robust_ate_poses) + " / " +
+                Sci(m.free_ate_poses),
+            Sci(m.ls_are_poses) + " / " + Sci(m.robust_are_poses) + " / " +
+                Sci(m.free_are_poses),
+            Sci(worst_ate) + " / " + Sci(worst_are), Sci(m.robust_extra_bytes)};
+        for (const std::string& cell : solved) extra.push_back(c.robust ? cell : "-");
         break;
       }
     }
