@@ -550,7 +550,8 @@ TEST(MultiRobot, Chairs25SixRobotsDefaultNoise) {
             << e.aligned.poses.ate << " m / " << e.aligned.objects.ate << " m\n";
   EXPECT_EQ(p.num_poses, 600);
   EXPECT_EQ(sol.termination, TerminationStatus::kConverged);
-  EXPECT_LT(sol.seconds, 1.0);
+  // Work, not wall time (speed belongs in the benchmarks: a loaded CI machine took 1.6 s here).
+  EXPECT_LE(sol.iterations, 10);
   // Measured (seed 1): 0.996 / 0.956 within robots, 0.987 / 0.908 between robots.
   EXPECT_GE(r.intra.precision(), 0.98);
   EXPECT_GE(r.intra.recall(), 0.9);
