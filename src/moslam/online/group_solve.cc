@@ -1,6 +1,7 @@
 #include "moslam/online/group_solve.h"
 
 #include <algorithm>
+#include <tuple>
 #include <functional>
 #include <set>
 #include <string>
@@ -34,14 +35,15 @@ int LocalIndex(const std::vector<int>& robots, int robot, const char* who) {
 
 }  // namespace
 
-RelativePoseFactor HeldFactor(const RelativePoseFactor& shared, int robot, const SE3& held) {
+RelativePoseFactor HeldFactor(const RelativePoseFactor& shared, int robot, const SE3& held,
+                              int holder) {
   const bool owns_a = shared.a().robot == robot, owns_b = shared.b().robot == robot;
   if (owns_a == owns_b) {
     throw InvalidInputError("HeldFactor: the factor between " + ToString(shared.a()) + " and " +
                             ToString(shared.b()) + " does not join robot " +
                             std::to_string(robot) + " to another robot");
   }
-  const Key first = Key::Pose(robot, 0);
+  const Key first = Key::Pose(holder < 0 ? robot : holder, 0);
   const SE3& z = shared.measured();
   if (owns_b) {
     // Log(z^-1 (x0 y)^-1 b) = Log((y z)^-1 x0^-1 b).
@@ -54,6 +56,70 @@ RelativePoseFactor HeldFactor(const RelativePoseFactor& shared, int robot, const
   return RelativePoseFactor(first, shared.a(), held * z.inverse(), 0.5 * (info + info.transpose()));
 }
 
+std::vector<TeamPair> RobotTeamPairs(int robot, const std::vector<SharedObject>& shared,
+                                     const HeldEstimates& held, const std::set<int>& group) {
+  std::vector<TeamPair> out;
+  for (const auto& s : shared) {
+    const Key mine = s.alpha_object.robot == robot ? s.alpha_object : s.beta_object;
+    const Key other = s.alpha_object.robot == robot ? s.beta_object : s.alpha_object;
+    if (mine.robot != robot || other.robot == robot || group.count(other.robot) > 0) continue;
+    TeamPair t{mine, other, mine == s.alpha_object, false, {}};
+    const auto it = held.find(other);
+    if (it != held.end()) {
+      t.held = true;
+      t.copy = it->second;
+    }
+    out.push_back(t);
+  }
+  return out;
+}
+
+std::vector<RelativePoseFactor> GroupTeamFactors(const std::vector<TeamPair>& pairs,
+                                                 const Matrix6& lambda,
+                                                 std::vector<int>* holders) {
+  std::vector<TeamPair> sorted = pairs;
+  std::sort(sorted.begin(), sorted.end(), [](const TeamPair& a, const TeamPair& b) {
+    return a.mine < b.mine || (a.mine == b.mine && a.other < b.other);
+  });
+  std::map<Key, std::map<int, HeldEstimate>> copies;  // partner landmark -> holder -> copy
+  std::map<std::pair<int, int>, int> freshest;        // (partner robot, holder) -> latest step
+  for (std::size_t i = 0; i < sorted.size(); ++i) {
+    const TeamPair& t = sorted[i];
+    if (t.mine.robot == t.other.robot) {
+      throw InvalidInputError("GroupTeamFactors: the pair " + ToString(t.mine) + " - " +
+                              ToString(t.other) + " does not join two robots");
+    }
+    if (i > 0 && sorted[i - 1].mine == t.mine && sorted[i - 1].other == t.other) {
+      throw InvalidInputError("GroupTeamFactors: the pair " + ToString(t.mine) + " - " +
+                              ToString(t.other) + " twice");
+    }
+    if (!t.held) continue;
+    copies[t.other][t.mine.robot] = t.copy;
+    int& f = freshest[{t.other.robot, t.mine.robot}];
+    f = std::max(f, t.copy.step);
+  }
+  std::vector<RelativePoseFactor> out;
+  if (holders != nullptr) holders->clear();
+  for (const TeamPair& t : sorted) {
+    const auto it = copies.find(t.other);
+    if (it == copies.end()) continue;
+    // The holder that met the partner robot last; ties: the pair's own robot, then the lowest.
+    const auto rank = [&](int h) {
+      return std::make_tuple(freshest.at({t.other.robot, h}), h == t.mine.robot, -h);
+    };
+    auto best = it->second.begin();
+    for (auto c = it->second.begin(); c != it->second.end(); ++c) {
+      if (rank(c->first) > rank(best->first)) best = c;
+    }
+    const SharedObject pair = t.mine_is_alpha ? SharedObject{t.other, t.mine}
+                                              : SharedObject{t.mine, t.other};
+    out.push_back(
+        HeldFactor(ObjectObjectFactor(pair, lambda), t.mine.robot, best->second.pose, best->first));
+    if (holders != nullptr) holders->push_back(best->first);
+  }
+  return out;
+}
+
 std::vector<RelativePoseFactor> TeamFactors(int robot, const std::vector<SharedObject>& shared,
                                             const HeldEstimates& held, const Matrix6& lambda,
                                             const std::set<int>& in_range) {
@@ -64,7 +130,7 @@ std::vector<RelativePoseFactor> TeamFactors(int robot, const std::vector<SharedO
     if (mine.robot != robot || other.robot == robot || in_range.count(other.robot) > 0) continue;
     const auto it = held.find(other);
     if (it == held.end()) continue;
-    out.push_back(HeldFactor(ObjectObjectFactor(s, lambda), robot, it->second));
+    out.push_back(HeldFactor(ObjectObjectFactor(s, lambda), robot, it->second.pose));
   }
   return out;
 }
@@ -105,15 +171,23 @@ GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
     p.graph.add(RelativePoseFactor(relabel(f.a()), relabel(f.b()), f.measured(),
                                    f.information()));
   };
+  std::vector<TeamPair> team;
+  for (const ObjectSlam* robot : ordered) {
+    const auto h = held.find(robot->robot());
+    const auto pairs = RobotTeamPairs(robot->robot(), shared,
+                                      h != held.end() ? h->second : HeldEstimates{}, in_range);
+    team.insert(team.end(), pairs.begin(), pairs.end());
+  }
+  std::vector<int> holders;
+  const std::vector<RelativePoseFactor> team_factors = GroupTeamFactors(team, lambda, &holders);
+  std::size_t next = 0;  // sorted by their landmark: robot by robot
   for (const ObjectSlam* robot : ordered) {
     const PoseGraph own = robot->graph();
     for (const auto& f : own.factors()) add(f);
-    const auto h = held.find(robot->robot());
-    if (h != held.end()) {
-      for (const auto& f : TeamFactors(robot->robot(), shared, h->second, lambda, in_range)) {
-        add(f);
-        ++p.team_factors;
-      }
+    for (; next < team_factors.size() && team_factors[next].b().robot == robot->robot(); ++next) {
+      add(team_factors[next]);
+      ++p.team_factors;
+      if (holders[next] != robot->robot()) ++p.borrowed;
     }
     for (const auto& [k, x] : robot->estimate()) p.initial.emplace(relabel(k), x);
   }
@@ -129,20 +203,22 @@ GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
 }
 
 std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const Values& solution,
-                                            const std::vector<SharedObject>& shared) {
+                                            const std::vector<SharedObject>& shared, int step) {
   for (const auto& [k, x] : problem.initial) {
     if (solution.count(k) == 0) {
       throw InvalidInputError("SplitGroupSolution: the solution has no value for " + ToString(k));
     }
   }
   std::vector<GroupUpdate> out;
-  for (int r : problem.robots) out.push_back(RobotGroupUpdate(problem.robots, r, solution, shared));
+  for (int r : problem.robots) {
+    out.push_back(RobotGroupUpdate(problem.robots, r, solution, shared, step));
+  }
   return out;
 }
 
 RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<int>& robots,
                                    const std::vector<SharedObject>& shared,
-                                   const HeldEstimates& held, const Matrix6& lambda) {
+                                   const std::vector<TeamPair>& team, const Matrix6& lambda) {
   const int self = robot.robot();
   const int local = LocalIndex(robots, self, "BuildRobotGroupPart");
   RobotGroupPart part;
@@ -155,11 +231,27 @@ RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<in
     part.subgraph.add(RelativePoseFactor(relabel(f.a()), relabel(f.b()), f.measured(),
                                          f.information()));
   };
-  const PoseGraph own = robot.graph();
-  for (const auto& f : own.factors()) add(f);
-  for (const auto& f : TeamFactors(self, shared, held, lambda, in_range)) {
-    add(f);
-    ++part.team_factors;
+  for (const TeamPair& t : team) {
+    if (in_range.count(t.mine.robot) == 0 || in_range.count(t.other.robot) > 0) {
+      throw InvalidInputError("BuildRobotGroupPart: the team pair " + ToString(t.mine) + " - " +
+                              ToString(t.other) +
+                              " is not one of a robot of the group with a robot outside it");
+    }
+  }
+  // BuildGroupProblem's order, restricted to the factors on this robot's variables: per robot of
+  // the group its own graph and its team factors (those anchored at this robot's first pose).
+  const std::vector<RelativePoseFactor> team_factors = GroupTeamFactors(team, lambda);
+  std::size_t next = 0;
+  for (int r : robots) {
+    if (r == self) {
+      const PoseGraph own = robot.graph();
+      for (const auto& f : own.factors()) add(f);
+    }
+    for (; next < team_factors.size() && team_factors[next].b().robot == r; ++next) {
+      const RelativePoseFactor& f = team_factors[next];
+      if (r == self || f.a().robot == self) add(f);
+      if (r == self) ++part.team_factors;
+    }
   }
   for (const auto& [k, x] : robot.estimate()) part.initial.emplace(Relabel(k, local), x);
   for (const auto& s : shared) {
@@ -174,7 +266,7 @@ RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<in
 }
 
 GroupUpdate RobotGroupUpdate(const std::vector<int>& robots, int robot, const Values& solution,
-                             const std::vector<SharedObject>& shared) {
+                             const std::vector<SharedObject>& shared, int step) {
   const int local = LocalIndex(robots, robot, "RobotGroupUpdate");
   const auto value = [&](Key k) -> const SE3& {
     const auto it = solution.find(k);
@@ -196,7 +288,7 @@ GroupUpdate RobotGroupUpdate(const std::vector<int>& robots, int robot, const Va
       if (mine.robot != robot || other.robot == robot) continue;
       const auto j = std::lower_bound(robots.begin(), robots.end(), other.robot);
       if (j == robots.end() || *j != other.robot) continue;
-      u.held[other] = to_own * value(Relabel(other, static_cast<int>(j - robots.begin())));
+      u.held[other] = {to_own * value(Relabel(other, static_cast<int>(j - robots.begin()))), step};
     }
   }
   return u;

@@ -90,55 +90,120 @@ Values InOwnFrame(const Values& values, int robot) {
 // With the robot out of range held at the joint optimum, the optimum of the group is the joint
 // optimum (block-coordinate optimality), in every robot's own frame: this checks the held
 // factors, the re-labelling and the split back, with robot 0 in the group and without it. The
-// pairs between robots 0 and 2 are left out so that the robot out of range is a partner of one
-// robot in range only: each holder keeps its own copy of a partner's landmarks (group_solve.h),
-// so with two holders the copies do not tie the holders to each other as the joint graph does.
+// robot out of range is a partner of both robots in range: one holds stale copies of its
+// landmarks (moved, from an earlier solve), the other the joint optimum, from a later one, and
+// the group takes them from the later (GroupTeamFactors). Marked later, the stale copies move the
+// group off the joint optimum. (The stale holder's pairs with landmarks the other does not pair
+// with are left out: those would be anchored at the stale holder's frame, group_solve.h.)
 TEST(GroupProblem, WithThePartnerHeldAtTheJointOptimumSolvesToIt) {
   const SimulationData data = Simulation(3, 40, 3);
   const MultiRobotSlamConfig config = MultiRobotSlamConfigForNoise(SensingConfig{});
   const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, config);
   const Matrix6 lambda = config.rendezvous.lambda();
-  std::vector<SharedObject> shared;
-  for (const auto& s : slam.shared) {
-    const std::set<int> robots = {s.alpha_object.robot, s.beta_object.robot};
-    if (robots != std::set<int>{0, 2}) shared.push_back(s);
-  }
-  const JointProblem joint = AssembleJointProblem(slam.robots, shared, lambda);
-  ASSERT_TRUE(joint.unanchored_robots.empty());
-  const Values optimum =
-      Optimize(joint.graph, CentralizedTwoStage(joint.graph, joint.initial).values).values;
+  OptimizerOptions tight;
+  tight.relative_cost_tolerance = 1e-14;
+  const SE3 stale_offset(SO3::Exp(Vector3(0.0, 0.0, 0.2)), Vector3(0.5, -0.3, 0.1));
   int groups = 0;
   for (const std::vector<int>& in_range : {std::vector<int>{0, 1}, std::vector<int>{1, 2}}) {
-    ASSERT_EQ(LinkedGroups(in_range, shared).size(), 1u);
-    ++groups;
-    std::map<int, HeldEstimates> held;
-    for (int r : in_range) {
-      const SE3 to_own = optimum.at(Key::Pose(r, 0)).inverse();
-      for (const auto& s : shared) {
-        for (const auto& [mine, other] : {std::pair{s.alpha_object, s.beta_object},
-                                          std::pair{s.beta_object, s.alpha_object}}) {
-          if (mine.robot == r && other.robot != r) held[r][other] = to_own * optimum.at(other);
-        }
+    const int out = in_range[0] == 0 ? 2 : 0;
+    const int stale_holder = in_range[0] == 0 ? 0 : 2, fresh_holder = 1;
+    const auto ends = [&](const SharedObject& s, int robot) {
+      return s.alpha_object.robot == robot ? std::pair{s.alpha_object, s.beta_object}
+                                           : std::pair{s.beta_object, s.alpha_object};
+    };
+    std::set<Key> fresh_pairs;  // the landmarks out of range the fresh holder pairs with
+    for (const auto& s : slam.shared) {
+      const auto [mine, other] = ends(s, fresh_holder);
+      if (mine.robot == fresh_holder && other.robot == out) fresh_pairs.insert(other);
+    }
+    std::vector<SharedObject> shared;
+    for (const auto& s : slam.shared) {
+      const auto [mine, other] = ends(s, stale_holder);
+      if (mine.robot != stale_holder || other.robot != out || fresh_pairs.count(other)) {
+        shared.push_back(s);
       }
     }
-    std::vector<const ObjectSlam*> group;
-    for (int r : in_range) group.push_back(&slam.robots[static_cast<std::size_t>(r)]);
-    const GroupProblem p = BuildGroupProblem(group, shared, held, lambda);
-    EXPECT_GT(p.object_object, 0);
-    EXPECT_GT(p.team_factors, 0);
-    const Values solved = Optimize(p.graph, CentralizedTwoStage(p.graph, p.initial).values).values;
-    for (const GroupUpdate& u : SplitGroupSolution(p, solved, shared)) {
-      EXPECT_LT(MaxPoseDifference(u.estimate, InOwnFrame(optimum, u.robot)), 1e-6)
-          << "robot " << u.robot << " of {" << in_range[0] << ", " << in_range[1] << "}";
-      EXPECT_EQ(u.estimate.at(Key::Pose(u.robot, 0)).translation().norm(), 0.0);
-      for (const auto& [k, y] : u.held) {
-        ASSERT_NE(std::find(in_range.begin(), in_range.end(), k.robot), in_range.end());
-        const SE3 expected = optimum.at(Key::Pose(u.robot, 0)).inverse() * optimum.at(k);
-        EXPECT_LT(SE3::Log(expected.between(y)).norm(), 1e-6);
+    const JointProblem joint = AssembleJointProblem(slam.robots, shared, lambda);
+    ASSERT_TRUE(joint.unanchored_robots.empty());
+    const Values optimum =
+        Optimize(joint.graph, CentralizedTwoStage(joint.graph, joint.initial).values, tight)
+            .values;
+    ASSERT_EQ(LinkedGroups(in_range, shared).size(), 1u);
+    ++groups;
+    for (bool stale_is_later : {false, true}) {
+      std::map<int, HeldEstimates> held;
+      for (int r : in_range) {
+        const SE3 to_own = optimum.at(Key::Pose(r, 0)).inverse();
+        const bool stale = r == stale_holder;
+        for (const auto& s : shared) {
+          const auto [mine, other] = ends(s, r);
+          if (mine.robot != r || other.robot == r) continue;
+          held[r][other] = {to_own * optimum.at(other) * (stale ? stale_offset : SE3()),
+                            stale == stale_is_later ? 2 : 1};
+        }
+      }
+      std::vector<const ObjectSlam*> group;
+      for (int r : in_range) group.push_back(&slam.robots[static_cast<std::size_t>(r)]);
+      const GroupProblem p = BuildGroupProblem(group, shared, held, lambda);
+      EXPECT_GT(p.object_object, 0);
+      EXPECT_GT(p.team_factors, 0);
+      EXPECT_GT(p.borrowed, 0);  // both robots in range pair with the robot out of range
+      const Values solved =
+          Optimize(p.graph, CentralizedTwoStage(p.graph, p.initial).values, tight).values;
+      double worst = 0.0;
+      for (const GroupUpdate& u : SplitGroupSolution(p, solved, shared, 3)) {
+        worst = std::max(worst, MaxPoseDifference(u.estimate, InOwnFrame(optimum, u.robot)));
+        EXPECT_EQ(u.estimate.at(Key::Pose(u.robot, 0)).translation().norm(), 0.0);
+        for (const auto& [k, y] : u.held) {
+          ASSERT_NE(std::find(in_range.begin(), in_range.end(), k.robot), in_range.end());
+          EXPECT_EQ(y.step, 3);
+          if (stale_is_later) continue;
+          const SE3 expected = optimum.at(Key::Pose(u.robot, 0)).inverse() * optimum.at(k);
+          EXPECT_LT(SE3::Log(expected.between(y.pose)).norm(), 1e-6);
+        }
+      }
+      if (stale_is_later) {
+        EXPECT_GT(worst, 1e-3) << "{" << in_range[0] << ", " << in_range[1] << "}";
+      } else {
+        EXPECT_LT(worst, 1e-6) << "{" << in_range[0] << ", " << in_range[1] << "}";
       }
     }
   }
   EXPECT_EQ(groups, 2);
+}
+
+// Each partner robot's landmarks are taken from the holder that met it last; a tie goes to the
+// pair's own robot, then to the lowest holder; a landmark only another robot holds is taken from
+// it; pairs of a landmark nobody holds give no factor.
+TEST(GroupTeamFactors, AnchorsEachPairAtTheLatestHolder) {
+  const Matrix6 lambda = Matrix6::Identity();
+  const SE3 a(SO3(), Vector3(1.0, 0.0, 0.0)), b(SO3(), Vector3(0.0, 2.0, 0.0));
+  const Key c = Key::Object(5, 7), c2 = Key::Object(5, 9), d = Key::Object(6, 8);
+  const std::vector<TeamPair> pairs = {
+      {Key::Object(2, 1), c, false, true, {b, 4}},  // robot 2 met robot 5 last (step 4)
+      {Key::Object(1, 3), c, true, true, {a, 3}},
+      {Key::Object(1, 5), c2, false, true, {a, 3}},  // only robot 1 holds c2
+      {Key::Object(3, 0), c, false, false, {}},     // robot 3 pairs with c, holds none
+      {Key::Object(1, 4), d, false, true, {a, 6}},  // robot 6: robots 1 and 2 met it at step 6
+      {Key::Object(2, 2), d, false, true, {b, 6}},
+      {Key::Object(3, 6), d, false, false, {}},
+      {Key::Object(3, 5), Key::Object(4, 0), false, false, {}},  // nobody holds it
+  };
+  std::vector<int> holders;
+  const auto f = GroupTeamFactors(pairs, lambda, &holders);
+  ASSERT_EQ(f.size(), 7u);
+  // Sorted by (mine, other): 1:3-c, 1:4-d, 1:5-c2, 2:1-c, 2:2-d, 3:0-c, 3:6-d.
+  EXPECT_EQ(f[0].b(), Key::Object(1, 3));
+  EXPECT_EQ(f[2].b(), Key::Object(1, 5));
+  EXPECT_EQ(holders, (std::vector<int>{2, 1, 1, 2, 2, 2, 1}));
+  for (std::size_t i = 0; i < f.size(); ++i) EXPECT_EQ(f[i].a(), Key::Pose(holders[i], 0));
+  // The factor has the cost of the pair with c at x_{holder,0} * copy.
+  const SE3 x0(SO3::Exp(Vector3(0.1, 0.2, 0.3)), Vector3(1.0, 2.0, 3.0));
+  const SE3 l(SO3::Exp(Vector3(-0.2, 0.1, 0.0)), Vector3(0.5, 0.5, 0.5));
+  const RelativePoseFactor pair13 = ObjectObjectFactor({c, Key::Object(1, 3)}, lambda);
+  EXPECT_NEAR(f[0].cost(x0, l), pair13.cost(x0 * b, l), 1e-12);
+  EXPECT_THROW(GroupTeamFactors({pairs[0], pairs[0]}, lambda), InvalidInputError);
+  EXPECT_THROW(GroupTeamFactors({{c, c2, false, false, {}}}, lambda), InvalidInputError);
 }
 
 TEST(GroupProblem, RefusesGroupsThatCannotBeSolved) {

@@ -47,6 +47,7 @@ void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult
     rec.robots = part;
     rec.object_object = problem.object_object;
     rec.team_factors = problem.team_factors;
+    rec.borrowed = problem.borrowed;
     rec.rotation_sweeps = solved.rotation.iterations;
     rec.pose_sweeps = solved.pose.iterations;
     rec.refine_steps = solved.refine.iterations;
@@ -55,7 +56,7 @@ void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult
     rec.final_cost = problem.graph.cost(solved.values);
     rec.messages = solved.messages;
     rec.bytes = solved.bytes;
-    for (GroupUpdate& u : SplitGroupSolution(problem, solved.values, team.shared)) {
+    for (GroupUpdate& u : SplitGroupSolution(problem, solved.values, team.shared, group.step)) {
       HeldEstimates& h = held_[u.robot];
       for (auto& [k, x] : u.held) h[k] = x;
       ObjectSlam& r = robot(u.robot);

@@ -42,6 +42,7 @@ struct GroupSolveRecord {
   std::vector<int> robots;  // the solved part of the group in range
   int object_object = 0;    // shared pairs among them
   int team_factors = 0;     // held factors (pairs with robots out of range)
+  int borrowed = 0;         // of them, with the copy of another robot of the group
   int rotation_sweeps = 0, pose_sweeps = 0, refine_steps = 0;
   StageStatus refine_status = StageStatus::kNotRun;
   double initial_cost = 0.0;  // F of the group graph at the robots' own estimates

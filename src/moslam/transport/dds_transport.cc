@@ -87,6 +87,31 @@ using ObjectListSample = moslam_msg_dds__ObjectList_;
 using ObjectPoseSample = moslam_msg_dds__ObjectPose_;
 using SharedSample = moslam_msg_dds__SharedObjects_;
 using PairSample = moslam_msg_dds__ObjectPair_;
+using TeamPairSample = moslam_msg_dds__TeamPair_;
+
+// A pose on the wire: position and unit quaternion (qx qy qz qw). Throws InvalidInputError naming
+// `what` when it is not finite or the quaternion not of unit norm (tolerance 1e-6).
+SE3 PoseFromWire(const double* position, const double* q, const std::string& what) {
+  const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  if (!std::isfinite(norm) || std::abs(norm - 1.0) > 1e-6) {
+    throw InvalidInputError(
+        fmt::format("{} orientation is not a unit quaternion (norm {})", what, norm));
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(position[k])) throw InvalidInputError(what + " position not finite");
+  }
+  return SE3(SO3::FromQuaternion(q[3], q[0], q[1], q[2]),
+             Vector3(position[0], position[1], position[2]));
+}
+
+void PoseToWire(const SE3& pose, double* position, double* orientation) {
+  const Eigen::Quaterniond q(pose.rotation().matrix());
+  orientation[0] = q.x();
+  orientation[1] = q.y();
+  orientation[2] = q.z();
+  orientation[3] = q.w();
+  for (int k = 0; k < 3; ++k) position[k] = pose.translation()(k);
+}
 
 // Wire key of a variable of the sender: (index << 1) | kind.
 std::uint64_t WireKey(const Key& k) { return k.index << 1 | static_cast<std::uint64_t>(k.kind); }
@@ -130,6 +155,18 @@ StatusPacket FromSample(const StatusSample& s) {
   p.value[0] = s.values[0];
   p.value[1] = s.values[1];
   p.neighbours.assign(s.neighbours._buffer, s.neighbours._buffer + s.neighbours._length);
+  for (std::uint32_t i = 0; i < s.team._length; ++i) {
+    const TeamPairSample& w = s.team._buffer[i];
+    TeamPairEntry t;
+    t.mine = w.mine;
+    t.other_robot = w.other_robot;
+    t.other = w.other;
+    t.mine_is_alpha = w.mine_is_alpha;
+    t.held = w.held;
+    t.step = w.step;
+    t.pose = PoseFromWire(w.position, w.orientation, fmt::format("team pair {}", i));
+    p.team.push_back(t);
+  }
   return p;
 }
 
@@ -183,17 +220,7 @@ ObjectListPacket FromSample(const ObjectListSample& s) {
     ObjectObservation ob;
     ob.id = o.id;
     ob.label.assign(o.label, strnlen(o.label, sizeof o.label));
-    const double* q = o.orientation;
-    const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    if (!std::isfinite(norm) || std::abs(norm - 1.0) > 1e-6) {
-      throw InvalidInputError(
-          fmt::format("object {} orientation is not a unit quaternion (norm {})", o.id, norm));
-    }
-    for (double v : o.position) {
-      if (!std::isfinite(v)) throw InvalidInputError(fmt::format("object {} position not finite", o.id));
-    }
-    ob.pose = SE3(SO3::FromQuaternion(q[3], q[0], q[1], q[2]),
-                  Vector3(o.position[0], o.position[1], o.position[2]));
+    ob.pose = PoseFromWire(o.position, o.orientation, fmt::format("object {}", o.id));
     p.objects.push_back(std::move(ob));
   }
   return p;
@@ -324,6 +351,20 @@ class DdsTransport::Impl {
     s.values[1] = p.value[1];
     s.neighbours = {static_cast<std::uint32_t>(neighbours.size()),
                     static_cast<std::uint32_t>(neighbours.size()), neighbours.data(), false};
+    std::vector<TeamPairSample> team(p.team.size());
+    for (std::size_t i = 0; i < p.team.size(); ++i) {
+      const TeamPairEntry& t = p.team[i];
+      TeamPairSample& w = team[i];
+      w.mine = t.mine;
+      w.other = t.other;
+      w.other_robot = static_cast<std::uint16_t>(t.other_robot);
+      w.mine_is_alpha = t.mine_is_alpha;
+      w.held = t.held;
+      w.step = t.step;
+      PoseToWire(t.pose, w.position, w.orientation);
+    }
+    s.team = {static_cast<std::uint32_t>(team.size()), static_cast<std::uint32_t>(team.size()),
+              team.data(), false};
     std::lock_guard<std::mutex> lock(mutex_);
     status_writer_.write(&s);
     const std::int64_t bytes = CdrSize(moslam_msg_dds__Status__desc, &s);
@@ -381,12 +422,7 @@ class DdsTransport::Impl {
       s.id = o.id;
       std::memset(s.label, 0, sizeof s.label);
       std::memcpy(s.label, o.label.data(), o.label.size());
-      const Eigen::Quaterniond q(o.pose.rotation().matrix());
-      s.orientation[0] = q.x();
-      s.orientation[1] = q.y();
-      s.orientation[2] = q.z();
-      s.orientation[3] = q.w();
-      for (int k = 0; k < 3; ++k) s.position[k] = o.pose.translation()(k);
+      PoseToWire(o.pose, s.position, s.orientation);
     }
     ObjectListSample s{};
     s.robot = static_cast<std::uint16_t>(robot_);

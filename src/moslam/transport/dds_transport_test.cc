@@ -89,6 +89,18 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   s.initialised = true;
   s.change = std::numeric_limits<double>::infinity();
   s.neighbours = {1, 3, 700};
+  TeamPairEntry held_pair;
+  held_pair.mine = 5;
+  held_pair.other_robot = 3;
+  held_pair.other = (std::uint64_t{1} << 56) - 1;
+  held_pair.mine_is_alpha = true;
+  held_pair.held = true;
+  held_pair.step = 88;
+  held_pair.pose = SE3(SO3::Exp(Vector3(-0.4, 0.2, 2.9)), Vector3(-1, 0.5, 7));
+  TeamPairEntry bare_pair;
+  bare_pair.mine = 6;
+  bare_pair.other_robot = 700;
+  s.team = {held_pair, bare_pair};
   ObjectListPacket o;
   o.robot = 0;
   o.revision = 9;
@@ -143,6 +155,18 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   EXPECT_TRUE(gs->sent && gs->initialised && !gs->done);
   EXPECT_TRUE(std::isinf(gs->change));
   EXPECT_EQ(gs->neighbours, s.neighbours);
+  ASSERT_EQ(gs->team.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    const TeamPairEntry &a = gs->team[i], &b = s.team[i];
+    EXPECT_EQ(a.mine, b.mine);
+    EXPECT_EQ(a.other_robot, b.other_robot);
+    EXPECT_EQ(a.other, b.other);
+    EXPECT_EQ(a.mine_is_alpha, b.mine_is_alpha);
+    EXPECT_EQ(a.held, b.held);
+    EXPECT_EQ(a.step, b.step);
+    EXPECT_LT((a.pose.rotation().matrix() - b.pose.rotation().matrix()).norm(), 1e-12);
+    EXPECT_EQ(a.pose.translation(), b.pose.translation());
+  }
   ASSERT_EQ(go->objects.size(), 2u);
   EXPECT_EQ(go->revision, 9u);
   for (std::size_t i = 0; i < 2; ++i) {

@@ -52,14 +52,17 @@ TEST(OnlineSession, OverTheInProcessTransportEqualsTheInProcessTwin) {
   const RobotSessionOptions options = OnlineSessionOptions(spec);
   const OnlineRun twin = RunTwin(data, options);
   ASSERT_GE(twin.solves.size(), 3u);
-  int team_factors = 0;
+  int team_factors = 0, borrowed = 0;
   std::size_t largest = 0;
   for (const GroupSolveRecord& s : twin.solves) {
     team_factors += s.team_factors;
+    borrowed += s.borrowed;
     largest = std::max(largest, s.robots.size());
   }
-  // The schedule exercises held partner landmarks (robots out of range) and a group of three.
+  // The schedule exercises held partner landmarks (robots out of range), copies held by another
+  // robot of the group (the joining statuses' team pairs), and a group of three.
   EXPECT_GT(team_factors, 0);
+  EXPECT_GT(borrowed, 0);
   EXPECT_GE(largest, 3u);
 
   InProcessNetwork net;

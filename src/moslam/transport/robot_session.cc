@@ -383,6 +383,28 @@ class RobotSession::Impl {
     join.robot = robot_;
     join.solve = solve;
     join.neighbours.assign(partners.begin(), partners.end());
+    // Its pairs with robots outside the group (those of the robots in range it is not linked to
+    // stay out: its partners are every robot of the group it shares a pair with) and its copies.
+    std::set<int> linked(partners.begin(), partners.end());
+    linked.insert(robot_);
+    for (const TeamPair& p : RobotTeamPairs(robot_, shared_, held_, linked)) {
+      TeamPairEntry e;
+      e.mine = p.mine.index;
+      e.other_robot = p.other.robot;
+      e.other = p.other.index;
+      e.mine_is_alpha = p.mine_is_alpha;
+      if (p.held) {
+        e.held = true;
+        e.step = static_cast<std::uint32_t>(p.copy.step);
+        e.pose = p.copy.pose;
+      }
+      join.team.push_back(e);
+    }
+    const auto order = [](const TeamPairEntry& e) {
+      return std::make_tuple(e.mine, e.other_robot, e.other);
+    };
+    std::sort(join.team.begin(), join.team.end(),
+              [&](const TeamPairEntry& a, const TeamPairEntry& b) { return order(a) < order(b); });
     transport_.publish(join);
     // Drop what earlier solves left; wait for the joining statuses of the closure.
     pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
@@ -391,11 +413,17 @@ class RobotSession::Impl {
     std::set<int> group{robot_};
     group.insert(partners.begin(), partners.end());
     const auto deadline = Clock::now() + options_.dgs.join_timeout;
+    std::map<int, std::vector<TeamPairEntry>> team_of;  // from each robot's joining status
+    team_of[robot_] = join.team;
     while (true) {
       std::map<int, std::vector<int>> heard;
       for (const Received& r : pending_) {
         const auto* st = std::get_if<StatusPacket>(&r.packet);
-        if (st && st->solve == solve && range.count(r.sender)) heard[r.sender] = st->neighbours;
+        if (st && st->solve == solve && range.count(r.sender)) {
+          heard[r.sender] = st->neighbours;
+          // Its first status of the solve (in order per sender) is the one it joined with.
+          team_of.emplace(r.sender, st->team);
+        }
       }
       for (bool grew = true; grew;) {
         grew = false;
@@ -420,7 +448,15 @@ class RobotSession::Impl {
     }
     const std::vector<int> robots(group.begin(), group.end());
     const Matrix6 lambda = options_.slam.rendezvous.lambda();
-    RobotGroupPart part = BuildRobotGroupPart(slam, robots, shared_, held_, lambda);
+    std::vector<TeamPair> team;
+    for (int r : robots) {
+      for (const TeamPairEntry& e : team_of.at(r)) {
+        if (group.count(e.other_robot)) continue;  // a partner's partner: solved, not held
+        team.push_back({Key::Object(r, e.mine), Key::Object(e.other_robot, e.other),
+                        e.mine_is_alpha, e.held, HeldEstimate{e.pose, static_cast<int>(e.step)}});
+      }
+    }
+    RobotGroupPart part = BuildRobotGroupPart(slam, robots, shared_, team, lambda);
     std::vector<Received> mine;
     for (auto it = pending_.begin(); it != pending_.end();) {
       if (SolveOf(*it) == solve) {
@@ -445,7 +481,7 @@ class RobotSession::Impl {
     const DgsNodeResult solved = node.run();
     Values solution = solved.estimate;
     solution.insert(solved.neighbours.begin(), solved.neighbours.end());
-    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_);
+    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_, t);
     for (auto& [k, x] : update.held) held_[k] = x;
     slam.setEstimate(update.estimate);
     slam.setTeamFactors(TeamFactors(robot_, shared_, held_, lambda));

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 #include <cstdio>
 #include <set>
 
@@ -55,6 +56,22 @@ std::string CheckStatus(const StatusPacket& p, int sender) {
     if (n < 0 || n > kMaxTransportRobot || n == p.robot ||
         (i > 0 && n <= p.neighbours[i - 1])) {
       return fmt::format("status with invalid neighbour list (entry {}: {})", i, n);
+    }
+  }
+  if (p.team.size() > kMaxObjects) return "status with too many team pairs";
+  const auto order = [](const TeamPairEntry& t) {
+    return std::make_tuple(t.mine, t.other_robot, t.other);
+  };
+  for (std::size_t i = 0; i < p.team.size(); ++i) {
+    const TeamPairEntry& t = p.team[i];
+    if (t.mine > kMaxKeyIndex || t.other > kMaxKeyIndex || t.other_robot < 0 ||
+        t.other_robot > kMaxTransportRobot || t.other_robot == p.robot ||
+        (i > 0 && !(order(p.team[i - 1]) < order(t)))) {
+      return fmt::format("status with an invalid team pair (entry {}: {} - robot {} object {})",
+                         i, t.mine, t.other_robot, t.other);
+    }
+    if (!t.pose.rotation().matrix().allFinite() || !t.pose.translation().allFinite()) {
+      return fmt::format("status with a non-finite team pair pose (entry {})", i);
     }
   }
   return {};
@@ -160,8 +177,10 @@ std::int64_t BinarySize(const Packet& packet) {
   }
   if (const auto* s = std::get_if<StatusPacket>(&packet)) {
     // robot u16, solve and incarnation u32, state/stage/flags 3 x u8, round/iteration u32,
-    // change and error bound f64, two f64 values, neighbour count u16 + u16 each.
-    return 2 + 4 + 4 + 3 + 8 + 4 * 8 + 2 + 2 * static_cast<std::int64_t>(s->neighbours.size());
+    // change and error bound f64, two f64 values, neighbour count u16 + u16 each, team pair
+    // count u16 + per pair two u64 ids, robot u16, two flags, step u32, 7 f64.
+    return 2 + 4 + 4 + 3 + 8 + 4 * 8 + 2 + 2 * static_cast<std::int64_t>(s->neighbours.size()) +
+           2 + (8 + 8 + 2 + 2 + 4 + 7 * 8) * static_cast<std::int64_t>(s->team.size());
   }
   if (const auto* c = std::get_if<CoarsePacket>(&packet)) {
     return static_cast<std::int64_t>(EncodeCoarseMessage(c->message).size()) + 8;  // + solve, round

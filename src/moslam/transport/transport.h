@@ -70,6 +70,18 @@ enum class RobotState : std::uint8_t {
 };
 std::string ToString(RobotState state);
 
+// Online mapping: a shared pair of the sender's landmark with a landmark of a robot outside the
+// group solve it joins, and the sender's copy of that landmark (online/group_solve.h, TeamPair).
+struct TeamPairEntry {
+  std::uint64_t mine = 0;   // the sender's object index (< 2^56)
+  int other_robot = 0;      // not the sender
+  std::uint64_t other = 0;  // object index of other_robot (< 2^56)
+  bool mine_is_alpha = false;
+  bool held = false;        // the sender holds a copy of the other landmark:
+  std::uint32_t step = 0;   // from the group solve of this time step,
+  SE3 pose;                 // in the sender's own frame
+};
+
 struct StatusPacket {
   int robot = 0;
   std::uint32_t solve = 0;
@@ -87,6 +99,9 @@ struct StatusPacket {
   bool coarse = false;            // a CoarsePacket of this round comes with the status
   double value[2] = {0.0, 0.0};   // its inputs to the round's team-wide sums and maxima
   std::vector<int> neighbours;    // robots its separators reach, increasing
+  // Only when it joins an online group solve: its team pairs, increasing by (mine, other_robot,
+  // other), at most kMaxObjects.
+  std::vector<TeamPairEntry> team;
 };
 
 // A robot's coarse share of one protocol round, to every robot.
@@ -176,7 +191,8 @@ class Transport {
 // `known`: accepted senders (empty: any). Estimates must be addressed to `self`; their content is
 // what EncodeMessage accepts. Status: state and stage in range, change >= 0 (+inf allowed),
 // error bound >= 0 (+inf allowed), values finite, neighbours distinct, increasing, without the
-// robot itself. Coarse: the sender's own share, what EncodeCoarseMessage accepts, kind share,
+// robot itself; team pairs at most kMaxObjects, increasing, ids < 2^56, other robot not the
+// sender, finite poses. Coarse: the sender's own share, what EncodeCoarseMessage accepts, kind share,
 // matrix or residual. Objects: finite poses, unit
 // quaternions (checked before conversion, tolerance 1e-6), labels of 1..64 printable characters,
 // distinct ids < 2^56, at most kMaxObjects. Shared objects: addressed to `self`, at most

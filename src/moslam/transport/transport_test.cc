@@ -2,6 +2,8 @@
 // packets) and the journal (records survive a reopen; a torn tail is cut).
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -225,6 +227,37 @@ TEST(CheckPacket, AcceptsInfiniteChangeAndValidObjectLists) {
   EXPECT_EQ(CheckPacket(o, 0, 1, {}), "");
   o.objects.push_back({2, "lamp", SE3()});
   EXPECT_NE(CheckPacket(o, 0, 1, {}), "");  // id listed twice
+}
+
+// The team pairs of a joining status (online mapping): increasing, ids in range, another robot's
+// landmark, finite poses.
+TEST(CheckPacket, ValidatesTeamPairs) {
+  StatusPacket s = Status(0, 1);
+  TeamPairEntry t;
+  t.mine = 4;
+  t.other_robot = 2;
+  t.other = 9;
+  t.held = true;
+  t.pose = SE3(SO3::Exp(Vector3(0.1, 0.2, 0.3)), Vector3(1, 2, 3));
+  TeamPairEntry u = t;
+  u.other = 10;
+  s.team = {t, u};
+  EXPECT_EQ(CheckPacket(s, 0, 1, {}), "");
+  const auto rejected = [&](const std::function<void(StatusPacket&)>& spoil) {
+    StatusPacket bad = s;
+    spoil(bad);
+    return !CheckPacket(bad, 0, 1, {}).empty();
+  };
+  EXPECT_TRUE(rejected([](StatusPacket& p) { std::swap(p.team[0], p.team[1]); }));  // order
+  EXPECT_TRUE(rejected([](StatusPacket& p) { p.team[1] = p.team[0]; }));           // twice
+  EXPECT_TRUE(rejected([](StatusPacket& p) { p.team[0].other_robot = 0; }));       // its own
+  EXPECT_TRUE(rejected([](StatusPacket& p) { p.team[0].other_robot = 70000; }));
+  EXPECT_TRUE(rejected([](StatusPacket& p) { p.team[1].other = std::uint64_t{1} << 56; }));
+  EXPECT_TRUE(rejected([](StatusPacket& p) { p.team[0].mine = std::uint64_t{1} << 56; }));
+  EXPECT_TRUE(rejected([](StatusPacket& p) {
+    p.team[0].pose = SE3(SO3(), Vector3(std::nan(""), 0.0, 0.0));
+  }));
+  EXPECT_TRUE(rejected([](StatusPacket& p) { p.team.resize(kMaxObjects + 1, p.team[1]); }));
 }
 
 class JournalTest : public ::testing::Test {
