@@ -1,10 +1,10 @@
 #include "moslam/online/group_solve.h"
 
 #include <algorithm>
-#include <tuple>
 #include <functional>
 #include <set>
 #include <string>
+#include <tuple>
 
 #include "moslam/common/errors.h"
 #include "moslam/graph/robot_groups.h"

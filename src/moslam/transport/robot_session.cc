@@ -11,6 +11,7 @@
 #include <iterator>
 #include <map>
 #include <set>
+#include <tuple>
 #include <utility>
 
 #include "moslam/common/errors.h"
@@ -383,8 +384,9 @@ class RobotSession::Impl {
     join.robot = robot_;
     join.solve = solve;
     join.neighbours.assign(partners.begin(), partners.end());
-    // Its pairs with robots outside the group (those of the robots in range it is not linked to
-    // stay out: its partners are every robot of the group it shares a pair with) and its copies.
+    // Its pairs with robots outside the group, and its copies of their landmarks (GroupTeamFactors
+    // picks among the members' copies). Every robot of the group it shares a pair with is one of
+    // its partners, so leaving out its partners leaves out exactly its pairs within the group.
     std::set<int> linked(partners.begin(), partners.end());
     linked.insert(robot_);
     for (const TeamPair& p : RobotTeamPairs(robot_, shared_, held_, linked)) {

@@ -4,9 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <tuple>
 #include <cstdio>
 #include <set>
+#include <tuple>
 
 #include "moslam/common/errors.h"
 #include "moslam/graph/key.h"
