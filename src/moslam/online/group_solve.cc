@@ -33,6 +33,13 @@ int LocalIndex(const std::vector<int>& robots, int robot, const char* who) {
   return static_cast<int>(it - robots.begin());
 }
 
+// The object-object factor of a team pair, in the direction of its shared pair.
+RelativePoseFactor PairFactor(const TeamPair& t, const Matrix6& lambda) {
+  return ObjectObjectFactor(t.mine_is_alpha ? SharedObject{t.other, t.mine}
+                                            : SharedObject{t.mine, t.other},
+                            lambda);
+}
+
 }  // namespace
 
 RelativePoseFactor HeldFactor(const RelativePoseFactor& shared, int robot, const SE3& held,
@@ -111,10 +118,7 @@ std::vector<RelativePoseFactor> GroupTeamFactors(const std::vector<TeamPair>& pa
     for (auto c = it->second.begin(); c != it->second.end(); ++c) {
       if (rank(c->first) > rank(best->first)) best = c;
     }
-    const SharedObject pair = t.mine_is_alpha ? SharedObject{t.other, t.mine}
-                                              : SharedObject{t.mine, t.other};
-    out.push_back(
-        HeldFactor(ObjectObjectFactor(pair, lambda), t.mine.robot, best->second.pose, best->first));
+    out.push_back(HeldFactor(PairFactor(t, lambda), t.mine.robot, best->second.pose, best->first));
     if (holders != nullptr) holders->push_back(best->first);
   }
   return out;
@@ -124,13 +128,8 @@ std::vector<RelativePoseFactor> TeamFactors(int robot, const std::vector<SharedO
                                             const HeldEstimates& held, const Matrix6& lambda,
                                             const std::set<int>& in_range) {
   std::vector<RelativePoseFactor> out;
-  for (const auto& s : shared) {
-    const Key mine = s.alpha_object.robot == robot ? s.alpha_object : s.beta_object;
-    const Key other = s.alpha_object.robot == robot ? s.beta_object : s.alpha_object;
-    if (mine.robot != robot || other.robot == robot || in_range.count(other.robot) > 0) continue;
-    const auto it = held.find(other);
-    if (it == held.end()) continue;
-    out.push_back(HeldFactor(ObjectObjectFactor(s, lambda), robot, it->second.pose));
+  for (const TeamPair& t : RobotTeamPairs(robot, shared, held, in_range)) {
+    if (t.held) out.push_back(HeldFactor(PairFactor(t, lambda), robot, t.copy.pose));
   }
   return out;
 }

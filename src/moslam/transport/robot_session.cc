@@ -11,7 +11,6 @@
 #include <iterator>
 #include <map>
 #include <set>
-#include <tuple>
 #include <utility>
 
 #include "moslam/common/errors.h"
@@ -402,11 +401,7 @@ class RobotSession::Impl {
       }
       join.team.push_back(e);
     }
-    const auto order = [](const TeamPairEntry& e) {
-      return std::make_tuple(e.mine, e.other_robot, e.other);
-    };
-    std::sort(join.team.begin(), join.team.end(),
-              [&](const TeamPairEntry& a, const TeamPairEntry& b) { return order(a) < order(b); });
+    std::sort(join.team.begin(), join.team.end(), TeamPairBefore);
     transport_.publish(join);
     // Drop what earlier solves left; wait for the joining statuses of the closure.
     pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
@@ -424,7 +419,7 @@ class RobotSession::Impl {
         if (st && st->solve == solve && range.count(r.sender)) {
           heard[r.sender] = st->neighbours;
           // Its first status of the solve (in order per sender) is the one it joined with.
-          team_of.emplace(r.sender, st->team);
+          team_of.try_emplace(r.sender, st->team);
         }
       }
       for (bool grew = true; grew;) {

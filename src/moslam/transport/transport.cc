@@ -33,6 +33,15 @@ std::string CheckEstimates(const EstimatesPacket& p, int sender, int self) {
   return {};
 }
 
+}  // namespace
+
+bool TeamPairBefore(const TeamPairEntry& a, const TeamPairEntry& b) {
+  return std::make_tuple(a.mine, a.other_robot, a.other) <
+         std::make_tuple(b.mine, b.other_robot, b.other);
+}
+
+namespace {
+
 std::string CheckStatus(const StatusPacket& p, int sender) {
   if (p.robot != sender) {
     return fmt::format("status claims robot {} but came from robot {}", p.robot, sender);
@@ -59,14 +68,11 @@ std::string CheckStatus(const StatusPacket& p, int sender) {
     }
   }
   if (p.team.size() > kMaxObjects) return "status with too many team pairs";
-  const auto order = [](const TeamPairEntry& t) {
-    return std::make_tuple(t.mine, t.other_robot, t.other);
-  };
   for (std::size_t i = 0; i < p.team.size(); ++i) {
     const TeamPairEntry& t = p.team[i];
     if (t.mine > kMaxKeyIndex || t.other > kMaxKeyIndex || t.other_robot < 0 ||
         t.other_robot > kMaxTransportRobot || t.other_robot == p.robot ||
-        (i > 0 && !(order(p.team[i - 1]) < order(t)))) {
+        (i > 0 && !TeamPairBefore(p.team[i - 1], t))) {
       return fmt::format("status with an invalid team pair (entry {}: {} - robot {} object {})",
                          i, t.mine, t.other_robot, t.other);
     }

@@ -82,6 +82,9 @@ struct TeamPairEntry {
   SE3 pose;                 // in the sender's own frame
 };
 
+// The order of team pairs in a status: by (mine, other_robot, other).
+bool TeamPairBefore(const TeamPairEntry& a, const TeamPairEntry& b);
+
 struct StatusPacket {
   int robot = 0;
   std::uint32_t solve = 0;
