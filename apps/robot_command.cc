@@ -89,9 +89,11 @@ struct ScenarioFlags {
   std::string name;  // --scenario; empty: not a scenario run
   ScenarioSpec spec;
   double rendezvous_timeout = 60.0;  // seconds
+  std::string initial_poses = "known";
   ScenarioSpec get() const {
     ScenarioSpec s = spec;
     s.scenario = name;
+    s.known_initial_poses = initial_poses == "known";
     return s;
   }
 };
@@ -114,6 +116,11 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
   sub->add_option("--rendezvous-timeout", f.rendezvous_timeout,
                   "Seconds to wait for the peer of a rendezvous")
       ->check(CLI::PositiveNumber);
+  sub->add_option("--initial-poses", f.initial_poses,
+                  "known: the robots know one another's initial poses (the paper); unknown: a "
+                  "rendezvous aligns the two object maps from the objects alone, and no process "
+                  "is given the initial poses")
+      ->check(CLI::IsMember({"known", "unknown"}));
 }
 
 std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
@@ -121,7 +128,7 @@ std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
           std::to_string(f.spec.seed), "--sigma-rot", fmt::format("{}", f.spec.sigma_rotation_deg),
           "--sigma-trans", fmt::format("{}", f.spec.sigma_translation), "--poses",
           std::to_string(f.spec.poses_per_robot), "--rendezvous-timeout",
-          fmt::format("{}", f.rendezvous_timeout)};
+          fmt::format("{}", f.rendezvous_timeout), "--initial-poses", f.initial_poses};
 }
 
 G2oReadOptions WithObjects() {
@@ -217,6 +224,7 @@ nlohmann::json RendezvousJson(const RobotSessionResult& r) {
   for (const SessionRendezvous& e : r.rendezvous) {
     events.push_back({{"step", e.event.step}, {"alpha", e.event.alpha}, {"beta", e.event.beta},
                       {"objects_sent", e.objects_sent}, {"new_shared", e.new_shared},
+                      {"removed_shared", e.removed_shared},
                       {"binary_bytes", e.binary_bytes}, {"replayed", e.replayed},
                       {"seconds", e.seconds}});
   }
@@ -227,6 +235,7 @@ nlohmann::json RendezvousJson(const RobotSessionResult& r) {
 void AddSessionSummary(const ScenarioSpec& spec, const RobotSessionResult& r, nlohmann::json& j) {
   j["scenario"] = spec.scenario;
   j["seed"] = spec.seed;
+  j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
   j["poses"] = r.poses;
   j["landmarks"] = r.landmarks;
   j["shared"] = SharedJson(r.shared);
@@ -306,7 +315,8 @@ int RunScenarioRobot(const RobotArgs& a) {
   transport_options.domain = a.domain;
   DdsTransport transport(a.robot, transport_options);
   // Every process simulates the same scenario and keeps only its own slice.
-  RobotSession session(SliceForRobot(SimulateScenario(spec), a.robot), transport, options);
+  RobotSession session(SliceForRobot(SimulateScenario(spec), a.robot, spec.known_initial_poses),
+                       transport, options);
   const RobotSessionResult r = session.run();
   if (a.online) return ReportOnlineRobot(a, spec, r);
   nlohmann::json j = Summary(a, r.dgs);
@@ -622,6 +632,7 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
   j["scenario"] = spec.scenario;
   j["robots"] = n;
   j["seed"] = spec.seed;
+  j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
   j["poses_per_robot"] = spec.poses_per_robot;
   j["online"] = true;
   j["out"] = out.string();
@@ -757,6 +768,7 @@ int RunScenarioTeam(const TeamArgs& a) {
   j["scenario"] = spec.scenario;
   j["robots"] = n;
   j["seed"] = spec.seed;
+  j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
   j["poses_per_robot"] = spec.poses_per_robot;
   j["domain"] = a.domain;
   j["out"] = out.string();

@@ -361,6 +361,31 @@ TEST(Team, AScenarioAsProcessesEqualsTheInProcessPipeline) {
   fs::remove_all(out);
 }
 
+// Unknown initial poses: beta aligns the object maps, and the answers drop pairs of earlier
+// rendezvous (12 removals counted over the robots in this run); pairs and estimate as in-process.
+TEST(Team, UnknownInitialPosesAsProcessesEqualTheInProcessPipeline) {
+  const fs::path out = FreshDir("unknown");
+  std::vector<std::string> args = {"team", "--domain", "57", "--out", out.string(), "--timeout",
+                                   "120", "--json", "--initial-poses", "unknown"};
+  args.insert(args.end(), kScenario.begin(), kScenario.end());
+  Child team(args, "", out / "team.log");
+  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
+  const nlohmann::json j = LastJson(team.output());
+  ASSERT_TRUE(j.is_object()) << team.output();
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_EQ(j["initial_poses"], "unknown");
+  EXPECT_TRUE(j["shared_objects_equal"].get<bool>());
+  EXPECT_EQ(j["rendezvous_binary_bytes"], j["in_process_rendezvous_bytes"]);
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  int removed = 0;
+  for (const auto& r : j["per_robot"]) {
+    EXPECT_EQ(r["rejected_samples"].get<int>(), 0) << r.dump();
+    for (const auto& e : r["rendezvous"]) removed += e["removed_shared"].get<int>();
+  }
+  EXPECT_GT(removed, 0);
+  fs::remove_all(out);
+}
+
 TEST(Team, OnlineScenarioProcessesSaveEveryMapOfTheInProcessTwin) {
   const fs::path out = FreshDir("online");
   std::vector<std::string> args = {"team", "--domain", "58", "--out", out.string(), "--timeout",

@@ -101,11 +101,13 @@ run_target() {  # name corpus dict max_len
 run_target g2o_reader_fuzz "$corpus" "$dict" 4096
 run_target messages_fuzz "$mcorpus" "$mdict" 4096
 
-# Journals: one framed record (type 2, a start), and a step record with one report.
+# Journals: one framed record (type 2, a start), a step record with one report, and a rendezvous
+# event record (event 3, one pair added, one removed).
 jcorpus="$work/journal"
 mkdir -p "$jcorpus"
 printf '\x00\x01\x00\x00\x00\xa1\x8e\x0c\x3c\x02' >"$jcorpus/framed_start"
 printf '\x01\x01\x00\x00\x00\x01\x01\x00\x00\x00\x03\x00\x00\x00\x00\x00\x00\xe0\x3f\x00\x00\x00\x00\x00\x00\xf0\x7f\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00' >"$jcorpus/step_one_report"
+printf '\x02\x03\x00\x00\x00\x01\x00\x00\x00\x01\x00\x00\x00\x02\x00\x00\x00\x01\x00\x00\x00\x04\x00\x00\x00\x05\x00\x00\x00' >"$jcorpus/event_pair_removed"
 jdict="$work/journal.dict"
 cat >"$jdict" <<'DICT'
 "\x00\x00\x00\x00\x00\x00\xf0\x7f"

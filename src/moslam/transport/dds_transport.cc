@@ -234,6 +234,9 @@ SharedObjectsPacket FromSample(const SharedSample& s) {
   for (std::uint32_t i = 0; i < s.pairs._length; ++i) {
     p.pairs.emplace_back(s.pairs._buffer[i].alpha, s.pairs._buffer[i].beta);
   }
+  for (std::uint32_t i = 0; i < s.removed._length; ++i) {
+    p.removed.emplace_back(s.removed._buffer[i].alpha, s.removed._buffer[i].beta);
+  }
   return p;
 }
 
@@ -306,17 +309,23 @@ class DdsTransport::Impl {
   void send(const SharedObjectsPacket& p) {
     const std::string why = CheckPacket(p, robot_, p.receiver, {});
     if (!why.empty()) throw InvalidInputError("cannot send: " + why);
-    std::vector<PairSample> pairs(p.pairs.size());
-    for (std::size_t i = 0; i < p.pairs.size(); ++i) {
-      pairs[i].alpha = p.pairs[i].first;
-      pairs[i].beta = p.pairs[i].second;
-    }
+    const auto samples = [](const std::vector<std::pair<std::uint64_t, std::uint64_t>>& list) {
+      std::vector<PairSample> out(list.size());
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        out[i].alpha = list[i].first;
+        out[i].beta = list[i].second;
+      }
+      return out;
+    };
+    std::vector<PairSample> pairs = samples(p.pairs), removed = samples(p.removed);
     SharedSample s{};
     s.sender = static_cast<std::uint16_t>(robot_);
     s.receiver = static_cast<std::uint16_t>(p.receiver);
     s.step = p.step;
     s.pairs = {static_cast<std::uint32_t>(pairs.size()), static_cast<std::uint32_t>(pairs.size()),
                pairs.data(), false};
+    s.removed = {static_cast<std::uint32_t>(removed.size()),
+                 static_cast<std::uint32_t>(removed.size()), removed.data(), false};
     std::lock_guard<std::mutex> lock(mutex_);
     outbox(shared_writers_, moslam_msg_dds__SharedObjects__desc, SharedObjectsTopicName(p.receiver),
            p.receiver)

@@ -112,6 +112,7 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   h.receiver = 1;
   h.step = 31;
   h.pairs = {{3, 7}, {(std::uint64_t{1} << 56) - 1, 0}};
+  h.removed = {{5, 2}};
   t0.send(e);
   t0.publish(s);
   t0.publish(o);
@@ -138,6 +139,7 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   EXPECT_EQ(gh->receiver, 1);
   EXPECT_EQ(gh->step, 31u);
   EXPECT_EQ(gh->pairs, h.pairs);
+  EXPECT_EQ(gh->removed, h.removed);
   EXPECT_EQ(go->step, 31u);
   EXPECT_EQ(ge->receiver, 1);
   EXPECT_EQ(ge->round, 17u);

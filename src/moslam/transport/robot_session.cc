@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <iterator>
 #include <map>
+#include <optional>
 #include <set>
 #include <utility>
 
@@ -20,6 +21,7 @@
 #include "moslam/online/group_solve.h"
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
+#include "moslam/transport/event_record.h"
 #include "moslam/transport/group_transport.h"
 #include "moslam/transport/journal.h"
 #include "moslam/transport/record_bytes.h"
@@ -70,10 +72,13 @@ SimulationData SimulateScenario(const ScenarioSpec& spec) {
 
 MultiRobotSlamConfig ScenarioSlamConfig(const ScenarioSpec& spec) {
   spec.validate();
-  return MultiRobotSlamConfigForNoise(ScenarioSimulationConfig(spec).sensing);
+  MultiRobotSlamConfig config =
+      MultiRobotSlamConfigForNoise(ScenarioSimulationConfig(spec).sensing);
+  config.known_initial_poses = spec.known_initial_poses;
+  return config;
 }
 
-RobotScenarioData SliceForRobot(const SimulationData& data, int robot) {
+RobotScenarioData SliceForRobot(const SimulationData& data, int robot, bool known_initial_poses) {
   if (robot < 0 || robot >= data.numRobots() ||
       data.measurements.size() != data.trajectories.size()) {
     throw InvalidInputError(fmt::format("SliceForRobot: robot {} is not one of the {} robots of "
@@ -86,7 +91,7 @@ RobotScenarioData SliceForRobot(const SimulationData& data, int robot) {
   d.measurements = data.measurements[static_cast<std::size_t>(robot)];
   for (const Trajectory& t : data.trajectories) {
     if (t.empty()) throw InvalidInputError("SliceForRobot: a robot has no pose");
-    d.initial_poses.push_back(t.front());
+    if (known_initial_poses) d.initial_poses.push_back(t.front());
   }
   d.events = data.rendezvous;
   return d;
@@ -120,7 +125,8 @@ PoseGraph SessionSubgraph(const ObjectSlam& slam, const std::vector<SharedObject
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'R', 'D', 'V', '1'};
+// Version 2: an event record lists the pairs removed too (event_record.h).
+constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'R', 'D', 'V', '2'};
 constexpr std::uint8_t kHeaderRecord = 1;
 constexpr std::uint8_t kEventRecord = 2;
 
@@ -163,6 +169,18 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const MultiRobotSla
   f.add(c.rendezvous.max_correction_deg);
   f.add(static_cast<std::uint64_t>(c.rendezvous.min_inliers));
   f.add(c.rendezvous.lambda());
+  f.add(static_cast<std::uint64_t>(c.known_initial_poses));
+  f.add(static_cast<std::uint64_t>(c.rendezvous.check_consistency));
+  for (const ConstellationConfig* k : {&c.rendezvous.constellation, &c.rendezvous.consistency}) {
+    f.add(k->sigma_translation);
+    f.add(k->sigma_rotation_deg);
+    f.add(k->drift_per_m);
+    f.add(k->num_sigmas);
+    f.add(static_cast<std::uint64_t>(k->min_support));
+    f.add(k->same_object_radius);
+    f.add(static_cast<std::uint64_t>(k->ambiguity_margin));
+    f.add(static_cast<std::uint64_t>(k->max_search_nodes));
+  }
   return f.value();
 }
 
@@ -194,7 +212,15 @@ class PrefetchedTransport final : public Transport {
   std::vector<Received> pending_;
 };
 
-using Pairs = std::vector<std::pair<std::uint32_t, std::uint32_t>>;
+using transport_detail::EventRecord;
+using Pairs = transport_detail::ObjectPairs;
+
+// What an event changed: the pairs added and the pairs shared before that it removed, (alpha
+// landmark, beta landmark) each.
+struct EventPairs {
+  Pairs pairs;
+  Pairs removed;
+};
 
 }  // namespace
 
@@ -209,8 +235,11 @@ class RobotSession::Impl {
                                           robot_, transport_.self()));
     }
     const int n = data_.num_robots, steps = data_.numSteps();
-    if (robot_ < 0 || robot_ >= n || static_cast<int>(data_.initial_poses.size()) != n ||
-        steps < 1 || static_cast<int>(data_.measurements.odometry.size()) != steps - 1) {
+    // Unknown initial poses: whatever the data holds is never read.
+    const bool poses_ok = !options_.slam.known_initial_poses ||
+                          static_cast<int>(data_.initial_poses.size()) == n;
+    if (robot_ < 0 || robot_ >= n || !poses_ok || steps < 1 ||
+        static_cast<int>(data_.measurements.odometry.size()) != steps - 1) {
       throw InvalidInputError(fmt::format("robot session: inconsistent data for robot {} of {}",
                                           robot_, n));
     }
@@ -273,7 +302,7 @@ class RobotSession::Impl {
         rec.event = e;
         rec.alpha = e.alpha == robot_;
         const auto te = Clock::now();
-        Pairs pairs;
+        EventPairs pairs;
         if (rec.alpha) {
           const ObjectMapMessage map = MakeObjectMapMessage(slam);
           rec.objects_sent = static_cast<int>(map.objects.size());
@@ -293,23 +322,39 @@ class RobotSession::Impl {
           record(index, pairs);
         } else {
           const ObjectMapMessage received = awaitList(e);
-          const SharedObjectsMessage answer = AnswerObjectMap(
-              received, slam,
-              BetaTAlpha(data_.initial_poses[static_cast<std::size_t>(e.alpha)],
-                         data_.initial_poses[static_cast<std::size_t>(e.beta)]),
-              shared_, options_.slam.rendezvous);
-          pairs = answer.pairs;
+          std::optional<SE3> beta_T_alpha;
+          if (options_.slam.known_initial_poses) {
+            beta_T_alpha = BetaTAlpha(data_.initial_poses[static_cast<std::size_t>(e.alpha)],
+                                      data_.initial_poses[static_cast<std::size_t>(e.beta)]);
+          }
+          const SharedObjectsMessage answer =
+              AnswerObjectMap(received, slam, beta_T_alpha, shared_, options_.slam.rendezvous);
+          pairs = {answer.pairs, answer.removed};
           sendAnswer(e, pairs);
           record(index, pairs);
         }
         SharedObjectsMessage answer;
         answer.sender = e.beta;
         answer.receiver = e.alpha;
-        answer.pairs = pairs;
+        answer.pairs = pairs.pairs;
+        answer.removed = pairs.removed;
         if (!rec.alpha) rec.binary_bytes = static_cast<std::int64_t>(EncodeSharedObjects(answer).size());
+        // As RunMultiRobotObjectSlam: the removed pairs leave first, the new ones are appended.
+        for (const SharedObject& s : RemovedObjectsOf(answer)) {
+          const auto it = std::find_if(shared_.begin(), shared_.end(), [&](const SharedObject& x) {
+            return x.alpha_object == s.alpha_object && x.beta_object == s.beta_object;
+          });
+          if (it == shared_.end()) {  // only a journal of another run gets here
+            throw InvalidInputError(fmt::format(
+                "robot {}: the rendezvous of step {} removes a pair never shared (journal of "
+                "another run?)", robot_, e.step));
+          }
+          shared_.erase(it);
+        }
         const std::vector<SharedObject> added = SharedObjectsOf(answer);
         shared_.insert(shared_.end(), added.begin(), added.end());
         rec.new_shared = static_cast<int>(added.size());
+        rec.removed_shared = static_cast<int>(pairs.removed.size());
         rec.seconds = std::chrono::duration<double>(Clock::now() - te).count();
         result_.rendezvous_binary_bytes += rec.binary_bytes;
         result_.rendezvous.push_back(rec);
@@ -575,28 +620,23 @@ class RobotSession::Impl {
         throw InvalidInputError(what + ": unknown rendezvous journal record type " +
                                 std::to_string(type));
       }
-      const auto index = static_cast<std::size_t>(p.u32());
-      const auto count = static_cast<std::uint32_t>(p.u32());
-      if (index >= data_.events.size()) throw InvalidInputError(what + ": event out of range");
-      Pairs pairs;
-      for (std::uint32_t k = 0; k < count; ++k) {
-        const auto a = static_cast<std::uint32_t>(p.u32());
-        const auto b = static_cast<std::uint32_t>(p.u32());
-        pairs.emplace_back(a, b);
+      EventRecord event = transport_detail::ReadEventRecord(records[i], 1, what);
+      if (event.event >= data_.events.size()) {
+        throw InvalidInputError(what + ": event out of range");
       }
-      journaled_[index] = std::move(pairs);
+      journaled_[event.event] = {std::move(event.pairs), std::move(event.removed)};
     }
     if (!journaled_.empty()) {
       options_.log(fmt::format("restart: {} rendezvous taken from {}", journaled_.size(), what));
     }
   }
 
-  void record(std::size_t index, const Pairs& pairs) {
+  void record(std::size_t index, const EventPairs& pairs) {
     if (!journal_) return;
-    Record r;
-    r.u8(kEventRecord).u32(static_cast<std::uint32_t>(index)).u32(static_cast<std::uint32_t>(pairs.size()));
-    for (const auto& [a, b] : pairs) r.u32(a).u32(b);
-    journal_->append(r.data());
+    std::vector<std::uint8_t> r{kEventRecord};
+    transport_detail::AppendEventRecord({static_cast<std::uint32_t>(index), pairs.pairs,
+                                         pairs.removed}, r);
+    journal_->append(r);
   }
 
   // ---- messages -----------------------------------------------------------------------------
@@ -611,12 +651,13 @@ class RobotSession::Impl {
     transport_.publish(p);
   }
 
-  void sendAnswer(const RendezvousEvent& e, const Pairs& pairs) {
+  void sendAnswer(const RendezvousEvent& e, const EventPairs& pairs) {
     SharedObjectsPacket p;
     p.sender = robot_;
     p.receiver = e.alpha;
     p.step = static_cast<std::uint32_t>(e.step);
-    for (const auto& [a, b] : pairs) p.pairs.emplace_back(a, b);
+    for (const auto& [a, b] : pairs.pairs) p.pairs.emplace_back(a, b);
+    for (const auto& [a, b] : pairs.removed) p.removed.emplace_back(a, b);
     transport_.send(p);
   }
 
@@ -673,21 +714,26 @@ class RobotSession::Impl {
     return received;
   }
 
-  // Beta's answer to this robot's list of the event's step; answers naming landmarks this robot
-  // does not have, or already shared with beta, are rejected.
-  Pairs awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
+  // Beta's answer to this robot's list of the event's step. Rejected: new pairs naming landmarks
+  // this robot does not have or repeating a pair shared with beta (with known initial poses: any
+  // object already shared between the two, as AnswerObjectMap excludes them), removed pairs that
+  // are not shared with beta.
+  EventPairs awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
     const auto key = std::make_pair(e.beta, static_cast<std::uint32_t>(e.step));
     std::set<std::uint64_t> mine_taken, theirs_taken;
+    std::set<std::pair<std::uint64_t, std::uint64_t>> before;  // (this robot's, beta's)
     for (const SharedObject& s : shared_) {
       for (const auto& [own, other] : {std::make_pair(s.alpha_object, s.beta_object),
                                        std::make_pair(s.beta_object, s.alpha_object)}) {
         if (own.robot == robot_ && other.robot == e.beta) {
           mine_taken.insert(own.index);
           theirs_taken.insert(other.index);
+          before.emplace(own.index, other.index);
         }
       }
     }
-    Pairs pairs;
+    const bool known = options_.slam.known_initial_poses;
+    EventPairs pairs;
     waitFor(e, "shared-object answer", [&]() {
       const auto it = answers_.find(key);
       if (it == answers_.end() || it->second.empty()) return false;
@@ -698,10 +744,16 @@ class RobotSession::Impl {
           why = fmt::format("names object {} of this robot, which has {}", a, slam.landmarks().size());
         } else if (b > 0xFFFFFFFFu) {
           why = fmt::format("object id {} exceeds 32 bits", b);
-        } else if (mine_taken.count(a) || theirs_taken.count(b)) {
+        } else if (before.count({a, b}) ||
+                   (known && (mine_taken.count(a) || theirs_taken.count(b)))) {
           why = fmt::format("pair ({}, {}) uses an object already shared between the two", a, b);
         }
         if (!why.empty()) break;
+      }
+      for (const auto& [a, b] : answer.removed) {
+        if (why.empty() && !before.count({a, b})) {
+          why = fmt::format("removes pair ({}, {}), which the two do not share", a, b);
+        }
       }
       if (!why.empty()) {
         options_.log(fmt::format("rejected: shared objects of robot {} for step {}: {}", e.beta,
@@ -710,7 +762,10 @@ class RobotSession::Impl {
         return false;
       }
       for (const auto& [a, b] : answer.pairs) {
-        pairs.emplace_back(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+        pairs.pairs.emplace_back(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+      }
+      for (const auto& [a, b] : answer.removed) {
+        pairs.removed.emplace_back(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
       }
       answers_.erase(it);
       return true;
@@ -724,7 +779,7 @@ class RobotSession::Impl {
   int robot_ = 0;
   bool ran_ = false;
   std::unique_ptr<Journal> journal_;
-  std::map<std::size_t, Pairs> journaled_;  // event index -> pairs
+  std::map<std::size_t, EventPairs> journaled_;  // event index -> what it changed
   std::uint32_t revision_ = 0;
   std::vector<SharedObject> shared_;
   // Received, by (sender, step), in arrival order (duplicates after a restart are identical).

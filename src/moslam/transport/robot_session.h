@@ -5,11 +5,11 @@
 // it receives.
 //
 // Data: every process simulates the same seeded scenario (SimulateScenario) and keeps only its
-// slice (SliceForRobot): its own odometry and detections, the known initial poses of all robots
-// (used only to match object maps at a rendezvous, as in-process) and the scenario's rendezvous
-// events. The event list stands for "the radios are in range": a process does not detect its
-// peers by distance, it meets the peer named by the event at the event's time step, and the
-// exchange waits (up to rendezvous_timeout) until that peer answers.
+// slice (SliceForRobot): its own odometry and detections, the initial poses of all robots (used
+// only to match object maps at a rendezvous, as in-process; none with unknown initial poses) and
+// the scenario's rendezvous events. The event list stands for "the radios are in range": a
+// process does not detect its peers by distance, it meets the peer named by the event at the
+// event's time step, and the exchange waits (up to rendezvous_timeout) until that peer answers.
 //
 // Per time step t the robot adds pose t to its ObjectSlam; when it takes part in events at t it
 // refreshes its estimate (as RunMultiRobotObjectSlam does before an event) and then, for each of
@@ -19,11 +19,14 @@
 //          a SharedObjectsPacket of step t: the pairs it adds;
 //   beta:  waits for alpha's list of step t, rounds the poses to float32 exactly as the
 //          in-process message encoding does (EncodeObjectMap / DecodeObjectMap), matches with
-//          AnswerObjectMap (slam/rendezvous.h, the in-process code) and sends the answer.
-// Both add one object-object factor per pair (ObjectObjectFactor). After the last step: the
-// final Gauss-Newton iterations, then DgsNode on the robot's subgraph (its odometry and
-// object-pose factors, then its object-object factors in the order found) from its own
-// estimate. The result equals the in-process pipeline's (same shared objects, same DGS
+//          AnswerObjectMap (slam/rendezvous.h, the in-process code: under the known initial poses,
+//          or, with options.slam.known_initial_poses false, by aligning the two object maps and
+//          checking the pairs of earlier rendezvous again) and sends the answer: the new pairs
+//          and the pairs shared before that it drops.
+// Both add one object-object factor per new pair (ObjectObjectFactor) and drop the removed ones.
+// After the last step: the final Gauss-Newton iterations, then DgsNode on the robot's subgraph
+// (its odometry and object-pose factors, then its object-object factors in the order found) from
+// its own estimate. The result equals the in-process pipeline's (same shared objects, same DGS
 // estimate: the tests check 1e-9).
 //
 // Faults. Received packets are validated by the transport (unknown robots, malformed content);
@@ -32,11 +35,12 @@
 // rendezvous_timeout makes the robot fail (moslam::Error): the exchange is not skipped, since
 // skipping would change the result.
 // Restart (state_dir): the rendezvous phase is deterministic given the answers, so the journal
-// `rendezvous.bin` (journal.h) records only each finished event's pairs. A restarted process
-// re-runs its SLAM from its measurements, takes finished events from the journal without
-// waiting, re-sends the answers it gave as beta (the old process may have died before they left)
-// and continues; the DGS phase has its own journal (dgs_node.h). Packets of the DGS protocol
-// that arrive during the rendezvous phase are kept and handed to the DGS node.
+// `rendezvous.bin` (journal.h) records only each finished event's pairs (added and removed:
+// event_record.h). A restarted process re-runs its SLAM from its measurements, takes finished
+// events from the journal without waiting, re-sends the answers it gave as beta (the old process
+// may have died before they left) and continues; the DGS phase has its own journal (dgs_node.h).
+// Packets of the DGS protocol that arrive during the rendezvous phase are kept and handed to the
+// DGS node.
 #pragma once
 
 #include <chrono>
@@ -65,6 +69,9 @@ struct ScenarioSpec {
   double sigma_rotation_deg = 5.0;
   double sigma_translation = 0.2;  // m
   int poses_per_robot = 100;
+  // false: the robots do not know one another's initial poses; beta aligns the two object maps
+  // at a rendezvous (slam/rendezvous.h), and the robot processes are not given the poses.
+  bool known_initial_poses = true;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
@@ -77,19 +84,22 @@ struct RobotScenarioData {
   int robot = 0;
   int num_robots = 0;
   RobotMeasurements measurements;       // its own
-  std::vector<SE3> initial_poses;       // world_T_{r,0} of every robot r (known initial poses)
+  std::vector<SE3> initial_poses;       // world_T_{r,0} of every robot r; empty when unknown
   std::vector<RendezvousEvent> events;  // every event of the scenario, ordered by step
   int numSteps() const { return static_cast<int>(measurements.detections.size()); }
 };
 
-// Throws InvalidInputError when `robot` is not one of the simulation's robots.
-RobotScenarioData SliceForRobot(const SimulationData& data, int robot);
+// Throws InvalidInputError when `robot` is not one of the simulation's robots. Without
+// `known_initial_poses` the slice holds no initial pose.
+RobotScenarioData SliceForRobot(const SimulationData& data, int robot,
+                                bool known_initial_poses = true);
 
 struct SessionRendezvous {
   RendezvousEvent event;
   bool alpha = false;  // this robot's role
   int objects_sent = 0;          // alpha's landmarks in the list
   int new_shared = 0;            // pairs the event added
+  int removed_shared = 0;        // pairs shared before that it removed (unknown initial poses)
   std::int64_t binary_bytes = 0;  // in-process encoding of what this robot sent for it
   bool replayed = false;         // taken from the journal
   double seconds = 0.0;          // waiting for the peer

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <limits>
 #include <mutex>
+#include <random>
 #include <set>
 #include <thread>
 
@@ -146,6 +147,54 @@ TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
   }
 }
 
+// Unknown initial poses: beta aligns the object maps and drops pairs of earlier rendezvous that
+// the new ones contradict, as in-process; the answers carry the removed pairs. The slices hold
+// random initial poses: the result does not change, so nothing reads them.
+TEST(RobotSession, UnknownInitialPosesGiveTheInProcessPairsAndEstimateWithoutReadingThePoses) {
+  ScenarioSpec spec = Small();
+  spec.known_initial_poses = false;
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  ASSERT_TRUE(ref.joint.unanchored_robots.empty());
+  int removed = 0;
+  for (const RendezvousRecord& r : ref.slam.rendezvous) removed += r.removed;
+  ASSERT_GE(removed, 1);  // the removal crosses the transport in this run (3 measured)
+  EXPECT_TRUE(SliceForRobot(data, 0, false).initial_poses.empty());
+
+  InProcessNetwork net;
+  Log log;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+  std::vector<std::string> errors(results.size());
+  std::vector<std::thread> threads;
+  for (int r = 0; r < spec.robots; ++r) {
+    threads.emplace_back([&, r]() {
+      try {
+        RobotScenarioData slice = SliceForRobot(data, r, true);
+        std::mt19937 rng(static_cast<unsigned>(7 + r));
+        std::uniform_real_distribution<double> u(-5.0, 5.0);
+        for (SE3& x : slice.initial_poses) {
+          x = SE3(SO3::Exp(Vector3(u(rng), u(rng), u(rng))), Vector3(u(rng), u(rng), u(rng)));
+        }
+        RobotSession session(slice, *transports[static_cast<std::size_t>(r)], Options(spec, log));
+        results[static_cast<std::size_t>(r)] = session.run();
+      } catch (const std::exception& e) {
+        errors[static_cast<std::size_t>(r)] = e.what();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& e : errors) ASSERT_EQ(e, "");
+  ExpectEqualToInProcess(results, ref);
+  int removed_seen = 0;
+  for (const RobotSessionResult& r : results) {
+    EXPECT_EQ(r.rendezvous_transport.rejected, 0);
+    for (const SessionRendezvous& e : r.rendezvous) removed_seen += e.removed_shared;
+  }
+  EXPECT_EQ(removed_seen, 2 * removed);  // both robots of each event drop the pairs
+}
+
 TEST(RobotSession, RejectsAndLogsForgedObjectListsAndAnswersWithoutCrashing) {
   const ScenarioSpec spec = Small();
   const SimulationData data = SimulateScenario(spec);
@@ -179,6 +228,10 @@ TEST(RobotSession, RejectsAndLogsForgedObjectListsAndAnswersWithoutCrashing) {
   forged.step = step;
   forged.pairs = {{100000, 0}};  // an object the alpha robot does not have
   net.inject(e.beta, e.alpha, forged);
+  SharedObjectsPacket removes = forged;
+  removes.pairs.clear();
+  removes.removed = {{0, 0}};  // nothing is shared before the first rendezvous
+  net.inject(e.beta, e.alpha, removes);
 
   std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
   std::vector<std::string> errors(results.size());
@@ -201,11 +254,12 @@ TEST(RobotSession, RejectsAndLogsForgedObjectListsAndAnswersWithoutCrashing) {
   EXPECT_TRUE(log.contains("non-finite"));
   EXPECT_TRUE(log.contains("exceeds 32 bits"));
   EXPECT_TRUE(log.contains("names object 100000"));
+  EXPECT_TRUE(log.contains("removes pair (0, 0), which the two do not share"));
   EXPECT_EQ(results[static_cast<std::size_t>(e.beta)].rendezvous_transport.rejected, 2);
 }
 
-TEST(RobotSession, ARobotThatCrashesInTheRendezvousPhaseAndRestartsLosesNothing) {
-  const ScenarioSpec spec = Small();
+// The robot with the most events crashes after its second one and restarts from its journal.
+void CrashAndRestartInTheRendezvousPhase(const ScenarioSpec& spec) {
   const SimulationData data = SimulateScenario(spec);
   const Reference ref = InProcess(spec, data);
   // The victim: the robot with the most events; it crashes after its second one.
@@ -240,7 +294,8 @@ TEST(RobotSession, ARobotThatCrashesInTheRendezvousPhaseAndRestartsLosesNothing)
             if (++seen == 2) throw Crash{};
           };
           try {
-            RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+            RobotSession session(SliceForRobot(data, r, spec.known_initial_poses),
+                                 *transports[ri], o);
             session.run();
             errors[ri] = "the victim did not crash";
             return;
@@ -250,7 +305,7 @@ TEST(RobotSession, ARobotThatCrashesInTheRendezvousPhaseAndRestartsLosesNothing)
           transports[ri] = net.connect(r, {log.sink()});  // restarted: receives the history
           o.on_rendezvous = nullptr;
         }
-        RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+        RobotSession session(SliceForRobot(data, r, spec.known_initial_poses), *transports[ri], o);
         results[ri] = session.run();
       } catch (const std::exception& ex) {
         errors[ri] = ex.what();
@@ -266,6 +321,16 @@ TEST(RobotSession, ARobotThatCrashesInTheRendezvousPhaseAndRestartsLosesNothing)
   EXPECT_FALSE(replayed[2].replayed);
   EXPECT_TRUE(log.contains("restart: 2 rendezvous taken from"));
   fs::remove_all(dir);
+}
+
+// With unknown initial poses too: the journal then holds the pairs an event removed.
+TEST(RobotSession, ARobotThatCrashesInTheRendezvousPhaseAndRestartsLosesNothing) {
+  for (const bool known : {true, false}) {
+    SCOPED_TRACE(known ? "known initial poses" : "unknown initial poses");
+    ScenarioSpec spec = Small();
+    spec.known_initial_poses = known;
+    CrashAndRestartInTheRendezvousPhase(spec);
+  }
 }
 
 TEST(RobotSession, ValidatesItsInputs) {

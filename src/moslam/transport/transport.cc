@@ -112,14 +112,17 @@ std::string CheckShared(const SharedObjectsPacket& p, int sender, int self) {
   if (p.receiver != self) {
     return fmt::format("shared objects addressed to robot {}, not to this robot", p.receiver);
   }
-  if (p.pairs.size() > kMaxObjects) return "shared objects with too many pairs";
-  std::set<std::uint64_t> alpha, beta;
-  for (const auto& [a, b] : p.pairs) {
-    if (a > kMaxKeyIndex || b > kMaxKeyIndex) {
-      return fmt::format("shared object pair ({}, {}) out of range", a, b);
-    }
-    if (!alpha.insert(a).second || !beta.insert(b).second) {
-      return fmt::format("shared object pair ({}, {}) uses an object twice", a, b);
+  for (const auto* list : {&p.pairs, &p.removed}) {
+    const char* what = list == &p.pairs ? "shared object pair" : "removed shared object pair";
+    if (list->size() > kMaxObjects) return fmt::format("too many of: {}", what);
+    std::set<std::uint64_t> alpha, beta;
+    for (const auto& [a, b] : *list) {
+      if (a > kMaxKeyIndex || b > kMaxKeyIndex) {
+        return fmt::format("{} ({}, {}) out of range", what, a, b);
+      }
+      if (!alpha.insert(a).second || !beta.insert(b).second) {
+        return fmt::format("{} ({}, {}) uses an object twice", what, a, b);
+      }
     }
   }
   return {};
@@ -192,8 +195,8 @@ std::int64_t BinarySize(const Packet& packet) {
     return static_cast<std::int64_t>(EncodeCoarseMessage(c->message).size()) + 8;  // + solve, round
   }
   if (const auto* h = std::get_if<SharedObjectsPacket>(&packet)) {
-    // sender, receiver u16, step u32, count u32, two u64 ids per pair.
-    return 2 + 2 + 4 + 4 + 16 * static_cast<std::int64_t>(h->pairs.size());
+    // sender, receiver u16, step u32, two counts u32, two u64 ids per pair.
+    return 2 + 2 + 4 + 4 + 4 + 16 * static_cast<std::int64_t>(h->pairs.size() + h->removed.size());
   }
   const auto& o = std::get<ObjectListPacket>(packet);
   std::int64_t bytes = 2 + 4 + 4 + 4;  // robot, revision, step, count

@@ -127,13 +127,15 @@ struct ObjectListPacket {
   std::vector<ObjectObservation> objects;
 };
 
-// Beta's answer to alpha's object list of `step`: (alpha object id, beta object id) per shared
-// object, each id at most once.
+// Beta's answer to alpha's object list of `step`: (alpha object id, beta object id) per new
+// shared object, and per pair shared before that the consistency check across rendezvous drops
+// (unknown initial poses: slam/rendezvous.h); each id at most once per list.
 struct SharedObjectsPacket {
   int sender = 0;    // beta, who matched
   int receiver = 0;  // alpha, who sent the list
   std::uint32_t step = 0;
   std::vector<std::pair<std::uint64_t, std::uint64_t>> pairs;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> removed;
 };
 
 using Packet = std::variant<EstimatesPacket, StatusPacket, ObjectListPacket, SharedObjectsPacket,

@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "moslam/common/errors.h"
+#include "moslam/transport/event_record.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/journal.h"
 #include "moslam/transport/transport.h"
@@ -214,6 +215,45 @@ TEST(InProcessTransport, DeliversSharedObjectsToTheReceiverOnlyAndChecksThem) {
   EXPECT_THROW(t0->send(h), InvalidInputError);
   h.pairs = {{1, 2}};
   EXPECT_NE(CheckPacket(h, 0, 2, {}), "");  // addressed to robot 1, received by robot 2
+  // The pairs an answer removes (unknown initial poses) travel and are checked alike.
+  h.removed = {{5, 6}, {7, 8}};
+  t0->send(h);
+  const auto removed = PollFor(*t1, 1);
+  ASSERT_EQ(removed.size(), 1u);
+  EXPECT_EQ(std::get<SharedObjectsPacket>(removed[0].packet).removed, h.removed);
+  h.removed.push_back({9, 6});  // beta object 6 twice
+  EXPECT_NE(CheckPacket(h, 0, 1, {}), "");
+  h.removed = {{std::uint64_t{1} << 60, 1}};  // beyond a key index
+  EXPECT_NE(CheckPacket(h, 0, 1, {}), "");
+}
+
+// The rendezvous journal record of a robot session (event_record.h).
+TEST(EventRecord, RoundTripsAndRejectsTruncatedTrailingAndRepeatedObjects) {
+  using namespace transport_detail;
+  EventRecord r;
+  r.event = 7;
+  r.pairs = {{1, 2}, {3, 4}};
+  r.removed = {{5, 6}};
+  std::vector<std::uint8_t> bytes{0xAB};  // a type byte before the fields
+  AppendEventRecord(r, bytes);
+  const EventRecord back = ReadEventRecord(bytes, 1, "test");
+  EXPECT_EQ(back.event, 7u);
+  EXPECT_EQ(back.pairs, r.pairs);
+  EXPECT_EQ(back.removed, r.removed);
+  std::vector<std::uint8_t> cut(bytes.begin(), bytes.end() - 1);
+  EXPECT_THROW(ReadEventRecord(cut, 1, "test"), InvalidInputError);
+  std::vector<std::uint8_t> longer = bytes;
+  longer.push_back(0);
+  EXPECT_THROW(ReadEventRecord(longer, 1, "test"), InvalidInputError);
+  EXPECT_THROW(ReadEventRecord(bytes, bytes.size() + 1, "test"), InvalidInputError);
+  r.removed = {{5, 6}, {5, 8}};  // alpha object 5 twice in one list
+  std::vector<std::uint8_t> twice;
+  AppendEventRecord(r, twice);
+  EXPECT_THROW(ReadEventRecord(twice, 0, "test"), InvalidInputError);
+  std::vector<std::uint8_t> huge;  // a count far beyond the bytes: no allocation, an error
+  AppendEventRecord({1, {}, {}}, huge);
+  huge[4] = huge[5] = huge[6] = huge[7] = 0xFF;
+  EXPECT_THROW(ReadEventRecord(huge, 0, "test"), InvalidInputError);
 }
 
 TEST(CheckPacket, AcceptsInfiniteChangeAndValidObjectLists) {

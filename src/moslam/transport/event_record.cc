@@ -1,0 +1,47 @@
+#include "moslam/transport/event_record.h"
+
+#include <set>
+
+#include "moslam/common/errors.h"
+#include "moslam/transport/record_bytes.h"
+
+namespace moslam::transport_detail {
+
+void AppendEventRecord(const EventRecord& record, std::vector<std::uint8_t>& out) {
+  RecordWriter b;
+  b.u32(record.event);
+  for (const ObjectPairs* list : {&record.pairs, &record.removed}) {
+    b.u32(static_cast<std::uint32_t>(list->size()));
+    for (const auto& [a, c] : *list) b.u32(a).u32(c);
+  }
+  out.insert(out.end(), b.data().begin(), b.data().end());
+}
+
+EventRecord ReadEventRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
+                            const std::string& what) {
+  if (offset > bytes.size()) throw InvalidInputError(what + ": truncated journal record");
+  const std::vector<std::uint8_t> body(bytes.begin() + static_cast<std::ptrdiff_t>(offset),
+                                       bytes.end());
+  RecordReader p(body, what);
+  EventRecord record;
+  record.event = p.u32();
+  for (ObjectPairs* list : {&record.pairs, &record.removed}) {
+    const std::uint32_t n = p.u32();
+    // Each pair takes 8 bytes: a count beyond what is left is a truncated record (checked
+    // before reserving anything).
+    if (n > body.size() / 8) throw InvalidInputError(what + ": truncated journal record");
+    std::set<std::uint32_t> alpha, beta;
+    for (std::uint32_t k = 0; k < n; ++k) {
+      const std::uint32_t a = p.u32(), c = p.u32();
+      if (!alpha.insert(a).second || !beta.insert(c).second) {
+        throw InvalidInputError(what + ": a rendezvous record uses object " +
+                                std::to_string(alpha.count(a) ? a : c) + " twice in one list");
+      }
+      list->emplace_back(a, c);
+    }
+  }
+  if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a rendezvous record");
+  return record;
+}
+
+}  // namespace moslam::transport_detail
