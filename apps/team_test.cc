@@ -330,15 +330,26 @@ TEST(Team, ARobotThatDiesForGoodIsNoticedAndTheOthersFinish) {
 const std::vector<std::string> kScenario = {"--scenario", "chairs25", "--robots", "6", "--poses",
                                             "40"};
 
-TEST(Team, AScenarioAsProcessesEqualsTheInProcessPipeline) {
-  const fs::path out = FreshDir("scenario");
-  std::vector<std::string> args = {"team", "--domain", "53", "--out", out.string(), "--timeout",
-                                   "120", "--json"};
+// `moslam team` on kScenario in DDS domain `domain` with `extra` flags, writing to `out`: its
+// JSON summary (a failed test when it does not exit with 0 or prints none).
+nlohmann::json RunScenarioTeam(const fs::path& out, int domain,
+                               const std::vector<std::string>& extra) {
+  std::vector<std::string> args = {"team", "--domain", std::to_string(domain), "--out",
+                                   out.string(), "--timeout", "120", "--json"};
+  args.insert(args.end(), extra.begin(), extra.end());
   args.insert(args.end(), kScenario.begin(), kScenario.end());
   Child team(args, "", out / "team.log");
-  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
-  const nlohmann::json j = LastJson(team.output());
-  ASSERT_TRUE(j.is_object()) << team.output();
+  const int code = team.wait(Clock::now() + std::chrono::seconds(150));
+  EXPECT_EQ(code, 0) << team.output();
+  nlohmann::json j = LastJson(team.output());
+  EXPECT_TRUE(j.is_object()) << team.output();
+  return code == 0 && j.is_object() ? j : nlohmann::json();
+}
+
+TEST(Team, AScenarioAsProcessesEqualsTheInProcessPipeline) {
+  const fs::path out = FreshDir("scenario");
+  const nlohmann::json j = RunScenarioTeam(out, 53, {});
+  ASSERT_TRUE(j.is_object());
   EXPECT_TRUE(j["ok"].get<bool>());
   // The same rendezvous, the same shared objects, the same bytes in the in-process encoding.
   EXPECT_EQ(j["rendezvous_events"], j["in_process_rendezvous_events"]);
@@ -365,13 +376,8 @@ TEST(Team, AScenarioAsProcessesEqualsTheInProcessPipeline) {
 // rendezvous (12 removals counted over the robots in this run); pairs and estimate as in-process.
 TEST(Team, UnknownInitialPosesAsProcessesEqualTheInProcessPipeline) {
   const fs::path out = FreshDir("unknown");
-  std::vector<std::string> args = {"team", "--domain", "57", "--out", out.string(), "--timeout",
-                                   "120", "--json", "--initial-poses", "unknown"};
-  args.insert(args.end(), kScenario.begin(), kScenario.end());
-  Child team(args, "", out / "team.log");
-  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
-  const nlohmann::json j = LastJson(team.output());
-  ASSERT_TRUE(j.is_object()) << team.output();
+  const nlohmann::json j = RunScenarioTeam(out, 57, {"--initial-poses", "unknown"});
+  ASSERT_TRUE(j.is_object());
   EXPECT_TRUE(j["ok"].get<bool>());
   EXPECT_EQ(j["initial_poses"], "unknown");
   EXPECT_TRUE(j["shared_objects_equal"].get<bool>());
@@ -388,13 +394,8 @@ TEST(Team, UnknownInitialPosesAsProcessesEqualTheInProcessPipeline) {
 
 TEST(Team, OnlineScenarioProcessesSaveEveryMapOfTheInProcessTwin) {
   const fs::path out = FreshDir("online");
-  std::vector<std::string> args = {"team", "--domain", "58", "--out", out.string(), "--timeout",
-                                   "120", "--online", "--json"};
-  args.insert(args.end(), kScenario.begin(), kScenario.end());
-  Child team(args, "", out / "team.log");
-  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
-  const nlohmann::json j = LastJson(team.output());
-  ASSERT_TRUE(j.is_object()) << team.output();
+  const nlohmann::json j = RunScenarioTeam(out, 58, {"--online"});
+  ASSERT_TRUE(j.is_object());
   EXPECT_TRUE(j["ok"].get<bool>());
   // Every robot's map after each of its group solves, and at the end, as the twin's.
   const int solves = j["group_solves"].get<int>();

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <random>
@@ -109,6 +110,31 @@ void ExpectEqualToInProcess(const std::vector<RobotSessionResult>& results, cons
   EXPECT_LE(MaxPoseDifference(merged, ref.dgs.values), 1e-9);
 }
 
+// One session per robot, each on a thread of its own, over `transports` (robot r's at index r),
+// with robot r's data from `slice`; fails the test when a session throws.
+std::vector<RobotSessionResult> RunSessions(const ScenarioSpec& spec,
+                                            std::vector<std::unique_ptr<Transport>>& transports,
+                                            Log& log,
+                                            const std::function<RobotScenarioData(int)>& slice) {
+  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+  std::vector<std::string> errors(results.size());
+  std::vector<std::thread> threads;
+  for (int r = 0; r < spec.robots; ++r) {
+    threads.emplace_back([&, r]() {
+      try {
+        RobotSession session(slice(r), *transports[static_cast<std::size_t>(r)],
+                             Options(spec, log));
+        results[static_cast<std::size_t>(r)] = session.run();
+      } catch (const std::exception& e) {
+        errors[static_cast<std::size_t>(r)] = e.what();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& e : errors) EXPECT_EQ(e, "");
+  return results;
+}
+
 TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
   const ScenarioSpec spec = Small();
   const SimulationData data = SimulateScenario(spec);
@@ -121,22 +147,9 @@ TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
   Log log;
   std::vector<std::unique_ptr<Transport>> transports;
   for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
-  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
-  std::vector<std::string> errors(results.size());
-  std::vector<std::thread> threads;
-  for (int r = 0; r < spec.robots; ++r) {
-    threads.emplace_back([&, r]() {
-      try {
-        RobotSession session(SliceForRobot(data, r), *transports[static_cast<std::size_t>(r)],
-                             Options(spec, log));
-        results[static_cast<std::size_t>(r)] = session.run();
-      } catch (const std::exception& e) {
-        errors[static_cast<std::size_t>(r)] = e.what();
-      }
-    });
-  }
-  for (auto& t : threads) t.join();
-  for (const std::string& e : errors) ASSERT_EQ(e, "");
+  const std::vector<RobotSessionResult> results =
+      RunSessions(spec, transports, log, [&](int r) { return SliceForRobot(data, r); });
+  ASSERT_FALSE(HasFailure());
   ExpectEqualToInProcess(results, ref);
   for (const RobotSessionResult& r : results) {
     EXPECT_EQ(r.rendezvous_transport.rejected, 0);
@@ -165,27 +178,16 @@ TEST(RobotSession, UnknownInitialPosesGiveTheInProcessPairsAndEstimateWithoutRea
   Log log;
   std::vector<std::unique_ptr<Transport>> transports;
   for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
-  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
-  std::vector<std::string> errors(results.size());
-  std::vector<std::thread> threads;
-  for (int r = 0; r < spec.robots; ++r) {
-    threads.emplace_back([&, r]() {
-      try {
-        RobotScenarioData slice = SliceForRobot(data, r, true);
-        std::mt19937 rng(static_cast<unsigned>(7 + r));
-        std::uniform_real_distribution<double> u(-5.0, 5.0);
-        for (SE3& x : slice.initial_poses) {
-          x = SE3(SO3::Exp(Vector3(u(rng), u(rng), u(rng))), Vector3(u(rng), u(rng), u(rng)));
-        }
-        RobotSession session(slice, *transports[static_cast<std::size_t>(r)], Options(spec, log));
-        results[static_cast<std::size_t>(r)] = session.run();
-      } catch (const std::exception& e) {
-        errors[static_cast<std::size_t>(r)] = e.what();
-      }
-    });
-  }
-  for (auto& t : threads) t.join();
-  for (const std::string& e : errors) ASSERT_EQ(e, "");
+  const std::vector<RobotSessionResult> results = RunSessions(spec, transports, log, [&](int r) {
+    RobotScenarioData slice = SliceForRobot(data, r, true);
+    std::mt19937 rng(static_cast<unsigned>(7 + r));
+    std::uniform_real_distribution<double> u(-5.0, 5.0);
+    for (SE3& x : slice.initial_poses) {
+      x = SE3(SO3::Exp(Vector3(u(rng), u(rng), u(rng))), Vector3(u(rng), u(rng), u(rng)));
+    }
+    return slice;
+  });
+  ASSERT_FALSE(HasFailure());
   ExpectEqualToInProcess(results, ref);
   int removed_seen = 0;
   for (const RobotSessionResult& r : results) {
@@ -233,22 +235,9 @@ TEST(RobotSession, RejectsAndLogsForgedObjectListsAndAnswersWithoutCrashing) {
   removes.removed = {{0, 0}};  // nothing is shared before the first rendezvous
   net.inject(e.beta, e.alpha, removes);
 
-  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
-  std::vector<std::string> errors(results.size());
-  std::vector<std::thread> threads;
-  for (int r = 0; r < spec.robots; ++r) {
-    threads.emplace_back([&, r]() {
-      try {
-        RobotSession session(SliceForRobot(data, r), *transports[static_cast<std::size_t>(r)],
-                             Options(spec, log));
-        results[static_cast<std::size_t>(r)] = session.run();
-      } catch (const std::exception& ex) {
-        errors[static_cast<std::size_t>(r)] = ex.what();
-      }
-    });
-  }
-  for (auto& t : threads) t.join();
-  for (const std::string& err : errors) ASSERT_EQ(err, "");
+  const std::vector<RobotSessionResult> results =
+      RunSessions(spec, transports, log, [&](int r) { return SliceForRobot(data, r); });
+  ASSERT_FALSE(HasFailure());
   ExpectEqualToInProcess(results, ref);
   EXPECT_TRUE(log.contains("unknown robot 7"));
   EXPECT_TRUE(log.contains("non-finite"));
