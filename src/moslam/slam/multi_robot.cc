@@ -126,9 +126,8 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
         return ta >= 0 && ta == TrueObject(out.robots, s.beta_object);
       };
       for (const auto& s : o.removed_shared) {
-        const auto it = std::find_if(out.shared.begin(), out.shared.end(), [&](const SharedObject& x) {
-          return x.alpha_object == s.alpha_object && x.beta_object == s.beta_object;
-        });
+        const auto it = std::find_if(out.shared.begin(), out.shared.end(),
+                                     [&](const SharedObject& x) { return SameLandmarks(x, s); });
         if (it == out.shared.end()) {
           throw InvalidInputError("RunMultiRobotObjectSlam: a rendezvous removed a pair never shared");
         }

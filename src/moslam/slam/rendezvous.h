@@ -130,6 +130,13 @@ struct SharedObject {
   Key alpha_object;
 };
 
+// Whether two shared objects join the same two landmarks, whichever robot was alpha at each
+// (a pair removed at a rendezvous may have been found at one with the roles the other way).
+inline bool SameLandmarks(const SharedObject& a, const SharedObject& b) {
+  return (a.beta_object == b.beta_object && a.alpha_object == b.alpha_object) ||
+         (a.beta_object == b.alpha_object && a.alpha_object == b.beta_object);
+}
+
 RelativePoseFactor ObjectObjectFactor(const SharedObject& shared, const Matrix6& lambda);
 
 // The transform under which beta matches alpha's objects: `prior` (the known-initial-pose

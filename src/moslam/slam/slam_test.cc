@@ -337,6 +337,15 @@ TwoMaps HandMadeMaps() {
   return t;
 }
 
+TEST(Rendezvous, SameLandmarksWhicheverRobotWasAlpha) {
+  const SharedObject found{Key::Object(1, 4), Key::Object(0, 2)};     // robot 0 alpha
+  const SharedObject swapped{Key::Object(0, 2), Key::Object(1, 4)};   // robot 1 alpha
+  const SharedObject other{Key::Object(1, 4), Key::Object(0, 3)};
+  EXPECT_TRUE(SameLandmarks(found, found));
+  EXPECT_TRUE(SameLandmarks(found, swapped));
+  EXPECT_FALSE(SameLandmarks(found, other));
+}
+
 TEST(Rendezvous, TransformsWithTheInitialPosesAndMatchesNearestSameLabel) {
   const TwoMaps t = HandMadeMaps();
   const SE3 beta_T_alpha = t.world_T_beta0.inverse() * t.world_T_alpha0;
