@@ -126,14 +126,11 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
         return ta >= 0 && ta == TrueObject(out.robots, s.beta_object);
       };
       for (const auto& s : o.removed_shared) {
-        const auto it = std::find_if(out.shared.begin(), out.shared.end(),
-                                     [&](const SharedObject& x) { return SameLandmarks(x, s); });
-        if (it == out.shared.end()) {
+        if (!EraseShared(out.shared, s)) {
           throw InvalidInputError("RunMultiRobotObjectSlam: a rendezvous removed a pair never shared");
         }
         ++rec.removed;
         rec.removed_correct += correct(s) ? 1 : 0;
-        out.shared.erase(it);
       }
       for (const auto& s : o.new_shared) {
         if (correct(s)) ++rec.new_shared_correct;

@@ -531,6 +531,16 @@ SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const Obj
   return reply;
 }
 
+bool EraseShared(std::vector<SharedObject>& shared, const SharedObject& pair) {
+  const auto it = std::find_if(shared.begin(), shared.end(), [&](const SharedObject& x) {
+    return (x.beta_object == pair.beta_object && x.alpha_object == pair.alpha_object) ||
+           (x.beta_object == pair.alpha_object && x.alpha_object == pair.beta_object);
+  });
+  if (it == shared.end()) return false;
+  shared.erase(it);
+  return true;
+}
+
 std::vector<SharedObject> RemovedObjectsOf(const SharedObjectsMessage& answer) {
   std::vector<SharedObject> out;
   for (const auto& [ka, kb] : answer.removed) {

@@ -130,12 +130,10 @@ struct SharedObject {
   Key alpha_object;
 };
 
-// Whether two shared objects join the same two landmarks, whichever robot was alpha at each
-// (a pair removed at a rendezvous may have been found at one with the roles the other way).
-inline bool SameLandmarks(const SharedObject& a, const SharedObject& b) {
-  return (a.beta_object == b.beta_object && a.alpha_object == b.alpha_object) ||
-         (a.beta_object == b.alpha_object && a.alpha_object == b.beta_object);
-}
+// Erases from `shared` the pair that joins the landmarks of `pair`, whichever robot was alpha
+// when it was found (a pair removed at a rendezvous may have been found at one with the roles the
+// other way); false when there is none.
+bool EraseShared(std::vector<SharedObject>& shared, const SharedObject& pair);
 
 RelativePoseFactor ObjectObjectFactor(const SharedObject& shared, const Matrix6& lambda);
 

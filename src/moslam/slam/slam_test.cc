@@ -337,13 +337,20 @@ TwoMaps HandMadeMaps() {
   return t;
 }
 
-TEST(Rendezvous, SameLandmarksWhicheverRobotWasAlpha) {
+TEST(Rendezvous, EraseSharedFindsThePairWhicheverRobotWasAlpha) {
   const SharedObject found{Key::Object(1, 4), Key::Object(0, 2)};     // robot 0 alpha
   const SharedObject swapped{Key::Object(0, 2), Key::Object(1, 4)};   // robot 1 alpha
   const SharedObject other{Key::Object(1, 4), Key::Object(0, 3)};
-  EXPECT_TRUE(SameLandmarks(found, found));
-  EXPECT_TRUE(SameLandmarks(found, swapped));
-  EXPECT_FALSE(SameLandmarks(found, other));
+  std::vector<SharedObject> shared{other, found};
+  EXPECT_TRUE(EraseShared(shared, found));
+  ASSERT_EQ(shared.size(), 1u);
+  EXPECT_EQ(shared[0].alpha_object, other.alpha_object);
+  shared.push_back(found);
+  EXPECT_TRUE(EraseShared(shared, swapped));
+  EXPECT_EQ(shared.size(), 1u);
+  EXPECT_FALSE(EraseShared(shared, found));
+  EXPECT_FALSE(EraseShared(shared, swapped));
+  EXPECT_EQ(shared.size(), 1u);
 }
 
 TEST(Rendezvous, TransformsWithTheInitialPosesAndMatchesNearestSameLabel) {

@@ -175,9 +175,13 @@ std::vector<double> Doubles(const Seq& seq) {
   return std::vector<double>(seq._buffer, seq._buffer + seq._length);
 }
 
-template <typename T>
-auto View(const std::vector<T>& v) {
-  return std::make_pair(static_cast<std::uint32_t>(v.size()), const_cast<T*>(v.data()));
+// Points a sample's sequence at `v` without copying (the sample does not own it: `v` must outlive
+// the write).
+template <typename T, typename Field>
+void Lend(const std::vector<T>& v, Field& field) {
+  field._length = field._maximum = static_cast<std::uint32_t>(v.size());
+  field._buffer = const_cast<T*>(v.data());
+  field._release = false;
 }
 
 CoarsePacket FromSample(const CoarseSample& s) {
@@ -290,8 +294,7 @@ class DdsTransport::Impl {
     s.round = p.round;
     s.iteration = p.message.iteration;
     s.initialised = p.message.initialised;
-    s.keys = {static_cast<std::uint32_t>(keys.size()), static_cast<std::uint32_t>(keys.size()),
-              keys.data(), false};
+    Lend(keys, s.keys);
     s.values = {static_cast<std::uint32_t>(p.message.values.size()),
                 static_cast<std::uint32_t>(p.message.values.size()),
                 const_cast<double*>(p.message.values.data()), false};
@@ -317,15 +320,13 @@ class DdsTransport::Impl {
       }
       return out;
     };
-    std::vector<PairSample> pairs = samples(p.pairs), removed = samples(p.removed);
+    const std::vector<PairSample> pairs = samples(p.pairs), removed = samples(p.removed);
     SharedSample s{};
     s.sender = static_cast<std::uint16_t>(robot_);
     s.receiver = static_cast<std::uint16_t>(p.receiver);
     s.step = p.step;
-    s.pairs = {static_cast<std::uint32_t>(pairs.size()), static_cast<std::uint32_t>(pairs.size()),
-               pairs.data(), false};
-    s.removed = {static_cast<std::uint32_t>(removed.size()),
-                 static_cast<std::uint32_t>(removed.size()), removed.data(), false};
+    Lend(pairs, s.pairs);
+    Lend(removed, s.removed);
     std::lock_guard<std::mutex> lock(mutex_);
     outbox(shared_writers_, moslam_msg_dds__SharedObjects__desc, SharedObjectsTopicName(p.receiver),
            p.receiver)
@@ -358,8 +359,7 @@ class DdsTransport::Impl {
     s.coarse = p.coarse;
     s.values[0] = p.value[0];
     s.values[1] = p.value[1];
-    s.neighbours = {static_cast<std::uint32_t>(neighbours.size()),
-                    static_cast<std::uint32_t>(neighbours.size()), neighbours.data(), false};
+    Lend(neighbours, s.neighbours);
     std::vector<TeamPairSample> team(p.team.size());
     for (std::size_t i = 0; i < p.team.size(); ++i) {
       const TeamPairEntry& t = p.team[i];
@@ -372,8 +372,7 @@ class DdsTransport::Impl {
       w.step = t.step;
       PoseToWire(t.pose, w.position, w.orientation);
     }
-    s.team = {static_cast<std::uint32_t>(team.size()), static_cast<std::uint32_t>(team.size()),
-              team.data(), false};
+    Lend(team, s.team);
     std::lock_guard<std::mutex> lock(mutex_);
     status_writer_.write(&s);
     const std::int64_t bytes = CdrSize(moslam_msg_dds__Status__desc, &s);
@@ -393,11 +392,6 @@ class DdsTransport::Impl {
       robots.push_back(static_cast<std::uint16_t>(r));
       blocks.insert(blocks.end(), block.begin(), block.end());
     }
-    auto seq = [](auto view, auto& field) {
-      field._length = field._maximum = view.first;
-      field._buffer = view.second;
-      field._release = false;
-    };
     CoarseSample s{};
     s.sender = static_cast<std::uint16_t>(robot_);
     s.solve = p.solve;
@@ -407,11 +401,11 @@ class DdsTransport::Impl {
     s.iteration = m.iteration;
     s.k = static_cast<std::uint8_t>(m.k);
     s.ncols = static_cast<std::uint8_t>(m.ncols);
-    seq(View(m.center), s.center);
-    seq(View(m.diagonal), s.diagonal);
-    seq(View(m.residual), s.residual);
-    seq(View(robots), s.block_robots);
-    seq(View(blocks), s.blocks);
+    Lend(m.center, s.center);
+    Lend(m.diagonal, s.diagonal);
+    Lend(m.residual, s.residual);
+    Lend(robots, s.block_robots);
+    Lend(blocks, s.blocks);
     std::lock_guard<std::mutex> lock(mutex_);
     coarse_writer_.write(&s);
     const std::int64_t bytes = CdrSize(moslam_msg_dds__DgsCoarse__desc, &s);
@@ -437,8 +431,7 @@ class DdsTransport::Impl {
     s.robot = static_cast<std::uint16_t>(robot_);
     s.revision = p.revision;
     s.step = p.step;
-    s.objects = {static_cast<std::uint32_t>(objects.size()),
-                 static_cast<std::uint32_t>(objects.size()), objects.data(), false};
+    Lend(objects, s.objects);
     std::lock_guard<std::mutex> lock(mutex_);
     objects_writer_.write(&s);
     const std::int64_t bytes = CdrSize(moslam_msg_dds__ObjectList__desc, &s);

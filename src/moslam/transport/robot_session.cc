@@ -341,14 +341,11 @@ class RobotSession::Impl {
         if (!rec.alpha) rec.binary_bytes = static_cast<std::int64_t>(EncodeSharedObjects(answer).size());
         // As RunMultiRobotObjectSlam: the removed pairs leave first, the new ones are appended.
         for (const SharedObject& s : RemovedObjectsOf(answer)) {
-          const auto it = std::find_if(shared_.begin(), shared_.end(),
-                                       [&](const SharedObject& x) { return SameLandmarks(x, s); });
-          if (it == shared_.end()) {  // only a journal of another run gets here
+          if (!EraseShared(shared_, s)) {  // only a journal of another run gets here
             throw InvalidInputError(fmt::format(
                 "robot {}: the rendezvous of step {} removes a pair never shared (journal of "
                 "another run?)", robot_, e.step));
           }
-          shared_.erase(it);
         }
         const std::vector<SharedObject> added = SharedObjectsOf(answer);
         shared_.insert(shared_.end(), added.begin(), added.end());
