@@ -5,12 +5,12 @@
 
 #include <gtest/gtest.h>
 
-#include <condition_variable>
 #include <map>
 #include <mutex>
 #include <thread>
 
 #include "moslam/common/errors.h"
+#include "moslam/distributed/board_channel_test_util.h"
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/partition.h"
 #include "moslam/io/g2o.h"
@@ -19,55 +19,8 @@
 namespace moslam {
 namespace {
 
-// Every robot's step s completes once all robots have posted their step s.
-class SharedBoard {
- public:
-  explicit SharedBoard(int robots) : robots_(robots) {}
-
-  TeamStep post(int robot, std::size_t s, const std::vector<OutgoingMessage>& out,
-                const TeamReport& report, const CoarseMessage* share) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    Round& round = rounds_[s];
-    for (const OutgoingMessage& o : out) round.inbox[o.to].push_back(o.message);
-    round.reports[robot] = report;
-    if (share) round.shares[robot] = DecodeCoarseMessage(EncodeCoarseMessage(*share));
-    if (static_cast<int>(round.reports.size()) == robots_) changed_.notify_all();
-    changed_.wait(lock, [&]() { return static_cast<int>(round.reports.size()) == robots_; });
-    TeamStep got;
-    for (const Message& m : round.inbox[robot]) {
-      got.estimates.push_back(DecodeMessage(EncodeMessage(m)));  // the bytes a network carries
-    }
-    got.reports = round.reports;
-    got.shares = round.shares;
-    return got;
-  }
-
- private:
-  struct Round {
-    std::map<int, std::vector<Message>> inbox;
-    std::map<int, TeamReport> reports;
-    std::map<int, CoarseMessage> shares;
-  };
-  int robots_;
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  std::map<std::size_t, Round> rounds_;
-};
-
-class BoardChannel : public TeamChannel {
- public:
-  BoardChannel(SharedBoard& board, int robot) : board_(board), robot_(robot) {}
-  TeamStep step(DgsStage, const std::vector<OutgoingMessage>& estimates, const TeamReport& report,
-                const CoarseMessage* share) override {
-    return board_.post(robot_, steps_++, estimates, report, share);
-  }
-  std::set<int> absent() const override { return {}; }
-
- private:
-  SharedBoard& board_;
-  int robot_;
-  std::size_t steps_ = 0;
-};
+using test::BoardChannel;
+using test::SharedBoard;
 
 struct TeamOutcome {
   Values values;

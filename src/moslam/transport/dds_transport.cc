@@ -13,6 +13,7 @@
 #include "moslam/transport/dds_entities.h"
 #include "moslam/transport/idl/DgsCoarse.h"
 #include "moslam/transport/idl/DgsEstimates.h"
+#include "moslam/transport/idl/DgsWeights.h"
 #include "moslam/transport/idl/ObjectList.h"
 #include "moslam/transport/idl/SharedObjects.h"
 #include "moslam/transport/idl/Status.h"
@@ -34,6 +35,9 @@ std::string CoarseTopicName() { return "rt/moslam/dgs_coarse"; }
 std::string ObjectsTopicName() { return "rt/moslam/objects"; }
 std::string EstimatesTopicName(int robot) {
   return "rt/moslam/robot" + std::to_string(robot) + "/dgs_estimates";
+}
+std::string WeightsTopicName(int robot) {
+  return "rt/moslam/robot" + std::to_string(robot) + "/dgs_weights";
 }
 std::string SharedObjectsTopicName(int robot) {
   return "rt/moslam/robot" + std::to_string(robot) + "/shared_objects";
@@ -83,6 +87,7 @@ std::int64_t CdrSize(const dds_topic_descriptor_t& type, const void* sample) {
 using EstimatesSample = moslam_msg_dds__DgsEstimates_;
 using StatusSample = moslam_msg_dds__Status_;
 using CoarseSample = moslam_msg_dds__DgsCoarse_;
+using WeightsSample = moslam_msg_dds__DgsWeights_;
 using ObjectListSample = moslam_msg_dds__ObjectList_;
 using ObjectPoseSample = moslam_msg_dds__ObjectPose_;
 using SharedSample = moslam_msg_dds__SharedObjects_;
@@ -152,6 +157,7 @@ StatusPacket FromSample(const StatusSample& s) {
   p.error_bound = s.error_bound;
   p.coarse_ready = s.coarse_ready;
   p.coarse = s.coarse;
+  p.weights = s.weights;
   p.value[0] = s.values[0];
   p.value[1] = s.values[1];
   p.neighbours.assign(s.neighbours._buffer, s.neighbours._buffer + s.neighbours._length);
@@ -214,6 +220,17 @@ CoarsePacket FromSample(const CoarseSample& s) {
   return p;
 }
 
+WeightsPacket FromSample(const WeightsSample& s) {
+  WeightsPacket p;
+  p.solve = s.solve;
+  p.round = s.round;
+  p.message.sender = s.sender;
+  p.message.receiver = s.receiver;
+  p.message.round = s.gnc_round;
+  p.message.weights = Doubles(s.weights);
+  return p;
+}
+
 ObjectListPacket FromSample(const ObjectListSample& s) {
   ObjectListPacket p;
   p.robot = s.robot;
@@ -263,6 +280,8 @@ class DdsTransport::Impl {
                      writer_qos_),
         shared_topic_(participant_, moslam_msg_dds__SharedObjects__desc,
                       SharedObjectsTopicName(robot), writer_qos_),
+        weights_topic_(participant_, moslam_msg_dds__DgsWeights__desc, WeightsTopicName(robot),
+                       writer_qos_),
         status_writer_(participant_, status_topic_, writer_qos_),
         coarse_writer_(participant_, coarse_topic_, writer_qos_),
         objects_writer_(participant_, objects_topic_, writer_qos_),
@@ -271,6 +290,7 @@ class DdsTransport::Impl {
         objects_reader_(participant_, objects_topic_, reader_qos_),
         inbox_reader_(participant_, inbox_topic_, reader_qos_),
         shared_reader_(participant_, shared_topic_, reader_qos_),
+        weights_reader_(participant_, weights_topic_, reader_qos_),
         waitset_(participant_) {
     if (!options_.transport.log) options_.transport.log = StderrLog(robot_);
     waitset_.attach(status_reader_);
@@ -278,6 +298,7 @@ class DdsTransport::Impl {
     waitset_.attach(objects_reader_);
     waitset_.attach(inbox_reader_);
     waitset_.attach(shared_reader_);
+    waitset_.attach(weights_reader_);
   }
 
   void send(const EstimatesPacket& p) {
@@ -338,6 +359,27 @@ class DdsTransport::Impl {
     stats_.objects_bytes += bytes;
   }
 
+  void send(const WeightsPacket& p) {
+    const std::string why = CheckPacket(p, robot_, p.message.receiver, {});
+    if (!why.empty()) throw InvalidInputError("cannot send: " + why);
+    WeightsSample s{};
+    s.sender = static_cast<std::uint16_t>(robot_);
+    s.receiver = static_cast<std::uint16_t>(p.message.receiver);
+    s.solve = p.solve;
+    s.round = p.round;
+    s.gnc_round = p.message.round;
+    Lend(p.message.weights, s.weights);
+    std::lock_guard<std::mutex> lock(mutex_);
+    outbox(weight_writers_, moslam_msg_dds__DgsWeights__desc,
+           WeightsTopicName(p.message.receiver), p.message.receiver)
+        .write(&s);
+    const std::int64_t bytes = CdrSize(moslam_msg_dds__DgsWeights__desc, &s);
+    ++stats_.sent_samples;
+    stats_.sent_bytes += bytes;
+    ++stats_.weights_sent;
+    stats_.weights_bytes += bytes;
+  }
+
   void publish(const StatusPacket& p) {
     const std::string why = CheckPacket(p, robot_, -1, {});
     if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
@@ -357,6 +399,7 @@ class DdsTransport::Impl {
     s.error_bound = p.error_bound;
     s.coarse_ready = p.coarse_ready;
     s.coarse = p.coarse;
+    s.weights = p.weights;
     s.values[0] = p.value[0];
     s.values[1] = p.value[1];
     Lend(neighbours, s.neighbours);
@@ -577,6 +620,15 @@ class DdsTransport::Impl {
         reject(fmt::format("shared objects from robot {}: {}", s.sender, e.what()));
       }
     });
+    weights_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+      if (!info.valid_data) return;
+      const auto& s = *static_cast<const WeightsSample*>(data);
+      try {
+        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__DgsWeights__desc, &s));
+      } catch (const std::exception& e) {
+        reject(fmt::format("weights from robot {}: {}", s.sender, e.what()));
+      }
+    });
   }
 
   int robot_;
@@ -584,11 +636,13 @@ class DdsTransport::Impl {
   // Parents first: members are destroyed in reverse order.
   dds::Participant participant_;
   dds::Qos writer_qos_, reader_qos_;
-  dds::Topic status_topic_, coarse_topic_, objects_topic_, inbox_topic_, shared_topic_;
+  dds::Topic status_topic_, coarse_topic_, objects_topic_, inbox_topic_, shared_topic_,
+      weights_topic_;
   dds::Writer status_writer_, coarse_writer_, objects_writer_;
-  dds::Reader status_reader_, coarse_reader_, objects_reader_, inbox_reader_, shared_reader_;
+  dds::Reader status_reader_, coarse_reader_, objects_reader_, inbox_reader_, shared_reader_,
+      weights_reader_;
   dds::WaitSet waitset_;
-  std::map<int, Outbox> estimate_writers_, shared_writers_;
+  std::map<int, Outbox> estimate_writers_, shared_writers_, weight_writers_;
 
   mutable std::mutex mutex_;  // stats, known, alive, writers
   std::mutex poll_mutex_;
@@ -611,6 +665,7 @@ DdsTransport::~DdsTransport() = default;
 int DdsTransport::self() const { return impl_->robot(); }
 void DdsTransport::send(const EstimatesPacket& packet) { impl_->send(packet); }
 void DdsTransport::send(const SharedObjectsPacket& packet) { impl_->send(packet); }
+void DdsTransport::send(const WeightsPacket& packet) { impl_->send(packet); }
 void DdsTransport::publish(const StatusPacket& packet) { impl_->publish(packet); }
 void DdsTransport::publish(const ObjectListPacket& packet) { impl_->publish(packet); }
 void DdsTransport::publish(const CoarsePacket& packet) { impl_->publish(packet); }

@@ -7,6 +7,8 @@
 //                                                               so estimates go only to R
 //   rt/moslam/robot<R>/shared_objects   moslam/msg/SharedObjects robot R's inbox (rendezvous
 //                                                               answers to R's object lists)
+//   rt/moslam/robot<R>/dgs_weights      moslam/msg/DgsWeights   robot R's inbox (the robust
+//                                                               solve's weights)
 // QoS everywhere: reliable, transient-local (writers keep their last kTransportHistoryDepth
 // samples and replay them to readers that join late: a restarted robot catches up), readers
 // keep all, automatic liveliness with a lease (liveliness_lease). Liveliness is observed on the
@@ -51,6 +53,7 @@ class DdsTransport final : public Transport {
   int self() const override;
   void send(const EstimatesPacket& packet) override;
   void send(const SharedObjectsPacket& packet) override;
+  void send(const WeightsPacket& packet) override;
   void publish(const StatusPacket& packet) override;
   void publish(const ObjectListPacket& packet) override;
   void publish(const CoarsePacket& packet) override;
@@ -70,6 +73,7 @@ std::string StatusTopicName();
 std::string ObjectsTopicName();
 std::string EstimatesTopicName(int robot);
 std::string SharedObjectsTopicName(int robot);
+std::string WeightsTopicName(int robot);
 
 // The unicast discovery port of participant index `index` on `domain` (Cyclone's default port
 // mapping: 7400 + 250 domain + 10 + 2 index).

@@ -34,6 +34,10 @@ void DgsNodeOptions::validate() const {
   positive(leave_timeout, "leave_timeout");
   positive(stall_timeout, "stall_timeout");
   positive(finish_timeout, "finish_timeout");
+  if (gnc) gnc->validate();
+  if (!gnc && !robust.empty()) {
+    throw InvalidInputError("DGS node options: a robust mask without gnc options");
+  }
 }
 
 DgsOptions DriverOptions(const DgsNodeOptions& o) {
@@ -45,7 +49,7 @@ DgsOptions DriverOptions(const DgsNodeOptions& o) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'J', 'N', 'L', '2'};
+constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'J', 'N', 'L', '3'};
 
 enum class RecordType : std::uint8_t {
   kHeader = 1,  // magic, robot, fingerprint
@@ -64,9 +68,18 @@ using transport_detail::ReadStepRecord;
 using transport_detail::StepRecord;
 
 std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initial,
-                             const DgsOptions& o) {
+                             const DgsOptions& o, const std::optional<GncOptions>& gnc,
+                             const std::vector<bool>& robust) {
   Fingerprint f;
   f.add(static_cast<std::uint64_t>(robot));
+  f.add(static_cast<std::uint64_t>(gnc.has_value()));
+  if (gnc) {
+    for (double v : {gnc->threshold, gnc->mu_step, gnc->weight_tolerance, gnc->min_weight}) {
+      f.add(v);
+    }
+    f.add(static_cast<std::uint64_t>(gnc->max_iterations));
+    for (bool b : robust) f.add(static_cast<std::uint64_t>(b));
+  }
   for (double v : {o.eta_rotation, o.eta_pose, o.gamma, o.refinement.relative_cost_tolerance,
                    o.refinement.sweep_tolerance, o.refinement.cg_tolerance, o.refinement.gamma,
                    o.refinement.initial_lambda, o.refinement.max_lambda}) {
@@ -117,6 +130,7 @@ TeamReport ReportOf(const StatusPacket& s) {
   r.initialised = s.initialised;
   r.coarse_ready = s.coarse_ready;
   r.has_share = s.coarse;
+  r.weights = s.weights;
   r.change = s.change;
   r.bound = s.error_bound;
   r.value[0] = s.value[0];
@@ -151,8 +165,26 @@ class DgsNode::Impl final : public TeamChannel {
     ao.refine_gamma = solver_.refinement.gamma;
     ao.flagged_initialisation = solver_.flagged_initialisation;
     ao.weight_by_information = solver_.weight_by_information;
+    anchor_ = anchor;
+    agent_options_ = ao;
     agent_ = std::make_unique<RobotAgent>(robot_, subgraph_, initial_, anchor, ao);
     neighbours_ = agent_->neighbourRobots();
+    step_neighbours_ = neighbours_;
+    for (const auto& [k, x] : initial_) {
+      if (k.robot == robot_) own_[k] = x;
+    }
+    if (options_.gnc) {
+      robust_ = options_.robust;
+      if (robust_.empty()) {
+        for (const RelativePoseFactor& f : subgraph_.factors()) {
+          robust_.push_back(f.a().robot != f.b().robot);
+        }
+      } else if (robust_.size() != subgraph_.factors().size()) {
+        throw InvalidInputError(fmt::format("DGS node: the robust mask has {} entries for {} "
+                                            "factors",
+                                            robust_.size(), subgraph_.factors().size()));
+      }
+    }
     neighbour_keys_ = agent_->neighbourVariables();
     // Snapshots of a graph with object landmarks use the g2o key scheme with objects.
     for (const Key& k : subgraph_.keys()) {
@@ -179,7 +211,11 @@ class DgsNode::Impl final : public TeamChannel {
         options_.on_round({DgsStage::kRotation, 0, 0, false,
                            std::numeric_limits<double>::infinity(), false});
       }
-      result_.program = RunRobotProgram(*agent_, solver_, *this);
+      if (options_.gnc) {
+        runRobust();
+      } else {
+        result_.program = RunRobotProgram(*agent_, solver_, *this);
+      }
       finishReplay();
       const RobotProgramResult& p = result_.program;
       result_.rotation_rounds = p.rotation.iterations;
@@ -200,8 +236,13 @@ class DgsNode::Impl final : public TeamChannel {
       }
       throw;
     }
-    result_.estimate = agent_->estimate();
-    result_.neighbours = agent_->neighbourEstimates();
+    if (result_.robust) {
+      result_.estimate = result_.robust->estimate;
+      result_.neighbours = result_.robust->neighbours;
+    } else {
+      result_.estimate = agent_->estimate();
+      result_.neighbours = agent_->neighbourEstimates();
+    }
     result_.team.assign(team_.begin(), team_.end());
     result_.left.assign(left_.begin(), left_.end());
     result_.transport = transport_.stats();
@@ -211,9 +252,11 @@ class DgsNode::Impl final : public TeamChannel {
 
   // ---- TeamChannel --------------------------------------------------------------------------
   TeamStep step(DgsStage stage, const std::vector<OutgoingMessage>& estimates,
-                const TeamReport& report, const CoarseMessage* share) override {
+                const TeamReport& report, const CoarseMessage* share,
+                const std::vector<WeightMessage>& weights) override {
     const std::uint32_t s = ++step_;
-    Sent sent{stage, estimates, report, share ? std::optional<CoarseMessage>(*share) : std::nullopt};
+    Sent sent{stage, estimates, report, share ? std::optional<CoarseMessage>(*share) : std::nullopt,
+              weights};
     if (std::optional<TeamStep> replayed = replayStep(s, stage)) {
       last_sent_ = std::move(sent);
       ++result_.replayed_rounds;
@@ -243,7 +286,41 @@ class DgsNode::Impl final : public TeamChannel {
     std::vector<OutgoingMessage> estimates;
     TeamReport report;
     std::optional<CoarseMessage> share;
+    std::vector<WeightMessage> weights;
   };
+
+  // The robust program (options_.gnc): one agent per solve, made here so that the status and the
+  // snapshots follow the agent at work.
+  void runRobust() {
+    RobustRobotProblem problem;
+    problem.robot = robot_;
+    problem.subgraph = subgraph_;
+    problem.initial = initial_;
+    problem.robust = robust_;
+    RobustProgramOptions options;
+    options.solver = solver_;
+    options.gnc = *options_.gnc;
+    bool first = true;
+    const AgentFactory make = [&](const PoseGraph& graph, const Values& start) -> RobotAgent& {
+      for (const auto& [k, x] : agent_->estimate()) own_[k] = x;
+      if (first) {
+        first = false;  // the agent of the subgraph from the initial estimate: the constructor's
+      } else {
+        agent_ = std::make_unique<RobotAgent>(robot_, graph, start, anchor_, agent_options_);
+      }
+      step_neighbours_ = agent_->neighbourRobots();
+      return *agent_;
+    };
+    result_.robust = RunRobustRobotProgram(problem, options, make, *this);
+    result_.program = result_.robust->solves.front();
+  }
+
+  // The robot's variables now: the agent's, and the others as the last solve that held them.
+  Values currentEstimate() const {
+    Values v = own_;
+    for (const auto& [k, x] : agent_->estimate()) v[k] = x;
+    return v;
+  }
 
   void log(const std::string& text) const {
     if (options_.log) return options_.log(text);
@@ -265,7 +342,8 @@ class DgsNode::Impl final : public TeamChannel {
   // as the program asks for them.
   void loadJournal() {
     const std::uint64_t fingerprint =
-        RunFingerprint(robot_, subgraph_, initial_, solver_) ^ options_.solve;
+        RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_) ^
+        options_.solve;
     if (!journal_) return;
     result_.journal_truncated_bytes = journal_->truncatedBytes();
     const auto& records = journal_->records();
@@ -370,7 +448,7 @@ class DgsNode::Impl final : public TeamChannel {
     last_snapshot_ = now;
     const std::filesystem::path dir(options_.state_dir);
     const auto tmp = dir / "estimate.g2o.tmp";
-    WriteG2oFile(tmp.string(), subgraph_, agent_->estimate(), g2o_options_);
+    WriteG2oFile(tmp.string(), subgraph_, currentEstimate(), g2o_options_);
     std::filesystem::rename(tmp, dir / "estimate.g2o");
   }
 
@@ -379,7 +457,7 @@ class DgsNode::Impl final : public TeamChannel {
     snapshot(true);
     const std::filesystem::path dir(options_.state_dir);
     const auto tmp = dir / "result.g2o.tmp";
-    WriteG2oFile(tmp.string(), subgraph_, agent_->estimate(), g2o_options_);
+    WriteG2oFile(tmp.string(), subgraph_, currentEstimate(), g2o_options_);
     std::filesystem::rename(tmp, dir / "result.g2o");
   }
 
@@ -389,7 +467,7 @@ class DgsNode::Impl final : public TeamChannel {
     st.robot = robot_;
     st.solve = options_.solve;
     st.incarnation = result_.incarnation;
-    st.neighbours.assign(neighbours_.begin(), neighbours_.end());
+    st.neighbours.assign(step_neighbours_.begin(), step_neighbours_.end());
     st.round = step_;
     if (done_) {
       st.state = RobotState::kDone;
@@ -408,6 +486,15 @@ class DgsNode::Impl final : public TeamChannel {
       transport_.send(p);
       ++result_.estimate_messages;
       result_.estimate_binary_bytes += static_cast<std::int64_t>(EncodeMessage(p.message).size());
+    }
+    for (const WeightMessage& m : what.weights) {
+      WeightsPacket w;
+      w.solve = options_.solve;
+      w.round = s;
+      w.message = m;
+      transport_.send(w);
+      ++result_.weight_messages;
+      result_.weight_binary_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
     }
     if (what.share) {
       CoarsePacket c;
@@ -428,6 +515,7 @@ class DgsNode::Impl final : public TeamChannel {
     st.initialised = what.report.initialised;
     st.coarse_ready = what.report.coarse_ready;
     st.coarse = what.report.has_share;
+    st.weights = what.report.weights;
     st.change = what.report.change;
     st.error_bound = what.report.bound;
     st.value[0] = what.report.value[0];
@@ -523,6 +611,15 @@ class DgsNode::Impl final : public TeamChannel {
       } else if (auto* c = std::get_if<CoarsePacket>(&r.packet)) {
         if (c->solve != options_.solve) continue;
         coarse_[{c->round, c->message.sender}] = c->message;
+      } else if (auto* w = std::get_if<WeightsPacket>(&r.packet)) {
+        if (w->solve != options_.solve) continue;
+        if (!neighbours_.count(w->message.sender)) {
+          ++result_.rejected_estimates;
+          log(fmt::format("rejected: weights from robot {}, which is not a neighbour",
+                          w->message.sender));
+          continue;
+        }
+        weights_[{w->round, w->message.sender}] = w->message;
       }
       // Object lists: rendezvous data, not used by the DGS protocol.
     }
@@ -550,7 +647,11 @@ class DgsNode::Impl final : public TeamChannel {
   }
 
   bool expectsEstimates(int r, const StatusPacket& st) const {
-    return st.sent && neighbours_.count(r) &&
+    return st.sent && step_neighbours_.count(r) &&
+           std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
+  }
+  bool expectsWeights(int r, const StatusPacket& st) const {
+    return st.weights && step_neighbours_.count(r) &&
            std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
   }
 
@@ -560,7 +661,8 @@ class DgsNode::Impl final : public TeamChannel {
     for (int r : live()) {
       const StatusPacket* st = statusOf(r, s);
       if (!st || (expectsEstimates(r, *st) && !inbox_.count({s, r})) ||
-          (st->coarse && !coarse_.count({s, r}))) {
+          (st->coarse && !coarse_.count({s, r})) ||
+          (expectsWeights(r, *st) && !weights_.count({s, r}))) {
         out.push_back(r);
       }
     }
@@ -610,6 +712,7 @@ class DgsNode::Impl final : public TeamChannel {
       got.reports[r] = ReportOf(st);
       if (expectsEstimates(r, st)) got.estimates.push_back(inbox_.at({s, r}));
       if (st.coarse) got.shares[r] = coarse_.at({s, r});
+      if (expectsWeights(r, st)) got.weights[r] = weights_.at({s, r});
     }
     return got;
   }
@@ -619,6 +722,7 @@ class DgsNode::Impl final : public TeamChannel {
     for (auto& [r, by_step] : statuses_) by_step.erase(by_step.begin(), by_step.lower_bound(s));
     inbox_.erase(inbox_.begin(), inbox_.lower_bound({s, 0}));
     coarse_.erase(coarse_.begin(), coarse_.lower_bound({s, 0}));
+    weights_.erase(weights_.begin(), weights_.lower_bound({s, 0}));
   }
 
   void waitForPeers() {
@@ -651,8 +755,13 @@ class DgsNode::Impl final : public TeamChannel {
   Transport& transport_;
   DgsNodeOptions options_;
   DgsOptions solver_;
-  std::unique_ptr<RobotAgent> agent_;
-  std::set<int> neighbours_;
+  Key anchor_;
+  AgentOptions agent_options_;
+  std::unique_ptr<RobotAgent> agent_;  // the agent at work (robust: of the current solve)
+  Values own_;                         // the robot's variables as the last solves left them
+  std::vector<bool> robust_;           // with options_.gnc: per subgraph factor
+  std::set<int> neighbours_;           // of the subgraph (the team's; the packets it accepts)
+  std::set<int> step_neighbours_;      // of the agent at work (status, what a step waits for)
   std::set<Key> neighbour_keys_;
   std::unique_ptr<Journal> journal_;
   G2oWriteOptions g2o_options_;
@@ -673,6 +782,7 @@ class DgsNode::Impl final : public TeamChannel {
   std::map<int, std::map<std::uint32_t, StatusPacket>> statuses_;  // per robot, per step
   std::map<std::pair<std::uint32_t, int>, Message> inbox_;         // (step, sender)
   std::map<std::pair<std::uint32_t, int>, CoarseMessage> coarse_;  // (step, sender)
+  std::map<std::pair<std::uint32_t, int>, WeightMessage> weights_;  // (step, sender)
   Clock::time_point last_snapshot_{};
   DgsNodeResult result_;
 };

@@ -1,7 +1,9 @@
 // One robot of the distributed solve over a Transport (transport.h): the protocol between robot
 // processes, with no central server. It runs the robot program (distributed/robot_program.h:
 // the two DGS stages with the change or error-bound rule, the two-level correction, the
-// refinement) on a RobotAgent, as a TeamChannel over the transport, with a persistent journal.
+// refinement) on a RobotAgent, as a TeamChannel over the transport, with a persistent journal;
+// with options.gnc, the robust program around it (distributed/robust_program.h: GNC-TLS rounds,
+// one agent per solve, weights to the neighbours in WeightsPackets).
 //
 // Protocol (every robot runs the same program on the same information, so all decide alike):
 //   1. Join: publish a status listing its neighbours (the robots its separators reach); collect
@@ -11,9 +13,10 @@
 //      of the packets). At step s the robot sends its estimates to its neighbours, its coarse
 //      share (if any) and its status (the program's TeamReport) to every robot, then waits until
 //      it holds the status of step s of every live team robot, the step-s estimates of every
-//      neighbour whose status says it sent some and the step-s share of every robot whose status
-//      says it has one. Only step-s packets are used: the result is the in-process driver's with
-//      SweepOrder::kJacobi (dgs_driver.h), whatever the timing.
+//      neighbour whose status says it sent some, the step-s share of every robot whose status
+//      says it has one and the step-s weights of every neighbour whose status says weights. Only
+//      step-s packets are used: the result is the in-process driver's with SweepOrder::kJacobi
+//      (dgs_driver.h; robust: RunRobustDgs without the separator check), whatever the timing.
 //   3. After the program: save, publish `done`, wait (bounded) until every live robot is done or
 //      gone, return.
 // Leaving: a team robot whose liveliness is lost for leave_timeout while it is waited for has
@@ -35,11 +38,13 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/robot_program.h"
+#include "moslam/distributed/robust_program.h"
 #include "moslam/graph/pose_graph.h"
 #include "moslam/transport/transport.h"
 
@@ -68,6 +73,11 @@ struct DgsNodeOptions {
   // The solve its packets carry (transport.h): 0, the batch solve; packets of other solves are
   // ignored (online mapping runs one solve per rendezvous over the same transport).
   std::uint32_t solve = 0;
+  // The robust solve (distributed/robust_program.h: GNC-TLS rounds around the solver, weights
+  // exchanged in WeightsPackets; the refinement is forced on); none: least squares.
+  std::optional<GncOptions> gnc;
+  // With gnc: which factors of the subgraph are robust (one flag each); empty: the separators.
+  std::vector<bool> robust;
   std::function<void(const DgsNodeRound&)> on_round;  // after every step (also replayed ones)
   std::function<void(const std::string&)> log;  // team, leaves, failures; default: stderr
 
@@ -86,7 +96,9 @@ struct DgsNodeResult {
   int pose_rounds = 0;
   bool rotation_converged = false;
   bool pose_converged = false;
-  RobotProgramResult program;   // the stages and the refinement as this robot saw them
+  RobotProgramResult program;   // the stages and the refinement as this robot saw them (robust:
+                                // of the least-squares solve)
+  std::optional<RobustProgramResult> robust;  // with options.gnc: the GNC rounds, weights, ...
   std::vector<int> team;        // robots of the solve, this one included
   std::vector<int> left;        // robots that left during the solve
   std::uint32_t incarnation = 0;  // earlier starts of this robot found in the journal
@@ -96,6 +108,8 @@ struct DgsNodeResult {
   std::int64_t estimate_binary_bytes = 0;  // their size in the binary encoding (messages.h)
   std::int64_t coarse_messages = 0;        // coarse shares published by this process
   std::int64_t coarse_binary_bytes = 0;    // their size in the binary encoding
+  std::int64_t weight_messages = 0;        // robust solve: weight messages sent by this process
+  std::int64_t weight_binary_bytes = 0;    // their size in the binary encoding
   std::int64_t rejected_estimates = 0;     // valid samples the protocol refused (not a neighbour,
                                            // keys it does not need)
   TransportStats transport;

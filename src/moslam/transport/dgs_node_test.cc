@@ -15,8 +15,10 @@
 #include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/partition.h"
+#include "moslam/distributed/robust_dgs.h"
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
+#include "moslam/robust/spoil.h"
 #include "moslam/transport/dgs_node.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/robot_data.h"
@@ -378,6 +380,93 @@ TEST(RobotData, EachRobotFileHoldsItsPartitionOfTheFolder) {
   EXPECT_THROW(RobotFile(BlocksWorld(4), 4), InvalidInputError);
 }
 
+// The robust solve over the transport (robust_program.h): GNC rounds with the weights in
+// WeightsPackets, equal to RunRobustDgs without the separator check, also when a robot dies in a
+// GNC round and restarts from its journal.
+TEST(DgsNode, TheRobustSolveEqualsTheInProcessRobustDriverAndSurvivesARestart) {
+  const Dataset clean = ReadG2oFolder(BlocksWorld(4));
+  SpoilOptions spoil;
+  spoil.fraction = 0.5;
+  spoil.seed = 2;
+  const SpoiledGraph spoiled = SpoilSeparators(clean.graph, spoil);
+  Dataset data = clean;
+  data.graph = spoiled.graph;
+  DgsNodeOptions base = WholeSolver();
+  base.gnc = GncOptions();
+  base.gnc->threshold = 1.0;  // blocks_world: see robust/gnc_test.cc
+  RobustDgsOptions ro;
+  ro.dgs = DriverOptions(base);
+  ro.gnc = *base.gnc;
+  ro.check_separators = false;
+  const RobustDgsResult reference =
+      RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), ro);
+  ASSERT_GT(reference.iterations, 1);
+  ASSERT_GT(reference.outliers, 0);
+  ASSERT_TRUE(reference.polished);
+  const auto parts = PartitionByRobot(data.graph);
+  // The weights a robot holds: the reference's for its factors (its subgraph, in graph order).
+  auto expectReferenceWeights = [&](const TeamResult& team) {
+    for (const RobotSubgraph& part : parts) {
+      const DgsNodeResult& res = team.results.at(part.robot);
+      ASSERT_TRUE(res.robust.has_value());
+      ASSERT_EQ(res.robust->weights.size(), part.graph.factors().size());
+      std::size_t j = 0;
+      for (std::size_t i = 0; i < data.graph.factors().size(); ++i) {
+        const RelativePoseFactor& f = data.graph.factors()[i];
+        if (f.a().robot != part.robot && f.b().robot != part.robot) continue;
+        EXPECT_EQ(res.robust->weights[j++], reference.weights[i]) << "robot " << part.robot;
+      }
+      EXPECT_EQ(res.robust->iterations, reference.iterations);
+      EXPECT_TRUE(res.robust->polished);
+    }
+  };
+  int steps = 0, ls_steps = 0;
+  {
+    InProcessNetwork net;
+    const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{base}; });
+    ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+    EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+    expectReferenceWeights(team);
+    std::int64_t weights = 0;
+    for (const auto& [r, res] : team.results) {
+      weights += res.weight_messages;
+      EXPECT_EQ(res.transport.weights_sent, res.weight_messages);
+      EXPECT_GT(res.transport.weights_bytes, 0);
+    }
+    // Every robot sends each of its neighbours one weight message per GNC round and one after.
+    EXPECT_GT(weights, 0);
+    steps = team.results.at(1).robust->channel_steps;
+    ls_steps = team.results.at(1).robust->solves.front().channel_steps;
+  }
+  // Robot 1 dies in a GNC round (past the least-squares solve) and restarts from its journal.
+  const std::uint32_t crash_at = static_cast<std::uint32_t>((ls_steps + steps) / 2);
+  const fs::path dir = FreshDir("robust_restart");
+  std::atomic<int> crashes{0};
+  InProcessNetwork net;
+  const TeamResult team = RunTeam(net, data, [&](int robot) {
+    RobotSetup s{base, false};
+    s.options.state_dir = (dir / std::to_string(robot)).string();
+    if (robot == 1) {
+      s.restart_after_crash = true;
+      s.options.on_round = [&](const DgsNodeRound& r) {
+        if (!r.replayed && r.round == crash_at && crashes == 0) {
+          ++crashes;
+          throw Crash();
+        }
+      };
+    }
+    return s;
+  });
+  ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+  EXPECT_EQ(crashes, 1);
+  EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+  expectReferenceWeights(team);
+  EXPECT_EQ(team.results.at(1).incarnation, 1u);
+  // The step it died in was journaled before on_round ran.
+  EXPECT_EQ(team.results.at(1).replayed_rounds, static_cast<int>(crash_at));
+  fs::remove_all(dir);
+}
+
 TEST(DgsNode, RefusesTheJournalOfAnotherRun) {
   const Dataset data = ReadG2oFolder(BlocksWorld(2));
   const auto parts = PartitionByRobot(data.graph);
@@ -407,6 +496,14 @@ TEST(DgsNode, ValidatesOptions) {
   o.leave_timeout = std::chrono::milliseconds(0);
   EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
   EXPECT_THROW(DgsNode(0, parts[1].graph, data.initial, *t, Options()), InvalidInputError);
+  o = Options();
+  o.robust = {true};  // a mask without gnc
+  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  o.gnc = GncOptions();  // a mask of the wrong size
+  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  o.robust.clear();
+  o.gnc->mu_step = 1.0;
+  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
 }
 
 }  // namespace

@@ -50,6 +50,14 @@ void GroupTransport::send(const EstimatesPacket& packet) {
   inner_.send(p);
 }
 
+void GroupTransport::send(const WeightsPacket& packet) {
+  WeightsPacket p = packet;
+  p.solve = solve_;
+  p.message.sender = real(p.message.sender);
+  p.message.receiver = real(p.message.receiver);
+  inner_.send(p);
+}
+
 void GroupTransport::send(const SharedObjectsPacket&) {
   throw InvalidInputError("GroupTransport: shared objects are not part of a group solve");
 }
@@ -96,6 +104,10 @@ GroupTransport::Route GroupTransport::route(Received& r) {
     if (!of_solve(c->solve)) return Route::kElsewhere;
     ok = mapped(c->message.sender, c->message.sender);
     for (auto& [robot, block] : c->message.blocks) ok = ok && mapped(robot, robot);
+  } else if (auto* w = std::get_if<WeightsPacket>(&r.packet)) {
+    if (!of_solve(w->solve)) return Route::kElsewhere;
+    ok = mapped(w->message.sender, w->message.sender) &&
+         mapped(w->message.receiver, w->message.receiver);
   } else {
     return Route::kElsewhere;  // rendezvous packets
   }

@@ -13,8 +13,9 @@ namespace moslam {
 
 namespace {
 
-// History slot of a packet: status, objects and coarse shares per sender, estimates per (sender, receiver)
-// (slot = receiver), shared objects per (sender, receiver) (slot = kSharedTopic - receiver).
+// History slot of a packet: status, objects and coarse shares per sender; per (sender, receiver):
+// estimates (slot = receiver), shared objects (slot = kSharedTopic - 2 receiver) and weights
+// (slot = kSharedTopic - 2 receiver - 1).
 constexpr int kStatusTopic = -1;
 constexpr int kObjectsTopic = -2;
 constexpr int kCoarseTopic = -3;
@@ -22,9 +23,11 @@ constexpr int kSharedTopic = -4;
 // The robot a history slot is addressed to, or -1 (every robot).
 int SlotReceiver(int topic) {
   if (topic >= 0) return topic;
-  if (topic <= kSharedTopic) return kSharedTopic - topic;
+  if (topic <= kSharedTopic) return (kSharedTopic - topic) / 2;
   return -1;
 }
+int SharedSlot(int receiver) { return kSharedTopic - 2 * receiver; }
+int WeightsSlot(int receiver) { return kSharedTopic - 2 * receiver - 1; }
 
 struct Delivery {
   int to = 0;
@@ -96,7 +99,12 @@ class InProcessTransport final : public Transport {
   void send(const SharedObjectsPacket& packet) override {
     const std::string why = CheckPacket(packet, robot_, packet.receiver, {});
     if (!why.empty()) throw InvalidInputError("cannot send: " + why);
-    transmit(packet, kSharedTopic - packet.receiver, packet.receiver);
+    transmit(packet, SharedSlot(packet.receiver), packet.receiver);
+  }
+  void send(const WeightsPacket& packet) override {
+    const std::string why = CheckPacket(packet, robot_, packet.message.receiver, {});
+    if (!why.empty()) throw InvalidInputError("cannot send: " + why);
+    transmit(packet, WeightsSlot(packet.message.receiver), packet.message.receiver);
   }
   void publish(const StatusPacket& packet) override {
     const std::string why = CheckPacket(packet, robot_, -1, {});
@@ -165,6 +173,9 @@ class InProcessTransport final : public Transport {
     } else if (std::holds_alternative<CoarsePacket>(packet)) {
       ++stats_.coarse_sent;
       stats_.coarse_bytes += bytes;
+    } else if (std::holds_alternative<WeightsPacket>(packet)) {
+      ++stats_.weights_sent;
+      stats_.weights_bytes += bytes;
     } else {
       ++stats_.objects_sent;
       stats_.objects_bytes += bytes;

@@ -193,6 +193,7 @@ class PrefetchedTransport final : public Transport {
   int self() const override { return inner_.self(); }
   void send(const EstimatesPacket& p) override { inner_.send(p); }
   void send(const SharedObjectsPacket& p) override { inner_.send(p); }
+  void send(const WeightsPacket& p) override { inner_.send(p); }
   void publish(const StatusPacket& p) override { inner_.publish(p); }
   void publish(const ObjectListPacket& p) override { inner_.publish(p); }
   void publish(const CoarsePacket& p) override { inner_.publish(p); }
@@ -562,6 +563,7 @@ class RobotSession::Impl {
     if (const auto* e = std::get_if<EstimatesPacket>(&r.packet)) return e->solve;
     if (const auto* s = std::get_if<StatusPacket>(&r.packet)) return s->solve;
     if (const auto* c = std::get_if<CoarsePacket>(&r.packet)) return c->solve;
+    if (const auto* w = std::get_if<WeightsPacket>(&r.packet)) return w->solve;
     return 0;
   }
 
@@ -578,6 +580,8 @@ class RobotSession::Impl {
     d.status_bytes = a.status_bytes - b.status_bytes;
     d.coarse_sent = a.coarse_sent - b.coarse_sent;
     d.coarse_bytes = a.coarse_bytes - b.coarse_bytes;
+    d.weights_sent = a.weights_sent - b.weights_sent;
+    d.weights_bytes = a.weights_bytes - b.weights_bytes;
     d.objects_sent = a.objects_sent - b.objects_sent;
     d.objects_bytes = a.objects_bytes - b.objects_bytes;
     return d;

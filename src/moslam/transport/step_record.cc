@@ -15,7 +15,8 @@ void AppendStepRecord(const StepRecord& record, std::vector<std::uint8_t>& out) 
   for (const auto& [r, rep] : got.reports) {
     const auto flags = static_cast<std::uint8_t>((rep.sent ? 1 : 0) | (rep.initialised ? 2 : 0) |
                                                  (rep.coarse_ready ? 4 : 0) |
-                                                 (rep.has_share ? 8 : 0));
+                                                 (rep.has_share ? 8 : 0) |
+                                                 (rep.weights ? 16 : 0));
     b.u16(static_cast<std::uint16_t>(r)).u8(flags);
     b.f64(rep.change).f64(rep.bound).f64(rep.value[0]).f64(rep.value[1]);
   }
@@ -23,6 +24,8 @@ void AppendStepRecord(const StepRecord& record, std::vector<std::uint8_t>& out) 
   for (const Message& m : got.estimates) b.raw(EncodeMessage(m));
   b.u16(static_cast<std::uint16_t>(got.shares.size()));
   for (const auto& [r, m] : got.shares) b.raw(EncodeCoarseMessage(m));
+  b.u16(static_cast<std::uint16_t>(got.weights.size()));
+  for (const auto& [r, m] : got.weights) b.raw(EncodeWeightMessage(m));
   out.insert(out.end(), b.data().begin(), b.data().end());
 }
 
@@ -46,13 +49,14 @@ StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t of
     const int r = p.u16();
     const std::uint8_t flags = p.u8();
     if (r <= previous) throw InvalidInputError(what + ": step record reports out of order");
-    if (flags > 15) throw InvalidInputError(what + ": step record with unknown report flags");
+    if (flags > 31) throw InvalidInputError(what + ": step record with unknown report flags");
     previous = r;
     TeamReport rep;
     rep.sent = (flags & 1) != 0;
     rep.initialised = (flags & 2) != 0;
     rep.coarse_ready = (flags & 4) != 0;
     rep.has_share = (flags & 8) != 0;
+    rep.weights = (flags & 16) != 0;
     rep.change = p.f64();
     rep.bound = p.f64();
     rep.value[0] = p.f64();
@@ -75,6 +79,16 @@ StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t of
                               std::to_string(m.sender));
     }
     got.shares[m.sender] = std::move(m);
+  }
+  const std::uint16_t weights = p.u16();
+  for (std::uint16_t k = 0; k < weights; ++k) {
+    WeightMessage m = DecodeWeightMessage(p.raw());
+    const auto it = got.reports.find(m.sender);
+    if (it == got.reports.end() || !it->second.weights || got.weights.count(m.sender)) {
+      throw InvalidInputError(what + ": step record with unannounced weights of robot " +
+                              std::to_string(m.sender));
+    }
+    got.weights[m.sender] = std::move(m);
   }
   if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a step record");
   return record;

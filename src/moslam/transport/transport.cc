@@ -142,6 +142,22 @@ std::string CheckCoarse(const CoarsePacket& p, int sender) {
   return {};
 }
 
+std::string CheckWeights(const WeightsPacket& p, int sender, int self) {
+  if (p.message.sender != sender) {
+    return fmt::format("weights claim sender {} but came from robot {}", p.message.sender, sender);
+  }
+  if (p.message.receiver != self) {
+    return fmt::format("weights addressed to robot {}, not to this robot", p.message.receiver);
+  }
+  if (p.message.weights.size() > kMaxWeights) return "weights: too many";
+  try {
+    (void)EncodeWeightMessage(p.message);  // every weight a number in [0, 1]
+  } catch (const InvalidInputError& e) {
+    return std::string("malformed weights: ") + e.what();
+  }
+  return {};
+}
+
 }  // namespace
 
 std::string ToString(RobotState state) {
@@ -176,6 +192,7 @@ std::string CheckPacket(const Packet& packet, int sender, int self, const std::s
     return CheckShared(*h, sender, self);
   }
   if (const auto* c = std::get_if<CoarsePacket>(&packet)) return CheckCoarse(*c, sender);
+  if (const auto* w = std::get_if<WeightsPacket>(&packet)) return CheckWeights(*w, sender, self);
   return CheckObjects(std::get<ObjectListPacket>(packet), sender);
 }
 
@@ -193,6 +210,9 @@ std::int64_t BinarySize(const Packet& packet) {
   }
   if (const auto* c = std::get_if<CoarsePacket>(&packet)) {
     return static_cast<std::int64_t>(EncodeCoarseMessage(c->message).size()) + 8;  // + solve, round
+  }
+  if (const auto* w = std::get_if<WeightsPacket>(&packet)) {
+    return static_cast<std::int64_t>(EncodeWeightMessage(w->message).size()) + 8;  // + solve, round
   }
   if (const auto* h = std::get_if<SharedObjectsPacket>(&packet)) {
     // sender, receiver u16, step u32, two counts u32, two u64 ids per pair.

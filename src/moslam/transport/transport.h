@@ -9,6 +9,8 @@
 //                    step: what it reports to the team (robot_program.h, TeamReport);
 //   CoarsePacket     a robot's rows of a coarse system (two-level DGS, the refinement's
 //                    preconditioner), to every robot (rt/moslam/dgs_coarse): each robot solves it;
+//   WeightsPacket    the robust solve's weights of the factors a robot owns, for ONE neighbour
+//                    (rt/moslam/robot<R>/dgs_weights: the receiver's inbox; robust_program.h);
 //   ObjectListPacket the objects a robot shares at a rendezvous, label + pose each
 //                    (rt/moslam/objects: every robot in range);
 //   SharedObjectsPacket the answer to an object list: the pairs of shared objects found by the
@@ -48,6 +50,7 @@ inline constexpr int kMaxTransportRobot = 65535;
 inline constexpr std::size_t kMaxObjectLabel = 64;
 inline constexpr std::size_t kMaxObjects = 4096;
 inline constexpr std::size_t kMaxNeighbours = 1024;
+inline constexpr std::size_t kMaxWeights = 65536;  // per WeightsPacket
 
 // The distributed solve a DGS packet (estimates, status, coarse share) belongs to: 0 for the
 // batch solve after the mission; with online mapping, 1 + the time step of the rendezvous whose
@@ -100,6 +103,7 @@ struct StatusPacket {
   double error_bound = std::numeric_limits<double>::infinity();  // RobotAgent::errorBound()
   bool coarse_ready = false;      // it can take part in a coarse correction
   bool coarse = false;            // a CoarsePacket of this round comes with the status
+  bool weights = false;           // a WeightsPacket of this round to every neighbour comes with it
   double value[2] = {0.0, 0.0};   // its inputs to the round's team-wide sums and maxima
   std::vector<int> neighbours;    // robots its separators reach, increasing
   // Only when it joins an online group solve: its team pairs, increasing by (mine, other_robot,
@@ -112,6 +116,13 @@ struct CoarsePacket {
   std::uint32_t solve = 0;
   std::uint32_t round = 0;
   CoarseMessage message;  // sender, stage, kind (share, matrix or residual), blocks
+};
+
+// A robot's weights for one neighbour in one protocol round of the robust solve.
+struct WeightsPacket {
+  std::uint32_t solve = 0;
+  std::uint32_t round = 0;
+  WeightMessage message;  // sender, receiver, GNC round, weights (each in [0, 1])
 };
 
 struct ObjectObservation {
@@ -139,7 +150,7 @@ struct SharedObjectsPacket {
 };
 
 using Packet = std::variant<EstimatesPacket, StatusPacket, ObjectListPacket, SharedObjectsPacket,
-                            CoarsePacket>;
+                            CoarsePacket, WeightsPacket>;
 
 struct Received {
   int sender = 0;
@@ -160,6 +171,8 @@ struct TransportStats {
   std::int64_t status_bytes = 0;
   std::int64_t coarse_sent = 0;       // coarse shares (two-level DGS, refinement)
   std::int64_t coarse_bytes = 0;
+  std::int64_t weights_sent = 0;      // robust solve's weights
+  std::int64_t weights_bytes = 0;
   std::int64_t objects_sent = 0;      // object lists and shared-object answers (rendezvous)
   std::int64_t objects_bytes = 0;
 };
@@ -178,6 +191,7 @@ class Transport {
   // (the caller's bug: sender must be self()).
   virtual void send(const EstimatesPacket& packet) = 0;
   virtual void send(const SharedObjectsPacket& packet) = 0;
+  virtual void send(const WeightsPacket& packet) = 0;
   // To every robot. Throws InvalidInputError as send().
   virtual void publish(const StatusPacket& packet) = 0;
   virtual void publish(const ObjectListPacket& packet) = 0;
@@ -198,7 +212,8 @@ class Transport {
 // error bound >= 0 (+inf allowed), values finite, neighbours distinct, increasing, without the
 // robot itself; team pairs at most kMaxObjects, increasing, ids < 2^56, other robot not the
 // sender, finite poses. Coarse: the sender's own share, what EncodeCoarseMessage accepts, kind share,
-// matrix or residual. Objects: finite poses, unit
+// matrix or residual. Weights: addressed to `self`, what EncodeWeightMessage accepts (each weight
+// in [0, 1]), at most kMaxWeights. Objects: finite poses, unit
 // quaternions (checked before conversion, tolerance 1e-6), labels of 1..64 printable characters,
 // distinct ids < 2^56, at most kMaxObjects. Shared objects: addressed to `self`, at most
 // kMaxObjects pairs, ids < 2^56, no id twice on either side.

@@ -1,0 +1,74 @@
+// A TeamChannel for tests (not part of the library): a team of robot programs, one thread per
+// robot, over a shared in-memory board. Every robot's step s completes once all robots have
+// posted their step s; what it returns went through the binary encodings (the bytes a network
+// carries).
+#pragma once
+
+#include <condition_variable>
+#include <map>
+#include <mutex>
+#include <vector>
+
+#include "moslam/distributed/messages.h"
+#include "moslam/distributed/robot_program.h"
+
+namespace moslam::test {
+
+class SharedBoard {
+ public:
+  explicit SharedBoard(int robots) : robots_(robots) {}
+
+  TeamStep post(int robot, std::size_t s, const std::vector<OutgoingMessage>& out,
+                const TeamReport& report, const CoarseMessage* share,
+                const std::vector<WeightMessage>& weights) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    Round& round = rounds_[s];
+    for (const OutgoingMessage& o : out) round.inbox[o.to].push_back(o.message);
+    for (const WeightMessage& w : weights) {
+      round.weights[w.receiver][robot] = DecodeWeightMessage(EncodeWeightMessage(w));
+    }
+    round.reports[robot] = report;
+    if (share) round.shares[robot] = DecodeCoarseMessage(EncodeCoarseMessage(*share));
+    if (static_cast<int>(round.reports.size()) == robots_) changed_.notify_all();
+    changed_.wait(lock, [&]() { return static_cast<int>(round.reports.size()) == robots_; });
+    TeamStep got;
+    for (const Message& m : round.inbox[robot]) {
+      got.estimates.push_back(DecodeMessage(EncodeMessage(m)));
+    }
+    got.reports = round.reports;
+    got.shares = round.shares;
+    got.weights = round.weights[robot];
+    return got;
+  }
+
+ private:
+  struct Round {
+    std::map<int, std::vector<Message>> inbox;
+    std::map<int, TeamReport> reports;
+    std::map<int, CoarseMessage> shares;
+    std::map<int, std::map<int, WeightMessage>> weights;  // receiver -> sender -> message
+  };
+  int robots_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::map<std::size_t, Round> rounds_;
+};
+
+class BoardChannel : public TeamChannel {
+ public:
+  BoardChannel(SharedBoard& board, int robot) : board_(board), robot_(robot) {}
+  TeamStep step(DgsStage, const std::vector<OutgoingMessage>& estimates, const TeamReport& report,
+                const CoarseMessage* share, const std::vector<WeightMessage>& weights) override {
+    ++steps_;
+    return board_.post(robot_, steps_ - 1, estimates, report, share, weights);
+  }
+  std::set<int> absent() const override { return {}; }
+  std::size_t steps() const { return steps_; }
+
+ private:
+  SharedBoard& board_;
+  int robot_;
+  std::size_t steps_ = 0;
+};
+
+}  // namespace moslam::test

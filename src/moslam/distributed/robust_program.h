@@ -1,0 +1,94 @@
+// One robot's side of the robust distributed solve (robust_dgs.h) as a program over the
+// TeamChannel of robot_program.h: GNC-TLS rounds around the whole solver, run by the robots
+// themselves with no coordinator, so that robot processes (transport/dgs_node.h) run it over a
+// network. Every robot of the team runs the same program:
+//
+//   1. the least-squares solve: RunRobotProgram (with the refinement) on an agent of its
+//      subgraph; afterwards it holds its estimate and its copies of its neighbours' variables
+//      (the refinement ends with both equal to the owners', bit for bit);
+//   2. it owns the weights of its robust factors between two of its own variables and of its
+//      robust separators to robots of higher id; it computes their squared residuals r2 from its
+//      estimate and copies; one channel step reduces the largest r2 over the team (GncSchedule's
+//      mu_0; every robot computes the maximum from the same reports);
+//   3. a GNC round: it sets the weights it owns, sends each neighbour a WeightMessage (the weights
+//      of the robust separators it owns toward that neighbour, in the order both subgraphs hold
+//      them: empty toward a robot of lower id or without robust separators) and reports how many of its weights are undecided, in
+//      one channel step; it takes the weights of the separators its lower neighbours own from
+//      their messages, solves the weighted subgraph (WeightedGraph) with RunRobotProgram from its
+//      current estimate and copies, and recomputes r2; the schedule stops when the team's
+//      undecided count was 0 (or after max_iterations);
+//   4. as RunRobustDgs: the rejected factors it owns whose r2 is within c2 come back (one step:
+//      their weights to the neighbours, and the team's count of readmitted and not-one weights);
+//      if some weight is not 1, the inliers alone (SubGraph of weight >= 0.5) are solved once
+//      more, when every live robot is linked to robot 0 (or to a robot with a prior) through
+//      separators of weight >= 0.5
+//      (flooded over the team in channel steps, a robot's flag per step); a variable no inlier
+//      touches keeps the rounds' estimate.
+// Weights change only between solves; only estimates, weights and the reports' scalars cross the
+// network. The program makes the agent calls of RunRobustDgs with check_separators off and the
+// solver in Jacobi order, on the same numbers, so a team of programs reproduces it (to the
+// solves' rounding; the tests: 1e-9). What RunRobustDgs does and this does not: the separator
+// check before GNC (PCM; separator_consistency.h), whose covariance messages and team-wide
+// "linked through confirmed pairs" test have no channel step yet. The inlier solve's condition
+// is the robots' link graph where RunRobustDgs asks every variable to be reached from robot 0:
+// the two differ only for landmarks that no inlier observation holds and that only inlier
+// separators to such landmarks of other robots reach (then the agent of that robot fails).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/robot_program.h"
+#include "moslam/robust/gnc.h"
+
+namespace moslam {
+
+struct RobustProgramOptions {
+  DgsOptions solver;  // every solve (the refinement is forced on; Jacobi order required)
+  GncOptions gnc;
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
+};
+
+// One robot's part: its subgraph (every factor touching its variables, separators in the order
+// the other robot's subgraph holds them), its initial estimate (at least its own variables) and
+// which factors are robust (one flag per factor of the subgraph).
+struct RobustRobotProblem {
+  int robot = 0;
+  PoseGraph subgraph;
+  Values initial;
+  std::vector<bool> robust;
+};
+
+struct RobustProgramResult {
+  Values estimate;    // its own variables, final
+  Values neighbours;  // its copies of the neighbours' variables, from the last solve that held
+                      // them (the inliers' solve holds none that only rejected factors touch)
+  // Per factor of the subgraph: the weight of its last weighted solve after the readmission
+  // (owned: computed here; separators owned by a lower neighbour: as received; 1 if not robust).
+  std::vector<double> weights;
+  GncStatus status = GncStatus::kAllInliers;
+  int iterations = 0;   // weighted solves after the least-squares one
+  int readmitted = 0;   // owned factors back after GNC (r2 within c2)
+  bool polished = false;  // the inliers were solved alone
+  int outliers = 0;     // robust factors of the subgraph with weight < 0.5
+  std::vector<RobotProgramResult> solves;  // least squares, the rounds, the inlier solve
+  std::int64_t weight_messages = 0;  // WeightMessages sent, and their binary size
+  std::int64_t weight_bytes = 0;
+  int channel_steps = 0;  // all of them, the solves' included
+};
+
+// Makes the agent of one solve: `subgraph` (the weighted or the inlier subgraph) from `initial`;
+// the factory owns it, and keeps it at least until its next call.
+using AgentFactory = std::function<RobotAgent&(const PoseGraph& subgraph, const Values& initial)>;
+
+// Throws InvalidInputError (bad options, a mask of the wrong size, a neighbour's weights that do
+// not match the separators shared with it) and what the solves throw.
+RobustProgramResult RunRobustRobotProgram(const RobustRobotProblem& problem,
+                                          const RobustProgramOptions& options,
+                                          const AgentFactory& make_agent, TeamChannel& channel);
+
+}  // namespace moslam

@@ -1,0 +1,252 @@
+// The robust robot program (robust_program.h): a team of programs, one thread per robot over an
+// in-memory channel, reproduces RunRobustDgs without the separator check (robust_dgs.h).
+#include "moslam/distributed/robust_program.h"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "moslam/common/errors.h"
+#include "moslam/distributed/board_channel_test_util.h"
+#include "moslam/distributed/dgs_test_util.h"
+#include "moslam/distributed/partition.h"
+#include "moslam/distributed/robust_dgs.h"
+#include "moslam/robust/spoil.h"
+
+namespace moslam {
+namespace {
+
+struct TeamOutcome {
+  Values values;
+  std::map<int, RobustProgramResult> results;
+  std::map<int, std::vector<std::size_t>> factors;  // per robot: its subgraph's factors in graph
+  std::string error;
+};
+
+// Each robot's subgraph in graph order, and the index of each of its factors in the graph.
+std::vector<std::pair<RobustRobotProblem, std::vector<std::size_t>>> Parts(
+    const PoseGraph& graph, const Values& initial, const std::vector<bool>& robust) {
+  std::set<int> robots;
+  for (const Key& k : graph.keys()) robots.insert(k.robot);
+  std::vector<std::pair<RobustRobotProblem, std::vector<std::size_t>>> parts;
+  for (int r : robots) {
+    RobustRobotProblem p;
+    p.robot = r;
+    std::vector<std::size_t> index;
+    for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+      const RelativePoseFactor& f = graph.factors()[i];
+      if (f.a().robot != r && f.b().robot != r) continue;
+      p.subgraph.add(f);
+      p.robust.push_back(robust[i]);
+      index.push_back(i);
+    }
+    for (const PriorFactor& prior : graph.priors()) {
+      if (prior.key().robot == r) p.subgraph.add(prior);
+    }
+    for (const auto& [k, x] : initial) {
+      if (k.robot == r) p.initial[k] = x;
+    }
+    parts.emplace_back(std::move(p), std::move(index));
+  }
+  return parts;
+}
+
+TeamOutcome RunTeam(const PoseGraph& graph, const Values& initial, const std::vector<bool>& robust,
+                    const RobustProgramOptions& options) {
+  const auto parts = Parts(graph, initial, robust);
+  const Key anchor = GaugeAnchor(graph);
+  test::SharedBoard board(static_cast<int>(parts.size()));
+  TeamOutcome outcome;
+  std::mutex mutex;
+  std::vector<std::thread> threads;
+  for (const auto& part : parts) {
+    threads.emplace_back([&, part]() {
+      const RobustRobotProblem& p = part.first;
+      AgentOptions ao;
+      ao.gamma = options.solver.gamma;
+      ao.refine_gamma = options.solver.refinement.gamma;
+      ao.flagged_initialisation = options.solver.flagged_initialisation;
+      ao.weight_by_information = options.solver.weight_by_information;
+      std::unique_ptr<RobotAgent> agent;
+      const AgentFactory make = [&](const PoseGraph& g, const Values& start) -> RobotAgent& {
+        agent = std::make_unique<RobotAgent>(p.robot, g, start, anchor, ao);
+        return *agent;
+      };
+      test::BoardChannel channel(board, p.robot);
+      try {
+        RobustProgramResult r = RunRobustRobotProgram(p, options, make, channel);
+        EXPECT_EQ(static_cast<std::size_t>(r.channel_steps), channel.steps());
+        std::lock_guard<std::mutex> lock(mutex);
+        outcome.values.insert(r.estimate.begin(), r.estimate.end());
+        outcome.results[p.robot] = std::move(r);
+        outcome.factors[p.robot] = part.second;
+      } catch (const std::exception& e) {
+        std::lock_guard<std::mutex> lock(mutex);
+        outcome.error = e.what();
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  return outcome;
+}
+
+double MaxDifference(const Values& a, const Values& b) {
+  double d = 0.0;
+  for (const auto& [k, x] : a) {
+    d = std::max(d, (x.translation() - b.at(k).translation()).norm());
+    d = std::max(d, (x.rotation().matrix() - b.at(k).rotation().matrix()).norm());
+  }
+  return d;
+}
+
+RobustDgsOptions ReferenceOptions(const RobustProgramOptions& o) {
+  RobustDgsOptions r;
+  r.dgs = o.solver;
+  r.gnc = o.gnc;
+  r.check_separators = false;
+  return r;
+}
+
+RobustProgramOptions BlocksWorldOptions() {
+  RobustProgramOptions o;
+  o.solver.order = SweepOrder::kJacobi;
+  o.solver.coarse_correction = true;
+  o.solver.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+  o.gnc.threshold = 1.0;  // blocks_world: see robust/gnc_test.cc
+  return o;
+}
+
+// Every robot's weights are the in-process driver's, its estimate equals it, and the rejected
+// separators are the spoiled ones.
+void ExpectSameAsRunRobustDgs(const PoseGraph& graph, const Values& initial,
+                              const std::vector<bool>& robust, const RobustProgramOptions& options,
+                              const RobustDgsResult& reference) {
+  const TeamOutcome team = RunTeam(graph, initial, robust, options);
+  ASSERT_EQ(team.error, "");
+  ASSERT_EQ(team.values.size(), reference.values.size());
+  EXPECT_LE(MaxDifference(team.values, reference.values), 1e-9);
+  std::int64_t weight_messages = 0;
+  for (const auto& [robot, r] : team.results) {
+    EXPECT_EQ(r.status, reference.status) << "robot " << robot;
+    EXPECT_EQ(r.iterations, reference.iterations) << "robot " << robot;
+    EXPECT_EQ(r.polished, reference.polished) << "robot " << robot;
+    const std::vector<std::size_t>& index = team.factors.at(robot);
+    ASSERT_EQ(r.weights.size(), index.size());
+    for (std::size_t j = 0; j < index.size(); ++j) {
+      EXPECT_EQ(r.weights[j], reference.weights[index[j]]) << "robot " << robot << " factor "
+                                                           << index[j];
+    }
+    // Its copies of the neighbours' variables the last solve held are the owners' estimates.
+    for (std::size_t j = 0; j < index.size(); ++j) {
+      const RelativePoseFactor& f = graph.factors()[index[j]];
+      if (r.polished && r.weights[j] < 0.5) continue;
+      for (const Key& k : {f.a(), f.b()}) {
+        if (k.robot == robot) continue;
+        EXPECT_LE(MaxDifference({{k, r.neighbours.at(k)}}, team.values), 1e-9) << ToString(k);
+      }
+    }
+    weight_messages += r.weight_messages;
+  }
+  if (reference.iterations > 0) {
+    EXPECT_GT(weight_messages, 0);
+  }
+}
+
+TEST(RobustProgram, ATeamOfProgramsIsRunRobustDgsWithoutTheCheckOnSpoiledBlocksWorld) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
+  SpoilOptions spoil;
+  spoil.fraction = 0.5;
+  spoil.seed = 2;
+  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
+  const std::vector<bool> robust = DefaultRobustFactors(spoiled.graph);
+  const RobustProgramOptions options = BlocksWorldOptions();
+  const RobustDgsResult reference =
+      RunRobustDgs(spoiled.graph, data.initial, robust, ReferenceOptions(options));
+  // The case at work: GNC rounds, outliers rejected, the inliers solved alone.
+  ASSERT_EQ(reference.status, GncStatus::kConverged);
+  ASSERT_GT(reference.iterations, 1);
+  ASSERT_GT(reference.outliers, 0);
+  ASSERT_TRUE(reference.polished);
+  for (std::size_t i = 0; i < spoiled.outlier.size(); ++i) {
+    EXPECT_EQ(reference.weights[i] < 0.5, spoiled.outlier[i]) << "factor " << i;
+  }
+  ExpectSameAsRunRobustDgs(spoiled.graph, data.initial, robust, options, reference);
+}
+
+TEST(RobustProgram, WithoutOutliersItIsTheLeastSquaresSolveAndSendsNoWeight) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
+  const std::vector<bool> robust = DefaultRobustFactors(data.graph);
+  RobustProgramOptions options = BlocksWorldOptions();
+  options.gnc.threshold = 0.0;  // chi-square: every residual of blocks_world is far below it
+  const RobustDgsResult reference =
+      RunRobustDgs(data.graph, data.initial, robust, ReferenceOptions(options));
+  ASSERT_EQ(reference.status, GncStatus::kAllInliers);
+  const TeamOutcome team = RunTeam(data.graph, data.initial, robust, options);
+  ASSERT_EQ(team.error, "");
+  EXPECT_LE(MaxDifference(team.values, reference.values), 1e-9);
+  for (const auto& [robot, r] : team.results) {
+    EXPECT_EQ(r.status, GncStatus::kAllInliers);
+    EXPECT_EQ(r.weight_messages, 0);
+    EXPECT_EQ(r.solves.size(), 1u);
+    EXPECT_FALSE(r.polished);
+  }
+}
+
+// Robot 2 linked to robot 1 by two separators that place it far apart: GNC rejects both, and
+// the inliers leave robot 2 unlinked, so no robot solves the inliers alone (RunRobustDgs keeps
+// the rounds' estimate too).
+TEST(RobustProgram, InliersThatUnlinkARobotAreNotSolvedAlone) {
+  Values gt;
+  const PoseGraph chain = test::ChainOfRobots(3, 6, &gt);
+  PoseGraph graph;
+  for (const RelativePoseFactor& f : chain.factors()) {
+    if (f.a().robot == f.b().robot) {  // stiff chains: robot 2's cannot bend to both
+      graph.add(RelativePoseFactor(f.a(), f.b(), f.measured(), 1e4 * f.information()));
+    } else if (std::min(f.a().robot, f.b().robot) != 1 || f.a().robot == f.b().robot) {
+      graph.add(f);
+    }
+  }
+  auto wrong = [&](Key a, Key b, const SE3& error) {
+    graph.add(RelativePoseFactor(a, b, gt.at(a).between(gt.at(b)) * error, Matrix6::Identity()));
+  };
+  wrong(Key::Pose(1, 5), Key::Pose(2, 0), SE3(SO3::Exp(Vector3(0.0, 0.0, 1.5)), Vector3(30, 0, 0)));
+  wrong(Key::Pose(1, 3), Key::Pose(2, 5), SE3(SO3::Exp(Vector3(0.0, 0.0, -1.5)), Vector3(-30, 20, 0)));
+  std::vector<bool> robust(graph.factors().size(), false);
+  robust[robust.size() - 1] = robust[robust.size() - 2] = true;
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  const RobustDgsResult reference =
+      RunRobustDgs(graph, gt, robust, ReferenceOptions(options));
+  ASSERT_EQ(reference.outliers, 2);
+  ASSERT_FALSE(reference.polished);
+  ExpectSameAsRunRobustDgs(graph, gt, robust, options, reference);
+}
+
+TEST(RobustProgram, RejectsBadInput) {
+  Values gt;
+  const PoseGraph graph = test::ChainOfRobots(2, 3, &gt);
+  const auto parts = Parts(graph, gt, std::vector<bool>(graph.factors().size(), false));
+  RobustRobotProblem p = parts.front().first;
+  p.robust.pop_back();
+  test::SharedBoard board(1);
+  test::BoardChannel channel(board, p.robot);
+  std::unique_ptr<RobotAgent> agent;
+  const AgentFactory make = [&](const PoseGraph& g, const Values& start) -> RobotAgent& {
+    agent = std::make_unique<RobotAgent>(p.robot, g, start, GaugeAnchor(graph), AgentOptions());
+    return *agent;
+  };
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  EXPECT_THROW(RunRobustRobotProgram(p, options, make, channel), InvalidInputError);
+  p = parts.front().first;
+  options.solver.order = SweepOrder::kGaussSeidel;
+  EXPECT_THROW(RunRobustRobotProgram(p, options, make, channel), InvalidInputError);
+  options.solver.order = SweepOrder::kJacobi;
+  EXPECT_THROW(RunRobustRobotProgram(p, options, nullptr, channel), InvalidInputError);
+}
+
+}  // namespace
+}  // namespace moslam
