@@ -113,28 +113,46 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   h.step = 31;
   h.pairs = {{3, 7}, {(std::uint64_t{1} << 56) - 1, 0}};
   h.removed = {{5, 2}};
+  s.weights = true;
+  WeightsPacket w;
+  w.solve = 75;
+  w.round = 41;
+  w.message.sender = 0;
+  w.message.receiver = 1;
+  w.message.round = 6;
+  w.message.weights = {1.0, 0.0, 0.123456789012345678};
   t0.send(e);
   t0.publish(s);
   t0.publish(o);
   t0.send(h);
+  t0.send(w);
 
   std::vector<Received> got = PollUntil(t1, [](const std::vector<Received>& v) {
     int n = 0;
     for (const Received& r : v) n += std::holds_alternative<StatusPacket>(r.packet) ? 0 : 1;
-    return n >= 3 && v.size() >= 4;
+    return n >= 4 && v.size() >= 5;
   });
   const EstimatesPacket* ge = nullptr;
   const StatusPacket* gs = nullptr;
   const ObjectListPacket* go = nullptr;
   const SharedObjectsPacket* gh = nullptr;
+  const WeightsPacket* gw = nullptr;
   for (const Received& r : got) {
+    if (auto* p = std::get_if<WeightsPacket>(&r.packet)) gw = p;
     if (auto* p = std::get_if<SharedObjectsPacket>(&r.packet)) gh = p;
     EXPECT_EQ(r.sender, 0);
     if (auto* p = std::get_if<EstimatesPacket>(&r.packet)) ge = p;
     if (auto* p = std::get_if<StatusPacket>(&r.packet)) gs = p;
     if (auto* p = std::get_if<ObjectListPacket>(&r.packet)) go = p;
   }
-  ASSERT_TRUE(ge && gs && go && gh);
+  ASSERT_TRUE(ge && gs && go && gh && gw);
+  EXPECT_EQ(gw->solve, 75u);
+  EXPECT_EQ(gw->round, 41u);
+  EXPECT_EQ(gw->message.sender, 0);
+  EXPECT_EQ(gw->message.receiver, 1);
+  EXPECT_EQ(gw->message.round, 6u);
+  EXPECT_EQ(gw->message.weights, w.message.weights);  // bit for bit
+  EXPECT_TRUE(gs->weights);
   EXPECT_EQ(gh->sender, 0);
   EXPECT_EQ(gh->receiver, 1);
   EXPECT_EQ(gh->step, 31u);
@@ -185,6 +203,9 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   EXPECT_EQ(s0.estimates_sent, 1);
   EXPECT_EQ(s0.estimates_bytes, 4 + 20 + 4 + 3 * 8 + 4 + 4 + 27 * 8);
   EXPECT_EQ(s0.objects_sent, 2);  // the object list and the answer
+  // 4 + 4 (sender, receiver) + 12 (solve, round, GNC round) + 4 (length) + 4 (padding) + 3 x 8.
+  EXPECT_EQ(s0.weights_sent, 1);
+  EXPECT_EQ(s0.weights_bytes, 4 + 4 + 12 + 4 + 4 + 3 * 8);
   EXPECT_EQ(s0.sent_bytes, s1.received_bytes);
   EXPECT_EQ(s1.rejected, 0);
 }

@@ -13,6 +13,7 @@
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/journal.h"
+#include "moslam/transport/step_record.h"
 #include "moslam/transport/transport.h"
 
 namespace moslam {
@@ -225,6 +226,74 @@ TEST(InProcessTransport, DeliversSharedObjectsToTheReceiverOnlyAndChecksThem) {
   EXPECT_NE(CheckPacket(h, 0, 1, {}), "");
   h.removed = {{std::uint64_t{1} << 60, 1}};  // beyond a key index
   EXPECT_NE(CheckPacket(h, 0, 1, {}), "");
+}
+
+// The robust solve's weights: only the receiver gets them, checked like every packet.
+TEST(InProcessTransport, DeliversWeightsToTheReceiverOnlyAndChecksThem) {
+  InProcessNetwork net;
+  auto t0 = net.connect(0), t1 = net.connect(1), t2 = net.connect(2);
+  WeightsPacket w;
+  w.solve = 3;
+  w.round = 12;
+  w.message.sender = 0;
+  w.message.receiver = 1;
+  w.message.round = 2;
+  w.message.weights = {1.0, 0.25, 0.0};
+  t0->send(w);
+  const auto got = PollFor(*t1, 1);
+  ASSERT_EQ(got.size(), 1u);
+  const auto& g = std::get<WeightsPacket>(got[0].packet);
+  EXPECT_EQ(g.message.weights, w.message.weights);
+  EXPECT_EQ(g.round, 12u);
+  EXPECT_EQ(g.solve, 3u);
+  EXPECT_TRUE(t2->poll(milliseconds(1)).empty());
+  EXPECT_EQ(t0->stats().weights_sent, 1);
+  EXPECT_EQ(t0->stats().weights_bytes, BinarySize(Packet(w)));
+  EXPECT_NE(CheckPacket(w, 0, 2, {}), "");  // addressed to robot 1, received by robot 2
+  EXPECT_NE(CheckPacket(w, 2, 1, {}), "");  // claims sender 0, came from robot 2
+  w.message.weights[1] = 1.5;
+  EXPECT_NE(CheckPacket(w, 0, 1, {}), "");
+  EXPECT_THROW(t0->send(w), InvalidInputError);
+  w.message.weights[1] = std::nan("");
+  EXPECT_NE(CheckPacket(w, 0, 1, {}), "");
+}
+
+// A DGS node's journal record of a step (step_record.h), with the weights of a robust round.
+TEST(StepRecord, RoundTripsWeightsAndRejectsUnannouncedOnes) {
+  using transport_detail::AppendStepRecord;
+  using transport_detail::ReadStepRecord;
+  using transport_detail::StepRecord;
+  StepRecord rec;
+  rec.step = 9;
+  rec.stage = DgsStage::kRefine;
+  TeamReport a, b;
+  a.weights = true;
+  a.value[0] = 2.0;
+  rec.result.reports = {{0, a}, {1, b}};
+  WeightMessage m;
+  m.sender = 0;
+  m.receiver = 1;
+  m.round = 4;
+  m.weights = {0.5, 1.0};
+  rec.result.weights[0] = m;
+  std::vector<std::uint8_t> bytes;
+  AppendStepRecord(rec, bytes);
+  const StepRecord back = ReadStepRecord(bytes, 0, "test");
+  EXPECT_TRUE(back.result.reports.at(0).weights);
+  EXPECT_FALSE(back.result.reports.at(1).weights);
+  ASSERT_EQ(back.result.weights.size(), 1u);
+  EXPECT_EQ(back.result.weights.at(0).weights, m.weights);
+  std::vector<std::uint8_t> again;
+  AppendStepRecord(back, again);
+  EXPECT_EQ(again, bytes);
+  // Weights of a robot whose report does not say weights.
+  rec.result.reports[0].weights = false;
+  bytes.clear();
+  AppendStepRecord(rec, bytes);
+  EXPECT_THROW(ReadStepRecord(bytes, 0, "test"), InvalidInputError);
+  // Truncated.
+  bytes.pop_back();
+  EXPECT_THROW(ReadStepRecord(bytes, 0, "test"), InvalidInputError);
 }
 
 // The rendezvous journal record of a robot session (event_record.h).
