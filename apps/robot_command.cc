@@ -21,6 +21,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/partition.h"
+#include "moslam/distributed/robust_dgs.h"
 #include "moslam/io/g2o.h"
 #include "moslam/io/tum.h"
 #include "moslam/metrics/metrics.h"
@@ -44,10 +45,22 @@ struct SolveFlags {
   double leave_timeout = 15.0;  // seconds
   double join_timeout = 60.0;
   double stall_timeout = 300.0;
+  bool robust = false;
+  double gnc_threshold = 0.0;  // 0: GncOptions' default
 };
 
 void AddSolveFlags(CLI::App* sub, SolveFlags& f) {
   AddSolverFlags(sub, &f.solver);
+  sub->add_flag("--robust", f.robust,
+                "GNC-TLS around the solver, run by the robots (weights on the wire): the "
+                "separators robust, and with --scenario the object measurements too; without "
+                "the separator check of `moslam dgs --robust`, which does not run over the "
+                "network yet (the refinement is forced on)");
+  sub->add_option("--gnc-threshold", f.gnc_threshold,
+                  "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, "
+                  "chi-square 6 dof at 0.999)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   sub->add_option("--leave-timeout", f.leave_timeout,
                   "Seconds a waited-for robot may be unreachable before it counts as gone")
       ->check(CLI::PositiveNumber);
@@ -68,7 +81,22 @@ DgsNodeOptions NodeOptions(const SolveFlags& f) {
   o.join_timeout = Ms(f.join_timeout);
   o.stall_timeout = Ms(f.stall_timeout);
   o.finish_timeout = Ms(std::max(10.0, f.leave_timeout + 5.0));
+  if (f.robust) {
+    o.gnc = GncOptions();
+    o.gnc->threshold = f.gnc_threshold;
+    o.solver.refine = true;
+  }
   return o;
+}
+
+// The in-process reference of a robust team: RunRobustDgs without the separator check, with the
+// processes' solver and GNC options.
+RobustDgsOptions ReferenceRobustOptions(const DgsNodeOptions& o) {
+  RobustDgsOptions r;
+  r.dgs = DriverOptions(o);
+  r.gnc = *o.gnc;
+  r.check_separators = false;
+  return r;
 }
 
 std::vector<std::string> SolveArgs(const SolveFlags& f) {
@@ -78,6 +106,11 @@ std::vector<std::string> SolveArgs(const SolveFlags& f) {
         std::string("--join-timeout"), fmt::format("{}", f.join_timeout),
         std::string("--stall-timeout"), fmt::format("{}", f.stall_timeout)}) {
     a.push_back(s);
+  }
+  if (f.robust) {
+    a.push_back("--robust");
+    a.push_back("--gnc-threshold");
+    a.push_back(fmt::format("{}", f.gnc_threshold));
   }
   return a;
 }
@@ -195,7 +228,17 @@ nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
   j["refine_sweeps"] = r.program.refine.sweeps;
   j["refine_status"] = ToString(r.program.refine.status);
   j["refine_final_cost"] = r.program.refine.final_cost;
-  j["protocol_steps"] = r.program.channel_steps;
+  j["protocol_steps"] = r.robust ? r.robust->channel_steps : r.program.channel_steps;
+  if (r.robust) {
+    j["gnc_status"] = ToString(r.robust->status);
+    j["gnc_rounds"] = r.robust->iterations;
+    j["outliers"] = r.robust->outliers;  // robust factors of its subgraph with weight < 0.5
+    j["readmitted"] = r.robust->readmitted;
+    j["polished"] = r.robust->polished;
+    j["weight_messages"] = r.weight_messages;
+    j["weight_binary_bytes"] = r.weight_binary_bytes;
+    j["dds_weight_bytes"] = r.transport.weights_bytes;
+  }
   j["dds_estimate_bytes"] = r.transport.estimates_bytes;
   j["dds_coarse_bytes"] = r.transport.coarse_bytes;
   j["dds_status_samples"] = r.transport.status_sent;
@@ -545,16 +588,44 @@ TeamResults RunTeamProcesses(const TeamArgs& a, const fs::path& out, int n,
 // The team's estimate against the in-process driver's on the same graph (and, with the
 // refinement, against the centralized optimum): JSON fields and the DGS lines of the report.
 // Writes the merged map into `out`: merged.g2o (every variable and factor) and robot_<r>.tum.
+// With `robust` (the team ran --robust): the estimate is compared with it, the rounds, messages
+// and refinement of `reference` are those of its least-squares solve.
 void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const DgsResult& reference,
-                          const fs::path& out, const G2oWriteOptions& write, nlohmann::json& j) {
+                          const fs::path& out, const G2oWriteOptions& write, nlohmann::json& j,
+                          const RobustDgsResult* robust = nullptr) {
+  const Values& expected = robust ? robust->values : reference.values;
   WriteG2oFile((out / "merged.g2o").string(), graph, t.merged, write);
   WriteTumTrajectories(out.string(), t.merged);
   j["merged_map"] = (out / "merged.g2o").string();
   j["cost"] = graph.cost(t.merged);
-  j["cost_in_process"] = graph.cost(reference.values);
-  j["max_difference"] = MaxPoseDifference(t.merged, reference.values);
+  j["cost_in_process"] = graph.cost(expected);
+  j["max_difference"] = MaxPoseDifference(t.merged, expected);
   j["variables"] = t.merged.size();
-  j["in_process_variables"] = reference.values.size();
+  j["in_process_variables"] = expected.size();
+  if (robust) {
+    std::int64_t messages = 0, binary = 0, dds = 0;
+    int rounds = 0, outliers = 0;
+    for (const auto& [r, s] : t.summaries) {
+      messages += s["weight_messages"].get<std::int64_t>();
+      binary += s["weight_binary_bytes"].get<std::int64_t>();
+      dds += s["dds_weight_bytes"].get<std::int64_t>();
+      rounds = std::max(rounds, s["gnc_rounds"].get<int>());
+      outliers += s["outliers"].get<int>();
+    }
+    j["gnc_rounds"] = rounds;
+    j["in_process_gnc_rounds"] = robust->iterations;
+    j["in_process_outliers"] = robust->outliers;
+    j["robots_outliers"] = outliers;  // per robot, its subgraph's: a separator counts twice
+    j["weight_messages"] = messages;
+    j["weight_binary_bytes"] = binary;
+    j["dds_weight_bytes"] = dds;
+    j["in_process_weight_messages"] = robust->weight_messages;
+    j["in_process_weight_bytes"] = robust->weight_bytes;
+    fmt::print("robust: {} GNC rounds (in-process {}), {} outliers in-process; {} weight "
+               "messages, {} B binary, {} B CDR payload (in-process {}, {} B)\n",
+               rounds, robust->iterations, robust->outliers, messages, binary, dds,
+               robust->weight_messages, robust->weight_bytes);
+  }
   j["rotation_rounds"] = t.rotation_rounds;
   j["pose_rounds"] = t.pose_rounds;
   j["in_process_rotation_iterations"] = reference.rotation.iterations;
@@ -576,7 +647,7 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
   j["dds_payload_bytes_per_round"] =
       rounds ? static_cast<double>(t.cdr + t.status_bytes) / rounds : 0.0;
   j["dds_payload_bytes"] = t.cdr + t.status_bytes + t.coarse_cdr;
-  if (reference.refine.status != StageStatus::kNotRun) {
+  if (reference.refine.status != StageStatus::kNotRun && !robust) {
     // The centralized optimum in the same gauge (the anchor at its initial value).
     const Key anchor = GaugeAnchor(graph);
     const auto it = reference.values.find(anchor);
@@ -593,11 +664,21 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
                reference.refine.final_cost, central.final_cost,
                j["cost_relative_to_centralized"].get<double>());
   }
-  fmt::print("DGS: rotation {} rounds, pose {} rounds (in-process {}, {}); {} messages, {} B "
-             "binary (in-process {}, {} B), {} B CDR payload, status {} B\n",
-             t.rotation_rounds, t.pose_rounds, reference.rotation.iterations,
-             reference.pose.iterations, t.messages, t.binary, reference.messages, reference.bytes,
-             t.cdr, t.status_bytes);
+  if (robust) {
+    j["in_process_solve_bytes"] = robust->solve_bytes;
+    fmt::print("DGS, least-squares solve: rotation {} rounds, pose {} rounds (in-process {}, {}); "
+               "every solve: {} messages, {} B binary estimates and {} B coarse (in-process {} B "
+               "with the control messages), {} B CDR payload, status {} B\n",
+               t.rotation_rounds, t.pose_rounds, reference.rotation.iterations,
+               reference.pose.iterations, t.messages, t.binary, t.coarse_binary,
+               robust->solve_bytes, t.cdr, t.status_bytes);
+  } else {
+    fmt::print("DGS: rotation {} rounds, pose {} rounds (in-process {}, {}); {} messages, {} B "
+               "binary (in-process {}, {} B), {} B CDR payload, status {} B\n",
+               t.rotation_rounds, t.pose_rounds, reference.rotation.iterations,
+               reference.pose.iterations, t.messages, t.binary, reference.messages,
+               reference.bytes, t.cdr, t.status_bytes);
+  }
   if (t.coarse_messages > 0) {
     fmt::print("coarse shares: {} published, {} B binary, {} B CDR payload; {} protocol steps\n",
                t.coarse_messages, t.coarse_binary, t.coarse_cdr, t.protocol_steps);
@@ -750,6 +831,10 @@ int RunScenarioTeam(const TeamArgs& a) {
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
   fs::create_directories(out);
+  if (a.online && a.solve.robust) {
+    throw InvalidInputError("team: --robust runs on the batch solve; the group solves of "
+                            "--online are least squares");
+  }
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
   const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
   bool ok = t.ok;
@@ -808,11 +893,19 @@ int RunScenarioTeam(const TeamArgs& a) {
                  events, shared.size(), slam.shared.size(),
                  shared == reference_shared ? "the same pairs" : "DIFFERENT pairs", rdv_binary,
                  slam.bytes, rdv_dds, rdv_samples);
-      const DgsResult reference =
-          RunDgs(joint.graph, joint.initial, DriverOptions(NodeOptions(a.solve)));
+      const DgsNodeOptions node = NodeOptions(a.solve);
+      const DgsResult reference = RunDgs(joint.graph, joint.initial, DriverOptions(node));
+      std::optional<RobustDgsResult> robust;
+      if (node.gnc) {
+        std::vector<bool> mask;  // as the robot sessions: the factors touching an object
+        for (const RelativePoseFactor& f : joint.graph.factors()) {
+          mask.push_back(f.a().isObject() || f.b().isObject());
+        }
+        robust = RunRobustDgs(joint.graph, joint.initial, mask, ReferenceRobustOptions(node));
+      }
       G2oWriteOptions write;
       write.scheme = KeyScheme::kWithObjects;
-      CompareWithInProcess(t, joint.graph, reference, out, write, j);
+      CompareWithInProcess(t, joint.graph, reference, out, write, j, robust ? &*robust : nullptr);
     }
   } else {
     ReportFailedRobots(t.per_robot);
@@ -864,9 +957,18 @@ int RunTeam(const TeamArgs& args) {
   if (t.ok) {
     const Dataset full = ReadG2oFolder(a.data);
     fmt::print("team of {} on loopback (domain {}): {:.2f} s\n", n, a.domain, t.seconds);
-    const DgsResult reference =
-        RunDgs(full.graph, full.initial, DriverOptions(NodeOptions(a.solve)));
-    CompareWithInProcess(t, full.graph, reference, out, G2oWriteOptions{}, j);
+    const DgsNodeOptions node = NodeOptions(a.solve);
+    const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(node));
+    std::optional<RobustDgsResult> robust;
+    if (node.gnc) {
+      std::vector<bool> mask;  // as the nodes: the separators
+      for (const RelativePoseFactor& f : full.graph.factors()) {
+        mask.push_back(f.a().robot != f.b().robot);
+      }
+      robust = RunRobustDgs(full.graph, full.initial, mask, ReferenceRobustOptions(node));
+    }
+    CompareWithInProcess(t, full.graph, reference, out, G2oWriteOptions{}, j,
+                         robust ? &*robust : nullptr);
   } else {
     ReportFailedRobots(t.per_robot);
   }

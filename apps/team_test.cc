@@ -4,7 +4,8 @@
 // is noticed through liveliness and the others finish. Simulated scenarios (--scenario): object
 // SLAM and rendezvous in each process give the in-process pipeline's shared objects and
 // estimate; robots killed in the rendezvous phase and in the DGS and restarted lose nothing;
-// online (--online), every map the robots save equals the in-process twin's.
+// online (--online), every map the robots save equals the in-process twin's; robust (--robust),
+// the in-process robust solve's estimate.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -389,6 +390,25 @@ TEST(Team, UnknownInitialPosesAsProcessesEqualTheInProcessPipeline) {
     for (const auto& e : r["rendezvous"]) removed += e["removed_shared"].get<int>();
   }
   EXPECT_GT(removed, 0);
+  fs::remove_all(out);
+}
+
+// The robust solve over DDS (--robust): GNC rounds run by the processes, weights on the wire,
+// equal to the in-process robust solve (RunRobustDgs without the separator check).
+TEST(Team, RobustScenarioProcessesEqualTheInProcessRobustSolve) {
+  const fs::path out = FreshDir("robust");
+  // A threshold low enough that the 40-pose maps have factors beyond it: GNC has rounds to run.
+  const nlohmann::json j = RunScenarioTeam(out, 56, {"--robust", "--gnc-threshold", "4"});
+  ASSERT_TRUE(j.is_object());
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  EXPECT_GT(j["in_process_gnc_rounds"].get<int>(), 0);
+  EXPECT_EQ(j["gnc_rounds"], j["in_process_gnc_rounds"]);
+  EXPECT_GT(j["dds_weight_bytes"].get<std::int64_t>(), 0);
+  for (const auto& r : j["per_robot"]) {
+    EXPECT_EQ(r["rejected_samples"].get<int>(), 0) << r.dump();
+    EXPECT_EQ(r["gnc_rounds"], j["in_process_gnc_rounds"]);
+  }
   fs::remove_all(out);
 }
 

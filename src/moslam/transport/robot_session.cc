@@ -108,6 +108,10 @@ void RobotSessionOptions::validate() const {
   if (rendezvous_timeout.count() <= 0) {
     throw InvalidInputError("robot session: rendezvous_timeout must be positive");
   }
+  if (online && dgs.gnc) {
+    throw InvalidInputError("robot session: the robust solve (dgs.gnc) runs on the batch solve; "
+                            "online group solves are least squares");
+  }
   if (online && !dgs.solver.refine) {
     throw InvalidInputError(
         "robot session: online mapping needs the refinement (dgs.solver.refine): a robot holds "
@@ -386,7 +390,14 @@ class RobotSession::Impl {
 
     PrefetchedTransport dgs_transport(transport_, std::move(pending_));
     pending_.clear();
-    DgsNode node(robot_, result_.subgraph, result_.initial, dgs_transport, options_.dgs);
+    DgsNodeOptions node_options = options_.dgs;
+    if (node_options.gnc && node_options.robust.empty()) {
+      // As the simulation's robust solve: the object-object factors and the object measurements.
+      for (const RelativePoseFactor& f : result_.subgraph.factors()) {
+        node_options.robust.push_back(f.a().isObject() || f.b().isObject());
+      }
+    }
+    DgsNode node(robot_, result_.subgraph, result_.initial, dgs_transport, node_options);
     result_.dgs = node.run();
     result_.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return result_;

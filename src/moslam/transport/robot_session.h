@@ -120,7 +120,8 @@ struct SessionSolve {
 
 struct RobotSessionOptions {
   MultiRobotSlamConfig slam;
-  DgsNodeOptions dgs;  // dgs.state_dir also holds rendezvous.bin
+  DgsNodeOptions dgs;  // dgs.state_dir also holds rendezvous.bin; with dgs.gnc and no mask, the
+                       // factors touching an object landmark are robust (as in the simulation)
   // Online mapping (online/group_solve.h; the in-process twin: online/online_team.h): after the
   // rendezvous events of a step, the robots connected through them and linked by shared objects
   // solve their joint graph with DgsNode (dgs.solver, which must refine: the partners' landmarks
