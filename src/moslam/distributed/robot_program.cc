@@ -11,6 +11,19 @@
 #include "moslam/distributed/coarse_system.h"
 
 namespace moslam {
+
+double TeamSum(const TeamStep& step, int i) {
+  double total = 0.0;
+  for (const auto& [r, report] : step.reports) total += report.value[i];
+  return total;
+}
+
+double TeamMax(const TeamStep& step, int i) {
+  double m = 0.0;
+  for (const auto& [r, report] : step.reports) m = std::max(m, report.value[i]);
+  return m;
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -55,17 +68,6 @@ class Program {
     return r;
   }
 
-  // The team's sum (robot id order, as DgsDriver::gather) or maximum of value[i].
-  static double Sum(const TeamStep& s, int i) {
-    double total = 0.0;
-    for (const auto& [r, report] : s.reports) total += report.value[i];
-    return total;
-  }
-  static double Max(const TeamStep& s, int i) {
-    double m = 0.0;
-    for (const auto& [r, report] : s.reports) m = std::max(m, report.value[i]);
-    return m;
-  }
   static bool AllCoarseReady(const TeamStep& s) {
     for (const auto& [r, report] : s.reports) {
       if (!report.coarse_ready || !report.has_share) return false;
@@ -200,7 +202,7 @@ class Program {
       return step(stage, false, mine);
     };
     precondition();
-    const double rz0 = Sum(reduce(agent_.residualDot(), 0.0), 0);
+    const double rz0 = TeamSum(reduce(agent_.residualDot(), 0.0), 0);
     double rz = rz0;
     if (!(rz0 > 0.0)) {  // the gradient is zero: delta = 0
       outcome.converged = true;
@@ -210,8 +212,8 @@ class Program {
     while (true) {
       const double curvature = agent_.curvature();
       const TeamStep got = reduce(curvature, agent_.directionNorm());
-      const double pq = Sum(got, 0);
-      const double max_direction = Max(got, 1);
+      const double pq = TeamSum(got, 0);
+      const double max_direction = TeamMax(got, 1);
       if (!(pq > 0.0)) {  // no curvature left along p (rounding): keep delta
         outcome.converged = true;
         break;
@@ -220,7 +222,7 @@ class Program {
       agent_.advance(alpha);
       const double change = std::abs(alpha) * max_direction;
       precondition();
-      const double rz_new = Sum(reduce(agent_.residualDot(), 0.0), 0);
+      const double rz_new = TeamSum(reduce(agent_.residualDot(), 0.0), 0);
       const double relative = std::sqrt(std::max(rz_new, 0.0) / rz0);
       outcome.converged = (goal.tolerance > 0.0 && relative <= goal.tolerance) ||
                           (goal.eta_change > 0.0 && change <= goal.eta_change);
@@ -291,7 +293,7 @@ class Program {
       mine.value[0] = agent_.initialised() ? agent_.lastChange() : 0.0;
       mine.value[1] = agent_.incrementNorm();
       const TeamStep got = step(DgsStage::kRefine, solved, mine);
-      const bool stop = Max(got, 0) <= opt.sweep_tolerance * Max(got, 1);
+      const bool stop = TeamMax(got, 0) <= opt.sweep_tolerance * TeamMax(got, 1);
       summary.sweeps = sweep;
       summary.linear_converged = stop;
       if (stop) break;
@@ -302,7 +304,7 @@ class Program {
   double teamCost(bool candidate) {
     TeamReport mine;
     mine.value[0] = agent_.costShare(candidate);
-    return Sum(step(DgsStage::kRefine, false, mine), 0);
+    return TeamSum(step(DgsStage::kRefine, false, mine), 0);
   }
 
   void runRefinement() {

@@ -59,6 +59,11 @@ struct TeamStep {
   std::map<int, WeightMessage> weights;    // from neighbours whose report says weights, to it
 };
 
+// The team's sum (in robot id order, as DgsDriver::gather) and maximum (0 when every value is
+// below) of report.value[i] over the step's reports: what every robot computes alike.
+double TeamSum(const TeamStep& step, int i);
+double TeamMax(const TeamStep& step, int i);
+
 class TeamChannel {
  public:
   virtual ~TeamChannel() = default;

@@ -53,7 +53,7 @@ class RobustProgram {
     std::vector<double> r2 = SquaredResiduals(p_.subgraph, values_);
     double max_r2 = 0.0;
     for (std::size_t i : owned_) max_r2 = std::max(max_r2, r2[i]);
-    const bool started = schedule.start(Max(reduce(max_r2), 0));
+    const bool started = schedule.start(TeamMax(reduce(max_r2), 0));
     if (started) {
       for (std::uint32_t k = 1;; ++k) {
         double undecided = 0.0;
@@ -61,7 +61,7 @@ class RobustProgram {
           out_.weights[i] = schedule.weight(r2[i]);
           if (!schedule.decided(out_.weights[i])) undecided += 1.0;
         }
-        const double left = Sum(exchangeWeights(k, undecided), 0);
+        const double left = TeamSum(exchangeWeights(k, undecided), 0);
         solve(WeightedGraph(p_.subgraph, out_.weights, options_.gnc.min_weight));
         r2 = SquaredResiduals(p_.subgraph, values_);
         if (schedule.next(left == 0.0)) break;
@@ -73,8 +73,13 @@ class RobustProgram {
     for (std::size_t i = 0; i < n; ++i) {
       if (p_.robust[i] && out_.weights[i] < 0.5) ++out_.outliers;
     }
+    const std::set<Key>& used = p_.subgraph.keys();
     for (const auto& [k, x] : values_) {
-      (k.robot == p_.robot ? out_.estimate : out_.neighbours)[k] = x;
+      if (k.robot == p_.robot) {
+        out_.estimate[k] = x;
+      } else if (used.count(k)) {  // not the other robots' variables `initial` may hold
+        out_.neighbours[k] = x;
+      }
     }
     return std::move(out_);
   }
@@ -102,16 +107,6 @@ class RobustProgram {
     return step(mine);
   }
 
-  static double Sum(const TeamStep& s, int i) {
-    double total = 0.0;
-    for (const auto& [r, report] : s.reports) total += report.value[i];
-    return total;
-  }
-  static double Max(const TeamStep& s, int i) {
-    double m = 0.0;
-    for (const auto& [r, report] : s.reports) m = std::max(m, report.value[i]);
-    return m;
-  }
 
   // Sends every neighbour the weights of the robust separators this robot owns toward it (in
   // subgraph order; none toward a lower robot), with `value` in the report, and takes the weights
@@ -164,7 +159,7 @@ class RobustProgram {
     for (std::size_t i : owned_) {
       if (out_.weights[i] != 1.0) changed += 1.0;
     }
-    if (Sum(exchangeWeights(round, changed), 0) == 0.0) return;
+    if (TeamSum(exchangeWeights(round, changed), 0) == 0.0) return;
     const std::vector<bool> inliers = Inliers(out_.weights);
     if (!linked(inliers)) return;
     solve(SubGraph(p_.subgraph, inliers));

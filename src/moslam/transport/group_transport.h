@@ -3,7 +3,7 @@
 // robots[i] -> i) needs to run unchanged between processes whose ids are `robots`.
 //
 // Outgoing DGS packets are stamped with the solve and mapped to the real ids (robot fields,
-// neighbour lists, variable keys, coarse block robots). Incoming DGS packets of the solve from
+// neighbour lists, variable keys, coarse block robots, weights' sender and receiver). Incoming DGS packets of the solve from
 // robots of the group are mapped back; everything else (rendezvous packets, DGS packets of other
 // solves or from other robots) is handed untouched to `elsewhere`, the owner's inbox, so a robot
 // that has moved on to its next rendezvous loses nothing it sent meanwhile.
