@@ -896,12 +896,9 @@ int RunScenarioTeam(const TeamArgs& a) {
       const DgsNodeOptions node = NodeOptions(a.solve);
       const DgsResult reference = RunDgs(joint.graph, joint.initial, DriverOptions(node));
       std::optional<RobustDgsResult> robust;
-      if (node.gnc) {
-        std::vector<bool> mask;  // as the robot sessions: the factors touching an object
-        for (const RelativePoseFactor& f : joint.graph.factors()) {
-          mask.push_back(f.a().isObject() || f.b().isObject());
-        }
-        robust = RunRobustDgs(joint.graph, joint.initial, mask, ReferenceRobustOptions(node));
+      if (node.gnc) {  // as the robot sessions
+        robust = RunRobustDgs(joint.graph, joint.initial, ObjectFactors(joint.graph),
+                              ReferenceRobustOptions(node));
       }
       G2oWriteOptions write;
       write.scheme = KeyScheme::kWithObjects;
@@ -960,12 +957,9 @@ int RunTeam(const TeamArgs& args) {
     const DgsNodeOptions node = NodeOptions(a.solve);
     const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(node));
     std::optional<RobustDgsResult> robust;
-    if (node.gnc) {
-      std::vector<bool> mask;  // as the nodes: the separators
-      for (const RelativePoseFactor& f : full.graph.factors()) {
-        mask.push_back(f.a().robot != f.b().robot);
-      }
-      robust = RunRobustDgs(full.graph, full.initial, mask, ReferenceRobustOptions(node));
+    if (node.gnc) {  // as the nodes
+      robust = RunRobustDgs(full.graph, full.initial, SeparatorFactors(full.graph),
+                            ReferenceRobustOptions(node));
     }
     CompareWithInProcess(t, full.graph, reference, out, G2oWriteOptions{}, j,
                          robust ? &*robust : nullptr);

@@ -5,15 +5,15 @@
 //
 //   1. the least-squares solve: RunRobotProgram (with the refinement) on an agent of its
 //      subgraph; afterwards it holds its estimate and its copies of its neighbours' variables
-//      (the refinement ends with both equal to the owners', bit for bit);
+//      (equal to the owners' estimates at the end of the refinement; the tests: to 1e-9);
 //   2. it owns the weights of its robust factors between two of its own variables and of its
 //      robust separators to robots of higher id; it computes their squared residuals r2 from its
 //      estimate and copies; one channel step reduces the largest r2 over the team (GncSchedule's
 //      mu_0; every robot computes the maximum from the same reports);
 //   3. a GNC round: it sets the weights it owns, sends each neighbour a WeightMessage (the weights
 //      of the robust separators it owns toward that neighbour, in the order both subgraphs hold
-//      them: empty toward a robot of lower id or without robust separators) and reports how many of its weights are undecided, in
-//      one channel step; it takes the weights of the separators its lower neighbours own from
+//      them: empty toward a robot of lower id or without robust separators) and reports how
+//      many of its weights are undecided, in one channel step; it takes the weights of the separators its lower neighbours own from
 //      their messages, solves the weighted subgraph (WeightedGraph) with RunRobotProgram from its
 //      current estimate and copies, and recomputes r2; the schedule stops when the team's
 //      undecided count was 0 (or after max_iterations);
@@ -21,9 +21,8 @@
 //      their weights to the neighbours, and the team's count of readmitted and not-one weights);
 //      if some weight is not 1, the inliers alone (SubGraph of weight >= 0.5) are solved once
 //      more, when every live robot is linked to robot 0 (or to a robot with a prior) through
-//      separators of weight >= 0.5
-//      (flooded over the team in channel steps, a robot's flag per step); a variable no inlier
-//      touches keeps the rounds' estimate.
+//      separators of weight >= 0.5 (flooded over the team in channel steps, a robot's flag per
+//      step); a variable no inlier touches keeps the rounds' estimate.
 // Weights change only between solves; only estimates, weights and the reports' scalars cross the
 // network. The program makes the agent calls of RunRobustDgs with check_separators off and the
 // solver in Jacobi order, on the same numbers, so a team of programs reproduces it (to the

@@ -14,6 +14,7 @@
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/partition.h"
 #include "moslam/distributed/robust_dgs.h"
+#include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
 
 namespace moslam {
@@ -93,15 +94,6 @@ TeamOutcome RunTeam(const PoseGraph& graph, const Values& initial, const std::ve
   return outcome;
 }
 
-double MaxDifference(const Values& a, const Values& b) {
-  double d = 0.0;
-  for (const auto& [k, x] : a) {
-    d = std::max(d, (x.translation() - b.at(k).translation()).norm());
-    d = std::max(d, (x.rotation().matrix() - b.at(k).rotation().matrix()).norm());
-  }
-  return d;
-}
-
 RobustDgsOptions ReferenceOptions(const RobustProgramOptions& o) {
   RobustDgsOptions r;
   r.dgs = o.solver;
@@ -127,7 +119,7 @@ void ExpectSameAsRunRobustDgs(const PoseGraph& graph, const Values& initial,
   const TeamOutcome team = RunTeam(graph, initial, robust, options);
   ASSERT_EQ(team.error, "");
   ASSERT_EQ(team.values.size(), reference.values.size());
-  EXPECT_LE(MaxDifference(team.values, reference.values), 1e-9);
+  EXPECT_LE(MaxPoseDifference(team.values, reference.values), 1e-9);
   std::int64_t weight_messages = 0;
   for (const auto& [robot, r] : team.results) {
     EXPECT_EQ(r.status, reference.status) << "robot " << robot;
@@ -145,7 +137,8 @@ void ExpectSameAsRunRobustDgs(const PoseGraph& graph, const Values& initial,
       if (r.polished && r.weights[j] < 0.5) continue;
       for (const Key& k : {f.a(), f.b()}) {
         if (k.robot == robot) continue;
-        EXPECT_LE(MaxDifference({{k, r.neighbours.at(k)}}, team.values), 1e-9) << ToString(k);
+        EXPECT_LE(MaxPoseDifference({{k, r.neighbours.at(k)}}, {{k, team.values.at(k)}}), 1e-9)
+            << ToString(k);
       }
     }
     weight_messages += r.weight_messages;
@@ -186,7 +179,7 @@ TEST(RobustProgram, WithoutOutliersItIsTheLeastSquaresSolveAndSendsNoWeight) {
   ASSERT_EQ(reference.status, GncStatus::kAllInliers);
   const TeamOutcome team = RunTeam(data.graph, data.initial, robust, options);
   ASSERT_EQ(team.error, "");
-  EXPECT_LE(MaxDifference(team.values, reference.values), 1e-9);
+  EXPECT_LE(MaxPoseDifference(team.values, reference.values), 1e-9);
   for (const auto& [robot, r] : team.results) {
     EXPECT_EQ(r.status, GncStatus::kAllInliers);
     EXPECT_EQ(r.weight_messages, 0);

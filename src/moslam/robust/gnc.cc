@@ -125,18 +125,21 @@ int CountOutliers(const std::vector<bool>& robust, const std::vector<double>& we
   return n;
 }
 
+std::vector<bool> SeparatorFactors(const PoseGraph& graph) {
+  std::vector<bool> out;
+  out.reserve(graph.factors().size());
+  for (const RelativePoseFactor& f : graph.factors()) out.push_back(f.a().robot != f.b().robot);
+  return out;
+}
+
 std::vector<bool> DefaultRobustFactors(const PoseGraph& graph) {
-  const bool single = graph.numRobots() <= 1;
+  if (graph.numRobots() > 1) return SeparatorFactors(graph);
   std::vector<bool> out;
   out.reserve(graph.factors().size());
   for (const RelativePoseFactor& f : graph.factors()) {
     const Key a = f.a(), b = f.b();
-    if (!single) {
-      out.push_back(a.robot != b.robot);
-    } else {
-      const bool consecutive = a.kind == b.kind && (a.index + 1 == b.index || b.index + 1 == a.index);
-      out.push_back(!consecutive);
-    }
+    const bool consecutive = a.kind == b.kind && (a.index + 1 == b.index || b.index + 1 == a.index);
+    out.push_back(!consecutive);
   }
   return out;
 }

@@ -100,6 +100,8 @@ bool AllWeightsOne(const std::vector<double>& weights);
 // Robust factors of weight < 0.5.
 int CountOutliers(const std::vector<bool>& robust, const std::vector<double>& weights);
 
+// The factors between two robots (inter-robot loop closures, shared objects).
+std::vector<bool> SeparatorFactors(const PoseGraph& graph);
 // The factors robust by default: those between two robots (inter-robot loop closures, shared
 // objects); in a single-robot graph, the loop closures (poses not consecutive).
 std::vector<bool> DefaultRobustFactors(const PoseGraph& graph);

@@ -174,12 +174,8 @@ class DgsNode::Impl final : public TeamChannel {
       if (k.robot == robot_) own_[k] = x;
     }
     if (options_.gnc) {
-      robust_ = options_.robust;
-      if (robust_.empty()) {
-        for (const RelativePoseFactor& f : subgraph_.factors()) {
-          robust_.push_back(f.a().robot != f.b().robot);
-        }
-      } else if (robust_.size() != subgraph_.factors().size()) {
+      robust_ = options_.robust.empty() ? SeparatorFactors(subgraph_) : options_.robust;
+      if (robust_.size() != subgraph_.factors().size()) {
         throw InvalidInputError(fmt::format("DGS node: the robust mask has {} entries for {} "
                                             "factors",
                                             robust_.size(), subgraph_.factors().size()));

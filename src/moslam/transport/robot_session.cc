@@ -97,6 +97,15 @@ RobotScenarioData SliceForRobot(const SimulationData& data, int robot, bool know
   return d;
 }
 
+std::vector<bool> ObjectFactors(const PoseGraph& graph) {
+  std::vector<bool> out;
+  out.reserve(graph.factors().size());
+  for (const RelativePoseFactor& f : graph.factors()) {
+    out.push_back(f.a().isObject() || f.b().isObject());
+  }
+  return out;
+}
+
 void RobotSessionOptions::validate() const {
   slam.validate();
   dgs.validate();
@@ -392,10 +401,7 @@ class RobotSession::Impl {
     pending_.clear();
     DgsNodeOptions node_options = options_.dgs;
     if (node_options.gnc && node_options.robust.empty()) {
-      // As the simulation's robust solve: the object-object factors and the object measurements.
-      for (const RelativePoseFactor& f : result_.subgraph.factors()) {
-        node_options.robust.push_back(f.a().isObject() || f.b().isObject());
-      }
+      node_options.robust = ObjectFactors(result_.subgraph);
     }
     DgsNode node(robot_, result_.subgraph, result_.initial, dgs_transport, node_options);
     result_.dgs = node.run();
