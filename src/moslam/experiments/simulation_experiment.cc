@@ -128,6 +128,8 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"perception_true_detections", &RunMetrics::perception_true_detections},
       {"perception_accepted", &RunMetrics::perception_accepted},
       {"perception_accepted_true", &RunMetrics::perception_accepted_true},
+      {"perception_true_visible", &RunMetrics::perception_true_visible},
+      {"perception_accepted_visible", &RunMetrics::perception_accepted_visible},
       {"perception_rejected_inliers", &RunMetrics::perception_rejected_inliers},
       {"perception_rejected_inliers_false", &RunMetrics::perception_rejected_inliers_false},
       {"perception_median_error_m", &RunMetrics::perception_median_error_m},
@@ -588,6 +590,7 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
       break;
     case TableKind::kPerception:
       extra = {"Frames", "Detections", "True detections", "Accepted (true)",
+               "Accepted of true, objects >= 30 % visible",
                "Rejected by the 12-inlier gate (false det.)", "Median pose error (cm / deg)",
                "ms/frame render / detect / segment / register",
                "Point clouds of the frames (MB/robot)", "Object map measured (MB/robot)",
@@ -647,6 +650,10 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
         extra = {Fix(m.perception_frames), Fix(m.perception_detections),
                  Fix(m.perception_true_detections),
                  Fix(m.perception_accepted) + " (" + Fix(m.perception_accepted_true) + ")",
+                 Fix(m.perception_accepted_visible) + " of " + Fix(m.perception_true_visible) +
+                     " (" +
+                     Fix(100.0 * m.perception_accepted_visible / m.perception_true_visible, 1) +
+                     " %)",
                  Fix(m.perception_rejected_inliers) + " (" +
                      Fix(m.perception_rejected_inliers_false) + ")",
                  Fix(100.0 * m.perception_median_error_m, 1) + " / " +

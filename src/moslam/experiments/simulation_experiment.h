@@ -159,14 +159,17 @@ struct RunMetrics {
   // Perception on rendered frames (ExperimentConfig::rendered; NaN with sampled measurements):
   // frames perceived, detections, true ones (IoU >= 0.5 with a same-label object), accepted
   // registrations (and true ones), rejections by the 12-inlier gate (and false detections among
-  // them), median pose error of the accepted true ones, milliseconds per frame per stage.
+  // them), median pose error of the accepted true ones, milliseconds per frame per stage;
+  // true detections of objects with >= 30 % of their silhouette seen, and accepted ones
+  // (RenderedSensingConfig::min_visible_fraction).
   double perception_frames = kNotRun, perception_detections = kNotRun,
          perception_true_detections = kNotRun, perception_accepted = kNotRun,
          perception_accepted_true = kNotRun, perception_rejected_inliers = kNotRun,
          perception_rejected_inliers_false = kNotRun, perception_median_error_m = kNotRun,
          perception_median_error_deg = kNotRun, perception_ms_render = kNotRun,
          perception_ms_detect = kNotRun, perception_ms_segment = kNotRun,
-         perception_ms_register = kNotRun;
+         perception_ms_register = kNotRun, perception_true_visible = kNotRun,
+         perception_accepted_visible = kNotRun;
   // Per robot: the point clouds of the perceived frames (valid depth points x
   // PointCloudModel::bytes_per_point), against memory_obj_measured (the object map).
   double perception_pcd_bytes = kNotRun;

@@ -70,6 +70,29 @@ TEST(Perception, RecoversTheChairPoseFromARenderedFrame) {
   EXPECT_GT(seen.times.register_, 0.0);
 }
 
+TEST(RenderedSensing, CountsTrueDetectionsOfObjectsSeenEnoughByClass) {
+  // One robot, two poses: the chair in full view, then the robot turned away from it.
+  SimulationData data;
+  data.world = OneObject("chair", 2.0, 0.6);
+  data.trajectories = {{kBody, SE3(SO3::Exp(Vector3(0.0, 0.0, M_PI)), kBody.translation())}};
+  data.measurements.resize(1);
+  RenderedSensingConfig config;
+  config.perception = CommittedModel();
+  const RenderedSensingStats stats = PerceiveSimulation(data, config);
+  EXPECT_EQ(stats.frames, 2);
+  ASSERT_EQ(stats.true_detections, 1);
+  EXPECT_EQ(stats.true_visible, 1);  // nothing hides it, nothing cuts it
+  ASSERT_EQ(stats.by_class.count("chair"), 1u);
+  const AcceptanceCounts& chair = stats.by_class.at("chair");
+  EXPECT_EQ(chair.true_detections, 1);
+  EXPECT_EQ(chair.true_visible, 1);
+  EXPECT_EQ(chair.accepted, stats.accepted_true);
+  EXPECT_EQ(chair.accepted_visible, stats.accepted_visible);
+  EXPECT_EQ(stats.accepted_visible, stats.accepted_true);
+  config.min_visible_fraction = 1.5;  // a share
+  EXPECT_THROW(PerceiveSimulation(data, config), InvalidInputError);
+}
+
 TEST(Perception, AnEmptyRoomGivesNoMeasurement) {
   World w = OneObject("chair", 2.0, 0.0);
   w.objects.clear();

@@ -19,6 +19,9 @@ void RenderedSensingConfig::validate() const {
   render.validate();
   perception.validate();
   if (every < 1) throw InvalidInputError("RenderedSensingConfig: every must be >= 1");
+  if (!(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0)) {
+    throw InvalidInputError("RenderedSensingConfig: min_visible_fraction must be in [0, 1]");
+  }
 }
 
 double RenderedSensingStats::medianTranslationError() const { return Median(translation_errors); }
@@ -67,7 +70,17 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
             truth = &v;
           }
         }
-        if (truth) ++stats.true_detections;
+        AcceptanceCounts& of_class = stats.by_class[o.detection.label];
+        const bool visible =
+            truth != nullptr && truth->visibleFraction() >= config.min_visible_fraction;
+        if (truth) {
+          ++stats.true_detections;
+          ++of_class.true_detections;
+        }
+        if (visible) {
+          ++stats.true_visible;
+          ++of_class.true_visible;
+        }
         switch (o.status) {
           case PerceptionStatus::kAccepted:
             break;
@@ -89,6 +102,11 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
         d.information = o.registration.information;
         if (truth) {
           ++stats.accepted_true;
+          ++of_class.accepted;
+          if (visible) {
+            ++stats.accepted_visible;
+            ++of_class.accepted_visible;
+          }
           d.object_id = truth->id;
           const SE3& est = o.registration.camera_T_object;
           stats.translation_errors.push_back(

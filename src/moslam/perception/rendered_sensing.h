@@ -14,6 +14,8 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
+#include <string>
 #include <vector>
 
 #include "moslam/detection/evaluation.h"  // BoxIou
@@ -27,8 +29,18 @@ struct RenderedSensingConfig {
   RenderConfig render;
   PerceptionConfig perception;
   int every = 1;  // perceive every `every`-th pose (1: all)
+  // The true detections also counted apart for objects with at least this share of their
+  // silhouette seen (VisibleObject::visibleFraction), the "30 % visible" population.
+  double min_visible_fraction = 0.3;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
+};
+
+// True detections and accepted true ones, of all objects and of those seen enough
+// (RenderedSensingConfig::min_visible_fraction).
+struct AcceptanceCounts {
+  int true_detections = 0, accepted = 0;
+  int true_visible = 0, accepted_visible = 0;
 };
 
 struct RenderedSensingStats {
@@ -36,6 +48,8 @@ struct RenderedSensingStats {
   std::int64_t valid_depth_points = 0;     // pixels with a depth return, over the frames
   int detections = 0, true_detections = 0;  // true: IoU >= 0.5 with a same-label object
   int accepted = 0, accepted_true = 0;
+  int true_visible = 0, accepted_visible = 0;  // of objects seen enough (see the config)
+  std::map<std::string, AcceptanceCounts> by_class;  // by the detection's label
   int rejected_inliers = 0, rejected_inliers_false = 0;  // the 12-inlier gate, and how many of
                                                          // those were false detections
   int segmentation_failed = 0, other_rejected = 0;

@@ -143,6 +143,47 @@ TEST(Renderer, ObjectPartlyOutsideTheImageHasSmallInImageFraction) {
   EXPECT_EQ(f.objects[0].box.x, 0);
 }
 
+TEST(Renderer, VisibleFractionCountsOcclusionAndTheImageBorder) {
+  // Alone in view: its silhouette is what is seen.
+  {
+    const Renderer r(BlockWorld(), ExactConfig());
+    const RenderedFrame f = r.render(kBody);
+    ASSERT_EQ(f.objects.size(), 1u);
+    EXPECT_EQ(f.objects[0].silhouette_pixels, f.objects[0].visible_pixels);
+    EXPECT_DOUBLE_EQ(f.objects[0].visibleFraction(), 1.0);
+  }
+  // A second block halfway to it, 0.4 m to its left: it hides part of the first, not all.
+  World w = BlockWorld();
+  ObjectInstance front = w.objects[0];
+  front.id = 8;
+  front.pose = SE3(SO3(), Vector3(1.5, 0.5, 0.5));
+  w.objects.push_back(front);
+  const Renderer r(w, ExactConfig());
+  const RenderedFrame f = r.render(kBody);
+  ASSERT_EQ(f.objects.size(), 2u);
+  const VisibleObject& back = f.objects[0];
+  ASSERT_EQ(back.id, 7);
+  EXPECT_EQ(f.objects[1].silhouette_pixels, f.objects[1].visible_pixels);
+  // Its silhouette does not depend on what stands in front of it.
+  EXPECT_EQ(back.silhouette_pixels, Renderer(BlockWorld(), ExactConfig())
+                                        .render(kBody)
+                                        .objects[0]
+                                        .silhouette_pixels);
+  EXPECT_LT(back.visible_pixels, back.silhouette_pixels);
+  EXPECT_GT(back.visible_pixels, 0);
+  EXPECT_DOUBLE_EQ(back.visibleFraction(), static_cast<double>(back.visible_pixels) /
+                                               back.silhouette_pixels * back.in_image_fraction);
+  // Cut by the border: the in-image share scales it.
+  World edge = BlockWorld();
+  edge.objects[0].pose = SE3(SO3(), Vector3(2.0, 1.3, 0.5));
+  const RenderedFrame g = Renderer(edge, ExactConfig()).render(kBody);
+  ASSERT_EQ(g.objects.size(), 1u);
+  EXPECT_LT(g.objects[0].visibleFraction(), 0.5);
+  // (Where the block stands on the floor a pixel may go to the floor: a share of a percent.)
+  EXPECT_NEAR(g.objects[0].visibleFraction(), g.objects[0].in_image_fraction,
+              0.01 * g.objects[0].in_image_fraction);
+}
+
 TEST(Renderer, DepthOutsideTheRangeHasNoReturn) {
   RenderConfig c = ExactConfig();
   c.max_depth = 2.5;  // the block's face at 2.7 m is beyond

@@ -123,7 +123,7 @@ cv::Vec3b Scale(const cv::Vec3b& c, double f) {
 // inverse depth, affine in screen space, is evaluated along it.
 void RasterizeTriangle(const std::array<double, 3>& u, const std::array<double, 3>& v,
                        const std::array<double, 3>& iz, int item, int triangle, cv::Mat& inv_z,
-                       cv::Mat& item_buf, cv::Mat& tri_buf) {
+                       cv::Mat& item_buf, cv::Mat& tri_buf, cv::Mat& own_buf, int& own_pixels) {
   const int W = inv_z.cols, H = inv_z.rows;
   const double area = (u[1] - u[0]) * (v[2] - v[0]) - (v[1] - v[0]) * (u[2] - u[0]);
   if (std::abs(area) < 1e-12) return;
@@ -166,8 +166,13 @@ void RasterizeTriangle(const std::array<double, 3>& u, const std::array<double, 
     auto* zr = inv_z.ptr<double>(row);
     auto* it = item_buf.ptr<int>(row);
     auto* tr = tri_buf.ptr<int>(row);
+    auto* own = own_buf.ptr<int>(row);
     const double z_row = zb * row + zc;
     for (int col = static_cast<int>(lo); col <= static_cast<int>(hi); ++col) {
+      if (own[col] != item) {  // the item's own silhouette, whatever is in front of it
+        own[col] = item;
+        ++own_pixels;
+      }
       const double z_inv = za * col + z_row;
       if (z_inv <= zr[col]) continue;
       zr[col] = z_inv;
@@ -178,6 +183,13 @@ void RasterizeTriangle(const std::array<double, 3>& u, const std::array<double, 
 }
 
 }  // namespace
+
+double VisibleObject::visibleFraction() const {
+  if (silhouette_pixels <= 0) return 0.0;
+  const double unoccluded =
+      std::min(1.0, static_cast<double>(visible_pixels) / static_cast<double>(silhouette_pixels));
+  return unoccluded * std::clamp(in_image_fraction, 0.0, 1.0);
+}
 
 SceneStyle RandomSceneStyle(unsigned seed) {
   std::mt19937 rng(seed);
@@ -275,6 +287,9 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
   cv::Mat inv_z(H, W, CV_64FC1, cv::Scalar(0.0));
   cv::Mat item_buf(H, W, CV_32SC1, cv::Scalar(kNothing));
   cv::Mat tri_buf(H, W, CV_32SC1, cv::Scalar(0));
+  // The last item whose triangles covered each pixel: counts each item's silhouette once.
+  cv::Mat own_buf(H, W, CV_32SC1, cv::Scalar(kNothing));
+  std::vector<int> silhouette(items_.size(), 0);
 
   // Floor: analytic ray-plane intersection, before the objects.
   if (config_.draw_floor && c_w.z() > 0.0) {
@@ -356,7 +371,7 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
                                                static_cast<std::size_t>(f + 1)};
         RasterizeTriangle({su[ix[0]], su[ix[1]], su[ix[2]]}, {sv[ix[0]], sv[ix[1]], sv[ix[2]]},
                           {siz[ix[0]], siz[ix[1]], siz[ix[2]]}, static_cast<int>(k),
-                          static_cast<int>(t), inv_z, item_buf, tri_buf);
+                          static_cast<int>(t), inv_z, item_buf, tri_buf, own_buf, silhouette[k]);
       }
     }
   }
@@ -368,7 +383,12 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
   cv::Mat depth(H, W, CV_32FC1, cv::Scalar(0.0f));
   out.instance_ids = cv::Mat(H, W, CV_32SC1, cv::Scalar(-1));
   const std::size_t num_objects = world_.objects.size();
-  std::vector<int> count(num_objects, 0);
+  std::vector<int> count(num_objects, 0), silhouette_of(num_objects, 0);
+  for (std::size_t k = 0; k < items_.size(); ++k) {
+    if (items_[k].object_index >= 0) {
+      silhouette_of[static_cast<std::size_t>(items_[k].object_index)] = silhouette[k];
+    }
+  }
   std::vector<cv::Point> lo(num_objects, cv::Point(W, H)), hi(num_objects, cv::Point(-1, -1));
   for (int v = 0; v < H; ++v) {
     const auto* iz = inv_z.ptr<double>(v);
@@ -472,6 +492,7 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
     vo.id = obj.id;
     vo.label = obj.label;
     vo.visible_pixels = count[o];
+    vo.silhouette_pixels = silhouette_of[o];
     vo.box = cv::Rect(lo[o], cv::Point(hi[o].x + 1, hi[o].y + 1));
     vo.camera_T_object = camera_T_world * obj.pose;
     const ObjectClass* c = world_.findClass(obj.label);

@@ -76,9 +76,17 @@ struct VisibleObject {
   cv::Rect box;              // tight box of its visible pixels (x, y, width, height)
   int visible_pixels = 0;    // pixels where it is the nearest surface
   SE3 camera_T_object;       // pose of the object in the camera optical frame
+  // Pixels of the image its own surfaces cover, whatever is in front of them (its silhouette
+  // cut by the image border): visible_pixels / silhouette_pixels is the share not occluded.
+  int silhouette_pixels = 0;
   // Share of the object's projected extent box (the 2D box of its 8 extent corners) that lies
   // inside the image: 1 = not cut by the border; 0 when a corner is behind the camera.
   double in_image_fraction = 0.0;
+  // The share of the object's silhouette seen in the frame: not occluded (visible over
+  // silhouette pixels) times inside the image (in_image_fraction), in [0, 1]. The usual occlusion
+  // and truncation measure of detection benchmarks (KITTI, amodal COCO), of the projection, not
+  // of the 3D surface; 0 when a corner of its extent is behind the camera.
+  double visibleFraction() const;
 };
 
 struct RenderedFrame {
