@@ -6,8 +6,8 @@
 #include <fmt/core.h>
 
 #include <algorithm>
-#include <string>
 #include <memory>
+#include <string>
 
 #include "commands.h"
 #include "moslam/perception/rendered_sensing.h"
