@@ -70,26 +70,23 @@ StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t of
   }
   const std::uint32_t messages = p.u32();
   for (std::uint32_t k = 0; k < messages; ++k) got.estimates.push_back(DecodeMessage(p.raw()));
-  const std::uint16_t shares = p.u16();
-  for (std::uint16_t k = 0; k < shares; ++k) {
-    CoarseMessage m = DecodeCoarseMessage(p.raw());
-    const auto it = got.reports.find(m.sender);
-    if (it == got.reports.end() || !it->second.has_share || got.shares.count(m.sender)) {
-      throw InvalidInputError(what + ": step record with an unannounced coarse share of robot " +
-                              std::to_string(m.sender));
+  // A list of per-robot messages, each from a robot whose report announced it, once.
+  const auto read_announced = [&](auto& into, const auto& decode, bool TeamReport::*announced,
+                                  const char* kind) {
+    const std::uint16_t n = p.u16();
+    for (std::uint16_t k = 0; k < n; ++k) {
+      auto m = decode(p.raw());
+      const auto it = got.reports.find(m.sender);
+      if (it == got.reports.end() || !(it->second.*announced) || into.count(m.sender)) {
+        throw InvalidInputError(what + ": step record with " + kind + " of robot " +
+                                std::to_string(m.sender));
+      }
+      into[m.sender] = std::move(m);
     }
-    got.shares[m.sender] = std::move(m);
-  }
-  const std::uint16_t weights = p.u16();
-  for (std::uint16_t k = 0; k < weights; ++k) {
-    WeightMessage m = DecodeWeightMessage(p.raw());
-    const auto it = got.reports.find(m.sender);
-    if (it == got.reports.end() || !it->second.weights || got.weights.count(m.sender)) {
-      throw InvalidInputError(what + ": step record with unannounced weights of robot " +
-                              std::to_string(m.sender));
-    }
-    got.weights[m.sender] = std::move(m);
-  }
+  };
+  read_announced(got.shares, DecodeCoarseMessage, &TeamReport::has_share,
+                 "an unannounced coarse share");
+  read_announced(got.weights, DecodeWeightMessage, &TeamReport::weights, "unannounced weights");
   if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a step record");
   return record;
 }
