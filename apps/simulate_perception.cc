@@ -30,21 +30,20 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
     const double frames = std::max(1, p.frames);
     m.perception_frames = p.frames;
     m.perception_detections = p.detections;
-    m.perception_true_detections = p.true_detections;
+    const AcceptanceCounts all = p.total();
+    m.perception_true_detections = all.true_detections;
     m.perception_accepted = p.accepted;
-    m.perception_accepted_true = p.accepted_true;
-    m.perception_true_visible = p.true_visible;
-    m.perception_accepted_visible = p.accepted_visible;
+    m.perception_accepted_true = all.accepted;
+    m.perception_true_visible = all.true_visible;
+    m.perception_accepted_visible = all.accepted_visible;
     // Per class, to stderr (the tables average runs; this is one run's).
     std::string line = fmt::format(
         "perception, {} ({} robots): accepted of true detections of objects >= {:.0f} % "
         "visible (of all true detections), by class:",
         data.world.name, data.numRobots(), 100.0 * config->min_visible_fraction);
     for (const auto& [label, c] : p.by_class) {
-      if (c.true_detections > 0) {
-        line += fmt::format(" {} {}/{} (all {}/{})", label, c.accepted_visible, c.true_visible,
-                            c.accepted, c.true_detections);
-      }
+      line += fmt::format(" {} {}/{} (all {}/{})", label, c.accepted_visible, c.true_visible,
+                          c.accepted, c.true_detections);
     }
     fmt::print(stderr, "{}\n", line);
     m.perception_rejected_inliers = p.rejected_inliers;

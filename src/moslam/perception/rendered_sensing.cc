@@ -24,6 +24,17 @@ void RenderedSensingConfig::validate() const {
   }
 }
 
+AcceptanceCounts RenderedSensingStats::total() const {
+  AcceptanceCounts sum;
+  for (const auto& [label, c] : by_class) {
+    sum.true_detections += c.true_detections;
+    sum.accepted += c.accepted;
+    sum.true_visible += c.true_visible;
+    sum.accepted_visible += c.accepted_visible;
+  }
+  return sum;
+}
+
 double RenderedSensingStats::medianTranslationError() const { return Median(translation_errors); }
 double RenderedSensingStats::medianRotationErrorDeg() const { return Median(rotation_errors_deg); }
 
@@ -70,16 +81,13 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
             truth = &v;
           }
         }
-        AcceptanceCounts& of_class = stats.by_class[o.detection.label];
+        AcceptanceCounts* of_class = nullptr;  // the true detection's class
         const bool visible =
             truth != nullptr && truth->visibleFraction() >= config.min_visible_fraction;
         if (truth) {
-          ++stats.true_detections;
-          ++of_class.true_detections;
-        }
-        if (visible) {
-          ++stats.true_visible;
-          ++of_class.true_visible;
+          of_class = &stats.by_class[o.detection.label];
+          ++of_class->true_detections;
+          if (visible) ++of_class->true_visible;
         }
         switch (o.status) {
           case PerceptionStatus::kAccepted:
@@ -101,12 +109,8 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
         d.measurement = o.body_T_object;
         d.information = o.registration.information;
         if (truth) {
-          ++stats.accepted_true;
-          ++of_class.accepted;
-          if (visible) {
-            ++stats.accepted_visible;
-            ++of_class.accepted_visible;
-          }
+          ++of_class->accepted;
+          if (visible) ++of_class->accepted_visible;
           d.object_id = truth->id;
           const SE3& est = o.registration.camera_T_object;
           stats.translation_errors.push_back(

@@ -46,10 +46,9 @@ struct AcceptanceCounts {
 struct RenderedSensingStats {
   int frames = 0;
   std::int64_t valid_depth_points = 0;     // pixels with a depth return, over the frames
-  int detections = 0, true_detections = 0;  // true: IoU >= 0.5 with a same-label object
-  int accepted = 0, accepted_true = 0;
-  int true_visible = 0, accepted_visible = 0;  // of objects seen enough (see the config)
-  std::map<std::string, AcceptanceCounts> by_class;  // by the detection's label
+  int detections = 0, accepted = 0;  // every detection, true or false
+  // The true detections (IoU >= 0.5 with a same-label object) and the accepted ones, by label.
+  std::map<std::string, AcceptanceCounts> by_class;
   int rejected_inliers = 0, rejected_inliers_false = 0;  // the 12-inlier gate, and how many of
                                                          // those were false detections
   int segmentation_failed = 0, other_rejected = 0;
@@ -58,6 +57,8 @@ struct RenderedSensingStats {
   StageTimes times;                        // summed over the frames
   double render_ms = 0.0;
   double template_seconds = 0.0;
+  // by_class summed over the classes.
+  AcceptanceCounts total() const;
   // Medians of the errors (NaN when empty).
   double medianTranslationError() const;
   double medianRotationErrorDeg() const;
