@@ -181,10 +181,14 @@ GncResult SolveGnc(const PoseGraph& graph, const Values& initial, const std::vec
       if (schedule.next(decided)) break;
     }
   }
-  // The inliers alone, at full weight: the rounds kept min_weight of every rejected factor.
+  // The inliers alone, at full weight: the rounds kept min_weight of every rejected factor. A
+  // variable only rejected factors touch is not in them: it keeps the rounds' estimate.
   if (!AllWeightsOne(out.weights)) {
     try {
-      out.values = Optimize(SubGraph(graph, Inliers(out.weights)), out.values, solver).values;
+      for (const auto& [k, x] :
+           Optimize(SubGraph(graph, Inliers(out.weights)), out.values, solver).values) {
+        out.values[k] = x;
+      }
     } catch (const UnderdeterminedError&) {
       // The inliers leave part of the graph unanchored: keep the rounds' estimate.
     }

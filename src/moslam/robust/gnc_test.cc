@@ -147,6 +147,40 @@ TEST(SolveGnc, WithoutOutliersReturnsTheLeastSquaresEstimate) {
   EXPECT_LT(MaxDistance(r.values, ls.values), 1e-9);
 }
 
+// A landmark whose only factor is rejected keeps an estimate (the rounds'), though the inliers'
+// last solve does not hold it: before, it fell out of the result (a robot's own map in the
+// separator check then had no estimate for it).
+TEST(SolveGnc, AVariableOnlyRejectedFactorsTouchKeepsTheRoundsEstimate) {
+  PoseGraph g;
+  const Matrix6 info = 100.0 * Matrix6::Identity();
+  const SE3 step(SO3::Exp(Vector3(0.0, 0.0, 0.1)), Vector3(1.0, 0.0, 0.0));
+  std::vector<SE3> x{SE3()};
+  for (std::uint64_t i = 0; i + 1 < 6; ++i) {
+    g.add(RelativePoseFactor(Key::Pose(0, i), Key::Pose(0, i + 1), step, info));
+    x.push_back(x.back() * step);
+  }
+  const Key lonely = Key::Object(0, 0), seen = Key::Object(0, 1);
+  const SE3 object(SO3(), Vector3(2.0, 1.0, 0.0));
+  for (std::uint64_t i : {0, 2, 4}) {  // three right views of `seen`, one 9 m off
+    g.add(RelativePoseFactor(Key::Pose(0, i), seen, x[i].between(object), info));
+  }
+  g.add(RelativePoseFactor(Key::Pose(0, 5), seen,
+                           x[5].between(object) * SE3(SO3(), Vector3(0.0, 9.0, 0.0)), info));
+  // `lonely`: two views that contradict each other (one from a pose, one against `seen`).
+  g.add(RelativePoseFactor(Key::Pose(0, 1), lonely, SE3(), info));
+  g.add(RelativePoseFactor(lonely, seen, SE3(SO3(), Vector3(0.0, -7.0, 0.0)), info));
+  std::vector<bool> robust(g.factors().size(), false);
+  for (std::size_t i = 5; i < robust.size(); ++i) robust[i] = true;  // every object factor
+  const GncResult r = SolveGnc(g, ChordalInitialization(g, SE3()), robust, GncOptions());
+  const std::size_t n = r.weights.size();
+  ASSERT_LT(r.weights[n - 1], 0.5);  // both of lonely's factors rejected
+  ASSERT_LT(r.weights[n - 2], 0.5);
+  EXPECT_LT(r.weights[n - 3], 0.5);  // the wrong view of `seen`
+  EXPECT_EQ(r.values.size(), g.keys().size());
+  EXPECT_EQ(r.values.count(lonely), 1u);
+  EXPECT_LT((r.values.at(seen).translation() - object.translation()).norm(), 1e-6);
+}
+
 TEST(SolveGnc, RejectsAMaskOfTheWrongSize) {
   const Dataset data = ReadG2oFolder(BlocksWorld(2));
   EXPECT_THROW(SolveGnc(data.graph, ChordalInitialization(data.graph, SE3()), {true}),
