@@ -1,9 +1,12 @@
 // Helpers shared by the distributed tests (not part of the library).
 #pragma once
 
+#include <random>
 #include <string>
+#include <vector>
 
 #include "moslam/distributed/centralized_two_stage.h"
+#include "moslam/geometry/so3.h"
 #include "moslam/graph/pose_graph.h"
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
@@ -41,6 +44,59 @@ inline PoseGraph ChainOfRobots(int robots, int n, Values* ground_truth) {
     if (r + 1 < robots) edge(Key::Pose(r, static_cast<std::uint64_t>(n - 1)), Key::Pose(r + 1, 0));
   }
   if (ground_truth) *ground_truth = gt;
+  return g;
+}
+
+// Two robots dead-reckoning 60 poses each (0.5 deg / 3 cm of odometry noise per step, information
+// to match; seeded) and meeting every 10 poses (separators of 0.5 deg / 2 cm), then two
+// right-looking separators to the wrong pose, 3 m and 30 deg off: `wrong` gets one flag per
+// separator, in graph order (the separators are the last factors). Their maps drift apart by far
+// more than the separators' noise.
+inline PoseGraph DriftingPairWithWrongSeparators(std::vector<bool>* wrong) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n01;
+  auto noise = [&](double sr, double st) {
+    Vector6 xi;
+    for (int c = 0; c < 6; ++c) xi[c] = n01(rng) * (c < 3 ? sr : st);
+    return SE3::Exp(xi);
+  };
+  auto information = [](double sr, double st) {
+    Vector6 d;
+    d << Vector3::Constant(1.0 / (sr * sr)), Vector3::Constant(1.0 / (st * st));
+    return Matrix6(d.asDiagonal());
+  };
+  const double deg = 3.14159265358979323846 / 180.0;
+  const double sr = 0.5 * deg, st = 0.03, zr = 0.5 * deg, zt = 0.02;
+  const int n = 60;
+  std::vector<SE3> truth[2];
+  for (int r = 0; r < 2; ++r) {
+    SE3 x(SO3(), Vector3(0.0, 3.0 * r, 0.0));
+    for (int i = 0; i < n; ++i) {
+      truth[r].push_back(x);
+      x = x * SE3(SO3::Exp(Vector3(0.0, 0.0, 0.05)), Vector3(0.5, 0.0, 0.0));
+    }
+  }
+  auto key = [](int r, int i) { return Key::Pose(r, static_cast<std::uint64_t>(i)); };
+  PoseGraph g;
+  for (int r = 0; r < 2; ++r) {
+    for (int i = 0; i + 1 < n; ++i) {
+      g.add(RelativePoseFactor(key(r, i), key(r, i + 1),
+                               truth[r][i].between(truth[r][i + 1]) * noise(sr, st),
+                               information(sr, st)));
+    }
+  }
+  wrong->clear();
+  for (int i = 0; i < n; i += 10) {
+    g.add(RelativePoseFactor(key(0, i), key(1, i), truth[0][i].between(truth[1][i]) * noise(zr, zt),
+                             information(zr, zt)));
+    wrong->push_back(false);
+  }
+  for (int i : {15, 35}) {
+    g.add(RelativePoseFactor(key(1, i), key(0, i + 4), truth[1][i].between(truth[0][i]) *
+                             SE3(SO3::Exp(Vector3(0.0, 0.0, 0.52)), Vector3(3.0, 0.0, 0.0)),
+                             information(zr, zt)));
+    wrong->push_back(true);
+  }
   return g;
 }
 

@@ -33,51 +33,101 @@ namespace {
 
 Key AsRobot(const Key& k, int robot) { return Key{robot, k.kind, k.index}; }
 
-// Robot r's own map: its intra-robot factors solved alone, re-keyed as robot 0 for the gauge (its
-// first pose at the identity), and the marginal covariances there. Empty when it has no factors.
-struct LocalMap {
-  PoseGraph graph;  // re-keyed as robot 0
-  Values estimate;  // re-keyed as robot 0
+}  // namespace
+
+// The map re-keyed as robot 0 (its own first pose the gauge).
+struct SeparatorCheckMap::Impl {
+  PoseGraph graph;
+  Values estimate;
   std::unique_ptr<Marginals> marginals;
-  bool has(const Key& k) const { return estimate.count(AsRobot(k, 0)) != 0; }
-  const SE3& at(const Key& k) const { return estimate.at(AsRobot(k, 0)); }
-  Eigen::MatrixXd covariance(const std::vector<Key>& keys) const {
-    std::vector<Key> local;
-    for (const Key& k : keys) local.push_back(AsRobot(k, 0));
-    return marginals->jointCovariance(local);
-  }
 };
 
-std::unique_ptr<LocalMap> BuildLocalMap(const PoseGraph& graph, int robot,
-                                        const std::vector<bool>& robust, const GncOptions& gnc,
-                                        bool marginals) {
-  auto out = std::make_unique<LocalMap>();
+SeparatorCheckMap::SeparatorCheckMap(const PoseGraph& graph, int robot,
+                                     const std::vector<bool>& robust, const GncOptions& gnc,
+                                     bool marginals)
+    : robot_(robot), impl_(std::make_unique<Impl>()) {
   std::vector<bool> local_robust;
   for (std::size_t i = 0; i < graph.factors().size(); ++i) {
     const RelativePoseFactor& f = graph.factors()[i];
     if (f.a().robot == robot && f.b().robot == robot) {
-      out->graph.add(RelativePoseFactor(AsRobot(f.a(), 0), AsRobot(f.b(), 0), f.measured(),
-                                        f.information()));
+      impl_->graph.add(RelativePoseFactor(AsRobot(f.a(), 0), AsRobot(f.b(), 0), f.measured(),
+                                          f.information()));
       local_robust.push_back(!robust.empty() && robust[i]);
     }
   }
-  if (out->graph.factors().empty()) return out;
+  if (impl_->graph.factors().empty()) return;
   OptimizerOptions options;
   options.max_iterations = 50;
-  const Values start = ChordalInitialization(out->graph, SE3());
+  const Values start = ChordalInitialization(impl_->graph, SE3());
   if (std::find(local_robust.begin(), local_robust.end(), true) == local_robust.end()) {
-    out->estimate = Optimize(out->graph, start, options).values;
-    if (marginals) out->marginals = std::make_unique<Marginals>(out->graph, out->estimate);
+    impl_->estimate = Optimize(impl_->graph, start, options).values;
+    if (marginals) impl_->marginals = std::make_unique<Marginals>(impl_->graph, impl_->estimate);
   } else {
-    const GncResult r = SolveGnc(out->graph, start, local_robust, gnc, options);
-    out->estimate = r.values;
+    const GncResult r = SolveGnc(impl_->graph, start, local_robust, gnc, options);
+    impl_->estimate = r.values;
     if (marginals) {
-      out->marginals = std::make_unique<Marginals>(
-          WeightedGraph(out->graph, r.weights, gnc.min_weight), out->estimate);
+      impl_->marginals = std::make_unique<Marginals>(
+          WeightedGraph(impl_->graph, r.weights, gnc.min_weight), impl_->estimate);
     }
   }
-  return out;
 }
+
+SeparatorCheckMap::~SeparatorCheckMap() = default;
+
+bool SeparatorCheckMap::hasAll(const std::vector<Key>& keys) const {
+  for (const Key& k : keys) {
+    if (k.robot != robot_ || !impl_->estimate.count(AsRobot(k, 0))) return false;
+  }
+  return true;
+}
+
+const SE3& SeparatorCheckMap::pose(const Key& key) const {
+  if (!hasAll({key})) {
+    throw InvalidInputError("separator check: robot " + std::to_string(robot_) +
+                            "'s map lacks " + ToString(key));
+  }
+  return impl_->estimate.at(AsRobot(key, 0));
+}
+
+Message SeparatorCheckMap::estimates(const std::vector<Key>& keys) const {
+  if (!hasAll(keys)) {
+    throw InvalidInputError("separator check: robot " + std::to_string(robot_) +
+                            "'s map lacks a variable asked for");
+  }
+  Message m;
+  m.stage = DgsStage::kPose;
+  m.sender = robot_;
+  for (const Key& k : keys) {
+    m.keys.push_back(k);
+    const SE3& x = impl_->estimate.at(AsRobot(k, 0));
+    const Vector3 w = SO3::Log(x.rotation());
+    for (int c = 0; c < 3; ++c) m.values.push_back(w[c]);
+    for (int c = 0; c < 3; ++c) m.values.push_back(x.translation()[c]);
+  }
+  return m;
+}
+
+Eigen::MatrixXd SeparatorCheckMap::covariance(const std::vector<Key>& keys) const {
+  if (!impl_->marginals) return Eigen::MatrixXd();
+  if (!hasAll(keys)) {
+    throw InvalidInputError("separator check: robot " + std::to_string(robot_) +
+                            "'s map lacks a variable asked for");
+  }
+  std::vector<Key> local;
+  for (const Key& k : keys) local.push_back(AsRobot(k, 0));
+  return impl_->marginals->jointCovariance(local);
+}
+
+std::vector<Key> SeparatorVariables(const std::vector<RelativePoseFactor>& separators, int robot) {
+  std::set<Key> keys;
+  for (const RelativePoseFactor& f : separators) {
+    if (f.a().robot == robot) keys.insert(f.a());
+    if (f.b().robot == robot) keys.insert(f.b());
+  }
+  return {keys.begin(), keys.end()};
+}
+
+namespace {
 
 // The consistency statistic of separators i and j (see the header): e^T Sigma_e^-1 e of the loop
 //   L = P1 P2 P3 P4 P5 P6 = z_i^-1 A_i^-1 A_j z_j B_j^-1 B_i.
@@ -128,6 +178,73 @@ Matrix12 PairBlock(const Eigen::MatrixXd& S, int p, int q) {
 
 }  // namespace
 
+std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
+                                              const SeparatorCheckMap& a_map,
+                                              const Message& b_estimates,
+                                              const Eigen::MatrixXd& b_covariance,
+                                              const SeparatorConsistencyOptions& options) {
+  const int ra = a_map.robot(), rb = b_estimates.sender;
+  const std::vector<Key> ka = SeparatorVariables(separators, ra);
+  const std::vector<Key> kb = SeparatorVariables(separators, rb);
+  if (b_estimates.keys != kb || b_estimates.stage != DgsStage::kPose) {
+    throw InvalidInputError("separator check: robot " + std::to_string(rb) + " sent robot " +
+                            std::to_string(ra) + " estimates of " +
+                            std::to_string(b_estimates.keys.size()) + " variables for the " +
+                            std::to_string(kb.size()) +
+                            " its separators with it touch (their subgraphs disagree)");
+  }
+  // The maps' joint covariances (zero: the maps taken as exact).
+  const auto na = 6 * static_cast<Eigen::Index>(ka.size());
+  const auto nb = 6 * static_cast<Eigen::Index>(kb.size());
+  Eigen::MatrixXd SA = Eigen::MatrixXd::Zero(na, na), SB = Eigen::MatrixXd::Zero(nb, nb);
+  if (options.map_uncertainty) {
+    if (b_covariance.rows() != nb || b_covariance.cols() != nb) {
+      throw InvalidInputError("separator check: robot " + std::to_string(rb) +
+                              " sent a covariance of dimension " +
+                              std::to_string(b_covariance.rows()) + " for " +
+                              std::to_string(kb.size()) + " variables");
+    }
+    SB = b_covariance;
+    SA = a_map.covariance(ka);
+  }
+  std::map<Key, int> a_index, b_index;
+  for (std::size_t e = 0; e < ka.size(); ++e) a_index[ka[e]] = static_cast<int>(e);
+  std::vector<SE3> b_poses;
+  for (std::size_t e = 0; e < kb.size(); ++e) {
+    const double* v = b_estimates.entry(e);
+    b_index[kb[e]] = static_cast<int>(e);
+    b_poses.emplace_back(SO3::Exp(Vector3(v[0], v[1], v[2])), Vector3(v[3], v[4], v[5]));
+  }
+  // Robot a's view of every separator.
+  std::vector<SeparatorEnd> ends;
+  std::vector<int> ia, ib;
+  for (const RelativePoseFactor& f : separators) {
+    const bool a_first = f.a().robot == ra;
+    const Key key_a = a_first ? f.a() : f.b(), key_b = a_first ? f.b() : f.a();
+    ia.push_back(a_index.at(key_a));
+    ib.push_back(b_index.at(key_b));
+    // The covariance of z (from A to B): the factor's, or when the factor runs from B to A
+    // that of its inverse: (z Exp(d))^-1 = z^-1 Exp(-Ad(z) d), so Ad(z) Sigma Ad(z)^T.
+    const Matrix6 sigma = f.information().inverse();
+    const Matrix6 Ad = f.measured().Adjoint();
+    ends.push_back({a_first ? f.measured() : f.measured().inverse(),
+                    a_first ? sigma : Matrix6(Ad * sigma * Ad.transpose()), a_map.pose(key_a),
+                    b_poses[static_cast<std::size_t>(ib.back())]});
+  }
+  ConsistencyGraph g(static_cast<int>(separators.size()));
+  for (std::size_t i = 0; i < separators.size(); ++i) {
+    for (std::size_t j = i + 1; j < separators.size(); ++j) {
+      const double stat = LoopStatistic(ends[i], ends[j], PairBlock(SA, ia[i], ia[j]),
+                                        PairBlock(SB, ib[i], ib[j]));
+      if (stat <= options.threshold) g.connect(static_cast<int>(i), static_cast<int>(j));
+    }
+  }
+  std::vector<std::size_t> best;
+  for (int p : MaximumClique(g).nodes) best.push_back(static_cast<std::size_t>(p));
+  std::sort(best.begin(), best.end());
+  return best;
+}
+
 SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
                                                      const SeparatorConsistencyOptions& options,
                                                      const std::vector<bool>& robust,
@@ -149,11 +266,12 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     ++out.separators;
     pairs[{std::min(a, b), std::max(a, b)}].push_back(i);
   }
-  std::map<int, std::unique_ptr<LocalMap>> maps;
-  auto map_of = [&](int robot) -> const LocalMap& {
+  std::map<int, std::unique_ptr<SeparatorCheckMap>> maps;
+  auto map_of = [&](int robot) -> const SeparatorCheckMap& {
     auto it = maps.find(robot);
     if (it == maps.end()) {
-      it = maps.emplace(robot, BuildLocalMap(graph, robot, robust, local, options.map_uncertainty))
+      it = maps.emplace(robot, std::make_unique<SeparatorCheckMap>(graph, robot, robust, local,
+                                                                   options.map_uncertainty))
                .first;
     }
     return *it->second;
@@ -176,40 +294,19 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
   for (const auto& [pair, list] : pairs) {
     ++out.robot_pairs;
     const auto [ra, rb] = pair;
-    const LocalMap& A = map_of(ra);
-    const LocalMap& B = map_of(rb);
-    // Each robot's separator variables, in key order; every one must be in its own map.
-    std::set<Key> ka_set, kb_set;
-    for (std::size_t i : list) {
-      const bool a_first = factors[i].a().robot == ra;
-      ka_set.insert(a_first ? factors[i].a() : factors[i].b());
-      kb_set.insert(a_first ? factors[i].b() : factors[i].a());
-    }
-    const std::vector<Key> ka(ka_set.begin(), ka_set.end()), kb(kb_set.begin(), kb_set.end());
-    bool known = true;
-    for (const Key& k : ka) known = known && A.has(k);
-    for (const Key& k : kb) known = known && B.has(k);
-    if (!known) continue;  // a variable the robot's own factors do not reach: nothing to check with
+    std::vector<RelativePoseFactor> separators;
+    for (std::size_t i : list) separators.push_back(factors[i]);
+    const SeparatorCheckMap& A = map_of(ra);
+    const SeparatorCheckMap& B = map_of(rb);
+    const std::vector<Key> kb = SeparatorVariables(separators, rb);
+    // A variable the robot's own factors do not reach: nothing to check with.
+    if (!A.hasAll(SeparatorVariables(separators, ra)) || !B.hasAll(kb)) continue;
     // What robot b sends robot a: the local estimates of its separator variables and their joint
     // covariance in its map.
-    Message m;
-    m.stage = DgsStage::kPose;
-    m.sender = rb;
-    for (const Key& k : kb) {
-      m.keys.push_back(k);
-      const SE3& x = B.at(k);
-      const Vector3 w = SO3::Log(x.rotation());
-      for (int c = 0; c < 3; ++c) m.values.push_back(w[c]);
-      for (int c = 0; c < 3; ++c) m.values.push_back(x.translation()[c]);
-    }
-    const std::vector<std::uint8_t> wire = EncodeMessage(m);
+    const std::vector<std::uint8_t> wire = EncodeMessage(B.estimates(kb));
     out.bytes += static_cast<std::int64_t>(wire.size());
     ++out.messages;
-    const Message received = DecodeMessage(wire);
-    // The maps' joint covariances (zero: the maps taken as exact).
-    const auto na = 6 * static_cast<Eigen::Index>(ka.size());
-    const auto nb = 6 * static_cast<Eigen::Index>(kb.size());
-    Eigen::MatrixXd SA = Eigen::MatrixXd::Zero(na, na), SB = Eigen::MatrixXd::Zero(nb, nb);
+    Eigen::MatrixXd SB;
     if (options.map_uncertainty) {
       CovarianceMessage cm;
       cm.sender = rb;
@@ -219,44 +316,11 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
       out.bytes += static_cast<std::int64_t>(wire_cov.size());
       ++out.messages;
       SB = DecodeCovarianceMessage(wire_cov).covariance;
-      SA = A.covariance(ka);
-    }
-    std::map<Key, int> b_index;
-    std::vector<SE3> b_poses;
-    for (std::size_t e = 0; e < received.keys.size(); ++e) {
-      const double* v = received.entry(e);
-      b_index[received.keys[e]] = static_cast<int>(e);
-      b_poses.emplace_back(SO3::Exp(Vector3(v[0], v[1], v[2])), Vector3(v[3], v[4], v[5]));
-    }
-    std::map<Key, int> a_index;
-    for (std::size_t e = 0; e < ka.size(); ++e) a_index[ka[e]] = static_cast<int>(e);
-    // Robot a's view of every separator.
-    std::vector<SeparatorEnd> ends;
-    std::vector<int> ia, ib;
-    for (std::size_t i : list) {
-      const RelativePoseFactor& f = factors[i];
-      const bool a_first = f.a().robot == ra;
-      const Key key_a = a_first ? f.a() : f.b(), key_b = a_first ? f.b() : f.a();
-      ia.push_back(a_index.at(key_a));
-      ib.push_back(b_index.at(key_b));
-      // The covariance of z (from A to B): the factor's, or when the factor runs from B to A
-      // that of its inverse: (z Exp(d))^-1 = z^-1 Exp(-Ad(z) d), so Ad(z) Sigma Ad(z)^T.
-      const Matrix6 sigma = f.information().inverse();
-      const Matrix6 Ad = f.measured().Adjoint();
-      ends.push_back({a_first ? f.measured() : f.measured().inverse(),
-                      a_first ? sigma : Matrix6(Ad * sigma * Ad.transpose()), A.at(key_a),
-                      b_poses[static_cast<std::size_t>(ib.back())]});
-    }
-    ConsistencyGraph g(static_cast<int>(list.size()));
-    for (std::size_t i = 0; i < list.size(); ++i) {
-      for (std::size_t j = i + 1; j < list.size(); ++j) {
-        const double stat = LoopStatistic(ends[i], ends[j], PairBlock(SA, ia[i], ia[j]),
-                                          PairBlock(SB, ib[i], ib[j]));
-        if (stat <= options.threshold) g.connect(static_cast<int>(i), static_cast<int>(j));
-      }
     }
     std::vector<std::size_t> best;
-    for (int p : MaximumClique(g).nodes) best.push_back(list[static_cast<std::size_t>(p)]);
+    for (std::size_t p : ConsistentSeparators(separators, A, DecodeMessage(wire), SB, options)) {
+      best.push_back(list[p]);
+    }
     if (static_cast<int>(best.size()) >= options.min_support) {
       reject_except(list, best);
       confirmed.push_back(pair);

@@ -27,9 +27,12 @@
 // covariance message, messages.h), both counted; robot a decides.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
+#include "moslam/distributed/messages.h"
 #include "moslam/graph/pose_graph.h"
 #include "moslam/robust/gnc.h"
 
@@ -61,6 +64,51 @@ struct SeparatorConsistencyResult {
   std::int64_t bytes = 0;        // the local estimates and covariances sent
   std::int64_t messages = 0;
 };
+
+// One robot's own map for the check: the factors between its own variables in `graph` (the whole
+// graph or the robot's subgraph: the same factors in the same order) solved alone, its first pose
+// at the identity (the gauge), and with `marginals` the covariances there. robust (empty, or one
+// flag per factor of graph): the intra-robot factors it marks are robust (see below). Throws what
+// the local solves throw.
+class SeparatorCheckMap {
+ public:
+  SeparatorCheckMap(const PoseGraph& graph, int robot, const std::vector<bool>& robust,
+                    const GncOptions& gnc, bool marginals);
+  ~SeparatorCheckMap();
+  SeparatorCheckMap(const SeparatorCheckMap&) = delete;
+  SeparatorCheckMap& operator=(const SeparatorCheckMap&) = delete;
+
+  int robot() const { return robot_; }
+  // Whether every key is in the map (a variable its own factors reach).
+  bool hasAll(const std::vector<Key>& keys) const;
+  // The map's estimate of one of its variables (InvalidInputError if it lacks it).
+  const SE3& pose(const Key& key) const;
+  // What it sends the other robot of a pair: the local estimates of `keys` (its own, increasing;
+  // a DGS message of stage kPose from robot()) and their joint covariance (6 per key; zero-size
+  // without marginals). Throws InvalidInputError for a key not in the map.
+  Message estimates(const std::vector<Key>& keys) const;
+  Eigen::MatrixXd covariance(const std::vector<Key>& keys) const;
+
+ private:
+  struct Impl;
+  int robot_;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The variables of `robot` that the separators touch, increasing.
+std::vector<Key> SeparatorVariables(const std::vector<RelativePoseFactor>& separators, int robot);
+
+// The check of one robot pair a < b, at robot a: `separators` are the factors between the two
+// (in the order both hold them), `a_map` a's map, `b_estimates` and `b_covariance` what b sent
+// (its map's estimates of SeparatorVariables(separators, b) and their joint covariance; the
+// covariance is ignored without options.map_uncertainty). Returns the largest pairwise-consistent
+// set as positions in `separators`, increasing. Throws InvalidInputError when b's message does
+// not hold exactly those variables or the covariance has the wrong size.
+std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
+                                              const SeparatorCheckMap& a_map,
+                                              const Message& b_estimates,
+                                              const Eigen::MatrixXd& b_covariance,
+                                              const SeparatorConsistencyOptions& options);
 
 // robust (empty, or one flag per factor of graph): the intra-robot factors it marks (object
 // measurements) are robust in each robot's own map too: the map is then its GNC-TLS estimate
