@@ -36,8 +36,7 @@ struct DgsArgs {
   G2oReadOptions read;  // --objects, --drop-indefinite-coupling
   bool json = false;
   bool robust = false;
-  RobustSolveArgs robust_args;  // --separator-test, --gnc-threshold
-  int separator_support = 3;
+  RobustSolveArgs robust_args;  // --separator-test, --gnc-threshold, --separator-support
   std::string out;             // folder: one g2o and one TUM file per robot
 };
 
@@ -73,8 +72,6 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
   RobustDgsOptions options;
   options.dgs = dgs;
   a.robust_args.applyTo(&options);
-  options.check_separators = a.separator_support > 0;
-  options.consistency.min_support = std::max(1, a.separator_support);
   options.validate();
   const std::vector<bool> robust = DefaultRobustFactors(graph);
   const auto robust_count = std::count(robust.begin(), robust.end(), true);
@@ -397,11 +394,6 @@ Runner RegisterDgs(CLI::App& app) {
                 "outlier-robust: graduated non-convexity with a truncated least-squares cost on "
                 "the inter-robot factors, run by the robots (implies --refine)");
   AddRobustSolveFlags(sub, &args->robust_args);
-  sub->add_option("--separator-support", args->separator_support,
-                  "--robust: before GNC, keep of each robot pair's separators the largest "
-                  "pairwise consistent set if it has at least this many (0: no check)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
   sub->add_option("--out", args->out,
                   "write the distributed estimate into this folder: 0.g2o .. N-1.g2o (each "
                   "robot's vertices and edges) and robot_<r>.tum");

@@ -32,6 +32,7 @@
 #include "moslam/transport/dgs_node.h"
 #include "moslam/transport/robot_data.h"
 #include "moslam/transport/robot_session.h"
+#include "robust_flags.h"
 #include "solver_flags.h"
 
 namespace moslam::cli {
@@ -46,21 +47,17 @@ struct SolveFlags {
   double join_timeout = 60.0;
   double stall_timeout = 300.0;
   bool robust = false;
-  double gnc_threshold = 0.0;  // 0: GncOptions' default
+  RobustSolveArgs robust_args;  // --separator-test, --gnc-threshold, --separator-support
 };
 
 void AddSolveFlags(CLI::App* sub, SolveFlags& f) {
   AddSolverFlags(sub, &f.solver);
   sub->add_flag("--robust", f.robust,
-                "GNC-TLS around the solver, run by the robots (weights on the wire): the "
-                "separators robust, and with --scenario the object measurements too; without "
-                "the separator check of `moslam dgs --robust`, which does not run over the "
-                "network yet (the refinement is forced on)");
-  sub->add_option("--gnc-threshold", f.gnc_threshold,
-                  "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, "
-                  "chi-square 6 dof at 0.999)")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
+                "GNC-TLS around the solver, run by the robots (weights on the wire), after the "
+                "pairwise check of the separators (map covariances on the wire), as `moslam dgs "
+                "--robust`: the separators robust, and with --scenario the object measurements "
+                "too (the refinement is forced on)");
+  AddRobustSolveFlags(sub, &f.robust_args);
   sub->add_option("--leave-timeout", f.leave_timeout,
                   "Seconds a waited-for robot may be unreachable before it counts as gone")
       ->check(CLI::PositiveNumber);
@@ -82,20 +79,23 @@ DgsNodeOptions NodeOptions(const SolveFlags& f) {
   o.stall_timeout = Ms(f.stall_timeout);
   o.finish_timeout = Ms(std::max(10.0, f.leave_timeout + 5.0));
   if (f.robust) {
-    o.gnc = GncOptions();
-    o.gnc->threshold = f.gnc_threshold;
+    RobustDgsOptions r;
+    f.robust_args.applyTo(&r);
+    o.gnc = r.gnc;
+    if (r.check_separators) o.separator_check = r.consistency;
     o.solver.refine = true;
   }
   return o;
 }
 
-// The in-process reference of a robust team: RunRobustDgs without the separator check, with the
-// processes' solver and GNC options.
+// The in-process reference of a robust team: RunRobustDgs with the processes' solver, GNC
+// options and separator check.
 RobustDgsOptions ReferenceRobustOptions(const DgsNodeOptions& o) {
   RobustDgsOptions r;
   r.dgs = DriverOptions(o);
   r.gnc = *o.gnc;
-  r.check_separators = false;
+  r.check_separators = o.separator_check.has_value();
+  if (o.separator_check) r.consistency = *o.separator_check;
   return r;
 }
 
@@ -109,8 +109,7 @@ std::vector<std::string> SolveArgs(const SolveFlags& f) {
   }
   if (f.robust) {
     a.push_back("--robust");
-    a.push_back("--gnc-threshold");
-    a.push_back(fmt::format("{}", f.gnc_threshold));
+    for (const std::string& s : f.robust_args.args()) a.push_back(s);
   }
   return a;
 }
@@ -238,6 +237,13 @@ nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
     j["weight_messages"] = r.weight_messages;
     j["weight_binary_bytes"] = r.weight_binary_bytes;
     j["dds_weight_bytes"] = r.transport.weights_bytes;
+    // The separator check: separators to higher robots it left out, and the messages it sent
+    // for it (map estimates, covariances, estimates for the readmission).
+    j["check_rejected"] = r.robust->check_rejected;
+    j["check_deferred"] = r.robust->check_deferred;
+    j["check_messages"] = r.robust->check_messages;
+    j["check_binary_bytes"] = r.robust->check_bytes;
+    j["dds_covariance_bytes"] = r.transport.covariances_bytes;
   }
   j["dds_estimate_bytes"] = r.transport.estimates_bytes;
   j["dds_coarse_bytes"] = r.transport.coarse_bytes;
@@ -603,12 +609,15 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
   j["variables"] = t.merged.size();
   j["in_process_variables"] = expected.size();
   if (robust) {
-    std::int64_t messages = 0, binary = 0, dds = 0;
-    int rounds = 0, outliers = 0;
+    std::int64_t messages = 0, binary = 0, dds = 0, check_binary = 0, check_dds = 0;
+    int rounds = 0, outliers = 0, check_rejected = 0;
     for (const auto& [r, s] : t.summaries) {
       messages += s["weight_messages"].get<std::int64_t>();
       binary += s["weight_binary_bytes"].get<std::int64_t>();
       dds += s["dds_weight_bytes"].get<std::int64_t>();
+      check_rejected += s["check_rejected"].get<int>();
+      check_binary += s["check_binary_bytes"].get<std::int64_t>();
+      check_dds += s["dds_covariance_bytes"].get<std::int64_t>();
       rounds = std::max(rounds, s["gnc_rounds"].get<int>());
       outliers += s["outliers"].get<int>();
     }
@@ -621,6 +630,15 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
     j["dds_weight_bytes"] = dds;
     j["in_process_weight_messages"] = robust->weight_messages;
     j["in_process_weight_bytes"] = robust->weight_bytes;
+    j["check_rejected"] = check_rejected;
+    j["in_process_check_rejected"] = robust->consistency_rejected;
+    j["check_binary_bytes"] = check_binary;
+    j["in_process_check_bytes"] = robust->consistency_bytes;
+    j["dds_covariance_bytes"] = check_dds;
+    fmt::print("separator check: {} separators left out (in-process {}); {} B binary for it "
+               "(in-process {} B), {} B CDR payload of covariances\n",
+               check_rejected, robust->consistency_rejected, check_binary,
+               robust->consistency_bytes, check_dds);
     fmt::print("robust: {} GNC rounds (in-process {}), {} outliers in-process; {} weight "
                "messages, {} B binary, {} B CDR payload (in-process {}, {} B)\n",
                rounds, robust->iterations, robust->outliers, messages, binary, dds,

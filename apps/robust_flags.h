@@ -1,8 +1,12 @@
-// The flags of the robust solve that `moslam solve` and `moslam dgs` share, and what they set.
+// The flags of the robust solve that `moslam solve`, `moslam dgs`, `moslam robot` and `moslam team`
+// share, and what they set.
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include "moslam/distributed/robust_dgs.h"
 
@@ -11,10 +15,19 @@ namespace moslam::cli {
 struct RobustSolveArgs {
   std::string separator_test = "map";  // map | measurement
   double gnc_threshold = 0.0;          // 0: GncOptions' default
-  // The GNC threshold and the separator check's kind in `options`.
+  int separator_support = 3;           // 0: no separator check
+  // The GNC threshold and the separator check (whether, its kind and support) in `options`.
   void applyTo(RobustDgsOptions* options) const {
     options->gnc.threshold = gnc_threshold;
     options->consistency.map_uncertainty = separator_test == "map";
+    options->check_separators = separator_support > 0;
+    options->consistency.min_support = std::max(1, separator_support);
+  }
+  // The same flags again, for a child process.
+  std::vector<std::string> args() const {
+    return {"--separator-test", separator_test, "--gnc-threshold",
+            fmt::format("{}", gnc_threshold), "--separator-support",
+            std::to_string(separator_support)};
   }
 };
 
@@ -30,6 +43,11 @@ inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
   sub->add_option("--gnc-threshold", args->gnc_threshold,
                   "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
                   "6 dof at 0.999, for information that is the noise's)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  sub->add_option("--separator-support", args->separator_support,
+                  "--robust: before GNC, keep of each robot pair's separators the largest "
+                  "pairwise consistent set if it has at least this many (0: no check)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
 }

@@ -30,7 +30,7 @@ struct SolveArgs {
   bool json = false;
   bool verbose = false;
   bool robust = false;
-  RobustSolveArgs robust_args;  // --separator-test, --gnc-threshold
+  RobustSolveArgs robust_args;  // --separator-test, --gnc-threshold, --separator-support
 };
 
 double Since(std::chrono::steady_clock::time_point t0) {

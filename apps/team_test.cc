@@ -393,8 +393,9 @@ TEST(Team, UnknownInitialPosesAsProcessesEqualTheInProcessPipeline) {
   fs::remove_all(out);
 }
 
-// The robust solve over DDS (--robust): GNC rounds run by the processes, weights on the wire,
-// equal to the in-process robust solve (RunRobustDgs without the separator check).
+// The robust solve over DDS (--robust): the separator check (map covariances on the wire) and GNC
+// rounds run by the processes, weights on the wire, equal to the in-process robust solve
+// (RunRobustDgs with the check).
 TEST(Team, RobustScenarioProcessesEqualTheInProcessRobustSolve) {
   const fs::path out = FreshDir("robust");
   // A threshold low enough that the 40-pose maps have factors beyond it: GNC has rounds to run.
@@ -405,6 +406,9 @@ TEST(Team, RobustScenarioProcessesEqualTheInProcessRobustSolve) {
   EXPECT_GT(j["in_process_gnc_rounds"].get<int>(), 0);
   EXPECT_EQ(j["gnc_rounds"], j["in_process_gnc_rounds"]);
   EXPECT_GT(j["dds_weight_bytes"].get<std::int64_t>(), 0);
+  EXPECT_EQ(j["check_rejected"], j["in_process_check_rejected"]);
+  EXPECT_EQ(j["check_binary_bytes"], j["in_process_check_bytes"]);
+  EXPECT_GT(j["dds_covariance_bytes"].get<std::int64_t>(), 0);
   for (const auto& r : j["per_robot"]) {
     EXPECT_EQ(r["rejected_samples"].get<int>(), 0) << r.dump();
     EXPECT_EQ(r["gnc_rounds"], j["in_process_gnc_rounds"]);

@@ -20,9 +20,14 @@ class SharedBoard {
 
   TeamStep post(int robot, std::size_t s, const std::vector<OutgoingMessage>& out,
                 const TeamReport& report, const CoarseMessage* share,
-                const std::vector<WeightMessage>& weights) {
+                const std::vector<WeightMessage>& weights,
+                const std::vector<CovarianceMessage>& covariances) {
     std::unique_lock<std::mutex> lock(mutex_);
     Round& round = rounds_[s];
+    for (const CovarianceMessage& c : covariances) {
+      round.covariances[c.receiver][robot] =
+          DecodeCovarianceMessage(EncodeCovarianceMessage(c));
+    }
     for (const OutgoingMessage& o : out) round.inbox[o.to].push_back(o.message);
     for (const WeightMessage& w : weights) {
       round.weights[w.receiver][robot] = DecodeWeightMessage(EncodeWeightMessage(w));
@@ -38,6 +43,7 @@ class SharedBoard {
     got.reports = round.reports;
     got.shares = round.shares;
     got.weights = round.weights[robot];
+    got.covariances = round.covariances[robot];
     return got;
   }
 
@@ -47,6 +53,7 @@ class SharedBoard {
     std::map<int, TeamReport> reports;
     std::map<int, CoarseMessage> shares;
     std::map<int, std::map<int, WeightMessage>> weights;  // receiver -> sender -> message
+    std::map<int, std::map<int, CovarianceMessage>> covariances;  // alike
   };
   int robots_;
   std::mutex mutex_;
@@ -58,9 +65,10 @@ class BoardChannel : public TeamChannel {
  public:
   BoardChannel(SharedBoard& board, int robot) : board_(board), robot_(robot) {}
   TeamStep step(DgsStage, const std::vector<OutgoingMessage>& estimates, const TeamReport& report,
-                const CoarseMessage* share, const std::vector<WeightMessage>& weights) override {
+                const CoarseMessage* share, const std::vector<WeightMessage>& weights,
+                const std::vector<CovarianceMessage>& covariances) override {
     ++steps_;
-    return board_.post(robot_, steps_ - 1, estimates, report, share, weights);
+    return board_.post(robot_, steps_ - 1, estimates, report, share, weights, covariances);
   }
   std::set<int> absent() const override { return {}; }
   std::size_t steps() const { return steps_; }

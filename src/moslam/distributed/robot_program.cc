@@ -53,7 +53,7 @@ class Program {
     if (send) out = agent_.outgoing();
     report.sent = !out.empty();
     report.has_share = share != nullptr;
-    TeamStep got = channel_.step(stage, out, report, share, {});
+    TeamStep got = channel_.step(stage, out, report, share, {}, {});
     ++result_.channel_steps;
     for (const Message& m : got.estimates) agent_.receive(m);
     return got;

@@ -4,12 +4,14 @@
 // of the solver. Every robot of the team runs the same program; a channel step is the only
 // place it talks to the others:
 //
-//   step(stage, estimates, report, share, weights):  sends `estimates` (and `weights`, the
-//   robust solve's factor weights: robust_program.h) to the neighbours, `report` (and the coarse
-//   `share`, if any) to every robot, and returns once it holds the report of every live robot for
-//   this step, the estimates of every neighbour whose report says it sent some, the share of
-//   every robot whose report says it has one, and the weights of every neighbour whose report
-//   says weights (a robot that sends weights sends a WeightMessage to each of its neighbours).
+//   step(stage, estimates, report, share, weights, covariances):  sends `estimates` (and
+//   `weights`, the robust solve's factor weights, and `covariances`, its separator check's map
+//   covariances: robust_program.h) to the neighbours, `report` (and the coarse `share`, if any)
+//   to every robot, and returns once it holds the report of every live robot for this step, the
+//   estimates of every neighbour whose report says it sent some, the share of every robot whose
+//   report says it has one, and the weights (covariances) of every neighbour whose report says
+//   weights (covariance): a robot that sends weights (covariances) sends one to each of its
+//   neighbours.
 //
 // There is no coordinator: every global quantity is computed by every robot from the same reports
 // in robot id order (the sums of the conjugate gradients and of the cost, the stopping rules, the
@@ -50,6 +52,7 @@ struct TeamReport {
   double bound = std::numeric_limits<double>::infinity();   // errorBound(window)
   double value[2] = {0.0, 0.0};  // the step's inputs to the team-wide sums and maxima
   bool weights = false;       // a WeightMessage to every neighbour comes with this step
+  bool covariance = false;    // a CovarianceMessage to every neighbour comes with this step
 };
 
 struct TeamStep {
@@ -57,6 +60,7 @@ struct TeamStep {
   std::map<int, TeamReport> reports;       // every live robot's, this one included
   std::map<int, CoarseMessage> shares;     // the coarse shares that came with them
   std::map<int, WeightMessage> weights;    // from neighbours whose report says weights, to it
+  std::map<int, CovarianceMessage> covariances;  // from neighbours whose report says covariance
 };
 
 // The team's sum (in robot id order, as DgsDriver::gather) and maximum (0 when every value is
@@ -69,10 +73,12 @@ class TeamChannel {
   virtual ~TeamChannel() = default;
   // See the top. `share`: null or this robot's coarse share (report.has_share must say so).
   // Throws moslam::Error when the team makes no progress (the channel's timeouts).
-  // `weights`: one per neighbour when report.weights, else none.
+  // `weights`: one per neighbour when report.weights, else none; `covariances` alike with
+  // report.covariance.
   virtual TeamStep step(DgsStage stage, const std::vector<OutgoingMessage>& estimates,
                         const TeamReport& report, const CoarseMessage* share,
-                        const std::vector<WeightMessage>& weights) = 0;
+                        const std::vector<WeightMessage>& weights,
+                        const std::vector<CovarianceMessage>& covariances) = 0;
   // Robots of the team that left (no longer in the reports).
   virtual std::set<int> absent() const = 0;
 };

@@ -8,6 +8,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
+#include "moslam/geometry/so3.h"
 
 namespace moslam {
 
@@ -18,9 +19,41 @@ void RobustProgramOptions::validate() const {
     throw InvalidInputError("RobustProgramOptions: solver.order must be Jacobi (the robots of a "
                             "team solve in parallel)");
   }
+  if (check_separators) {
+    if (!(consistency.threshold >= 0.0)) {
+      throw InvalidInputError("RobustProgramOptions: consistency.threshold must be >= 0");
+    }
+    SeparatorConsistencyOptions c = consistency;
+    if (c.threshold == 0.0) c.threshold = gnc.threshold2();
+    c.validate();
+  }
 }
 
 namespace {
+
+// The robust factors of one graph as a robot sees them: the weights it owns and, per neighbour
+// (every robot a factor reaches), the robust separators to it in graph order.
+struct RobustIndex {
+  PoseGraph graph;
+  std::vector<bool> robust;
+  std::vector<std::size_t> owned;
+  std::map<int, std::vector<std::size_t>> separators;
+};
+
+RobustIndex MakeIndex(int robot, PoseGraph graph, std::vector<bool> robust) {
+  RobustIndex x;
+  const std::vector<RelativePoseFactor>& factors = graph.factors();
+  for (std::size_t i = 0; i < factors.size(); ++i) {
+    const int a = factors[i].a().robot, b = factors[i].b().robot;
+    if (a != b) x.separators[a == robot ? b : a];  // every neighbour has an entry
+    if (!robust[i]) continue;
+    if (std::min(a, b) == robot) x.owned.push_back(i);
+    if (a != b) x.separators[a == robot ? b : a].push_back(i);
+  }
+  x.graph = std::move(graph);
+  x.robust = std::move(robust);
+  return x;
+}
 
 class RobustProgram {
  public:
@@ -29,6 +62,8 @@ class RobustProgram {
       : p_(problem), options_(options), make_agent_(make_agent), channel_(channel) {
     solver_ = options_.solver;
     solver_.refine = true;
+    consistency_ = options_.consistency;
+    if (consistency_.threshold == 0.0) consistency_.threshold = options_.gnc.threshold2();
     const std::vector<RelativePoseFactor>& factors = p_.subgraph.factors();
     for (std::size_t i = 0; i < factors.size(); ++i) {
       const int a = factors[i].a().robot, b = factors[i].b().robot;
@@ -37,39 +72,56 @@ class RobustProgram {
                                 " given a factor between " + ToString(factors[i].a()) + " and " +
                                 ToString(factors[i].b()));
       }
-      if (a != b) separators_[a == p_.robot ? b : a];  // every neighbour has an entry
-      if (!p_.robust[i]) continue;
-      if (std::min(a, b) == p_.robot) owned_.push_back(i);
-      if (a != b) separators_[a == p_.robot ? b : a].push_back(i);  // subgraph order
+      if (a != b) pairs_[a == p_.robot ? b : a].push_back(i);
     }
+    full_ = MakeIndex(p_.robot, p_.subgraph, p_.robust);
   }
 
   RobustProgramResult run() {
     const std::size_t n = p_.subgraph.factors().size();
-    out_.weights.assign(n, 1.0);
     values_ = p_.initial;
-    solve(p_.subgraph);
+    const bool check = options_.check_separators;
+    std::vector<bool> kept(n, true);
+    if (check) kept = checkSeparators();
+    // GNC on the graph the check kept (all of it without the check).
+    std::vector<std::size_t> index;
+    std::vector<bool> kept_robust;
+    PoseGraph kept_graph = SubGraph(p_.subgraph, kept, &index);
+    for (std::size_t i : index) kept_robust.push_back(p_.robust[i]);
+    const RobustIndex gnc = MakeIndex(p_.robot, std::move(kept_graph), std::move(kept_robust));
+    std::vector<double> w(index.size(), 1.0);
+    solve(gnc.graph);
     GncSchedule schedule(options_.gnc);
-    std::vector<double> r2 = SquaredResiduals(p_.subgraph, values_);
+    std::vector<double> r2 = SquaredResiduals(gnc.graph, values_);
     double max_r2 = 0.0;
-    for (std::size_t i : owned_) max_r2 = std::max(max_r2, r2[i]);
+    for (std::size_t i : gnc.owned) max_r2 = std::max(max_r2, r2[i]);
     const bool started = schedule.start(TeamMax(reduce(max_r2), 0));
     if (started) {
       for (std::uint32_t k = 1;; ++k) {
         double undecided = 0.0;
-        for (std::size_t i : owned_) {
-          out_.weights[i] = schedule.weight(r2[i]);
-          if (!schedule.decided(out_.weights[i])) undecided += 1.0;
+        for (std::size_t i : gnc.owned) {
+          w[i] = schedule.weight(r2[i]);
+          if (!schedule.decided(w[i])) undecided += 1.0;
         }
-        const double left = TeamSum(exchangeWeights(k, undecided), 0);
-        solve(WeightedGraph(p_.subgraph, out_.weights, options_.gnc.min_weight));
-        r2 = SquaredResiduals(p_.subgraph, values_);
+        const double left = TeamSum(exchangeWeights(gnc, w, k, undecided), 0);
+        solve(WeightedGraph(gnc.graph, w, options_.gnc.min_weight));
+        r2 = SquaredResiduals(gnc.graph, values_);
         if (schedule.next(left == 0.0)) break;
       }
     }
     out_.status = schedule.status();
     out_.iterations = schedule.iterations();
-    if (started) finish(r2, static_cast<std::uint32_t>(schedule.iterations() + 1));
+    // Back to the whole subgraph: the separators the check left out weigh 0.
+    out_.weights.assign(n, check ? 0.0 : 1.0);
+    for (std::size_t j = 0; j < index.size(); ++j) out_.weights[index[j]] = w[j];
+    const auto round = static_cast<std::uint32_t>(schedule.iterations() + 1);
+    if (check) {
+      // RunRobustDgs readmits and solves the inliers whether GNC ran or not.
+      fetchLeftOut(kept);
+      finish(OwnedResiduals(), round);
+    } else if (started) {
+      finish(r2, round);
+    }
     for (std::size_t i = 0; i < n; ++i) {
       if (p_.robust[i] && out_.weights[i] < 0.5) ++out_.outliers;
     }
@@ -96,9 +148,11 @@ class RobustProgram {
     for (const auto& [k, x] : agent.neighbourEstimates()) values_[k] = x;
   }
 
-  TeamStep step(const TeamReport& report, const std::vector<WeightMessage>& weights = {}) {
+  TeamStep step(const TeamReport& report, const std::vector<WeightMessage>& weights = {},
+                const std::vector<OutgoingMessage>& estimates = {},
+                const std::vector<CovarianceMessage>& covariances = {}) {
     ++out_.channel_steps;
-    return channel_.step(DgsStage::kRefine, {}, report, nullptr, weights);
+    return channel_.step(DgsStage::kRefine, estimates, report, nullptr, weights, covariances);
   }
 
   TeamStep reduce(double value) {
@@ -107,31 +161,37 @@ class RobustProgram {
     return step(mine);
   }
 
+  WeightMessage weightMessage(int other, std::uint32_t round, std::vector<double> weights) {
+    WeightMessage m;
+    m.sender = p_.robot;
+    m.receiver = other;
+    m.round = round;
+    m.weights = std::move(weights);
+    out_.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
+    ++out_.weight_messages;
+    return m;
+  }
 
-  // Sends every neighbour the weights of the robust separators this robot owns toward it (in
-  // subgraph order; none toward a lower robot), with `value` in the report, and takes the weights
-  // of the separators its lower neighbours own from theirs.
-  TeamStep exchangeWeights(std::uint32_t round, double value) {
+  // Sends every neighbour the weights of the robust separators of `x` this robot owns toward it
+  // (in graph order; none toward a lower robot), with `value` in the report, and takes the
+  // weights of the separators its lower neighbours own from theirs.
+  TeamStep exchangeWeights(const RobustIndex& x, std::vector<double>& weights,
+                           std::uint32_t round, double value) {
     std::vector<WeightMessage> send;
-    for (const auto& [other, list] : separators_) {
-      WeightMessage m;
-      m.sender = p_.robot;
-      m.receiver = other;
-      m.round = round;
+    for (const auto& [other, list] : x.separators) {
+      std::vector<double> mine;
       if (other > p_.robot) {
-        for (std::size_t i : list) m.weights.push_back(out_.weights[i]);
+        for (std::size_t i : list) mine.push_back(weights[i]);
       }
-      out_.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
-      ++out_.weight_messages;
-      send.push_back(std::move(m));
+      send.push_back(weightMessage(other, round, std::move(mine)));
     }
-    TeamReport mine;
-    mine.weights = true;
-    mine.value[0] = value;
-    TeamStep got = step(mine, send);
+    TeamReport report;
+    report.weights = true;
+    report.value[0] = value;
+    TeamStep got = step(report, send);
     for (const auto& [other, m] : got.weights) {
-      const auto it = separators_.find(other);
-      if (other > p_.robot || it == separators_.end()) continue;
+      const auto it = x.separators.find(other);
+      if (other > p_.robot || it == x.separators.end()) continue;
       if (m.weights.size() != it->second.size()) {
         throw InvalidInputError(
             "robust program: robot " + std::to_string(other) + " sent " +
@@ -139,9 +199,216 @@ class RobustProgram {
             std::to_string(it->second.size()) + " robust separators robot " +
             std::to_string(p_.robot) + " shares with it (their subgraphs disagree)");
       }
-      for (std::size_t j = 0; j < m.weights.size(); ++j) out_.weights[it->second[j]] = m.weights[j];
+      for (std::size_t j = 0; j < m.weights.size(); ++j) weights[it->second[j]] = m.weights[j];
     }
     return got;
+  }
+
+  // ---- the separator check (C1-C4 of the header) ------------------------------------------
+  std::vector<RelativePoseFactor> separatorsWith(int other) const {
+    std::vector<RelativePoseFactor> out;
+    for (std::size_t i : pairs_.at(other)) out.push_back(p_.subgraph.factors()[i]);
+    return out;
+  }
+
+  // The kept flag of every factor of the subgraph.
+  std::vector<bool> checkSeparators() {
+    (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
+    const SeparatorCheckMap map(p_.subgraph, p_.robot, p_.robust, options_.gnc,
+                                consistency_.map_uncertainty);
+    // C1: the map's estimates and covariances toward lower neighbours.
+    std::vector<OutgoingMessage> estimates;
+    std::vector<CovarianceMessage> covariances;
+    for (const auto& [other, list] : pairs_) {
+      OutgoingMessage o;
+      o.to = other;
+      o.message.stage = DgsStage::kPose;
+      o.message.sender = p_.robot;
+      CovarianceMessage c;
+      c.sender = p_.robot;
+      c.receiver = other;
+      const std::vector<Key> mine = SeparatorVariables(separatorsWith(other), p_.robot);
+      if (other < p_.robot && map.hasAll(mine)) {
+        o.message = map.estimates(mine);
+        c.covariance = map.covariance(mine);
+        countCheck(EncodeMessage(o.message).size());
+        if (consistency_.map_uncertainty) countCheck(EncodeCovarianceMessage(c).size());
+      }
+      estimates.push_back(std::move(o));
+      if (consistency_.map_uncertainty) covariances.push_back(std::move(c));
+    }
+    TeamReport report;
+    report.sent = true;
+    report.covariance = consistency_.map_uncertainty;
+    const TeamStep c1 = step(report, {}, estimates, covariances);
+    // C2: the largest consistent set of each pair it checks (toward higher neighbours).
+    struct Verdict {
+      bool checked = false, confirmed = false;
+      std::vector<std::size_t> best;  // positions in pairs_[other]
+    };
+    std::map<int, Verdict> verdicts;
+    for (const auto& [other, list] : pairs_) {
+      if (other < p_.robot) continue;
+      Verdict& v = verdicts[other];
+      const Message* theirs = nullptr;
+      for (const Message& m : c1.estimates) {
+        if (m.sender == other) theirs = &m;
+      }
+      const std::vector<RelativePoseFactor> separators = separatorsWith(other);
+      // A variable a robot's own factors do not reach: nothing to check with (all kept).
+      if (!theirs || theirs->keys.empty() ||
+          !map.hasAll(SeparatorVariables(separators, p_.robot))) {
+        continue;
+      }
+      Eigen::MatrixXd covariance;
+      if (consistency_.map_uncertainty) {
+        const auto it = c1.covariances.find(other);
+        if (it == c1.covariances.end()) {
+          throw InvalidInputError("robust program: robot " + std::to_string(other) +
+                                  " sent its map's estimates without their covariance");
+        }
+        covariance = it->second.covariance;
+      }
+      v.checked = true;
+      v.best = ConsistentSeparators(separators, map, *theirs, covariance, consistency_);
+      v.confirmed = static_cast<int>(v.best.size()) >= consistency_.min_support;
+    }
+    const auto verdictWeights = [&](int other, bool final) {
+      std::vector<double> out;
+      const Verdict& v = verdicts.at(other);
+      for (std::size_t j = 0; j < pairs_.at(other).size(); ++j) {
+        const bool in_best = std::binary_search(v.best.begin(), v.best.end(), j);
+        out.push_back(!v.checked || ((v.confirmed || final) && in_best) ? 1.0 : 0.0);
+      }
+      out.push_back(v.confirmed ? 1.0 : 0.0);
+      return out;
+    };
+    std::map<int, bool> confirmed;  // per neighbour: their pair confirms itself
+    std::map<int, std::vector<double>> kept_by_other;  // verdicts received from lower neighbours
+    const auto exchangeVerdicts = [&](bool final, double label) {
+      std::vector<WeightMessage> send;
+      for (const auto& [other, list] : pairs_) {
+        send.push_back(weightMessage(other, 0, other > p_.robot ? verdictWeights(other, final)
+                                                                : std::vector<double>()));
+      }
+      TeamReport r;
+      r.weights = true;
+      r.value[0] = label;
+      TeamStep got = step(r, send);
+      for (const auto& [other, m] : got.weights) {
+        if (other > p_.robot || !pairs_.count(other)) continue;
+        if (m.weights.size() != pairs_.at(other).size() + 1) {
+          throw InvalidInputError("robust program: robot " + std::to_string(other) +
+                                  " sent a separator check verdict of " +
+                                  std::to_string(m.weights.size()) + " entries for the " +
+                                  std::to_string(pairs_.at(other).size()) +
+                                  " separators robot " + std::to_string(p_.robot) +
+                                  " shares with it (their subgraphs disagree)");
+        }
+        confirmed[other] = m.weights.back() == 1.0;
+        kept_by_other[other] = m.weights;
+      }
+      return got;
+    };
+    for (const auto& [other, v] : verdicts) confirmed[other] = v.confirmed;
+    double label = p_.robot;
+    TeamStep got = exchangeVerdicts(false, label);
+    // C3: the lowest robot id linked through confirmed pairs, flooded until no report changes.
+    std::map<int, double> previous = Labels(got);
+    while (true) {
+      for (const auto& [other, yes] : confirmed) {
+        const auto it = previous.find(other);
+        if (yes && it != previous.end()) label = std::min(label, it->second);
+      }
+      const std::map<int, double> labels = Labels(reduce(label));
+      if (labels == previous) break;
+      previous = labels;
+    }
+    // C4: pairs below min_support keep their best set when linked through confirmed pairs.
+    for (auto& [other, v] : verdicts) {
+      if (!v.checked || v.confirmed) continue;
+      const auto it = previous.find(other);
+      const bool linked = it != previous.end() && it->second == label;
+      if (!linked || static_cast<int>(v.best.size()) < consistency_.linked_min_support) {
+        v.best.clear();
+      } else {
+        out_.check_deferred += static_cast<int>(v.best.size());
+      }
+    }
+    exchangeVerdicts(true, label);
+    std::vector<bool> kept(p_.subgraph.factors().size(), true);
+    for (const auto& [other, list] : pairs_) {
+      for (std::size_t j = 0; j < list.size(); ++j) {
+        if (other > p_.robot) {
+          kept[list[j]] = verdictWeights(other, true)[j] == 1.0;
+          if (!kept[list[j]]) ++out_.check_rejected;
+        } else if (kept_by_other.count(other)) {
+          kept[list[j]] = kept_by_other.at(other)[j] == 1.0;
+        }
+      }
+    }
+    return kept;
+  }
+
+  static std::map<int, double> Labels(const TeamStep& got) {
+    std::map<int, double> out;
+    for (const auto& [r, report] : got.reports) out[r] = report.value[0];
+    return out;
+  }
+
+  void countCheck(std::size_t bytes) {
+    ++out_.check_messages;
+    out_.check_bytes += static_cast<std::int64_t>(bytes);
+  }
+
+  // After GNC: the higher robot of each pair sends the lower its estimates of its variables in
+  // the robust separators the check left out (empty messages elsewhere), for their residuals.
+  void fetchLeftOut(const std::vector<bool>& kept) {
+    (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
+    std::vector<OutgoingMessage> estimates;
+    for (const auto& [other, list] : pairs_) {
+      OutgoingMessage o;
+      o.to = other;
+      o.message.stage = DgsStage::kPose;
+      o.message.sender = p_.robot;
+      if (other < p_.robot) {
+        std::set<Key> keys;
+        for (std::size_t i : list) {
+          if (kept[i] || !p_.robust[i]) continue;
+          const RelativePoseFactor& f = p_.subgraph.factors()[i];
+          keys.insert(f.a().robot == p_.robot ? f.a() : f.b());
+        }
+        for (const Key& k : keys) {
+          o.message.keys.push_back(k);
+          const SE3& x = values_.at(k);
+          const Vector3 r = SO3::Log(x.rotation());
+          for (int c = 0; c < 3; ++c) o.message.values.push_back(r[c]);
+          for (int c = 0; c < 3; ++c) o.message.values.push_back(x.translation()[c]);
+        }
+        if (!keys.empty()) countCheck(EncodeMessage(o.message).size());
+      }
+      estimates.push_back(std::move(o));
+    }
+    TeamReport report;
+    report.sent = true;
+    const TeamStep got = step(report, {}, estimates);
+    for (const Message& m : got.estimates) {
+      if (m.sender < p_.robot) continue;
+      for (std::size_t e = 0; e < m.keys.size(); ++e) {
+        const double* v = m.entry(e);
+        values_[m.keys[e]] = SE3(SO3::Exp(Vector3(v[0], v[1], v[2])), Vector3(v[3], v[4], v[5]));
+      }
+    }
+  }
+
+  // r^T Omega r of the robust factors it owns at the current estimate and copies (0 elsewhere).
+  std::vector<double> OwnedResiduals() const {
+    std::vector<double> r2(p_.subgraph.factors().size(), 0.0);
+    for (std::size_t i : full_.owned) {
+      const RelativePoseFactor& f = p_.subgraph.factors()[i];
+      r2[i] = 2.0 * f.cost(values_.at(f.a()), values_.at(f.b()));
+    }
+    return r2;
   }
 
   // The readmission, and the inliers' solve when some weight is not 1 and the inliers link the
@@ -149,17 +416,21 @@ class RobustProgram {
   void finish(const std::vector<double>& r2, std::uint32_t round) {
     const double c2 = options_.gnc.threshold2();
     double changed = 0.0;  // readmitted or not one, of the weights it owns
-    for (std::size_t i : owned_) {
+    for (std::size_t i : full_.owned) {
       if (out_.weights[i] < 0.5 && r2[i] <= c2) {
         out_.weights[i] = 1.0;
         ++out_.readmitted;
         changed += 1.0;
       }
     }
-    for (std::size_t i : owned_) {
-      if (out_.weights[i] != 1.0) changed += 1.0;
+    const std::vector<RelativePoseFactor>& factors = p_.subgraph.factors();
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      if (std::min(factors[i].a().robot, factors[i].b().robot) == p_.robot &&
+          out_.weights[i] != 1.0) {
+        changed += 1.0;
+      }
     }
-    if (TeamSum(exchangeWeights(round, changed), 0) == 0.0) return;
+    if (TeamSum(exchangeWeights(full_, out_.weights, round, changed), 0) == 0.0) return;
     const std::vector<bool> inliers = Inliers(out_.weights);
     if (!linked(inliers)) return;
     solve(SubGraph(p_.subgraph, inliers));
@@ -167,11 +438,10 @@ class RobustProgram {
   }
 
   // Whether every live robot reaches robot 0 (or a prior) through separators of weight >= 0.5:
-  // each robot
-  // reports whether it does, step after step, until no report changes.
+  // each robot reports whether it does, step after step, until no report changes.
   bool linked(const std::vector<bool>& inliers) {
     std::set<int> linked_to;
-    for (const auto& [other, list] : separators_) {
+    for (const auto& [other, list] : full_.separators) {
       for (std::size_t i : list) {
         if (inliers[i]) linked_to.insert(other);
       }
@@ -180,9 +450,7 @@ class RobustProgram {
     bool reached = p_.robot == 0 || !p_.subgraph.priors().empty();
     std::map<int, double> previous;
     while (true) {
-      const TeamStep got = reduce(reached ? 1.0 : 0.0);
-      std::map<int, double> flags;
-      for (const auto& [r, report] : got.reports) flags[r] = report.value[0];
+      const std::map<int, double> flags = Labels(reduce(reached ? 1.0 : 0.0));
       if (flags == previous) {
         for (const auto& [r, f] : flags) {
           if (f == 0.0) return false;
@@ -193,7 +461,7 @@ class RobustProgram {
         const auto it = flags.find(other);
         if (it != flags.end() && it->second == 1.0) reached = true;
       }
-      previous = std::move(flags);
+      previous = flags;
     }
   }
 
@@ -202,10 +470,10 @@ class RobustProgram {
   const AgentFactory& make_agent_;
   TeamChannel& channel_;
   DgsOptions solver_;
-  std::vector<std::size_t> owned_;                     // robust factors whose weight it owns
-  // Per neighbour (every robot a factor of the subgraph reaches): the robust separators to it.
-  std::map<int, std::vector<std::size_t>> separators_;
-  Values values_;                                      // its estimate and copies
+  SeparatorConsistencyOptions consistency_;  // threshold resolved
+  RobustIndex full_;                         // the whole subgraph's robust factors
+  std::map<int, std::vector<std::size_t>> pairs_;  // per neighbour: every separator to it
+  Values values_;                                  // its estimate and copies
   RobustProgramResult out_;
 };
 

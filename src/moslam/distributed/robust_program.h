@@ -23,15 +23,32 @@
 //      more, when every live robot is linked to robot 0 (or to a robot with a prior) through
 //      separators of weight >= 0.5 (flooded over the team in channel steps, a robot's flag per
 //      step); a variable no inlier touches keeps the rounds' estimate.
-// Weights change only between solves; only estimates, weights and the reports' scalars cross the
-// network. The program makes the agent calls of RunRobustDgs with check_separators off and the
-// solver in Jacobi order, on the same numbers, so a team of programs reproduces it (to the
-// solves' rounding; the tests: 1e-9). What RunRobustDgs does and this does not: the separator
-// check before GNC (PCM; separator_consistency.h), whose covariance messages and team-wide
-// "linked through confirmed pairs" test have no channel step yet. The inlier solve's condition
-// is the robots' link graph where RunRobustDgs asks every variable to be reached from robot 0:
-// the two differ only for landmarks that no inlier observation holds and that only inlier
-// separators to such landmarks of other robots reach (then the agent of that robot fails).
+// Before step 1, with options.check_separators, the pairwise check of the separators
+// (separator_consistency.h, PCM), as RunRobustDgs runs it:
+//   C1. every robot builds its own map (its own factors solved alone, the robust ones by GNC-TLS,
+//       and their marginal covariances) and sends each neighbour of lower id the map's estimates
+//       of its variables in their separators (a DGS message) and their joint covariance (a
+//       CovarianceMessage; none with map_uncertainty off); empty ones toward higher ids;
+//   C2. the lower robot of each pair finds the largest pairwise-consistent set of their
+//       separators (ConsistentSeparators) and sends the other its verdict (a WeightMessage: per
+//       separator 1 kept / 0 not, then 1 if the pair confirms itself, min_support); every robot
+//       reports its id as its label;
+//   C3. the robots linked through confirmed pairs: each takes the lowest label among itself and
+//       its confirmed partners, step after step, until no report changes (the groups of
+//       ConnectedRobots);
+//   C4. the final verdict: a pair below min_support keeps its best set when its two robots share
+//       a label and the set has linked_min_support separators, else none.
+// The separators it leaves out are left out of every solve; after GNC, before the readmission,
+// the higher robot of each pair sends the lower its estimates of their variables in the
+// separators left out, so that those whose residual is within c2 come back as in RunRobustDgs.
+// Weights change only between solves; only estimates, weights, the check's covariances and the
+// reports' scalars cross the network. The program makes the agent calls of RunRobustDgs (the
+// check's local solves, the solves of its kept graph) with the solver in Jacobi order, on the
+// same numbers, so a team of programs reproduces it (to the solves' rounding; the tests: 1e-9).
+// The inlier solve's condition is the robots' link graph where RunRobustDgs asks every variable
+// to be reached from robot 0: the two differ only for landmarks that no inlier observation holds
+// and that only inlier separators to such landmarks of other robots reach (then the agent of that
+// robot fails).
 #pragma once
 
 #include <cstdint>
@@ -41,6 +58,7 @@
 
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/robot_program.h"
+#include "moslam/distributed/separator_consistency.h"
 #include "moslam/robust/gnc.h"
 
 namespace moslam {
@@ -48,6 +66,10 @@ namespace moslam {
 struct RobustProgramOptions {
   DgsOptions solver;  // every solve (the refinement is forced on; Jacobi order required)
   GncOptions gnc;
+  // Before GNC, the pairwise check of the separators (see the top; RobustDgsOptions alike): its
+  // threshold 0 means GNC's c2.
+  bool check_separators = true;
+  SeparatorConsistencyOptions consistency{0.0, 3, 2};
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
@@ -75,13 +97,23 @@ struct RobustProgramResult {
   bool polished = false;  // the inliers were solved alone
   int outliers = 0;     // robust factors of the subgraph with weight < 0.5
   std::vector<RobotProgramResult> solves;  // least squares, the rounds, the inlier solve
-  std::int64_t weight_messages = 0;  // WeightMessages sent, and their binary size
-  std::int64_t weight_bytes = 0;
+  std::int64_t weight_messages = 0;  // WeightMessages sent (the check's verdicts included), and
+  std::int64_t weight_bytes = 0;     // their binary size
+  // The separator check: the separators to robots of higher id it left out, and of those, the
+  // ones of pairs too small to confirm themselves kept for GNC (their best sets); the messages it
+  // sent for it (map estimates, covariances, the estimates for the readmission) and their bytes.
+  int check_rejected = 0;
+  int check_deferred = 0;
+  std::int64_t check_messages = 0;
+  std::int64_t check_bytes = 0;
   int channel_steps = 0;  // all of them, the solves' included
 };
 
 // Makes the agent of one solve: `subgraph` (the weighted or the inlier subgraph) from `initial`;
-// the factory owns it, and keeps it at least until its next call.
+// the factory owns it, and keeps it at least until its next call. The first call is for the
+// whole subgraph from problem.initial. With the separator check, an agent of the whole subgraph
+// is also made, not solved, for the steps that reach every neighbour (the check's and the
+// readmission's): a channel's neighbours may be those of the agent at work (dgs_node.h).
 using AgentFactory = std::function<RobotAgent&(const PoseGraph& subgraph, const Values& initial)>;
 
 // Throws InvalidInputError (bad options, a mask of the wrong size, a neighbour's weights that do

@@ -1,5 +1,5 @@
 // The robust robot program (robust_program.h): a team of programs, one thread per robot over an
-// in-memory channel, reproduces RunRobustDgs without the separator check (robust_dgs.h).
+// in-memory channel, reproduces RunRobustDgs (robust_dgs.h), with and without the separator check.
 #include "moslam/distributed/robust_program.h"
 
 #include <gtest/gtest.h>
@@ -16,6 +16,7 @@
 #include "moslam/distributed/robust_dgs.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
+#include "moslam/solver/initialization.h"
 
 namespace moslam {
 namespace {
@@ -98,7 +99,8 @@ RobustDgsOptions ReferenceOptions(const RobustProgramOptions& o) {
   RobustDgsOptions r;
   r.dgs = o.solver;
   r.gnc = o.gnc;
-  r.check_separators = false;
+  r.check_separators = o.check_separators;
+  r.consistency = o.consistency;
   return r;
 }
 
@@ -155,7 +157,8 @@ TEST(RobustProgram, ATeamOfProgramsIsRunRobustDgsWithoutTheCheckOnSpoiledBlocksW
   spoil.seed = 2;
   const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
   const std::vector<bool> robust = DefaultRobustFactors(spoiled.graph);
-  const RobustProgramOptions options = BlocksWorldOptions();
+  RobustProgramOptions options = BlocksWorldOptions();
+  options.check_separators = false;
   const RobustDgsResult reference =
       RunRobustDgs(spoiled.graph, data.initial, robust, ReferenceOptions(options));
   // The case at work: GNC rounds, outliers rejected, the inliers solved alone.
@@ -174,6 +177,7 @@ TEST(RobustProgram, WithoutOutliersItIsTheLeastSquaresSolveAndSendsNoWeight) {
   const std::vector<bool> robust = DefaultRobustFactors(data.graph);
   RobustProgramOptions options = BlocksWorldOptions();
   options.gnc.threshold = 0.0;  // chi-square: every residual of blocks_world is far below it
+  options.check_separators = false;
   const RobustDgsResult reference =
       RunRobustDgs(data.graph, data.initial, robust, ReferenceOptions(options));
   ASSERT_EQ(reference.status, GncStatus::kAllInliers);
@@ -211,11 +215,72 @@ TEST(RobustProgram, InliersThatUnlinkARobotAreNotSolvedAlone) {
   robust[robust.size() - 1] = robust[robust.size() - 2] = true;
   RobustProgramOptions options;
   options.solver.order = SweepOrder::kJacobi;
+  options.check_separators = false;
   const RobustDgsResult reference =
       RunRobustDgs(graph, gt, robust, ReferenceOptions(options));
   ASSERT_EQ(reference.outliers, 2);
   ASSERT_FALSE(reference.polished);
   ExpectSameAsRunRobustDgs(graph, gt, robust, options, reference);
+}
+
+// The separator check over the channel (C1-C4 of robust_program.h): blocks_world in 4 robots with
+// 90 % of the separators wrong, the maps taken as exact (as scripts/robust-g2o.sh runs it): the
+// check rejects most wrong ones, leaves pairs of linked robots to GNC, and GNC the rest.
+TEST(RobustProgram, ATeamOfProgramsIsRunRobustDgsWithTheCheckOnSpoiledBlocksWorld) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
+  SpoilOptions spoil;
+  spoil.fraction = 0.9;
+  spoil.seed = 1;
+  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
+  const std::vector<bool> robust = DefaultRobustFactors(spoiled.graph);
+  RobustProgramOptions options = BlocksWorldOptions();
+  options.consistency.map_uncertainty = false;
+  const RobustDgsResult reference =
+      RunRobustDgs(spoiled.graph, data.initial, robust, ReferenceOptions(options));
+  ASSERT_GT(reference.consistency_rejected, 0);
+  ASSERT_GT(reference.consistency_deferred, 0);
+  ASSERT_GT(reference.iterations, 0);
+  for (std::size_t i = 0; i < spoiled.outlier.size(); ++i) {
+    EXPECT_EQ(reference.weights[i] < 0.5, spoiled.outlier[i]) << "factor " << i;
+  }
+  ExpectSameAsRunRobustDgs(spoiled.graph, data.initial, robust, options, reference);
+  const TeamOutcome team = RunTeam(spoiled.graph, data.initial, robust, options);
+  int rejected = 0, deferred = 0;
+  for (const auto& [robot, r] : team.results) {
+    rejected += r.check_rejected;
+    deferred += r.check_deferred;
+    if (robot > 0) {
+      EXPECT_GT(r.check_bytes, 0) << "robot " << robot;  // its map estimates
+    }
+  }
+  EXPECT_EQ(rejected, reference.consistency_rejected);
+  EXPECT_EQ(deferred, reference.consistency_deferred);
+}
+
+// With the maps' covariances (PCM's test): robot 1 sends robot 0 its map's estimates and their
+// joint covariance; the wrong separators are rejected, the right ones across the drift kept.
+TEST(RobustProgram, TheCheckWithMapCovariancesIsRunRobustDgs) {
+  std::vector<bool> wrong;
+  const PoseGraph graph = test::DriftingPairWithWrongSeparators(&wrong);
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  const RobustDgsResult reference =
+      RunRobustDgs(graph, initial, robust, ReferenceOptions(options));
+  const std::size_t first = graph.factors().size() - wrong.size();
+  for (std::size_t s = 0; s < wrong.size(); ++s) {
+    EXPECT_EQ(reference.weights[first + s] < 0.5, static_cast<bool>(wrong[s])) << "separator " << s;
+  }
+  ASSERT_EQ(reference.consistency_rejected, 2);
+  ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference);
+  const TeamOutcome team = RunTeam(graph, initial, robust, options);
+  ASSERT_EQ(team.error, "");
+  // Robot 1's map estimates of its 8 separator variables and their covariance, then its
+  // estimates of the 2 in the rejected separators (for the readmission): RunRobustDgs's count.
+  EXPECT_EQ(team.results.at(1).check_messages, 3);
+  EXPECT_EQ(team.results.at(1).check_bytes, reference.consistency_bytes);
+  EXPECT_EQ(team.results.at(0).check_rejected, 2);
 }
 
 TEST(RobustProgram, RejectsBadInput) {

@@ -12,6 +12,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/transport/dds_entities.h"
 #include "moslam/transport/idl/DgsCoarse.h"
+#include "moslam/transport/idl/DgsCovariance.h"
 #include "moslam/transport/idl/DgsEstimates.h"
 #include "moslam/transport/idl/DgsWeights.h"
 #include "moslam/transport/idl/ObjectList.h"
@@ -38,6 +39,9 @@ std::string EstimatesTopicName(int robot) {
 }
 std::string WeightsTopicName(int robot) {
   return "rt/moslam/robot" + std::to_string(robot) + "/dgs_weights";
+}
+std::string CovarianceTopicName(int robot) {
+  return "rt/moslam/robot" + std::to_string(robot) + "/dgs_covariance";
 }
 std::string SharedObjectsTopicName(int robot) {
   return "rt/moslam/robot" + std::to_string(robot) + "/shared_objects";
@@ -88,6 +92,7 @@ using EstimatesSample = moslam_msg_dds__DgsEstimates_;
 using StatusSample = moslam_msg_dds__Status_;
 using CoarseSample = moslam_msg_dds__DgsCoarse_;
 using WeightsSample = moslam_msg_dds__DgsWeights_;
+using CovarianceSample = moslam_msg_dds__DgsCovariance_;
 using ObjectListSample = moslam_msg_dds__ObjectList_;
 using ObjectPoseSample = moslam_msg_dds__ObjectPose_;
 using SharedSample = moslam_msg_dds__SharedObjects_;
@@ -158,6 +163,7 @@ StatusPacket FromSample(const StatusSample& s) {
   p.coarse_ready = s.coarse_ready;
   p.coarse = s.coarse;
   p.weights = s.weights;
+  p.covariance = s.covariance;
   p.value[0] = s.values[0];
   p.value[1] = s.values[1];
   p.neighbours.assign(s.neighbours._buffer, s.neighbours._buffer + s.neighbours._length);
@@ -231,6 +237,29 @@ WeightsPacket FromSample(const WeightsSample& s) {
   return p;
 }
 
+// Throws InvalidInputError when the triangle does not hold n (n + 1) / 2 entries.
+CovariancePacket FromSample(const CovarianceSample& s) {
+  CovariancePacket p;
+  p.solve = s.solve;
+  p.round = s.round;
+  p.message.sender = s.sender;
+  p.message.receiver = s.receiver;
+  const std::uint64_t n = s.dimension;
+  if (n > kMaxTransportCovarianceDimension || s.upper._length != n * (n + 1) / 2) {
+    throw InvalidInputError("covariance of dimension " + std::to_string(n) + " with " +
+                            std::to_string(s.upper._length) + " entries");
+  }
+  const auto dim = static_cast<Eigen::Index>(n);
+  p.message.covariance.resize(dim, dim);
+  std::size_t k = 0;
+  for (Eigen::Index i = 0; i < dim; ++i) {
+    for (Eigen::Index j = i; j < dim; ++j) {
+      p.message.covariance(i, j) = p.message.covariance(j, i) = s.upper._buffer[k++];
+    }
+  }
+  return p;
+}
+
 ObjectListPacket FromSample(const ObjectListSample& s) {
   ObjectListPacket p;
   p.robot = s.robot;
@@ -282,6 +311,8 @@ class DdsTransport::Impl {
                       SharedObjectsTopicName(robot), writer_qos_),
         weights_topic_(participant_, moslam_msg_dds__DgsWeights__desc, WeightsTopicName(robot),
                        writer_qos_),
+        covariance_topic_(participant_, moslam_msg_dds__DgsCovariance__desc,
+                          CovarianceTopicName(robot), writer_qos_),
         status_writer_(participant_, status_topic_, writer_qos_),
         coarse_writer_(participant_, coarse_topic_, writer_qos_),
         objects_writer_(participant_, objects_topic_, writer_qos_),
@@ -291,6 +322,7 @@ class DdsTransport::Impl {
         inbox_reader_(participant_, inbox_topic_, reader_qos_),
         shared_reader_(participant_, shared_topic_, reader_qos_),
         weights_reader_(participant_, weights_topic_, reader_qos_),
+        covariance_reader_(participant_, covariance_topic_, reader_qos_),
         waitset_(participant_) {
     if (!options_.transport.log) options_.transport.log = StderrLog(robot_);
     waitset_.attach(status_reader_);
@@ -299,6 +331,7 @@ class DdsTransport::Impl {
     waitset_.attach(inbox_reader_);
     waitset_.attach(shared_reader_);
     waitset_.attach(weights_reader_);
+    waitset_.attach(covariance_reader_);
   }
 
   void send(const EstimatesPacket& p) {
@@ -380,6 +413,33 @@ class DdsTransport::Impl {
     stats_.weights_bytes += bytes;
   }
 
+  void send(const CovariancePacket& p) {
+    const std::string why = CheckPacket(p, robot_, p.message.receiver, {});
+    if (!why.empty()) throw InvalidInputError("cannot send: " + why);
+    const Eigen::MatrixXd& c = p.message.covariance;
+    std::vector<double> upper;
+    upper.reserve(static_cast<std::size_t>(c.rows() * (c.rows() + 1) / 2));
+    for (Eigen::Index i = 0; i < c.rows(); ++i) {
+      for (Eigen::Index j = i; j < c.rows(); ++j) upper.push_back(c(i, j));
+    }
+    CovarianceSample s{};
+    s.sender = static_cast<std::uint16_t>(robot_);
+    s.receiver = static_cast<std::uint16_t>(p.message.receiver);
+    s.solve = p.solve;
+    s.round = p.round;
+    s.dimension = static_cast<std::uint32_t>(c.rows());
+    Lend(upper, s.upper);
+    std::lock_guard<std::mutex> lock(mutex_);
+    outbox(covariance_writers_, moslam_msg_dds__DgsCovariance__desc,
+           CovarianceTopicName(p.message.receiver), p.message.receiver)
+        .write(&s);
+    const std::int64_t bytes = CdrSize(moslam_msg_dds__DgsCovariance__desc, &s);
+    ++stats_.sent_samples;
+    stats_.sent_bytes += bytes;
+    ++stats_.covariances_sent;
+    stats_.covariances_bytes += bytes;
+  }
+
   void publish(const StatusPacket& p) {
     const std::string why = CheckPacket(p, robot_, -1, {});
     if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
@@ -400,6 +460,7 @@ class DdsTransport::Impl {
     s.coarse_ready = p.coarse_ready;
     s.coarse = p.coarse;
     s.weights = p.weights;
+    s.covariance = p.covariance;
     s.values[0] = p.value[0];
     s.values[1] = p.value[1];
     Lend(neighbours, s.neighbours);
@@ -629,6 +690,15 @@ class DdsTransport::Impl {
         reject(fmt::format("weights from robot {}: {}", s.sender, e.what()));
       }
     });
+    covariance_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+      if (!info.valid_data) return;
+      const auto& s = *static_cast<const CovarianceSample*>(data);
+      try {
+        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__DgsCovariance__desc, &s));
+      } catch (const std::exception& e) {
+        reject(fmt::format("covariance from robot {}: {}", s.sender, e.what()));
+      }
+    });
   }
 
   int robot_;
@@ -637,12 +707,12 @@ class DdsTransport::Impl {
   dds::Participant participant_;
   dds::Qos writer_qos_, reader_qos_;
   dds::Topic status_topic_, coarse_topic_, objects_topic_, inbox_topic_, shared_topic_,
-      weights_topic_;
+      weights_topic_, covariance_topic_;
   dds::Writer status_writer_, coarse_writer_, objects_writer_;
   dds::Reader status_reader_, coarse_reader_, objects_reader_, inbox_reader_, shared_reader_,
-      weights_reader_;
+      weights_reader_, covariance_reader_;
   dds::WaitSet waitset_;
-  std::map<int, Outbox> estimate_writers_, shared_writers_, weight_writers_;
+  std::map<int, Outbox> estimate_writers_, shared_writers_, weight_writers_, covariance_writers_;
 
   mutable std::mutex mutex_;  // stats, known, alive, writers
   std::mutex poll_mutex_;
@@ -666,6 +736,7 @@ int DdsTransport::self() const { return impl_->robot(); }
 void DdsTransport::send(const EstimatesPacket& packet) { impl_->send(packet); }
 void DdsTransport::send(const SharedObjectsPacket& packet) { impl_->send(packet); }
 void DdsTransport::send(const WeightsPacket& packet) { impl_->send(packet); }
+void DdsTransport::send(const CovariancePacket& packet) { impl_->send(packet); }
 void DdsTransport::publish(const StatusPacket& packet) { impl_->publish(packet); }
 void DdsTransport::publish(const ObjectListPacket& packet) { impl_->publish(packet); }
 void DdsTransport::publish(const CoarsePacket& packet) { impl_->publish(packet); }

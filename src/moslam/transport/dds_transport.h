@@ -9,6 +9,8 @@
 //                                                               answers to R's object lists)
 //   rt/moslam/robot<R>/dgs_weights      moslam/msg/DgsWeights   robot R's inbox (the robust
 //                                                               solve's weights)
+//   rt/moslam/robot<R>/dgs_covariance   moslam/msg/DgsCovariance robot R's inbox (the
+//                                                               separator check's covariances)
 // QoS everywhere: reliable, transient-local (writers keep their last kTransportHistoryDepth
 // samples and replay them to readers that join late: a restarted robot catches up), readers
 // keep all, automatic liveliness with a lease (liveliness_lease). Liveliness is observed on the
@@ -54,6 +56,7 @@ class DdsTransport final : public Transport {
   void send(const EstimatesPacket& packet) override;
   void send(const SharedObjectsPacket& packet) override;
   void send(const WeightsPacket& packet) override;
+  void send(const CovariancePacket& packet) override;
   void publish(const StatusPacket& packet) override;
   void publish(const ObjectListPacket& packet) override;
   void publish(const CoarsePacket& packet) override;
@@ -74,6 +77,7 @@ std::string ObjectsTopicName();
 std::string EstimatesTopicName(int robot);
 std::string SharedObjectsTopicName(int robot);
 std::string WeightsTopicName(int robot);
+std::string CovarianceTopicName(int robot);
 
 // The unicast discovery port of participant index `index` on `domain` (Cyclone's default port
 // mapping: 7400 + 250 domain + 10 + 2 index).

@@ -114,6 +114,7 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   h.pairs = {{3, 7}, {(std::uint64_t{1} << 56) - 1, 0}};
   h.removed = {{5, 2}};
   s.weights = true;
+  s.covariance = true;
   WeightsPacket w;
   w.solve = 75;
   w.round = 41;
@@ -126,18 +127,28 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   t0.publish(o);
   t0.send(h);
   t0.send(w);
+  CovariancePacket c;
+  c.solve = 76;
+  c.round = 42;
+  c.message.sender = 0;
+  c.message.receiver = 1;
+  c.message.covariance = Eigen::MatrixXd::Identity(6, 6) * 0.3;
+  c.message.covariance(0, 5) = c.message.covariance(5, 0) = -1.0 / 7.0;
+  t0.send(c);
 
   std::vector<Received> got = PollUntil(t1, [](const std::vector<Received>& v) {
     int n = 0;
     for (const Received& r : v) n += std::holds_alternative<StatusPacket>(r.packet) ? 0 : 1;
-    return n >= 4 && v.size() >= 5;
+    return n >= 5 && v.size() >= 6;
   });
   const EstimatesPacket* ge = nullptr;
   const StatusPacket* gs = nullptr;
   const ObjectListPacket* go = nullptr;
   const SharedObjectsPacket* gh = nullptr;
   const WeightsPacket* gw = nullptr;
+  const CovariancePacket* gc = nullptr;
   for (const Received& r : got) {
+    if (auto* p = std::get_if<CovariancePacket>(&r.packet)) gc = p;
     if (auto* p = std::get_if<WeightsPacket>(&r.packet)) gw = p;
     if (auto* p = std::get_if<SharedObjectsPacket>(&r.packet)) gh = p;
     EXPECT_EQ(r.sender, 0);
@@ -145,7 +156,13 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
     if (auto* p = std::get_if<StatusPacket>(&r.packet)) gs = p;
     if (auto* p = std::get_if<ObjectListPacket>(&r.packet)) go = p;
   }
-  ASSERT_TRUE(ge && gs && go && gh && gw);
+  ASSERT_TRUE(ge && gs && go && gh && gw && gc);
+  EXPECT_EQ(gc->solve, 76u);
+  EXPECT_EQ(gc->round, 42u);
+  EXPECT_EQ(gc->message.sender, 0);
+  EXPECT_EQ(gc->message.receiver, 1);
+  EXPECT_EQ(gc->message.covariance, c.message.covariance);  // bit for bit, symmetric
+  EXPECT_TRUE(gs->covariance);
   EXPECT_EQ(gw->solve, 75u);
   EXPECT_EQ(gw->round, 41u);
   EXPECT_EQ(gw->message.sender, 0);
@@ -206,6 +223,9 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   // 4 + 4 (sender, receiver) + 12 (solve, round, GNC round) + 4 (length) + 4 (padding) + 3 x 8.
   EXPECT_EQ(s0.weights_sent, 1);
   EXPECT_EQ(s0.weights_bytes, 4 + 4 + 12 + 4 + 4 + 3 * 8);
+  // 4 + 4 (sender, receiver) + 12 (solve, round, dimension) + 4 (length) + 4 (padding) + 21 x 8.
+  EXPECT_EQ(s0.covariances_sent, 1);
+  EXPECT_EQ(s0.covariances_bytes, 4 + 4 + 12 + 4 + 4 + 21 * 8);
   EXPECT_EQ(s0.sent_bytes, s1.received_bytes);
   EXPECT_EQ(s1.rejected, 0);
 }

@@ -38,6 +38,16 @@ void DgsNodeOptions::validate() const {
   if (!gnc && !robust.empty()) {
     throw InvalidInputError("DGS node options: a robust mask without gnc options");
   }
+  if (!gnc && separator_check) {
+    throw InvalidInputError("DGS node options: a separator check without gnc options");
+  }
+  if (separator_check) {
+    RobustProgramOptions p;  // validates the check as the program will run it
+    p.solver = DriverOptions(*this);
+    p.gnc = *gnc;
+    p.consistency = *separator_check;
+    p.validate();
+  }
 }
 
 DgsOptions DriverOptions(const DgsNodeOptions& o) {
@@ -49,7 +59,7 @@ DgsOptions DriverOptions(const DgsNodeOptions& o) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'J', 'N', 'L', '3'};
+constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'J', 'N', 'L', '4'};
 
 enum class RecordType : std::uint8_t {
   kHeader = 1,  // magic, robot, fingerprint
@@ -69,7 +79,8 @@ using transport_detail::StepRecord;
 
 std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initial,
                              const DgsOptions& o, const std::optional<GncOptions>& gnc,
-                             const std::vector<bool>& robust) {
+                             const std::vector<bool>& robust,
+                             const std::optional<SeparatorConsistencyOptions>& check) {
   Fingerprint f;
   f.add(static_cast<std::uint64_t>(robot));
   f.add(static_cast<std::uint64_t>(gnc.has_value()));
@@ -79,6 +90,14 @@ std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initia
     }
     f.add(static_cast<std::uint64_t>(gnc->max_iterations));
     for (bool b : robust) f.add(static_cast<std::uint64_t>(b));
+    f.add(static_cast<std::uint64_t>(check.has_value()));
+    if (check) {
+      f.add(check->threshold);
+      for (int v : {check->min_support, check->linked_min_support,
+                    static_cast<int>(check->map_uncertainty)}) {
+        f.add(static_cast<std::uint64_t>(v));
+      }
+    }
   }
   for (double v : {o.eta_rotation, o.eta_pose, o.gamma, o.refinement.relative_cost_tolerance,
                    o.refinement.sweep_tolerance, o.refinement.cg_tolerance, o.refinement.gamma,
@@ -131,6 +150,7 @@ TeamReport ReportOf(const StatusPacket& s) {
   r.coarse_ready = s.coarse_ready;
   r.has_share = s.coarse;
   r.weights = s.weights;
+  r.covariance = s.covariance;
   r.change = s.change;
   r.bound = s.error_bound;
   r.value[0] = s.value[0];
@@ -249,10 +269,11 @@ class DgsNode::Impl final : public TeamChannel {
   // ---- TeamChannel --------------------------------------------------------------------------
   TeamStep step(DgsStage stage, const std::vector<OutgoingMessage>& estimates,
                 const TeamReport& report, const CoarseMessage* share,
-                const std::vector<WeightMessage>& weights) override {
+                const std::vector<WeightMessage>& weights,
+                const std::vector<CovarianceMessage>& covariances) override {
     const std::uint32_t s = ++step_;
     Sent sent{stage, estimates, report, share ? std::optional<CoarseMessage>(*share) : std::nullopt,
-              weights};
+              weights, covariances};
     if (std::optional<TeamStep> replayed = replayStep(s, stage)) {
       last_sent_ = std::move(sent);
       ++result_.replayed_rounds;
@@ -283,6 +304,7 @@ class DgsNode::Impl final : public TeamChannel {
     TeamReport report;
     std::optional<CoarseMessage> share;
     std::vector<WeightMessage> weights;
+    std::vector<CovarianceMessage> covariances;
   };
 
   // The robust program (options_.gnc): one agent per solve, made here so that the status and the
@@ -296,6 +318,8 @@ class DgsNode::Impl final : public TeamChannel {
     RobustProgramOptions options;
     options.solver = solver_;
     options.gnc = *options_.gnc;
+    options.check_separators = options_.separator_check.has_value();
+    if (options_.separator_check) options.consistency = *options_.separator_check;
     bool first = true;
     const AgentFactory make = [&](const PoseGraph& graph, const Values& start) -> RobotAgent& {
       for (const auto& [k, x] : agent_->estimate()) own_[k] = x;
@@ -338,7 +362,8 @@ class DgsNode::Impl final : public TeamChannel {
   // as the program asks for them.
   void loadJournal() {
     const std::uint64_t fingerprint =
-        RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_) ^
+        RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_,
+                       options_.separator_check) ^
         options_.solve;
     if (!journal_) return;
     result_.journal_truncated_bytes = journal_->truncatedBytes();
@@ -492,6 +517,16 @@ class DgsNode::Impl final : public TeamChannel {
       ++result_.weight_messages;
       result_.weight_binary_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
     }
+    for (const CovarianceMessage& m : what.covariances) {
+      CovariancePacket c;
+      c.solve = options_.solve;
+      c.round = s;
+      c.message = m;
+      transport_.send(c);
+      ++result_.covariance_messages;
+      result_.covariance_binary_bytes +=
+          static_cast<std::int64_t>(EncodeCovarianceMessage(m).size());
+    }
     if (what.share) {
       CoarsePacket c;
       c.solve = options_.solve;
@@ -512,6 +547,7 @@ class DgsNode::Impl final : public TeamChannel {
     st.coarse_ready = what.report.coarse_ready;
     st.coarse = what.report.has_share;
     st.weights = what.report.weights;
+    st.covariance = what.report.covariance;
     st.change = what.report.change;
     st.error_bound = what.report.bound;
     st.value[0] = what.report.value[0];
@@ -616,6 +652,15 @@ class DgsNode::Impl final : public TeamChannel {
           continue;
         }
         weights_[{w->round, w->message.sender}] = w->message;
+      } else if (auto* v = std::get_if<CovariancePacket>(&r.packet)) {
+        if (v->solve != options_.solve) continue;
+        if (!neighbours_.count(v->message.sender)) {
+          ++result_.rejected_estimates;
+          log(fmt::format("rejected: a covariance from robot {}, which is not a neighbour",
+                          v->message.sender));
+          continue;
+        }
+        covariances_[{v->round, v->message.sender}] = v->message;
       }
       // Object lists: rendezvous data, not used by the DGS protocol.
     }
@@ -650,6 +695,10 @@ class DgsNode::Impl final : public TeamChannel {
     return st.weights && step_neighbours_.count(r) &&
            std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
   }
+  bool expectsCovariance(int r, const StatusPacket& st) const {
+    return st.covariance && step_neighbours_.count(r) &&
+           std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
+  }
 
   // The robots step s still waits for.
   std::vector<int> waitingFor(std::uint32_t s) const {
@@ -658,7 +707,8 @@ class DgsNode::Impl final : public TeamChannel {
       const StatusPacket* st = statusOf(r, s);
       if (!st || (expectsEstimates(r, *st) && !inbox_.count({s, r})) ||
           (st->coarse && !coarse_.count({s, r})) ||
-          (expectsWeights(r, *st) && !weights_.count({s, r}))) {
+          (expectsWeights(r, *st) && !weights_.count({s, r})) ||
+          (expectsCovariance(r, *st) && !covariances_.count({s, r}))) {
         out.push_back(r);
       }
     }
@@ -709,6 +759,7 @@ class DgsNode::Impl final : public TeamChannel {
       if (expectsEstimates(r, st)) got.estimates.push_back(inbox_.at({s, r}));
       if (st.coarse) got.shares[r] = coarse_.at({s, r});
       if (expectsWeights(r, st)) got.weights[r] = weights_.at({s, r});
+      if (expectsCovariance(r, st)) got.covariances[r] = covariances_.at({s, r});
     }
     return got;
   }
@@ -719,6 +770,7 @@ class DgsNode::Impl final : public TeamChannel {
     inbox_.erase(inbox_.begin(), inbox_.lower_bound({s, 0}));
     coarse_.erase(coarse_.begin(), coarse_.lower_bound({s, 0}));
     weights_.erase(weights_.begin(), weights_.lower_bound({s, 0}));
+    covariances_.erase(covariances_.begin(), covariances_.lower_bound({s, 0}));
   }
 
   void waitForPeers() {
@@ -779,6 +831,7 @@ class DgsNode::Impl final : public TeamChannel {
   std::map<std::pair<std::uint32_t, int>, Message> inbox_;         // (step, sender)
   std::map<std::pair<std::uint32_t, int>, CoarseMessage> coarse_;  // (step, sender)
   std::map<std::pair<std::uint32_t, int>, WeightMessage> weights_;  // (step, sender)
+  std::map<std::pair<std::uint32_t, int>, CovarianceMessage> covariances_;  // (step, sender)
   Clock::time_point last_snapshot_{};
   DgsNodeResult result_;
 };

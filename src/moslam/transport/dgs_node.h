@@ -16,7 +16,8 @@
 //      neighbour whose status says it sent some, the step-s share of every robot whose status
 //      says it has one and the step-s weights of every neighbour whose status says weights. Only
 //      step-s packets are used: the result is the in-process driver's with SweepOrder::kJacobi
-//      (dgs_driver.h; robust: RunRobustDgs without the separator check), whatever the timing.
+//      (dgs_driver.h; robust: RunRobustDgs, with the separator check when separator_check is
+//      set), whatever the timing.
 //   3. After the program: save, publish `done`, wait (bounded) until every live robot is done or
 //      gone, return.
 // Leaving: a team robot whose liveliness is lost for leave_timeout while it is waited for has
@@ -78,6 +79,9 @@ struct DgsNodeOptions {
   std::optional<GncOptions> gnc;
   // With gnc: which factors of the subgraph are robust (one flag each); empty: the separators.
   std::vector<bool> robust;
+  // With gnc: the pairwise check of the separators before GNC (robust_program.h, C1-C4; the map
+  // covariances in CovariancePackets); none: GNC alone. Its threshold 0: GNC's c2.
+  std::optional<SeparatorConsistencyOptions> separator_check;
   std::function<void(const DgsNodeRound&)> on_round;  // after every step (also replayed ones)
   std::function<void(const std::string&)> log;  // team, leaves, failures; default: stderr
 
@@ -110,6 +114,8 @@ struct DgsNodeResult {
   std::int64_t coarse_binary_bytes = 0;    // their size in the binary encoding
   std::int64_t weight_messages = 0;        // robust solve: weight messages sent by this process
   std::int64_t weight_binary_bytes = 0;    // their size in the binary encoding
+  std::int64_t covariance_messages = 0;    // the separator check's covariances sent
+  std::int64_t covariance_binary_bytes = 0;  // their size in the binary encoding
   std::int64_t rejected_estimates = 0;     // valid samples the protocol refused (not a neighbour,
                                            // keys it does not need)
   TransportStats transport;

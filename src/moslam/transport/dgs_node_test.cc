@@ -14,11 +14,13 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/partition.h"
 #include "moslam/distributed/robust_dgs.h"
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
+#include "moslam/solver/initialization.h"
 #include "moslam/transport/dgs_node.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/robot_data.h"
@@ -380,6 +382,25 @@ TEST(RobotData, EachRobotFileHoldsItsPartitionOfTheFolder) {
   EXPECT_THROW(RobotFile(BlocksWorld(4), 4), InvalidInputError);
 }
 
+// The weights every robot holds are the reference's for its factors (its subgraph, in graph
+// order), and it ran as many GNC rounds.
+void ExpectReferenceWeights(const TeamResult& team, const PoseGraph& graph,
+                            const RobustDgsResult& reference) {
+  for (const RobotSubgraph& part : PartitionByRobot(graph)) {
+    const DgsNodeResult& res = team.results.at(part.robot);
+    ASSERT_TRUE(res.robust.has_value());
+    ASSERT_EQ(res.robust->weights.size(), part.graph.factors().size());
+    std::size_t j = 0;
+    for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+      const RelativePoseFactor& f = graph.factors()[i];
+      if (f.a().robot != part.robot && f.b().robot != part.robot) continue;
+      EXPECT_EQ(res.robust->weights[j++], reference.weights[i]) << "robot " << part.robot;
+    }
+    EXPECT_EQ(res.robust->iterations, reference.iterations);
+    EXPECT_EQ(res.robust->polished, reference.polished);
+  }
+}
+
 // The robust solve over the transport (robust_program.h): GNC rounds with the weights in
 // WeightsPackets, equal to RunRobustDgs without the separator check, also when a robot dies in a
 // GNC round and restarts from its journal.
@@ -403,22 +424,9 @@ TEST(DgsNode, TheRobustSolveEqualsTheInProcessRobustDriverAndSurvivesARestart) {
   ASSERT_GT(reference.iterations, 1);
   ASSERT_GT(reference.outliers, 0);
   ASSERT_TRUE(reference.polished);
-  const auto parts = PartitionByRobot(data.graph);
-  // The weights a robot holds: the reference's for its factors (its subgraph, in graph order).
   auto expectReferenceWeights = [&](const TeamResult& team) {
-    for (const RobotSubgraph& part : parts) {
-      const DgsNodeResult& res = team.results.at(part.robot);
-      ASSERT_TRUE(res.robust.has_value());
-      ASSERT_EQ(res.robust->weights.size(), part.graph.factors().size());
-      std::size_t j = 0;
-      for (std::size_t i = 0; i < data.graph.factors().size(); ++i) {
-        const RelativePoseFactor& f = data.graph.factors()[i];
-        if (f.a().robot != part.robot && f.b().robot != part.robot) continue;
-        EXPECT_EQ(res.robust->weights[j++], reference.weights[i]) << "robot " << part.robot;
-      }
-      EXPECT_EQ(res.robust->iterations, reference.iterations);
-      EXPECT_TRUE(res.robust->polished);
-    }
+    ExpectReferenceWeights(team, data.graph, reference);
+    for (const auto& [robot, res] : team.results) EXPECT_TRUE(res.robust->polished);
   };
   int steps = 0, ls_steps = 0;
   {
@@ -504,6 +512,84 @@ TEST(DgsNode, ValidatesOptions) {
   o.robust.clear();
   o.gnc->mu_step = 1.0;
   EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+}
+
+// The separator check before GNC over the transport (robust_program.h, C1-C4): on spoiled
+// blocks_world with the maps taken as exact, and on two drifting robots with their maps'
+// covariances in CovariancePackets, also when robot 0 dies right after the step that brought
+// robot 1's covariance and restarts from its journal.
+TEST(DgsNode, TheSeparatorCheckOverTheTransportEqualsRunRobustDgs) {
+  const auto reference_of = [](const Dataset& data, const DgsNodeOptions& o) {
+    RobustDgsOptions ro;
+    ro.dgs = DriverOptions(o);
+    ro.gnc = *o.gnc;
+    ro.consistency = *o.separator_check;
+    return RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), ro);
+  };
+  {
+    SCOPED_TRACE("blocks_world 4, 90 % wrong separators, the maps taken as exact");
+    const Dataset clean = ReadG2oFolder(BlocksWorld(4));
+    SpoilOptions spoil;
+    spoil.fraction = 0.9;
+    spoil.seed = 1;
+    Dataset data = clean;
+    data.graph = SpoilSeparators(clean.graph, spoil).graph;
+    DgsNodeOptions o = WholeSolver();
+    o.gnc = GncOptions();
+    o.gnc->threshold = 1.0;
+    o.separator_check = SeparatorConsistencyOptions{0.0, 3, 2};
+    o.separator_check->map_uncertainty = false;
+    const RobustDgsResult reference = reference_of(data, o);
+    ASSERT_GT(reference.consistency_rejected, 0);
+    InProcessNetwork net;
+    const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
+    ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+    EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+    ExpectReferenceWeights(team, data.graph, reference);
+    int rejected = 0;
+    for (const auto& [r, res] : team.results) {
+      rejected += res.robust->check_rejected;
+      EXPECT_EQ(res.covariance_messages, 0);
+    }
+    EXPECT_EQ(rejected, reference.consistency_rejected);
+  }
+  SCOPED_TRACE("two drifting robots, the maps' covariances");
+  Dataset data;
+  std::vector<bool> wrong;
+  data.graph = test::DriftingPairWithWrongSeparators(&wrong);
+  data.initial = ChordalInitialization(data.graph, SE3());
+  DgsNodeOptions o = WholeSolver();
+  o.gnc = GncOptions();
+  o.separator_check = SeparatorConsistencyOptions{0.0, 3, 2};
+  const RobustDgsResult reference = reference_of(data, o);
+  ASSERT_EQ(reference.consistency_rejected, 2);
+  const fs::path dir = FreshDir("check_restart");
+  std::atomic<int> crashes{0};
+  InProcessNetwork net;
+  const TeamResult team = RunTeam(net, data, [&](int robot) {
+    RobotSetup s{o, false};
+    s.options.state_dir = (dir / std::to_string(robot)).string();
+    if (robot == 0) {
+      s.restart_after_crash = true;
+      s.options.on_round = [&](const DgsNodeRound& r) {
+        if (!r.replayed && r.round == 1 && crashes == 0) {
+          ++crashes;
+          throw Crash();
+        }
+      };
+    }
+    return s;
+  });
+  ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+  EXPECT_EQ(crashes, 1);
+  EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+  ExpectReferenceWeights(team, data.graph, reference);
+  EXPECT_EQ(team.results.at(0).robust->check_rejected, 2);
+  EXPECT_EQ(team.results.at(0).replayed_rounds, 1);
+  // Robot 1 sent its covariance once (robot 0's restart replayed it from its journal).
+  EXPECT_EQ(team.results.at(1).covariance_messages, 1);
+  EXPECT_EQ(team.results.at(1).transport.covariances_sent, 1);
+  fs::remove_all(dir);
 }
 
 }  // namespace

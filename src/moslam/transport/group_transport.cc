@@ -58,6 +58,14 @@ void GroupTransport::send(const WeightsPacket& packet) {
   inner_.send(p);
 }
 
+void GroupTransport::send(const CovariancePacket& packet) {
+  CovariancePacket p = packet;
+  p.solve = solve_;
+  p.message.sender = real(p.message.sender);
+  p.message.receiver = real(p.message.receiver);
+  inner_.send(p);
+}
+
 void GroupTransport::send(const SharedObjectsPacket&) {
   throw InvalidInputError("GroupTransport: shared objects are not part of a group solve");
 }
@@ -108,6 +116,10 @@ GroupTransport::Route GroupTransport::route(Received& r) {
     if (!of_solve(w->solve)) return Route::kElsewhere;
     ok = mapped(w->message.sender, w->message.sender) &&
          mapped(w->message.receiver, w->message.receiver);
+  } else if (auto* v = std::get_if<CovariancePacket>(&r.packet)) {
+    if (!of_solve(v->solve)) return Route::kElsewhere;
+    ok = mapped(v->message.sender, v->message.sender) &&
+         mapped(v->message.receiver, v->message.receiver);
   } else {
     return Route::kElsewhere;  // rendezvous packets
   }

@@ -30,6 +30,7 @@ class GroupTransport final : public Transport {
   // Rendezvous packets are not part of a solve: InvalidInputError.
   void send(const SharedObjectsPacket& packet) override;
   void send(const WeightsPacket& packet) override;
+  void send(const CovariancePacket& packet) override;
   void publish(const StatusPacket& packet) override;
   void publish(const ObjectListPacket& packet) override;
   void publish(const CoarsePacket& packet) override;

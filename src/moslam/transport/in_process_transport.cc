@@ -14,8 +14,8 @@ namespace moslam {
 namespace {
 
 // History slot of a packet: status, objects and coarse shares per sender; per (sender, receiver):
-// estimates (slot = receiver), shared objects (slot = kSharedTopic - 2 receiver) and weights
-// (slot = kSharedTopic - 2 receiver - 1).
+// estimates (slot = receiver), shared objects (slot = kSharedTopic - 3 receiver), weights
+// (slot = kSharedTopic - 3 receiver - 1) and covariances (slot = kSharedTopic - 3 receiver - 2).
 constexpr int kStatusTopic = -1;
 constexpr int kObjectsTopic = -2;
 constexpr int kCoarseTopic = -3;
@@ -23,11 +23,12 @@ constexpr int kSharedTopic = -4;
 // The robot a history slot is addressed to, or -1 (every robot).
 int SlotReceiver(int topic) {
   if (topic >= 0) return topic;
-  if (topic <= kSharedTopic) return (kSharedTopic - topic) / 2;
+  if (topic <= kSharedTopic) return (kSharedTopic - topic) / 3;
   return -1;
 }
-int SharedSlot(int receiver) { return kSharedTopic - 2 * receiver; }
-int WeightsSlot(int receiver) { return kSharedTopic - 2 * receiver - 1; }
+int SharedSlot(int receiver) { return kSharedTopic - 3 * receiver; }
+int WeightsSlot(int receiver) { return kSharedTopic - 3 * receiver - 1; }
+int CovarianceSlot(int receiver) { return kSharedTopic - 3 * receiver - 2; }
 
 struct Delivery {
   int to = 0;
@@ -106,6 +107,11 @@ class InProcessTransport final : public Transport {
     if (!why.empty()) throw InvalidInputError("cannot send: " + why);
     transmit(packet, WeightsSlot(packet.message.receiver), packet.message.receiver);
   }
+  void send(const CovariancePacket& packet) override {
+    const std::string why = CheckPacket(packet, robot_, packet.message.receiver, {});
+    if (!why.empty()) throw InvalidInputError("cannot send: " + why);
+    transmit(packet, CovarianceSlot(packet.message.receiver), packet.message.receiver);
+  }
   void publish(const StatusPacket& packet) override {
     const std::string why = CheckPacket(packet, robot_, -1, {});
     if (!why.empty()) throw InvalidInputError("cannot publish: " + why);
@@ -176,6 +182,9 @@ class InProcessTransport final : public Transport {
     } else if (std::holds_alternative<WeightsPacket>(packet)) {
       ++stats_.weights_sent;
       stats_.weights_bytes += bytes;
+    } else if (std::holds_alternative<CovariancePacket>(packet)) {
+      ++stats_.covariances_sent;
+      stats_.covariances_bytes += bytes;
     } else {
       ++stats_.objects_sent;
       stats_.objects_bytes += bytes;

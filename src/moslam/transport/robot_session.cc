@@ -207,6 +207,7 @@ class PrefetchedTransport final : public Transport {
   void send(const EstimatesPacket& p) override { inner_.send(p); }
   void send(const SharedObjectsPacket& p) override { inner_.send(p); }
   void send(const WeightsPacket& p) override { inner_.send(p); }
+  void send(const CovariancePacket& p) override { inner_.send(p); }
   void publish(const StatusPacket& p) override { inner_.publish(p); }
   void publish(const ObjectListPacket& p) override { inner_.publish(p); }
   void publish(const CoarsePacket& p) override { inner_.publish(p); }

@@ -16,7 +16,8 @@ void AppendStepRecord(const StepRecord& record, std::vector<std::uint8_t>& out) 
     const auto flags = static_cast<std::uint8_t>((rep.sent ? 1 : 0) | (rep.initialised ? 2 : 0) |
                                                  (rep.coarse_ready ? 4 : 0) |
                                                  (rep.has_share ? 8 : 0) |
-                                                 (rep.weights ? 16 : 0));
+                                                 (rep.weights ? 16 : 0) |
+                                                 (rep.covariance ? 32 : 0));
     b.u16(static_cast<std::uint16_t>(r)).u8(flags);
     b.f64(rep.change).f64(rep.bound).f64(rep.value[0]).f64(rep.value[1]);
   }
@@ -26,6 +27,8 @@ void AppendStepRecord(const StepRecord& record, std::vector<std::uint8_t>& out) 
   for (const auto& [r, m] : got.shares) b.raw(EncodeCoarseMessage(m));
   b.u16(static_cast<std::uint16_t>(got.weights.size()));
   for (const auto& [r, m] : got.weights) b.raw(EncodeWeightMessage(m));
+  b.u16(static_cast<std::uint16_t>(got.covariances.size()));
+  for (const auto& [r, m] : got.covariances) b.raw(EncodeCovarianceMessage(m));
   out.insert(out.end(), b.data().begin(), b.data().end());
 }
 
@@ -49,7 +52,7 @@ StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t of
     const int r = p.u16();
     const std::uint8_t flags = p.u8();
     if (r <= previous) throw InvalidInputError(what + ": step record reports out of order");
-    if (flags > 31) throw InvalidInputError(what + ": step record with unknown report flags");
+    if (flags > 63) throw InvalidInputError(what + ": step record with unknown report flags");
     previous = r;
     TeamReport rep;
     rep.sent = (flags & 1) != 0;
@@ -57,6 +60,7 @@ StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t of
     rep.coarse_ready = (flags & 4) != 0;
     rep.has_share = (flags & 8) != 0;
     rep.weights = (flags & 16) != 0;
+    rep.covariance = (flags & 32) != 0;
     rep.change = p.f64();
     rep.bound = p.f64();
     rep.value[0] = p.f64();
@@ -87,6 +91,8 @@ StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t of
   read_announced(got.shares, DecodeCoarseMessage, &TeamReport::has_share,
                  "an unannounced coarse share");
   read_announced(got.weights, DecodeWeightMessage, &TeamReport::weights, "unannounced weights");
+  read_announced(got.covariances, DecodeCovarianceMessage, &TeamReport::covariance,
+                 "an unannounced covariance");
   if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a step record");
   return record;
 }

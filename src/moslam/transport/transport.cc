@@ -29,7 +29,6 @@ std::string CheckEstimates(const EstimatesPacket& p, int sender, int self) {
   } catch (const InvalidInputError& e) {
     return std::string("malformed DGS estimates: ") + e.what();
   }
-  if (p.message.keys.empty()) return "DGS estimates without any variable";
   return {};
 }
 
@@ -158,6 +157,25 @@ std::string CheckWeights(const WeightsPacket& p, int sender, int self) {
   return {};
 }
 
+std::string CheckCovariance(const CovariancePacket& p, int sender, int self) {
+  if (p.message.sender != sender) {
+    return fmt::format("covariance claims sender {} but came from robot {}", p.message.sender,
+                       sender);
+  }
+  if (p.message.receiver != self) {
+    return fmt::format("covariance addressed to robot {}, not to this robot", p.message.receiver);
+  }
+  if (p.message.covariance.rows() > kMaxTransportCovarianceDimension) {
+    return "covariance: dimension too large";
+  }
+  try {
+    (void)EncodeCovarianceMessage(p.message);  // square, 6 k, finite, non-negative diagonal
+  } catch (const InvalidInputError& e) {
+    return std::string("malformed covariance: ") + e.what();
+  }
+  return {};
+}
+
 }  // namespace
 
 std::string ToString(RobotState state) {
@@ -193,6 +211,9 @@ std::string CheckPacket(const Packet& packet, int sender, int self, const std::s
   }
   if (const auto* c = std::get_if<CoarsePacket>(&packet)) return CheckCoarse(*c, sender);
   if (const auto* w = std::get_if<WeightsPacket>(&packet)) return CheckWeights(*w, sender, self);
+  if (const auto* v = std::get_if<CovariancePacket>(&packet)) {
+    return CheckCovariance(*v, sender, self);
+  }
   return CheckObjects(std::get<ObjectListPacket>(packet), sender);
 }
 
@@ -213,6 +234,9 @@ std::int64_t BinarySize(const Packet& packet) {
   }
   if (const auto* w = std::get_if<WeightsPacket>(&packet)) {
     return static_cast<std::int64_t>(EncodeWeightMessage(w->message).size()) + 8;  // + solve, round
+  }
+  if (const auto* v = std::get_if<CovariancePacket>(&packet)) {
+    return static_cast<std::int64_t>(EncodeCovarianceMessage(v->message).size()) + 8;
   }
   if (const auto* h = std::get_if<SharedObjectsPacket>(&packet)) {
     // sender, receiver u16, step u32, two counts u32, two u64 ids per pair.

@@ -11,6 +11,9 @@
 //                    preconditioner), to every robot (rt/moslam/dgs_coarse): each robot solves it;
 //   WeightsPacket    the robust solve's weights of the factors a robot owns, for ONE neighbour
 //                    (rt/moslam/robot<R>/dgs_weights: the receiver's inbox; robust_program.h);
+//   CovariancePacket the separator check's map covariance of a robot's separator variables, for
+//                    ONE neighbour (rt/moslam/robot<R>/dgs_covariance: the receiver's inbox;
+//                    robust_program.h);
 //   ObjectListPacket the objects a robot shares at a rendezvous, label + pose each
 //                    (rt/moslam/objects: every robot in range);
 //   SharedObjectsPacket the answer to an object list: the pairs of shared objects found by the
@@ -51,6 +54,8 @@ inline constexpr std::size_t kMaxObjectLabel = 64;
 inline constexpr std::size_t kMaxObjects = 4096;
 inline constexpr std::size_t kMaxNeighbours = 1024;
 inline constexpr std::size_t kMaxWeights = 65536;  // per WeightsPacket
+// Per CovariancePacket: the dimension (6 per separator variable of a robot pair).
+inline constexpr std::uint32_t kMaxTransportCovarianceDimension = 6 * 256;
 
 // The distributed solve a DGS packet (estimates, status, coarse share) belongs to: 0 for the
 // batch solve after the mission; with online mapping, 1 + the time step of the rendezvous whose
@@ -104,6 +109,7 @@ struct StatusPacket {
   bool coarse_ready = false;      // it can take part in a coarse correction
   bool coarse = false;            // a CoarsePacket of this round comes with the status
   bool weights = false;           // a WeightsPacket of this round to every neighbour comes with it
+  bool covariance = false;        // a CovariancePacket of this round to every neighbour comes too
   double value[2] = {0.0, 0.0};   // its inputs to the round's team-wide sums and maxima
   std::vector<int> neighbours;    // robots its separators reach, increasing
   // Only when it joins an online group solve: its team pairs, increasing by (mine, other_robot,
@@ -123,6 +129,13 @@ struct WeightsPacket {
   std::uint32_t solve = 0;
   std::uint32_t round = 0;
   WeightMessage message;  // sender, receiver, GNC round, weights (each in [0, 1])
+};
+
+// A robot's map covariance for one neighbour in one protocol round of the separator check.
+struct CovariancePacket {
+  std::uint32_t solve = 0;
+  std::uint32_t round = 0;
+  CovarianceMessage message;  // sender, receiver, the joint covariance (n x n, n = 6 k)
 };
 
 struct ObjectObservation {
@@ -150,7 +163,7 @@ struct SharedObjectsPacket {
 };
 
 using Packet = std::variant<EstimatesPacket, StatusPacket, ObjectListPacket, SharedObjectsPacket,
-                            CoarsePacket, WeightsPacket>;
+                            CoarsePacket, WeightsPacket, CovariancePacket>;
 
 struct Received {
   int sender = 0;
@@ -173,6 +186,8 @@ struct TransportStats {
   std::int64_t coarse_bytes = 0;
   std::int64_t weights_sent = 0;      // robust solve's weights
   std::int64_t weights_bytes = 0;
+  std::int64_t covariances_sent = 0;  // the separator check's map covariances
+  std::int64_t covariances_bytes = 0;
   std::int64_t objects_sent = 0;      // object lists and shared-object answers (rendezvous)
   std::int64_t objects_bytes = 0;
 };
@@ -192,6 +207,7 @@ class Transport {
   virtual void send(const EstimatesPacket& packet) = 0;
   virtual void send(const SharedObjectsPacket& packet) = 0;
   virtual void send(const WeightsPacket& packet) = 0;
+  virtual void send(const CovariancePacket& packet) = 0;
   // To every robot. Throws InvalidInputError as send().
   virtual void publish(const StatusPacket& packet) = 0;
   virtual void publish(const ObjectListPacket& packet) = 0;
@@ -208,12 +224,15 @@ class Transport {
 
 // Empty when `packet`, received by robot `self` from `sender`, is valid; else the reason.
 // `known`: accepted senders (empty: any). Estimates must be addressed to `self`; their content is
-// what EncodeMessage accepts. Status: state and stage in range, change >= 0 (+inf allowed),
+// what EncodeMessage accepts (no variable at all included: the robust program's check steps send
+// every neighbour a message, empty where it has nothing for it). Status: state and stage in range, change >= 0 (+inf allowed),
 // error bound >= 0 (+inf allowed), values finite, neighbours distinct, increasing, without the
 // robot itself; team pairs at most kMaxObjects, increasing, ids < 2^56, other robot not the
 // sender, finite poses. Coarse: the sender's own share, what EncodeCoarseMessage accepts, kind share,
 // matrix or residual. Weights: addressed to `self`, what EncodeWeightMessage accepts (each weight
-// in [0, 1]), at most kMaxWeights. Objects: finite poses, unit
+// in [0, 1]), at most kMaxWeights. Covariance: addressed to `self`, what EncodeCovarianceMessage
+// accepts (finite, non-negative diagonal), dimension at most kMaxTransportCovarianceDimension.
+// Objects: finite poses, unit
 // quaternions (checked before conversion, tolerance 1e-6), labels of 1..64 printable characters,
 // distinct ids < 2^56, at most kMaxObjects. Shared objects: addressed to `self`, at most
 // kMaxObjects pairs, ids < 2^56, no id twice on either side.

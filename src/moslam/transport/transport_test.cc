@@ -296,6 +296,53 @@ TEST(StepRecord, RoundTripsWeightsAndRejectsUnannouncedOnes) {
   EXPECT_THROW(ReadStepRecord(bytes, 0, "test"), InvalidInputError);
 }
 
+// The separator check's covariances: only the receiver gets them, checked; a step record keeps
+// them when the sender's report announced them.
+TEST(InProcessTransport, DeliversCovariancesToTheReceiverOnlyAndJournalsThem) {
+  InProcessNetwork net;
+  auto t0 = net.connect(0), t1 = net.connect(1), t2 = net.connect(2);
+  CovariancePacket c;
+  c.solve = 0;
+  c.round = 1;
+  c.message.sender = 1;
+  c.message.receiver = 0;
+  c.message.covariance = Eigen::MatrixXd::Identity(12, 12);
+  c.message.covariance(3, 9) = c.message.covariance(9, 3) = 0.25;
+  t1->send(c);
+  const auto got = PollFor(*t0, 1);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(std::get<CovariancePacket>(got[0].packet).message.covariance, c.message.covariance);
+  EXPECT_TRUE(t2->poll(milliseconds(1)).empty());
+  EXPECT_EQ(t1->stats().covariances_sent, 1);
+  EXPECT_EQ(t1->stats().covariances_bytes, BinarySize(Packet(c)));
+  EXPECT_NE(CheckPacket(c, 1, 2, {}), "");  // addressed to robot 0, received by robot 2
+  c.message.covariance(4, 4) = -1.0;
+  EXPECT_NE(CheckPacket(c, 1, 0, {}), "");
+  EXPECT_THROW(t1->send(c), InvalidInputError);
+  c.message.covariance = Eigen::MatrixXd::Identity(6 * 257, 6 * 257);
+  EXPECT_NE(CheckPacket(c, 1, 0, {}), "");  // beyond kMaxTransportCovarianceDimension
+
+  using transport_detail::AppendStepRecord;
+  using transport_detail::ReadStepRecord;
+  using transport_detail::StepRecord;
+  StepRecord rec;
+  rec.step = 1;
+  rec.stage = DgsStage::kRefine;
+  TeamReport announced;
+  announced.covariance = true;
+  rec.result.reports = {{0, TeamReport()}, {1, announced}};
+  rec.result.covariances[1] = std::get<CovariancePacket>(got[0].packet).message;
+  std::vector<std::uint8_t> bytes;
+  AppendStepRecord(rec, bytes);
+  const StepRecord back = ReadStepRecord(bytes, 0, "test");
+  EXPECT_TRUE(back.result.reports.at(1).covariance);
+  EXPECT_EQ(back.result.covariances.at(1).covariance, rec.result.covariances.at(1).covariance);
+  rec.result.reports[1].covariance = false;  // unannounced
+  bytes.clear();
+  AppendStepRecord(rec, bytes);
+  EXPECT_THROW(ReadStepRecord(bytes, 0, "test"), InvalidInputError);
+}
+
 // The rendezvous journal record of a robot session (event_record.h).
 TEST(EventRecord, RoundTripsAndRejectsTruncatedTrailingAndRepeatedObjects) {
   using namespace transport_detail;
