@@ -211,6 +211,15 @@ class RobustProgram {
     return out;
   }
 
+  // A message of 6-vectors (stage kPose) to `other`, with no variable yet.
+  OutgoingMessage emptyMessageTo(int other) const {
+    OutgoingMessage o;
+    o.to = other;
+    o.message.stage = DgsStage::kPose;
+    o.message.sender = p_.robot;
+    return o;
+  }
+
   // The kept flag of every factor of the subgraph.
   std::vector<bool> checkSeparators() {
     (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
@@ -220,10 +229,7 @@ class RobustProgram {
     std::vector<OutgoingMessage> estimates;
     std::vector<CovarianceMessage> covariances;
     for (const auto& [other, list] : pairs_) {
-      OutgoingMessage o;
-      o.to = other;
-      o.message.stage = DgsStage::kPose;
-      o.message.sender = p_.robot;
+      OutgoingMessage o = emptyMessageTo(other);
       CovarianceMessage c;
       c.sender = p_.robot;
       c.receiver = other;
@@ -367,10 +373,7 @@ class RobustProgram {
     (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
     std::vector<OutgoingMessage> estimates;
     for (const auto& [other, list] : pairs_) {
-      OutgoingMessage o;
-      o.to = other;
-      o.message.stage = DgsStage::kPose;
-      o.message.sender = p_.robot;
+      OutgoingMessage o = emptyMessageTo(other);
       if (other < p_.robot) {
         std::set<Key> keys;
         for (std::size_t i : list) {
