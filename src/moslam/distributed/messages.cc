@@ -5,11 +5,37 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/geometry/so3.h"
 
 namespace moslam {
 
 const double* Message::entry(std::size_t i) const {
   return values.data() + i * static_cast<std::size_t>(StageDimension(stage));
+}
+
+namespace {
+
+void RequirePoseStage(DgsStage stage) {
+  if (StageDimension(stage) != 6) {
+    throw InvalidInputError("DGS message: a pose entry needs a stage of dimension 6, not " +
+                            std::to_string(StageDimension(stage)));
+  }
+}
+
+}  // namespace
+
+void Message::appendPose(const Key& key, const SE3& pose) {
+  RequirePoseStage(stage);
+  keys.push_back(key);
+  const Vector3 w = SO3::Log(pose.rotation());
+  values.insert(values.end(), w.data(), w.data() + 3);
+  values.insert(values.end(), pose.translation().data(), pose.translation().data() + 3);
+}
+
+SE3 Message::pose(std::size_t i) const {
+  RequirePoseStage(stage);
+  const double* v = entry(i);
+  return SE3(SO3::Exp(Vector3(v[0], v[1], v[2])), Vector3(v[3], v[4], v[5]));
 }
 
 namespace {

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "moslam/distributed/dgs_types.h"
+#include "moslam/geometry/se3.h"
 #include "moslam/graph/key.h"
 
 namespace moslam {
@@ -37,6 +38,10 @@ struct Message {
 
   // The StageDimension(stage) numbers of entry i.
   const double* entry(std::size_t i) const;
+  // A pose as an entry, (Log R, t), and back: the map estimates of the robust solve's separator
+  // check and readmission. Throw InvalidInputError unless the stage's dimension is 6.
+  void appendPose(const Key& key, const SE3& pose);
+  SE3 pose(std::size_t i) const;
 };
 
 inline constexpr std::uint8_t kMessageMagic = 0xD6;

@@ -7,7 +7,6 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
-#include "moslam/geometry/so3.h"
 
 namespace moslam {
 
@@ -185,12 +184,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     Message m;
     m.stage = DgsStage::kRefine;
     m.sender = pair.second;
-    for (const Key& k : keys) {
-      m.keys.push_back(k);
-      const Vector6 v = (Vector6() << SO3::Log(r.values.at(k).rotation()),
-                         r.values.at(k).translation()).finished();
-      for (int c = 0; c < 6; ++c) m.values.push_back(v[c]);
-    }
+    for (const Key& k : keys) m.appendPose(k, r.values.at(k));
     r.consistency_bytes += static_cast<std::int64_t>(EncodeMessage(m).size());
   }
   r.readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);

@@ -8,7 +8,6 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
-#include "moslam/geometry/so3.h"
 
 namespace moslam {
 
@@ -344,13 +343,13 @@ class RobustProgram {
     exchangeVerdicts(true, label);
     std::vector<bool> kept(p_.subgraph.factors().size(), true);
     for (const auto& [other, list] : pairs_) {
+      const auto theirs = kept_by_other.find(other);
+      if (other < p_.robot && theirs == kept_by_other.end()) continue;
+      const std::vector<double> verdict =
+          other > p_.robot ? verdictWeights(other, true) : theirs->second;
       for (std::size_t j = 0; j < list.size(); ++j) {
-        if (other > p_.robot) {
-          kept[list[j]] = verdictWeights(other, true)[j] == 1.0;
-          if (!kept[list[j]]) ++out_.check_rejected;
-        } else if (kept_by_other.count(other)) {
-          kept[list[j]] = kept_by_other.at(other)[j] == 1.0;
-        }
+        kept[list[j]] = verdict[j] == 1.0;
+        if (other > p_.robot && !kept[list[j]]) ++out_.check_rejected;
       }
     }
     return kept;
@@ -381,13 +380,7 @@ class RobustProgram {
           const RelativePoseFactor& f = p_.subgraph.factors()[i];
           keys.insert(f.a().robot == p_.robot ? f.a() : f.b());
         }
-        for (const Key& k : keys) {
-          o.message.keys.push_back(k);
-          const SE3& x = values_.at(k);
-          const Vector3 r = SO3::Log(x.rotation());
-          for (int c = 0; c < 3; ++c) o.message.values.push_back(r[c]);
-          for (int c = 0; c < 3; ++c) o.message.values.push_back(x.translation()[c]);
-        }
+        for (const Key& k : keys) o.message.appendPose(k, values_.at(k));
         if (!keys.empty()) countCheck(EncodeMessage(o.message).size());
       }
       estimates.push_back(std::move(o));
@@ -397,10 +390,7 @@ class RobustProgram {
     const TeamStep got = step(report, {}, estimates);
     for (const Message& m : got.estimates) {
       if (m.sender < p_.robot) continue;
-      for (std::size_t e = 0; e < m.keys.size(); ++e) {
-        const double* v = m.entry(e);
-        values_[m.keys[e]] = SE3(SO3::Exp(Vector3(v[0], v[1], v[2])), Vector3(v[3], v[4], v[5]));
-      }
+      for (std::size_t e = 0; e < m.keys.size(); ++e) values_[m.keys[e]] = m.pose(e);
     }
   }
 

@@ -11,7 +11,6 @@
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
 #include "moslam/graph/robot_groups.h"
-#include "moslam/geometry/so3.h"
 #include "moslam/robust/max_clique.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/marginals.h"
@@ -97,13 +96,7 @@ Message SeparatorCheckMap::estimates(const std::vector<Key>& keys) const {
   Message m;
   m.stage = DgsStage::kPose;
   m.sender = robot_;
-  for (const Key& k : keys) {
-    m.keys.push_back(k);
-    const SE3& x = impl_->estimate.at(AsRobot(k, 0));
-    const Vector3 w = SO3::Log(x.rotation());
-    for (int c = 0; c < 3; ++c) m.values.push_back(w[c]);
-    for (int c = 0; c < 3; ++c) m.values.push_back(x.translation()[c]);
-  }
+  for (const Key& k : keys) m.appendPose(k, impl_->estimate.at(AsRobot(k, 0)));
   return m;
 }
 
@@ -211,9 +204,8 @@ std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFact
   for (std::size_t e = 0; e < ka.size(); ++e) a_index[ka[e]] = static_cast<int>(e);
   std::vector<SE3> b_poses;
   for (std::size_t e = 0; e < kb.size(); ++e) {
-    const double* v = b_estimates.entry(e);
     b_index[kb[e]] = static_cast<int>(e);
-    b_poses.emplace_back(SO3::Exp(Vector3(v[0], v[1], v[2])), Vector3(v[3], v[4], v[5]));
+    b_poses.push_back(b_estimates.pose(e));
   }
   // Robot a's view of every separator.
   std::vector<SeparatorEnd> ends;

@@ -687,17 +687,20 @@ class DgsNode::Impl final : public TeamChannel {
     return jt == it->second.end() ? nullptr : &jt->second;
   }
 
-  bool expectsEstimates(int r, const StatusPacket& st) const {
-    return st.sent && step_neighbours_.count(r) &&
+  // Whether robot r, whose step status is `st`, sends this robot per-neighbour packets in the step:
+  // the two are neighbours of each other's agents at work.
+  bool neighbourOf(int r, const StatusPacket& st) const {
+    return step_neighbours_.count(r) &&
            std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
+  }
+  bool expectsEstimates(int r, const StatusPacket& st) const {
+    return st.sent && neighbourOf(r, st);
   }
   bool expectsWeights(int r, const StatusPacket& st) const {
-    return st.weights && step_neighbours_.count(r) &&
-           std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
+    return st.weights && neighbourOf(r, st);
   }
   bool expectsCovariance(int r, const StatusPacket& st) const {
-    return st.covariance && step_neighbours_.count(r) &&
-           std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
+    return st.covariance && neighbourOf(r, st);
   }
 
   // The robots step s still waits for.
