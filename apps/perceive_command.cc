@@ -190,7 +190,11 @@ int RunPerceive(const PerceiveArgs& a) {
                           {"confidence", o.detection.confidence},
                           {"box", {b.x, b.y, b.width, b.height}},
                           {"status", ToString(o.status)},
-                          {"inliers", o.registration.inliers}};
+                          {"inliers", o.registration.inliers},
+                          {"refined_inliers", o.registration.refined_inliers},
+                          {"geometric_agreement", o.registration.geometric_agreement},
+                          {"colour_agreement", o.registration.colour_agreement},
+                          {"hypothesis", o.registration.hypothesis}};
       if (o.status != PerceptionStatus::kNoTemplate &&
           o.status != PerceptionStatus::kSegmentationFailed) {
         const RegistrationTimes& rt = o.registration.times;
@@ -202,37 +206,45 @@ int RunPerceive(const PerceiveArgs& a) {
       }
       if (o.accepted()) {
         ++accepted;
-        j["camera_T_object"] = PoseJson(o.registration.camera_T_object);
         j["fitness"] = o.registration.fitness;
         std::vector<double> info(o.registration.information.data(),
                                  o.registration.information.data() + 36);
         j["information"] = info;
-        if (world && f.world_T_camera) {
-          const SE3 est = *f.world_T_camera * o.registration.camera_T_object;
-          const ObjectInstance* nearest = nullptr;
-          double best = std::numeric_limits<double>::infinity();
-          for (const ObjectInstance& w : world->objects) {
-            if (w.label != o.detection.label) continue;
-            const double d = (w.pose.translation() - est.translation()).norm();
-            if (d < best) {
-              best = d;
-              nearest = &w;
-            }
+      }
+      // A rejected registration keeps the pose it rejected (RegistrationResult::camera_T_object):
+      // its error tells a right pose turned away from a wrong one. Only accepted poses enter the
+      // medians.
+      const bool has_pose = o.status == PerceptionStatus::kAccepted ||
+                            o.status == PerceptionStatus::kTooFewInliers ||
+                            o.status == PerceptionStatus::kShapeMismatch ||
+                            o.status == PerceptionStatus::kColourMismatch;
+      if (has_pose) j["camera_T_object"] = PoseJson(o.registration.camera_T_object);
+      if (world && f.world_T_camera && has_pose) {
+        const SE3 est = *f.world_T_camera * o.registration.camera_T_object;
+        const ObjectInstance* nearest = nullptr;
+        double best = std::numeric_limits<double>::infinity();
+        for (const ObjectInstance& w : world->objects) {
+          if (w.label != o.detection.label) continue;
+          const double d = (w.pose.translation() - est.translation()).norm();
+          if (d < best) {
+            best = d;
+            nearest = &w;
           }
-          if (nearest) {
-            const double rot =
-                SO3::Log(nearest->pose.rotation().inverse() * est.rotation()).norm() * 180.0 /
-                M_PI;
+        }
+        if (nearest) {
+          const double rot =
+              SO3::Log(nearest->pose.rotation().inverse() * est.rotation()).norm() * 180.0 / M_PI;
+          if (o.accepted()) {
             t_err.push_back(best);
             r_err.push_back(rot);
             for (const char* key : {"all", o.detection.label.c_str()}) {
               by_class[key].t_err.push_back(best);
               by_class[key].r_err.push_back(rot);
             }
-            j["ground_truth"] = {{"object", nearest->id},
-                                 {"translation_error", best},
-                                 {"rotation_error_deg", rot}};
           }
+          j["ground_truth"] = {{"object", nearest->id},
+                               {"translation_error", best},
+                               {"rotation_error_deg", rot}};
         }
       }
       objects.push_back(std::move(j));

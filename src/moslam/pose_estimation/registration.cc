@@ -320,6 +320,9 @@ void RegistrationConfig::validate() const {
   Require(camera_up.allFinite() && camera_up.norm() > 1e-6, p + "camera_up",
           "must be a finite non-zero vector");
   Require(PositiveFinite(score_distance), p + "score_distance", "must be positive");
+  depth_noise.validate(p + "depth_noise.");
+  Require(std::isfinite(score_depth_sigmas) && score_depth_sigmas >= 0.0,
+          p + "score_depth_sigmas", "must be >= 0");
   Require(PositiveFinite(colour_tolerance), p + "colour_tolerance", "must be positive");
   Require(std::isfinite(chroma_dark_offset) && chroma_dark_offset >= 0.0,
           p + "chroma_dark_offset", "must be >= 0");
@@ -568,10 +571,13 @@ PoseScore ScorePose(const FeatureCloud& source, const ObjectTemplate& tmpl,
   std::vector<int> idx;
   std::vector<float> sq;
   int geometric = 0, both = 0;
+  const double d0_sq = config.score_distance * config.score_distance;
   for (const auto& sp : source.points) {
     FeaturePoint y;
     y.getVector3fMap() = T * sp.getVector3fMap();
-    if (tree.radiusSearch(y, config.score_distance, idx, sq) <= 0) continue;
+    const double widen = config.score_depth_sigmas * config.depth_noise.sigma(sp.z);
+    const auto radius = static_cast<float>(std::sqrt(d0_sq + widen * widen));
+    if (tree.radiusSearch(y, radius, idx, sq) <= 0) continue;
     ++geometric;
     const Eigen::Vector3f cs = Chroma(sp, k);
     for (int j : idx) {

@@ -62,7 +62,8 @@
 // Agreement rule (RegistrationResult::score, geometric_agreement, colour_agreement): with the
 // segment points y_i mapped into the object frame by the pose and T the template points facing
 // the camera at that pose,
-//   geometric(i) : some t in T lies within score_distance of y_i;
+//   geometric(i) : some t in T lies within r(z_i) of y_i, z_i the point's depth in the camera
+//                  frame, r(z) = sqrt(score_distance^2 + (score_depth_sigmas depth_noise.sigma(z))^2);
 //   colour(i)    : one of those t has chromaticity within colour_tolerance (L2) of y_i's, where
 //                  chromaticity(r, g, b) = (r + k, g + k, b + k) / (r + g + b + 3k),
 //                  k = chroma_dark_offset (8-bit units). Chromaticity is invariant to the
@@ -98,6 +99,7 @@
 #include "moslam/geometry/se3.h"
 #include "moslam/pose_estimation/object_template.h"
 #include "moslam/pose_estimation/organized_cloud.h"
+#include "moslam/render/rgbd.h"
 
 namespace moslam {
 
@@ -156,7 +158,14 @@ struct RegistrationConfig {
   double upright_min_extent = 0.8;     // m, largest horizontal side of the template
   Vector3 camera_up = Vector3(0.0, -1.0, 0.0);  // floor normal in the camera frame
   int symmetry_turns = 2;  // 1 = consensus pose only, 2 = + half turn, 4 = + quarter turns
-  double score_distance = 0.025;       // m, geometric agreement radius
+  double score_distance = 0.025;       // m, geometric agreement radius at no depth noise
+  // The sensor's depth noise widens the radius with a point's depth (AGREEMENT RULE): far points
+  // are noisier (sigma 1.4 cm at 3 m, 2.6 cm at 4 m for the default, a Kinect's). 0 sigmas: a
+  // fixed score_distance.
+  // One sigma: 118 of 468 detections accepted on held-out-free selection sequences (seed 7) against
+  // 88 with none and 125 with two, of which 13 / 9 / 16 more than 10 cm or 10 deg off the truth.
+  AxialDepthNoise depth_noise;
+  double score_depth_sigmas = 1.0;
   double colour_tolerance = 0.05;      // chromaticity L2 distance
   double chroma_dark_offset = 10.0;    // 8-bit units
   double min_geometric_agreement = 0.85;  // below -> kShapeMismatch

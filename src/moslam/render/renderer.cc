@@ -236,9 +236,7 @@ void RenderConfig::validate() const {
       !std::isfinite(style.diffuse)) {
     bad("style.ambient and style.diffuse must be >= 0");
   }
-  if (!(depth_noise_a >= 0.0) || !std::isfinite(depth_noise_a)) bad("depth_noise_a must be >= 0");
-  if (!(depth_noise_b >= 0.0) || !std::isfinite(depth_noise_b)) bad("depth_noise_b must be >= 0");
-  if (!std::isfinite(depth_noise_z0)) bad("depth_noise_z0 must be finite");
+  depth_noise_model.validate("RenderConfig: depth_noise_model.");
   if (!(colour_noise_sigma >= 0.0) || !std::isfinite(colour_noise_sigma)) {
     bad("colour_noise_sigma must be >= 0");
   }
@@ -455,9 +453,7 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
       for (int u = 0; u < W; ++u) {
         if (d[u] <= 0.0f) continue;
         const double z = d[u];
-        const double dz = z - config_.depth_noise_z0;
-        const double sigma = config_.depth_noise_a + config_.depth_noise_b * dz * dz;
-        d[u] = static_cast<float>(z + sigma * e[u]);
+        d[u] = static_cast<float>(z + config_.depth_noise_model.sigma(z) * e[u]);
       }
     }
   }

@@ -13,9 +13,9 @@
 //
 // Noise (seeded by RenderConfig::seed and the frame key passed to render(), so the same pair
 // gives identical bytes on every run):
-//   depth:  z + N(0, sigma(z)^2) per pixel, sigma(z) = a + b (z - z0)^2 with the defaults
-//           a = 0.0012 m, b = 0.0019 1/m, z0 = 0.4 m: the axial noise of a Kinect measured by
-//           Nguyen, Izadi and Lovell (3DIMPVT 2012). The noisy depth is rounded to the
+//   depth:  z + N(0, sigma(z)^2) per pixel, sigma(z) = a + b (z - z0)^2 (AxialDepthNoise, whose
+//           defaults a = 0.0012 m, b = 0.0019 1/m, z0 = 0.4 m are the axial noise of a Kinect
+//           measured by Nguyen, Izadi and Lovell, 3DIMPVT 2012). The noisy depth is rounded to the
 //           1/5000 m quantisation of TUM depth files when quantize_depth is set.
 //   colour: N(0, colour_noise_sigma^2) added per channel (8-bit units), saturated.
 #pragma once
@@ -57,11 +57,9 @@ struct RenderConfig {
   double wall_height = 2.5;  // m
   double door_width = 1.0;   // m, gap in a wall where a navigation edge crosses it
   SceneStyle style;
-  // Depth noise sigma(z) = depth_noise_a + depth_noise_b * (z - depth_noise_z0)^2 (m).
+  // Depth noise N(0, sigma(z)^2), sigma from depth_noise_model (render/rgbd.h).
   bool depth_noise = true;
-  double depth_noise_a = 0.0012;
-  double depth_noise_b = 0.0019;
-  double depth_noise_z0 = 0.4;
+  AxialDepthNoise depth_noise_model;
   bool quantize_depth = true;       // round depth to 1/5000 m (TUM PNG units)
   double colour_noise_sigma = 2.0;  // 8-bit units; 0 = none
   unsigned seed = 1;

@@ -34,6 +34,15 @@ void PinholeIntrinsics::validate() const {
   if (!std::isfinite(cy)) bad("cy must be finite");
 }
 
+void AxialDepthNoise::validate(const std::string& prefix) const {
+  auto bad = [&](const std::string& field, const std::string& m) {
+    throw InvalidInputError(prefix + field + " " + m);
+  };
+  if (!(a >= 0.0) || !std::isfinite(a)) bad("a", "must be >= 0 and finite");
+  if (!(b >= 0.0) || !std::isfinite(b)) bad("b", "must be >= 0 and finite");
+  if (!std::isfinite(z0)) bad("z0", "must be finite");
+}
+
 SE3 BodyFromCamera() {
   // Columns: the camera's x (right), y (down), z (forward) axes expressed in the body frame.
   Matrix3 R;

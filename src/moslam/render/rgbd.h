@@ -18,6 +18,8 @@
 
 #include <opencv2/core.hpp>
 
+#include <string>
+
 #include "moslam/geometry/se3.h"
 
 namespace moslam {
@@ -33,6 +35,18 @@ struct PinholeIntrinsics {
   // Throws InvalidInputError naming the first bad field (non-positive size or focal length,
   // non-finite values).
   void validate() const;
+};
+
+// Axial depth noise of an RGB-D sensor: sigma(z) = a + b (z - z0)^2 (m) at depth z (m). The
+// defaults are a Kinect's, measured by Nguyen, Izadi and Lovell (3DIMPVT 2012); the renderer
+// draws its noise from this model, and the registration's agreement radius widens with it.
+struct AxialDepthNoise {
+  double a = 0.0012;  // m
+  double b = 0.0019;  // 1/m
+  double z0 = 0.4;    // m
+  double sigma(double z) const { return a + b * (z - z0) * (z - z0); }
+  // Throws InvalidInputError naming the first bad field (`prefix` + field).
+  void validate(const std::string& prefix = "AxialDepthNoise::") const;
 };
 
 struct RgbdFrame {
