@@ -71,8 +71,8 @@ jq -rs "$JQ_STATS"'
     registered: [.[] | select(.register_ms != null)] | length,
     accepted: [.[] | select(.status == "accepted")] | length,
     ms: [.[] | .register_ms // empty],
-    t: [.[] | .ground_truth.translation_error // empty],
-    r: [.[] | .ground_truth.rotation_error_deg // empty] } |
+    t: [.[] | select(.status == "accepted") | .ground_truth.translation_error // empty],
+    r: [.[] | select(.status == "accepted") | .ground_truth.rotation_error_deg // empty] } |
   "| \(.label) | \(.n) | \(.registered) | \(.accepted) | \(.ms | q(0.5) | r0) / \(.ms | q(0.9) | r0) | \(if (.t|length) > 0 then "\(.t | q(0.5) * 1000 | round) mm / \(.r | q(0.5) * 100 | round / 100) deg" else "-" end) |"' \
   "$OUT"/*_"$first".json
 echo
