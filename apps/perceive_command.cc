@@ -195,6 +195,14 @@ int RunPerceive(const PerceiveArgs& a) {
                           {"geometric_agreement", o.registration.geometric_agreement},
                           {"colour_agreement", o.registration.colour_agreement},
                           {"hypothesis", o.registration.hypothesis}};
+      if (o.status == PerceptionStatus::kSegmentationFailed) {
+        const SegmentationResult& sr = o.segmentation;
+        j["segmentation"] = {{"status", ToString(sr.status)},
+                             {"valid_points_in_box", sr.valid_points_in_box},
+                             {"structure_points_in_box", sr.structure_points_in_box},
+                             {"planes_dropped", sr.planes_dropped},
+                             {"components", sr.components}};
+      }
       if (o.status != PerceptionStatus::kNoTemplate &&
           o.status != PerceptionStatus::kSegmentationFailed) {
         const RegistrationTimes& rt = o.registration.times;

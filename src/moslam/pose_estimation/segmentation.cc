@@ -17,6 +17,35 @@
 namespace moslam {
 namespace {
 
+// pcl::EuclideanClusterComparator with the threshold of SegmentationConfig::cluster_distance:
+// widened by the depth noise at the first pixel's depth. The label test is PCL's (two points join
+// only if both labels are in the exclude set).
+class DepthNoiseClusterComparator
+    : public pcl::EuclideanClusterComparator<OrganizedPoint, pcl::Label> {
+ public:
+  DepthNoiseClusterComparator(float distance, const AxialDepthNoise& noise, double sigmas)
+      : distance_sq_(static_cast<double>(distance) * distance),
+        noise_(noise),
+        sigmas_(sigmas * std::sqrt(2.0)) {}
+
+  bool compare(int idx1, int idx2) const override {
+    if (labels_ && exclude_labels_) {
+      if (exclude_labels_->count((*labels_)[idx1].label) == 0) return false;
+      if (exclude_labels_->count((*labels_)[idx2].label) == 0) return false;
+    }
+    const OrganizedPoint& p = (*input_)[idx1];
+    const double widen = sigmas_ * noise_.sigma(p.z);
+    const double d2 = ((*input_)[idx1].getVector3fMap() - (*input_)[idx2].getVector3fMap())
+                          .squaredNorm();
+    return d2 < distance_sq_ + widen * widen;
+  }
+
+ private:
+  double distance_sq_;
+  AxialDepthNoise noise_;
+  double sigmas_;
+};
+
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 double MsSince(std::chrono::steady_clock::time_point t0) {
@@ -87,6 +116,9 @@ void SegmentationConfig::validate() const {
           "structure_normal_tolerance_deg", "must be in [0, 90]");
   Require(std::isfinite(cluster_distance) && cluster_distance > 0.0f, "cluster_distance",
           "must be positive");
+  depth_noise.validate("SegmentationConfig.depth_noise.");
+  Require(std::isfinite(cluster_depth_sigmas) && cluster_depth_sigmas >= 0.0,
+          "cluster_depth_sigmas", "must be >= 0");
   Require(min_segment_points >= 1, "min_segment_points", "must be >= 1");
   Require(std::isfinite(tie_ratio) && tie_ratio > 0.0 && tie_ratio <= 1.0, "tie_ratio",
           "must be in (0, 1]");
@@ -265,13 +297,12 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
     return result;
   }
 
-  auto comparator =
-      std::make_shared<pcl::EuclideanClusterComparator<OrganizedPoint, pcl::Label>>();
+  auto comparator = std::make_shared<DepthNoiseClusterComparator>(
+      config.cluster_distance, config.depth_noise, config.cluster_depth_sigmas);
   comparator->setInputCloud(frame.cloud);
   comparator->setLabels(labels);
   comparator->setExcludeLabels(
       std::make_shared<const std::set<std::uint32_t>>(std::set<std::uint32_t>{0}));
-  comparator->setDistanceThreshold(config.cluster_distance, false);
   pcl::OrganizedConnectedComponentSegmentation<OrganizedPoint, pcl::Label> occ(comparator);
   occ.setInputCloud(frame.cloud);
   pcl::PointCloud<pcl::Label> components;
