@@ -35,8 +35,7 @@ class DepthNoiseClusterComparator
     }
     const OrganizedPoint& p = (*input_)[idx1];
     const double widen = sigmas_ * noise_.sigma(p.z);
-    const double d2 = ((*input_)[idx1].getVector3fMap() - (*input_)[idx2].getVector3fMap())
-                          .squaredNorm();
+    const double d2 = (p.getVector3fMap() - (*input_)[idx2].getVector3fMap()).squaredNorm();
     return d2 < distance_sq_ + widen * widen;
   }
 

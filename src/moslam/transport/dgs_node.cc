@@ -597,6 +597,14 @@ class DgsNode::Impl final : public TeamChannel {
   }
 
   void ingest(std::vector<Received> packets) {
+    // Weights and covariances are taken from neighbours only (estimates: also for the variables
+    // this robot uses, below).
+    auto from_neighbour = [this](int sender, const char* what) {
+      if (neighbours_.count(sender)) return true;
+      ++result_.rejected_estimates;
+      log(fmt::format("rejected: {} from robot {}, which is not a neighbour", what, sender));
+      return false;
+    };
     for (Received& r : packets) {
       if (auto* st = std::get_if<StatusPacket>(&r.packet)) {
         if (st->solve != options_.solve) continue;  // another solve (online mapping)
@@ -644,20 +652,10 @@ class DgsNode::Impl final : public TeamChannel {
         if (c->solve != options_.solve) continue;
         coarse_[{c->round, c->message.sender}] = c->message;
       } else if (auto* w = std::get_if<WeightsPacket>(&r.packet)) {
-        if (w->solve != options_.solve) continue;
-        if (!neighbours_.count(w->message.sender)) {
-          ++result_.rejected_estimates;
-          log(fmt::format("rejected: weights from robot {}, which is not a neighbour",
-                          w->message.sender));
-          continue;
-        }
+        if (w->solve != options_.solve || !from_neighbour(w->message.sender, "weights")) continue;
         weights_[{w->round, w->message.sender}] = w->message;
       } else if (auto* v = std::get_if<CovariancePacket>(&r.packet)) {
-        if (v->solve != options_.solve) continue;
-        if (!neighbours_.count(v->message.sender)) {
-          ++result_.rejected_estimates;
-          log(fmt::format("rejected: a covariance from robot {}, which is not a neighbour",
-                          v->message.sender));
+        if (v->solve != options_.solve || !from_neighbour(v->message.sender, "a covariance")) {
           continue;
         }
         covariances_[{v->round, v->message.sender}] = v->message;

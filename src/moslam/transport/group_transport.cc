@@ -50,21 +50,17 @@ void GroupTransport::send(const EstimatesPacket& packet) {
   inner_.send(p);
 }
 
-void GroupTransport::send(const WeightsPacket& packet) {
-  WeightsPacket p = packet;
+template <typename Packet>
+void GroupTransport::sendAddressed(Packet p) {
   p.solve = solve_;
   p.message.sender = real(p.message.sender);
   p.message.receiver = real(p.message.receiver);
   inner_.send(p);
 }
 
-void GroupTransport::send(const CovariancePacket& packet) {
-  CovariancePacket p = packet;
-  p.solve = solve_;
-  p.message.sender = real(p.message.sender);
-  p.message.receiver = real(p.message.receiver);
-  inner_.send(p);
-}
+void GroupTransport::send(const WeightsPacket& packet) { sendAddressed(packet); }
+
+void GroupTransport::send(const CovariancePacket& packet) { sendAddressed(packet); }
 
 void GroupTransport::send(const SharedObjectsPacket&) {
   throw InvalidInputError("GroupTransport: shared objects are not part of a group solve");

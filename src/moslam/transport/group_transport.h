@@ -47,6 +47,10 @@ class GroupTransport final : public Transport {
  private:
   int real(int local) const;
   int local(int real) const;  // -1 outside the group
+  // Sends a packet addressed by its message's sender and receiver (weights, covariances) with
+  // the team's ids and this solve.
+  template <typename Packet>
+  void sendAddressed(Packet p);
   enum class Route { kMapped, kElsewhere, kRejected };
   // Maps `r` in place when it is a packet of this solve.
   Route route(Received& r);
