@@ -43,6 +43,26 @@ void Require(bool ok, const std::string& field, const std::string& what) {
   if (!ok) throw InvalidInputError(field + " " + what);
 }
 
+// A distance threshold at no depth noise, widened by `sigmas` of the sensor's depth noise at
+// depth z: sqrt(d0^2 + (sigmas sigma(z))^2) (the agreement, inlier and consensus radii).
+double WidenedByDepthNoise(double d0, double z, double sigmas, const AxialDepthNoise& noise) {
+  const double widen = sigmas * noise.sigma(z);
+  return std::sqrt(d0 * d0 + widen * widen);
+}
+
+// The consensus' inlier distance: sac_max_correspondence_distance widened at the median depth of
+// the segment's keypoints (one radius per segment: the consensus counts on one grid). `keypoints`
+// is not empty.
+double ConsensusDistance(const FeatureCloud& keypoints, const RegistrationConfig& config) {
+  std::vector<float> depths;
+  depths.reserve(keypoints.size());
+  for (const FeaturePoint& p : keypoints.points) depths.push_back(p.z);
+  const auto middle = depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2);
+  std::nth_element(depths.begin(), middle, depths.end());
+  return WidenedByDepthNoise(config.sac_max_correspondence_distance, *middle,
+                             config.consensus_depth_sigmas, config.depth_noise);
+}
+
 bool FiniteFeature(const pcl::PFHRGBSignature250& f) {
   for (float h : f.histogram) {
     if (!std::isfinite(h)) return false;
@@ -323,6 +343,10 @@ void RegistrationConfig::validate() const {
   depth_noise.validate(p + "depth_noise.");
   Require(std::isfinite(score_depth_sigmas) && score_depth_sigmas >= 0.0,
           p + "score_depth_sigmas", "must be >= 0");
+  Require(std::isfinite(inlier_depth_sigmas) && inlier_depth_sigmas >= 0.0,
+          p + "inlier_depth_sigmas", "must be >= 0");
+  Require(std::isfinite(consensus_depth_sigmas) && consensus_depth_sigmas >= 0.0,
+          p + "consensus_depth_sigmas", "must be >= 0");
   Require(PositiveFinite(colour_tolerance), p + "colour_tolerance", "must be positive");
   Require(std::isfinite(chroma_dark_offset) && chroma_dark_offset >= 0.0,
           p + "chroma_dark_offset", "must be >= 0");
@@ -571,12 +595,11 @@ PoseScore ScorePose(const FeatureCloud& source, const ObjectTemplate& tmpl,
   std::vector<int> idx;
   std::vector<float> sq;
   int geometric = 0, both = 0;
-  const double d0_sq = config.score_distance * config.score_distance;
   for (const auto& sp : source.points) {
     FeaturePoint y;
     y.getVector3fMap() = T * sp.getVector3fMap();
-    const double widen = config.score_depth_sigmas * config.depth_noise.sigma(sp.z);
-    const auto radius = static_cast<float>(std::sqrt(d0_sq + widen * widen));
+    const auto radius = static_cast<float>(WidenedByDepthNoise(
+        config.score_distance, sp.z, config.score_depth_sigmas, config.depth_noise));
     if (tree.radiusSearch(y, radius, idx, sq) <= 0) continue;
     ++geometric;
     const Eigen::Vector3f cs = Chroma(sp, k);
@@ -849,6 +872,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     return template_tree;
   };
   const std::vector<Eigen::Matrix4f> upright = UprightHypotheses(*source, tmpl, config);
+  const double consensus_distance = ConsensusDistance(*source_keypoints, config);
   bool consensus_failed = false;
   if (config.consensus == Consensus::kSacIa) {
     std::srand(config.seed);  // PCL's SAC-IA draws with rand()
@@ -861,10 +885,10 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     sac.setMinSampleDistance(static_cast<float>(config.sac_min_sample_distance));
     sac.setCorrespondenceRandomness(config.sac_correspondence_randomness);
     sac.setMaximumIterations(config.sac_iterations);
-    sac.setMaxCorrespondenceDistance(config.sac_max_correspondence_distance);
+    sac.setMaxCorrespondenceDistance(consensus_distance);
     sac.align(aligned);
     object_T_camera_sac = sac.getFinalTransformation();
-    result.sac_fitness = sac.getFitnessScore(config.sac_max_correspondence_distance);
+    result.sac_fitness = sac.getFitnessScore(consensus_distance);
   } else {
     MaxInlierPrerejective sac;
     sac.setInputSource(source_keypoints);
@@ -876,7 +900,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     sac.setSimilarityThreshold(static_cast<float>(config.prerejective_similarity));
     sac.setMinSampleDistance(static_cast<float>(config.sac_min_sample_distance));
     sac.setMaximumIterations(config.prerejective_iterations);
-    sac.setMaxCorrespondenceDistance(config.sac_max_correspondence_distance);
+    sac.setMaxCorrespondenceDistance(consensus_distance);
     sac.setInlierFraction(static_cast<float>(config.prerejective_inlier_fraction));
     sac.setSeed(config.seed);
     sac.align(aligned);
@@ -890,7 +914,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     }
     if (!consensus_failed) {
       object_T_camera_sac = sac.getFinalTransformation();
-      result.sac_fitness = sac.getFitnessScore(config.sac_max_correspondence_distance);
+      result.sac_fitness = sac.getFitnessScore(consensus_distance);
     }
   }
   result.times.consensus = MsSince(t0);
@@ -898,7 +922,12 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   // --- gate: feature correspondences agreeing under the SAC-IA transform.
   t0 = std::chrono::steady_clock::now();
   const Eigen::Affine3f T_sac(object_T_camera_sac);
-  const float inlier_sq = static_cast<float>(config.inlier_distance * config.inlier_distance);
+  std::vector<float> inlier_sq(source_keypoints->size());  // each keypoint's (header comment)
+  for (std::size_t i = 0; i < source_keypoints->size(); ++i) {
+    const double r = WidenedByDepthNoise(config.inlier_distance, (*source_keypoints)[i].z,
+                                         config.inlier_depth_sigmas, config.depth_noise);
+    inlier_sq[i] = static_cast<float>(r * r);
+  }
   std::vector<int> nn_index(1);
   std::vector<float> nn_sq(1);
   std::vector<std::pair<std::size_t, std::size_t>> matches;  // segment keypoint, template keypoint
@@ -916,7 +945,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     int n = 0;
     for (const auto& [i, j] : matches) {
       const Eigen::Vector3f p = T * (*source_keypoints)[i].getVector3fMap();
-      n += (p - (*tmpl.keypoints)[j].getVector3fMap()).squaredNorm() <= inlier_sq;
+      n += (p - (*tmpl.keypoints)[j].getVector3fMap()).squaredNorm() <= inlier_sq[i];
     }
     return n;
   };
