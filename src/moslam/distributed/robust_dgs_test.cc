@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "moslam/common/errors.h"
@@ -162,6 +163,61 @@ TEST(SeparatorConsistency, TwoAgreeingSeparatorsOfLinkedRobotsAreLeftToGnc) {
   SeparatorConsistencyOptions bad;
   bad.linked_min_support = 4;
   EXPECT_THROW(CheckSeparatorConsistency(right, bad), InvalidInputError);
+}
+
+// Object separators are associations, one to one: robot 1's landmark of one object wrongly paired
+// with four landmarks of robot 0 that stand within 15 cm of one another (four objects side by
+// side) agree with one another by their loops (each says the four are where robot 1's one is),
+// and four outnumber the three right pairs. Exclusive (one_to_one_objects), they count as one, and
+// the three right pairs are the set. Pose-pose separators are not associations: the option leaves
+// them alone (the g2o tests of this file).
+TEST(SeparatorConsistency, OneLandmarkPairedWithSeveralIsOneToOneExclusive) {
+  const std::vector<SE3> world_objects = {
+      SE3(SO3::Exp(Vector3(0.0, 0.0, 0.3)), Vector3(2.0, 0.0, 0.0)),
+      SE3(SO3::Exp(Vector3(0.0, 0.0, 1.2)), Vector3(3.0, 2.0, 0.0)),
+      SE3(SO3::Exp(Vector3(0.0, 0.0, -0.7)), Vector3(0.5, 3.0, 0.0)),
+      SE3(SO3::Exp(Vector3(0.0, 0.0, 2.0)), Vector3(-2.0, 1.0, 0.0)),  // robot 1's other object
+  };
+  const SE3 beside_origin(SO3::Exp(Vector3(0.0, 0.0, 0.5)), Vector3(-1.0, -3.0, 0.0));
+  const std::vector<SE3> first_pose = {SE3(),
+                                       SE3(SO3::Exp(Vector3(0.0, 0.0, 2.5)), Vector3(4, 4, 0))};
+  const Matrix6 observation = 1e4 * Matrix6::Identity();
+  Matrix6 association = Matrix6::Identity();  // the paper's Lambda: 5 deg, 0.2 m
+  association.topLeftCorner<3, 3>() *= 1.0 / std::pow(5.0 * 3.14159265358979 / 180.0, 2);
+  association.bottomRightCorner<3, 3>() *= 1.0 / (0.2 * 0.2);
+  PoseGraph g;
+  auto observe = [&](int robot, std::uint64_t landmark, const SE3& object) {
+    g.add(RelativePoseFactor(Key::Pose(robot, 0), Key::Object(robot, landmark),
+                             first_pose[static_cast<std::size_t>(robot)].between(object),
+                             observation));
+  };
+  for (std::uint64_t k = 0; k < 3; ++k) {
+    observe(0, k, world_objects[k]);
+    observe(1, k, world_objects[k]);
+  }
+  for (std::uint64_t k = 0; k < 4; ++k) {  // four objects side by side, 5 cm apart
+    observe(0, 3 + k, beside_origin * SE3(SO3(), Vector3(0.05 * k, 0.0, 0.0)));
+  }
+  observe(1, 3, world_objects[3]);
+  const std::size_t first_separator = g.factors().size();
+  for (std::uint64_t k = 0; k < 3; ++k) {  // right: the same object
+    g.add(RelativePoseFactor(Key::Object(0, k), Key::Object(1, k), SE3(), association));
+  }
+  for (std::uint64_t k = 0; k < 4; ++k) {  // wrong: robot 1's landmark 3 as each of the four
+    g.add(RelativePoseFactor(Key::Object(0, 3 + k), Key::Object(1, 3), SE3(), association));
+  }
+  SeparatorConsistencyOptions options;
+  options.map_uncertainty = false;  // exact maps: the loops alone decide
+  auto kept = [&](const SeparatorConsistencyResult& r) {
+    std::vector<bool> out;
+    for (std::size_t i = first_separator; i < g.factors().size(); ++i) out.push_back(r.kept[i]);
+    return out;
+  };
+  const std::vector<bool> right_only = {true, true, true, false, false, false, false};
+  EXPECT_EQ(kept(CheckSeparatorConsistency(g, options)), right_only);
+  options.one_to_one_objects = false;
+  const std::vector<bool> wrong_only = {false, false, false, true, true, true, true};
+  EXPECT_EQ(kept(CheckSeparatorConsistency(g, options)), wrong_only);
 }
 
 // Two drifting robots (test::DriftingPairWithWrongSeparators): with each map's marginal covariances every right separator agrees with every other (PCM's

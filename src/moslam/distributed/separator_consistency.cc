@@ -223,9 +223,20 @@ std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFact
                     a_first ? sigma : Matrix6(Ad * sigma * Ad.transpose()), a_map.pose(key_a),
                     b_poses[static_cast<std::size_t>(ib.back())]});
   }
+  // Object separators pairing one landmark with two different ones exclude each other.
+  auto exclusive = [&](std::size_t i, std::size_t j) {
+    const RelativePoseFactor& fi = separators[i];
+    const RelativePoseFactor& fj = separators[j];
+    if (!options.one_to_one_objects || !fi.a().isObject() || !fi.b().isObject() ||
+        !fj.a().isObject() || !fj.b().isObject()) {
+      return false;
+    }
+    return (ia[i] == ia[j]) != (ib[i] == ib[j]);
+  };
   ConsistencyGraph g(static_cast<int>(separators.size()));
   for (std::size_t i = 0; i < separators.size(); ++i) {
     for (std::size_t j = i + 1; j < separators.size(); ++j) {
+      if (exclusive(i, j)) continue;
       const double stat = LoopStatistic(ends[i], ends[j], PairBlock(SA, ia[i], ia[j]),
                                         PairBlock(SB, ib[i], ib[j]));
       if (stat <= options.threshold) g.connect(static_cast<int>(i), static_cast<int>(j));
