@@ -191,6 +191,23 @@ TEST(Registration, HalfTurnFlipIsCorrectedOrRejected) {
   }
 }
 
+// The test object seen from camera_T_object, sampled every `spacing` metres, with the sensor's
+// axial depth noise (AxialDepthNoise's default) along each point's ray, as a depth camera errs.
+std::shared_ptr<OrganizedCloud> NoisyView(const SE3& camera_T_object, double spacing,
+                                          unsigned noise_seed) {
+  const AxialDepthNoise noise;
+  auto segment = test::ViewOf(test::MakeTestObject(spacing), camera_T_object, 0.0, 1u);
+  std::mt19937 rng(noise_seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (auto& q : segment->points) {
+    const double scale = 1.0 + noise.sigma(q.z) * gauss(rng) / q.z;
+    q.x = static_cast<float>(q.x * scale);
+    q.y = static_cast<float>(q.y * scale);
+    q.z = static_cast<float>(q.z * scale);
+  }
+  return segment;
+}
+
 // A view 4 m away, sampled as densely as a 320-pixel camera sees it there (1.5 cm), with the
 // sensor's axial noise (sigma(4 m) = 2.6 cm, above the 2.5 cm agreement radius): at the true pose
 // a fixed radius finds too few segment points on the template and turns the right pose away as
@@ -199,18 +216,9 @@ TEST(Registration, HalfTurnFlipIsCorrectedOrRejected) {
 // (0.36-0.39).
 TEST(Registration, AgreementRadiusWidensWithTheDepthNoise) {
   const ObjectTemplate& tmpl = TestTemplate();
-  const AxialDepthNoise noise;
   const SE3 body_T_object(SO3::Exp(Vector3(0.0, 0.0, 0.6)), Vector3(4.0, 0.1, -0.05));
   const SE3 truth = BodyFromCamera().inverse() * body_T_object;
-  auto segment = test::ViewOf(test::MakeTestObject(0.015), truth, 0.0, 1u);
-  std::mt19937 rng(5);
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  for (auto& q : segment->points) {  // along the ray, as a depth camera errs
-    const double scale = 1.0 + noise.sigma(q.z) * gauss(rng) / q.z;
-    q.x = static_cast<float>(q.x * scale);
-    q.y = static_cast<float>(q.y * scale);
-    q.z = static_cast<float>(q.z * scale);
-  }
+  const auto segment = NoisyView(truth, 0.015, 5u);
   RegistrationConfig config;
   config.symmetry_turns = 1;  // the given pose alone
   ASSERT_GT(config.score_depth_sigmas, 0.0);
@@ -271,7 +279,6 @@ std::shared_ptr<OrganizedCloud> ColouredSphere(const Vector3& centre) {
 // turned away by its shape, geometric agreement 0.35).
 TEST(Registration, InlierDistanceWidensWithTheDepthNoise) {
   const ObjectTemplate& tmpl = TestTemplate();
-  const AxialDepthNoise noise;
   const SE3 body_T_object(SO3::Exp(Vector3(0.0, 0.0, 0.6)), Vector3(5.0, 0.1, -0.05));
   const SE3 truth = BodyFromCamera().inverse() * body_T_object;
   const RegistrationConfig config;
@@ -281,15 +288,7 @@ TEST(Registration, InlierDistanceWidensWithTheDepthNoise) {
   fixed.inlier_depth_sigmas = 0.0;
   fixed.consensus_depth_sigmas = 0.0;
   for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
-    auto segment = test::ViewOf(test::MakeTestObject(0.018), truth, 0.0, 1u);
-    std::mt19937 rng(seed);
-    std::normal_distribution<double> gauss(0.0, 1.0);
-    for (auto& q : segment->points) {  // along the ray, as a depth camera errs
-      const double scale = 1.0 + noise.sigma(q.z) * gauss(rng) / q.z;
-      q.x = static_cast<float>(q.x * scale);
-      q.y = static_cast<float>(q.y * scale);
-      q.z = static_cast<float>(q.z * scale);
-    }
+    const auto segment = NoisyView(truth, 0.018, seed);
     const RegistrationResult w = RegisterTemplate(*segment, tmpl, config);
     const RegistrationResult f = RegisterTemplate(*segment, tmpl, fixed);
     const double w_error = (w.camera_T_object.translation() - truth.translation()).norm();
