@@ -15,10 +15,11 @@
 // the informations are right (PCM's test, Mangelson et al. eq. 7, with marginal covariances).
 // Two object-object separators that pair one landmark with two different landmarks exclude each
 // other (one_to_one_objects, below). The largest pairwise consistent set (a maximum clique,
-// robust/max_clique.h) is kept; the others are rejected. A pair whose best set has fewer than min_support separators does not confirm
-// itself (one separator alone, or two agreeing by chance): it is rejected, unless its two robots
-// are linked through confirmed pairs and its best set has linked_min_support separators: then
-// that set is kept for the robust solve, where the loop through the team tests it as well.
+// robust/max_clique.h) is kept; the others are rejected. A pair whose best set has fewer than
+// min_support separators does not confirm itself (one separator alone, or two agreeing by chance):
+// it is rejected, unless its two robots are linked through confirmed pairs and its best set has
+// linked_min_support separators: then that set is kept for the robust solve, where the loop through
+// the team tests it as well.
 // Rejecting every such pair threw away right separators of short rendezvous: on generated with
 // known initial poses and no outliers, 2 runs of 10 at 4 robots and 2 at 6 moved the estimate
 // 3 cm - 5 m from the least-squares one. Keeping lone separators too (linked_min_support 1) lets
@@ -50,15 +51,15 @@ struct SeparatorConsistencyOptions {
   // its residuals are 100x smaller, and the marginals of such maps (1 rad per odometry step) make
   // every pair look consistent.
   bool map_uncertainty = true;
-  // Object separators are associations: a landmark of one robot is one object, the same as at
-  // most one landmark of the other. Two object-object separators that join one landmark to two
-  // different landmarks of the other robot exclude each other (never in one consistent set, as
-  // CLIPPER's one-to-one constraint), whatever their loop says: a landmark of b wrongly paired
-  // with several landmarks of a that a's map holds close together agreed with one another, and
-  // that set outnumbered the right one (generated, 6 robots, 70 % injected wrong pairs, seed 3:
-  // four wrong pairs on one landmark against four right ones). The cost: a robot that mapped one
-  // object twice keeps one of its two right pairs to the other's landmark. Pose-pose separators
-  // (g2o loop closures) are not associations and are not affected.
+  // Object separators are associations: a landmark of one robot is one object, the same as at most
+  // one landmark of the other. Two object-object separators that join one landmark to two different
+  // landmarks of the other robot exclude each other (never in one consistent set, as CLIPPER's one-
+  // to-one constraint), whatever their loop says: a landmark of b wrongly paired with several
+  // landmarks of a that a's map holds close together agreed with one another, and that set won over
+  // the right one (generated, 6 robots, 70 % injected wrong pairs, seed 3: four wrong pairs on one
+  // landmark tied with the four right ones and were kept). The cost: a robot that mapped one object
+  // twice keeps one of its two right pairs to the other's landmark. Pose-pose separators (g2o loop
+  // closures) are not associations and are not affected.
   bool one_to_one_objects = true;
   // Throws InvalidInputError naming the bad field.
   void validate() const;
