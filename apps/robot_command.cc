@@ -203,6 +203,7 @@ nlohmann::json SolveJson(const SessionSolve& s) {
           {"dds_status_bytes", s.sent.status_bytes},
           {"dds_coarse_bytes", s.sent.coarse_bytes},
           {"dds_sent_bytes", s.sent.sent_bytes},
+          {"replayed", s.replayed},
           {"seconds", s.seconds}};
 }
 
@@ -353,10 +354,11 @@ int RunScenarioRobot(const RobotArgs& a) {
   if (a.online) {
     options.on_solve = [&a](const SessionSolve& s) {
       fmt::print("group solve: step {} robots {} rounds {} + {}, {} refinement steps, {} B sent, "
-                 "{:.3f} s{}\n",
+                 "{:.3f} s{}{}\n",
                  s.step, fmt::join(s.robots, ","), s.rotation_rounds, s.pose_rounds,
                  s.refine_steps, s.sent.sent_bytes, s.seconds,
-                 a.out.empty() ? "" : fmt::format(", map in {}/maps/step_{:04d}", a.out, s.step));
+                 a.out.empty() ? "" : fmt::format(", map in {}/maps/step_{:04d}", a.out, s.step),
+                 s.replayed ? " replayed" : "");
       std::fflush(stdout);
     };
   }

@@ -1,11 +1,11 @@
 // Robots as separate processes over Cyclone DDS on loopback (the real `moslam` binary; each test
-// its own DDS domain, 50..59): the team's result equals the in-process driver's; a robot killed
+// its own DDS domain, 50..60): the team's result equals the in-process driver's; a robot killed
 // (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies for good
 // is noticed through liveliness and the others finish. Simulated scenarios (--scenario): object
 // SLAM and rendezvous in each process give the in-process pipeline's shared objects and
 // estimate; robots killed in the rendezvous phase and in the DGS and restarted lose nothing;
-// online (--online), every map the robots save equals the in-process twin's; robust (--robust),
-// the in-process robust solve's estimate.
+// online (--online), every map the robots save equals the in-process twin's, with a robot killed
+// in a group solve and restarted too; robust (--robust), the in-process robust solve's estimate.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -497,6 +497,70 @@ TEST(Team, ScenarioRobotsKilledInTheRendezvousAndInTheDgsAndRestartedLoseNothing
   ASSERT_TRUE(j.is_object()) << team.output();
   EXPECT_TRUE(j["shared_objects_equal"].get<bool>());
   EXPECT_EQ(j["variables"], j["in_process_variables"]);
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  fs::remove_all(out);
+}
+
+// Online: a robot killed (SIGKILL) in the DGS of its second group solve and restarted with its
+// --out takes its first solve from the journal, resumes the second from the solve's node journal,
+// and every map the team saves is still the in-process twin's.
+TEST(Team, AnOnlineRobotKilledInAGroupSolveAndRestartedLosesNothing) {
+  const int domain = 60, n = 6;
+  const std::string uri = LoopbackConfigXml(domain, n);
+  const fs::path out = FreshDir("online_restart");
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  auto args = [&](int r) {
+    std::vector<std::string> a = {"robot", "--robot", std::to_string(r), "--domain",
+                                  std::to_string(domain), "--out",
+                                  (out / ("robot" + std::to_string(r))).string(), "--progress",
+                                  "--json", "--online", "--join-timeout", "30",
+                                  "--stall-timeout", "60", "--rendezvous-timeout", "30"};
+    a.insert(a.end(), kScenario.begin(), kScenario.end());
+    return a;
+  };
+  auto stderr_file = [&](int r) { return out / ("stderr" + std::to_string(r)); };
+  std::vector<std::unique_ptr<Child>> robots;
+  for (int r = 0; r < n; ++r) robots.push_back(std::make_unique<Child>(args(r), uri, stderr_file(r)));
+  const int victim = 1;
+  bool first_done = false;
+  ASSERT_TRUE(robots[victim]->waitForLine(
+      [&](const std::string& l) {
+        if (l.rfind("group solve: ", 0) == 0) first_done = true;
+        return first_done && l.rfind("progress: rotation 3 ", 0) == 0;
+      },
+      deadline))
+      << robots[victim]->output();
+  robots[victim]->kill9();
+  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
+  robots[victim] = std::make_unique<Child>(args(victim), uri, stderr_file(victim));
+  for (int r = 0; r < n; ++r) {
+    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
+  }
+  const nlohmann::json v = LastJson(robots[victim]->output());
+  ASSERT_TRUE(v.is_object()) << robots[victim]->output();
+  ASSERT_GE(v["solves"].size(), 2u) << v.dump();
+  EXPECT_TRUE(v["solves"][0]["replayed"].get<bool>());
+  EXPECT_FALSE(v["solves"][1]["replayed"].get<bool>());
+  // The second solve's rounds before the kill come from its node journal.
+  std::istringstream lines(robots[victim]->output());
+  int replayed_rounds = 0;
+  for (std::string l; std::getline(lines, l);) {
+    if (l.rfind("progress: rotation ", 0) == 0 && l.size() > 9 &&
+        l.compare(l.size() - 9, 9, " replayed") == 0) {
+      ++replayed_rounds;
+    }
+  }
+  EXPECT_GE(replayed_rounds, 2) << robots[victim]->output();
+  // Every map each robot saved, against the in-process twin.
+  std::vector<std::string> collect = {"team", "--out", out.string(), "--collect", "--online",
+                                      "--json"};
+  collect.insert(collect.end(), kScenario.begin(), kScenario.end());
+  Child team(collect, "", out / "team.log");
+  ASSERT_EQ(team.wait(deadline), 0) << team.output();
+  const nlohmann::json j = LastJson(team.output());
+  ASSERT_TRUE(j.is_object()) << team.output();
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_GT(j["maps_compared"].get<int>(), 2 * j["group_solves"].get<int>());
   EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
   fs::remove_all(out);
 }

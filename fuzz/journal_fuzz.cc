@@ -2,10 +2,11 @@
 // record framing (length, CRC-32, a torn or corrupt tail) of journal.bin, and the protocol step
 // records of the DGS node (transport/step_record.h), whose estimates and coarse shares go to the
 // decoders of distributed/messages.h, and the rendezvous event records of a robot session
-// (transport/event_record.h). The first byte picks which; the rest is its input. A malformed
+// (transport/event_record.h) and the group and solve records of an online session
+// (transport/solve_record.h). The first byte picks which; the rest is its input. A malformed
 // input may only be rejected with a moslam::Error (the framing: cut at the first bad record); any
-// other exception, a crash, a sanitizer report or a hang is a bug. A step or event record that is
-// accepted must encode back to the same bytes.
+// other exception, a crash, a sanitizer report or a hang is a bug. A step, event, group or solve
+// record that is accepted must encode back to the same bytes.
 #include <unistd.h>
 
 #include <cstddef>
@@ -17,6 +18,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/journal.h"
+#include "moslam/transport/solve_record.h"
 #include "moslam/transport/step_record.h"
 
 namespace {
@@ -46,37 +48,37 @@ void Framing(const std::vector<std::uint8_t>& bytes) {
   Require(kept_again == kept && again.truncatedBytes() == 0);
 }
 
-void Step(const std::vector<std::uint8_t>& bytes) {
-  using namespace moslam::transport_detail;
-  const StepRecord record = ReadStepRecord(bytes, 0, "fuzz");
+// A record the reader accepts must encode back to the same bytes.
+template <typename Read, typename Append>
+void RoundTrip(const std::vector<std::uint8_t>& bytes, Read read, Append append) {
+  const auto record = read(bytes, 0, "fuzz");
   std::vector<std::uint8_t> again;
-  AppendStepRecord(record, again);
-  Require(again == bytes);
-}
-
-void Event(const std::vector<std::uint8_t>& bytes) {
-  using namespace moslam::transport_detail;
-  const EventRecord record = ReadEventRecord(bytes, 0, "fuzz");
-  std::vector<std::uint8_t> again;
-  AppendEventRecord(record, again);
+  append(record, again);
   Require(again == bytes);
 }
 
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using namespace moslam::transport_detail;
   if (size == 0) return 0;
   const std::vector<std::uint8_t> bytes(data + 1, data + size);
   try {
-    switch (data[0] % 3) {
+    switch (data[0] % 5) {
       case 0:
         Framing(bytes);
         break;
       case 1:
-        Step(bytes);
+        RoundTrip(bytes, ReadStepRecord, AppendStepRecord);
+        break;
+      case 2:
+        RoundTrip(bytes, ReadEventRecord, AppendEventRecord);
+        break;
+      case 3:
+        RoundTrip(bytes, ReadGroupRecord, AppendGroupRecord);
         break;
       default:
-        Event(bytes);
+        RoundTrip(bytes, ReadSolveRecord, AppendSolveRecord);
     }
   } catch (const moslam::Error&) {
   }

@@ -99,19 +99,7 @@ std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initia
       }
     }
   }
-  for (double v : {o.eta_rotation, o.eta_pose, o.gamma, o.refinement.relative_cost_tolerance,
-                   o.refinement.sweep_tolerance, o.refinement.cg_tolerance, o.refinement.gamma,
-                   o.refinement.initial_lambda, o.refinement.max_lambda}) {
-    f.add(v);
-  }
-  for (int v : {o.max_iterations, o.error_bound_window, static_cast<int>(o.stopping),
-                static_cast<int>(o.pose_solver), static_cast<int>(o.flagged_initialisation),
-                static_cast<int>(o.weight_by_information), static_cast<int>(o.coarse_correction),
-                static_cast<int>(o.refine), static_cast<int>(o.refinement.solver),
-                static_cast<int>(o.refinement.preconditioner), o.refinement.max_iterations,
-                o.refinement.max_sweeps}) {
-    f.add(static_cast<std::uint64_t>(v));
-  }
+  transport_detail::AddSolverOptions(f, o);
   for (const RelativePoseFactor& factor : g.factors()) {
     f.add(factor.a());
     f.add(factor.b());

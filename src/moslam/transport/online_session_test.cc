@@ -2,11 +2,18 @@
 // in-process transport: every group solve, and every robot's map after it and at the end, equal
 // the in-process twin (online/online_team.h on RunMultiRobotObjectSlam). Between processes over
 // DDS: apps/team_test.cc.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
+#include <filesystem>
+#include <functional>
 #include <map>
+#include <mutex>
+#include <stdexcept>
 #include <thread>
 #include <utility>
 
@@ -35,6 +42,16 @@ RobotSessionOptions OnlineSessionOptions(const ScenarioSpec& spec) {
   return o;
 }
 
+// chairs25, 6 robots of 40 poses, seed 2: held landmarks, borrowed copies and a group of three.
+ScenarioSpec SixRobots() {
+  ScenarioSpec spec;
+  spec.scenario = "chairs25";
+  spec.robots = 6;
+  spec.poses_per_robot = 40;
+  spec.seed = 2;
+  return spec;
+}
+
 OnlineRun RunTwin(const SimulationData& data, const RobotSessionOptions& session) {
   OnlineOptions options;
   options.solver = DriverOptions(session.dgs);
@@ -42,12 +59,81 @@ OnlineRun RunTwin(const SimulationData& data, const RobotSessionOptions& session
   return RunOnline(data, session.slam, options);
 }
 
+struct Crash : std::runtime_error {
+  Crash() : std::runtime_error("simulated crash") {}
+};
+
+// One session per robot, each on its thread over one in-process network, with the options
+// `options(robot)` gives; a session that throws Crash is restarted (a fresh transport, as a new
+// process) with the same options. Every other failure fails the test.
+std::vector<RobotSessionResult> RunSessions(
+    const SimulationData& data, int robots,
+    const std::function<RobotSessionOptions(int)>& options) {
+  InProcessNetwork net;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < robots; ++r) transports.push_back(net.connect(r, {[](const std::string&) {}}));
+  std::vector<RobotSessionResult> results(static_cast<std::size_t>(robots));
+  std::vector<std::string> errors(results.size());
+  std::vector<std::thread> threads;
+  for (int r = 0; r < robots; ++r) {
+    threads.emplace_back([&, r]() {
+      const auto ri = static_cast<std::size_t>(r);
+      const RobotSessionOptions o = options(r);
+      while (true) {
+        try {
+          RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+          results[ri] = session.run();
+          return;
+        } catch (const Crash&) {
+          transports[ri].reset();  // the process is gone; restarted, it receives the history
+          transports[ri] = net.connect(r, {[](const std::string&) {}});
+        } catch (const std::exception& e) {
+          errors[ri] = e.what();
+          return;
+        }
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& e : errors) EXPECT_EQ(e, "");
+  return results;
+}
+
+// Every group solve of every robot and its final map against the twin: the same steps, robots
+// and sweeps; returns the largest difference of a map (m or rad), counts the solves compared.
+double CompareWithTwin(const std::vector<RobotSessionResult>& results, const OnlineRun& twin,
+                       std::size_t* solves) {
+  double largest_difference = 0.0;
+  for (int r = 0; r < static_cast<int>(results.size()); ++r) {
+    const RobotSessionResult& got = results[static_cast<std::size_t>(r)];
+    std::vector<const GroupSolveRecord*> expected;
+    for (const GroupSolveRecord& s : twin.solves) {
+      if (std::find(s.robots.begin(), s.robots.end(), r) != s.robots.end()) expected.push_back(&s);
+    }
+    EXPECT_EQ(got.solves.size(), expected.size()) << "robot " << r;
+    for (std::size_t i = 0; i < std::min(expected.size(), got.solves.size()); ++i) {
+      const SessionSolve& s = got.solves[i];
+      EXPECT_EQ(s.step, expected[i]->step);
+      EXPECT_EQ(s.robots, expected[i]->robots);
+      EXPECT_EQ(s.refine_steps, expected[i]->refine_steps);
+      EXPECT_EQ(s.rotation_rounds, expected[i]->rotation_sweeps);
+      if (!s.replayed) {
+        EXPECT_GT(s.sent.estimates_bytes + s.sent.status_bytes, 0);
+      }
+      const Values& map = twin.maps.at({s.step, r});
+      largest_difference = std::max(largest_difference, MaxPoseDifference(s.estimate, map));
+      EXPECT_EQ(s.estimate.size(), map.size());
+      ++*solves;
+    }
+    const Values& final_map = twin.slam.robots[static_cast<std::size_t>(r)].estimate();
+    EXPECT_EQ(got.final_estimate.size(), final_map.size());
+    largest_difference = std::max(largest_difference, MaxPoseDifference(got.final_estimate, final_map));
+  }
+  return largest_difference;
+}
+
 TEST(OnlineSession, OverTheInProcessTransportEqualsTheInProcessTwin) {
-  ScenarioSpec spec;
-  spec.scenario = "chairs25";
-  spec.robots = 6;
-  spec.poses_per_robot = 40;
-  spec.seed = 2;
+  const ScenarioSpec spec = SixRobots();
   const SimulationData data = SimulateScenario(spec);
   const RobotSessionOptions options = OnlineSessionOptions(spec);
   const OnlineRun twin = RunTwin(data, options);
@@ -65,56 +151,87 @@ TEST(OnlineSession, OverTheInProcessTransportEqualsTheInProcessTwin) {
   EXPECT_GT(borrowed, 0);
   EXPECT_GE(largest, 3u);
 
-  InProcessNetwork net;
-  std::vector<std::unique_ptr<Transport>> transports;
-  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {[](const std::string&) {}}));
-  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
-  std::vector<std::string> errors(results.size());
-  std::vector<std::thread> threads;
-  for (int r = 0; r < spec.robots; ++r) {
-    threads.emplace_back([&, r]() {
-      try {
-        RobotSession session(SliceForRobot(data, r), *transports[static_cast<std::size_t>(r)],
-                             options);
-        results[static_cast<std::size_t>(r)] = session.run();
-      } catch (const std::exception& e) {
-        errors[static_cast<std::size_t>(r)] = e.what();
-      }
-    });
-  }
-  for (auto& t : threads) t.join();
-  for (const std::string& e : errors) ASSERT_EQ(e, "");
-
+  const std::vector<RobotSessionResult> results =
+      RunSessions(data, spec.robots, [&](int) { return options; });
   std::size_t solves = 0;
-  double largest_difference = 0.0;
-  for (int r = 0; r < spec.robots; ++r) {
-    const RobotSessionResult& got = results[static_cast<std::size_t>(r)];
-    std::vector<const GroupSolveRecord*> expected;
-    for (const GroupSolveRecord& s : twin.solves) {
-      if (std::find(s.robots.begin(), s.robots.end(), r) != s.robots.end()) expected.push_back(&s);
-    }
-    ASSERT_EQ(got.solves.size(), expected.size()) << "robot " << r;
-    for (std::size_t i = 0; i < expected.size(); ++i) {
-      const SessionSolve& s = got.solves[i];
-      EXPECT_EQ(s.step, expected[i]->step);
-      EXPECT_EQ(s.robots, expected[i]->robots);
-      EXPECT_EQ(s.refine_steps, expected[i]->refine_steps);
-      EXPECT_EQ(s.rotation_rounds, expected[i]->rotation_sweeps);
-      EXPECT_GT(s.sent.estimates_bytes + s.sent.status_bytes, 0);
-      const Values& map = twin.maps.at({s.step, r});
-      largest_difference = std::max(largest_difference, MaxPoseDifference(s.estimate, map));
-      EXPECT_EQ(s.estimate.size(), map.size());
-      ++solves;
-    }
-    const Values& final_map = twin.slam.robots[static_cast<std::size_t>(r)].estimate();
-    EXPECT_EQ(got.final_estimate.size(), final_map.size());
-    largest_difference = std::max(largest_difference, MaxPoseDifference(got.final_estimate, final_map));
-  }
+  const double largest_difference = CompareWithTwin(results, twin, &solves);
   EXPECT_GT(solves, twin.solves.size());  // each solve counted once per robot of it
   EXPECT_LE(largest_difference, 1e-9);
   std::printf("online twin vs sessions: %zu group solves (largest %zu robots, %d team factors), "
               "largest difference %.2e\n",
               twin.solves.size(), largest, team_factors, largest_difference);
+}
+
+// A robot killed in the DGS of a group solve, and again between two solves, and restarted each
+// time from its state directory: every robot's maps are still the twin's (the finished solves
+// taken from the journal, the interrupted one resumed from its node's journal).
+TEST(OnlineSession, ARobotKilledInAndBetweenGroupSolvesResumesFromItsJournal) {
+  const ScenarioSpec spec = SixRobots();
+  const SimulationData data = SimulateScenario(spec);
+  const RobotSessionOptions base = OnlineSessionOptions(spec);
+  const OnlineRun twin = RunTwin(data, base);
+  std::map<int, int> solves_of;
+  for (const GroupSolveRecord& s : twin.solves) {
+    for (int r : s.robots) ++solves_of[r];
+  }
+  int victim = 0;
+  for (const auto& [r, n] : solves_of) victim = n > solves_of[victim] ? r : victim;
+  ASSERT_GE(solves_of[victim], 4);
+
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("moslam_online_restart_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::atomic<int> crashes{0};
+  std::atomic<int> solves_seen{0};  // group solves of the running incarnation, replayed included
+  std::vector<std::string> log;
+  std::mutex log_mutex;
+  const std::vector<RobotSessionResult> results = RunSessions(data, spec.robots, [&](int r) {
+    RobotSessionOptions o = base;
+    o.dgs.state_dir = (dir / std::to_string(r)).string();
+    if (r != victim) return o;
+    o.log = [&](const std::string& text) {
+      std::lock_guard<std::mutex> lock(log_mutex);
+      log.push_back(text);
+    };
+    // First death: in round 6 of its second group solve. Second: right after its third.
+    o.dgs.on_round = [&](const DgsNodeRound& round) {
+      if (round.round == 0) return;
+      if (!round.replayed && round.round == 6 && solves_seen == 1 && crashes == 0) {
+        ++crashes;
+        solves_seen = 0;
+        throw Crash();
+      }
+    };
+    o.on_solve = [&](const SessionSolve& s) {
+      ++solves_seen;
+      if (!s.replayed && solves_seen == 3 && crashes == 1) {
+        ++crashes;
+        solves_seen = 0;
+        throw Crash();
+      }
+    };
+    return o;
+  });
+  EXPECT_EQ(crashes, 2);
+  std::size_t solves = 0;
+  EXPECT_LE(CompareWithTwin(results, twin, &solves), 1e-9);
+  const std::vector<SessionSolve>& got = results[static_cast<std::size_t>(victim)].solves;
+  ASSERT_EQ(got.size(), static_cast<std::size_t>(solves_of[victim]));
+  for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].replayed, i < 3) << "solve " << i;
+  const auto said = [&](const std::string& what) {
+    return std::any_of(log.begin(), log.end(),
+                       [&](const std::string& l) { return l.find(what) != std::string::npos; });
+  };
+  EXPECT_TRUE(said("restart: 1 group solves taken from"));
+  EXPECT_TRUE(said("restart: 3 group solves taken from"));
+  // Each finished solve's node journal is gone (the solve record replaces it); every map saved.
+  EXPECT_FALSE(std::filesystem::exists(dir / std::to_string(victim) / "solves" /
+                                       fmt::format("step_{:04d}", got[1].step)));
+  for (const SessionSolve& s : got) {
+    EXPECT_TRUE(std::filesystem::exists(dir / std::to_string(victim) / "maps" /
+                                        fmt::format("step_{:04d}", s.step) / "map.g2o"));
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(GroupTransport, MapsTheGroupsRobotsAndRoutesEverythingElse) {

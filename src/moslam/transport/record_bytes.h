@@ -9,6 +9,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/common/fnv.h"
+#include "moslam/distributed/dgs_driver.h"
 #include "moslam/geometry/se3.h"
 #include "moslam/graph/key.h"
 
@@ -110,5 +111,22 @@ class Fingerprint {
  private:
   std::uint64_t h_ = kFnvOffset;
 };
+
+// The solver options a distributed solve's result depends on.
+inline void AddSolverOptions(Fingerprint& f, const DgsOptions& o) {
+  for (double v : {o.eta_rotation, o.eta_pose, o.gamma, o.refinement.relative_cost_tolerance,
+                   o.refinement.sweep_tolerance, o.refinement.cg_tolerance, o.refinement.gamma,
+                   o.refinement.initial_lambda, o.refinement.max_lambda}) {
+    f.add(v);
+  }
+  for (int v : {o.max_iterations, o.error_bound_window, static_cast<int>(o.stopping),
+                static_cast<int>(o.pose_solver), static_cast<int>(o.flagged_initialisation),
+                static_cast<int>(o.weight_by_information), static_cast<int>(o.coarse_correction),
+                static_cast<int>(o.refine), static_cast<int>(o.refinement.solver),
+                static_cast<int>(o.refinement.preconditioner), o.refinement.max_iterations,
+                o.refinement.max_sweeps}) {
+    f.add(static_cast<std::uint64_t>(v));
+  }
+}
 
 }  // namespace moslam::transport_detail

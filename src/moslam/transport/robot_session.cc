@@ -24,6 +24,7 @@
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/group_transport.h"
 #include "moslam/transport/journal.h"
+#include "moslam/transport/solve_record.h"
 #include "moslam/transport/record_bytes.h"
 
 namespace moslam {
@@ -142,12 +143,17 @@ using Clock = std::chrono::steady_clock;
 constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'R', 'D', 'V', '2'};
 constexpr std::uint8_t kHeaderRecord = 1;
 constexpr std::uint8_t kEventRecord = 2;
+constexpr std::uint8_t kGroupRecord = 3;  // online: a group formed (solve_record.h)
+constexpr std::uint8_t kSolveRecord = 4;  // online: a group solve finished
 
 using transport_detail::Fingerprint;
+using transport_detail::GroupRecord;
+using transport_detail::SolveRecord;
 using transport_detail::RecordReader;
 using Record = transport_detail::RecordWriter;
 
-std::uint64_t SessionFingerprint(const RobotScenarioData& d, const MultiRobotSlamConfig& c) {
+std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionOptions& options) {
+  const MultiRobotSlamConfig& c = options.slam;
   Fingerprint f;
   f.add(static_cast<std::uint64_t>(d.robot));
   f.add(static_cast<std::uint64_t>(d.num_robots));
@@ -193,6 +199,10 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const MultiRobotSla
     f.add(k->same_object_radius);
     f.add(static_cast<std::uint64_t>(k->ambiguity_margin));
     f.add(static_cast<std::uint64_t>(k->max_search_nodes));
+  }
+  if (options.online) {  // the group solves change the maps, hence the later rendezvous
+    f.add(std::string("online"));
+    transport_detail::AddSolverOptions(f, options.dgs.solver);
   }
   return f.value();
 }
@@ -276,7 +286,7 @@ class RobotSession::Impl {
       };
     }
     if (!options_.dgs.state_dir.empty()) std::filesystem::create_directories(options_.dgs.state_dir);
-    if (!options_.dgs.state_dir.empty() && !options_.online) {
+    if (!options_.dgs.state_dir.empty()) {
       journal_ = std::make_unique<Journal>(
           (std::filesystem::path(options_.dgs.state_dir) / "rendezvous.bin").string());
       restore();
@@ -419,6 +429,7 @@ class RobotSession::Impl {
   // partners in range, and the group is the closure of those lists.
   void groupSolve(ObjectSlam& slam, int t) {
     const auto t0 = Clock::now();
+    if (replaySolve(slam, t)) return;
     const TransportStats before = transport_.stats();
     std::vector<int> in_range;
     std::vector<std::pair<int, int>> links;
@@ -467,6 +478,110 @@ class RobotSession::Impl {
     pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
                                   [&](const Received& r) { return SolveOf(r) < solve; }),
                    pending_.end());
+    std::vector<int> robots;
+    std::vector<TeamPair> team;
+    if (const auto journaled = journaled_groups_.find(t); journaled != journaled_groups_.end()) {
+      robots = journaled->second.robots;  // restarted in the solve: its partners formed it
+      team = journaled->second.team;
+    } else {
+      formGroup(join, partners, range, solve, t, robots, team);
+      if (journal_) {
+        std::vector<std::uint8_t> r{kGroupRecord};
+        transport_detail::AppendGroupRecord({static_cast<std::uint32_t>(t), robots, team}, r);
+        journal_->append(r);
+      }
+    }
+    const Matrix6 lambda = options_.slam.rendezvous.lambda();
+    RobotGroupPart part = BuildRobotGroupPart(slam, robots, shared_, team, lambda);
+    std::vector<Received> mine;
+    for (auto it = pending_.begin(); it != pending_.end();) {
+      if (SolveOf(*it) == solve) {
+        mine.push_back(std::move(*it));
+        it = pending_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    GroupTransport group_transport(
+        transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
+        std::move(mine));
+    DgsNodeOptions node_options = options_.dgs;
+    node_options.solve = solve;
+    // Its own journal, so that a robot restarted in the solve resumes it (dgs_node.h).
+    const std::filesystem::path solve_dir =
+        options_.dgs.state_dir.empty()
+            ? std::filesystem::path()
+            : std::filesystem::path(options_.dgs.state_dir) / "solves" / fmt::format("step_{:04d}", t);
+    node_options.state_dir = solve_dir.string();
+    node_options.log = [this, t, robots](const std::string& text) {
+      options_.log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t,
+                               fmt::join(robots, ","), robots.size() - 1, text));
+    };
+    DgsNode node(part.local, std::move(part.subgraph), std::move(part.initial), group_transport,
+                 node_options);
+    const DgsNodeResult solved = node.run();
+    Values solution = solved.estimate;
+    solution.insert(solved.neighbours.begin(), solved.neighbours.end());
+    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_, t);
+
+    SolveRecord done;
+    done.step = static_cast<std::uint32_t>(t);
+    done.estimate = update.estimate;
+    done.held = update.held;
+    done.rotation_rounds = static_cast<std::uint32_t>(solved.rotation_rounds);
+    done.pose_rounds = static_cast<std::uint32_t>(solved.pose_rounds);
+    done.refine_steps = static_cast<std::uint32_t>(solved.program.refine.iterations);
+    done.protocol_steps = static_cast<std::uint32_t>(solved.program.channel_steps);
+    done.object_object = static_cast<std::uint32_t>(part.object_object);
+    done.team_factors = static_cast<std::uint32_t>(part.team_factors);
+    done.refine_status = solved.program.refine.status;
+    if (journal_) {
+      std::vector<std::uint8_t> r{kSolveRecord};
+      transport_detail::AppendSolveRecord(done, r);
+      journal_->append(r);
+      std::filesystem::remove_all(solve_dir);  // the record replaces the solve's journal
+    }
+    finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
+  }
+
+  // A group solve of step t taken from the journal (restart): the robot's map and held copies
+  // after it, as computed then; nothing is sent. False when the journal does not hold it.
+  bool replaySolve(ObjectSlam& slam, int t) {
+    const auto solve = journaled_solves_.find(t);
+    if (solve == journaled_solves_.end()) return false;
+    finishSolve(slam, t, journaled_groups_.at(t).robots, solve->second, TransportStats{},
+                Clock::now(), true);
+    return true;
+  }
+
+  void finishSolve(ObjectSlam& slam, int t, const std::vector<int>& robots, const SolveRecord& done,
+                   const TransportStats& sent, Clock::time_point t0, bool replayed) {
+    for (const auto& [k, x] : done.held) held_[k] = x;
+    slam.setEstimate(done.estimate);
+    slam.setTeamFactors(TeamFactors(robot_, shared_, held_, options_.slam.rendezvous.lambda()));
+    SessionSolve rec;
+    rec.step = t;
+    rec.robots = robots;
+    rec.object_object = static_cast<int>(done.object_object);
+    rec.team_factors = static_cast<int>(done.team_factors);
+    rec.rotation_rounds = static_cast<int>(done.rotation_rounds);
+    rec.pose_rounds = static_cast<int>(done.pose_rounds);
+    rec.refine_steps = static_cast<int>(done.refine_steps);
+    rec.refine_status = done.refine_status;
+    rec.protocol_steps = static_cast<int>(done.protocol_steps);
+    rec.estimate = slam.estimate();
+    rec.sent = sent;
+    rec.replayed = replayed;
+    rec.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    saveMap(slam, fmt::format("step_{:04d}", t));
+    result_.solves.push_back(rec);
+    if (options_.on_solve) options_.on_solve(result_.solves.back());
+  }
+
+  // Waits for the joining statuses of the closure of `partners` within `range` (after publishing
+  // `join`); the group's robots and its held factors from every member's status.
+  void formGroup(const StatusPacket& join, const std::set<int>& partners, const std::set<int>& range,
+                 std::uint32_t solve, int t, std::vector<int>& robots, std::vector<TeamPair>& team) {
     std::set<int> group{robot_};
     group.insert(partners.begin(), partners.end());
     const auto deadline = Clock::now() + options_.dgs.join_timeout;
@@ -503,9 +618,7 @@ class RobotSession::Impl {
       }
       ingest(transport_.poll(std::chrono::milliseconds(50)));
     }
-    const std::vector<int> robots(group.begin(), group.end());
-    const Matrix6 lambda = options_.slam.rendezvous.lambda();
-    std::vector<TeamPair> team;
+    robots.assign(group.begin(), group.end());
     for (int r : robots) {
       for (const TeamPairEntry& e : team_of.at(r)) {
         if (group.count(e.other_robot)) continue;  // a partner's partner: solved, not held
@@ -513,52 +626,6 @@ class RobotSession::Impl {
                         e.mine_is_alpha, e.held, HeldEstimate{e.pose, static_cast<int>(e.step)}});
       }
     }
-    RobotGroupPart part = BuildRobotGroupPart(slam, robots, shared_, team, lambda);
-    std::vector<Received> mine;
-    for (auto it = pending_.begin(); it != pending_.end();) {
-      if (SolveOf(*it) == solve) {
-        mine.push_back(std::move(*it));
-        it = pending_.erase(it);
-      } else {
-        ++it;
-      }
-    }
-    GroupTransport group_transport(
-        transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
-        std::move(mine));
-    DgsNodeOptions node_options = options_.dgs;
-    node_options.solve = solve;
-    node_options.state_dir.clear();
-    node_options.log = [this, t, robots](const std::string& text) {
-      options_.log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t,
-                               fmt::join(robots, ","), robots.size() - 1, text));
-    };
-    DgsNode node(part.local, std::move(part.subgraph), std::move(part.initial), group_transport,
-                 node_options);
-    const DgsNodeResult solved = node.run();
-    Values solution = solved.estimate;
-    solution.insert(solved.neighbours.begin(), solved.neighbours.end());
-    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_, t);
-    for (auto& [k, x] : update.held) held_[k] = x;
-    slam.setEstimate(update.estimate);
-    slam.setTeamFactors(TeamFactors(robot_, shared_, held_, lambda));
-
-    SessionSolve rec;
-    rec.step = t;
-    rec.robots = robots;
-    rec.object_object = part.object_object;
-    rec.team_factors = part.team_factors;
-    rec.rotation_rounds = solved.rotation_rounds;
-    rec.pose_rounds = solved.pose_rounds;
-    rec.refine_steps = solved.program.refine.iterations;
-    rec.refine_status = solved.program.refine.status;
-    rec.protocol_steps = solved.program.channel_steps;
-    rec.estimate = slam.estimate();
-    rec.sent = Difference(transport_.stats(), before);
-    rec.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    saveMap(slam, fmt::format("step_{:04d}", t));
-    result_.solves.push_back(rec);
-    if (options_.on_solve) options_.on_solve(result_.solves.back());
   }
 
   // The robot's map (its graph and estimate, g2o with objects, and TUM) in
@@ -607,7 +674,7 @@ class RobotSession::Impl {
 
   // ---- journal ------------------------------------------------------------------------------
   void restore() {
-    const std::uint64_t fingerprint = SessionFingerprint(data_, options_.slam);
+    const std::uint64_t fingerprint = SessionFingerprint(data_, options_);
     const auto& records = journal_->records();
     if (records.empty()) {
       Record r;
@@ -634,6 +701,28 @@ class RobotSession::Impl {
         }
         continue;
       }
+      if (type == kGroupRecord || type == kSolveRecord) {
+        if (!options_.online) throw InvalidInputError(what + ": a group solve in a batch journal");
+        if (type == kGroupRecord) {
+          GroupRecord g = transport_detail::ReadGroupRecord(records[i], 1, what);
+          if (g.robots.empty() || !std::binary_search(g.robots.begin(), g.robots.end(), robot_) ||
+              g.robots.back() >= data_.num_robots) {
+            throw InvalidInputError(what + ": a group record of robots not in the team");
+          }
+          const int step = static_cast<int>(g.step);
+          journaled_groups_[step] = std::move(g);
+        } else {
+          SolveRecord solve = transport_detail::ReadSolveRecord(records[i], 1, what);
+          for (const auto& [k, x] : solve.estimate) {
+            if (k.robot != robot_) {
+              throw InvalidInputError(what + ": a solve record holds another robot's variable");
+            }
+          }
+          const int step = static_cast<int>(solve.step);
+          journaled_solves_[step] = std::move(solve);
+        }
+        continue;
+      }
       if (type != kEventRecord) {
         throw InvalidInputError(what + ": unknown rendezvous journal record type " +
                                 std::to_string(type));
@@ -646,6 +735,16 @@ class RobotSession::Impl {
     }
     if (!journaled_.empty()) {
       options_.log(fmt::format("restart: {} rendezvous taken from {}", journaled_.size(), what));
+    }
+    for (const auto& [step, solve] : journaled_solves_) {
+      if (!journaled_groups_.count(step)) {
+        throw InvalidInputError(what + ": the group solve of step " + std::to_string(step) +
+                                " has no group record");
+      }
+    }
+    if (!journaled_solves_.empty()) {
+      options_.log(fmt::format("restart: {} group solves taken from {}", journaled_solves_.size(),
+                               what));
     }
   }
 
@@ -798,6 +897,8 @@ class RobotSession::Impl {
   bool ran_ = false;
   std::unique_ptr<Journal> journal_;
   std::map<std::size_t, EventPairs> journaled_;  // event index -> what it changed
+  std::map<int, GroupRecord> journaled_groups_;  // online, by step: groups formed
+  std::map<int, SolveRecord> journaled_solves_;  // online, by step: group solves finished
   std::uint32_t revision_ = 0;
   std::vector<SharedObject> shared_;
   // Received, by (sender, step), in arrival order (duplicates after a restart are identical).

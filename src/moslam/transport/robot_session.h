@@ -41,6 +41,15 @@
 // may have died before they left) and continues; the DGS phase has its own journal (dgs_node.h).
 // Packets of the DGS protocol that arrive during the rendezvous phase are kept and handed to the
 // DGS node.
+// Online, the journal also holds each group solve: the group when it formed (its robots and held
+// factors: a robot restarted in the solve cannot hear the joining statuses again) and, when the
+// solve is over, the robot's map and the partner landmarks it holds (solve_record.h); the solve's
+// DgsNode journals in state_dir/solves/step_<t>/ meanwhile. A restarted robot takes its finished
+// solves from the journal without the network, and resumes the solve it was in from the node's
+// journal, while its partners wait for it (lock-step; a robot not back within the DgsNode's
+// leave_timeout has left the solve for them). Not covered: a robot restarted while it waited
+// for the joining statuses, when a partner's status has since left the transports' history
+// (kTransportHistoryDepth statuses later): it fails at join_timeout.
 #pragma once
 
 #include <chrono>
@@ -115,6 +124,7 @@ struct SessionSolve {
   StageStatus refine_status = StageStatus::kNotRun;
   Values estimate;                // its map after the solve (its own frame)
   TransportStats sent;            // what this robot sent for the solve (join included)
+  bool replayed = false;          // taken from the journal (restart): nothing sent
   double seconds = 0.0;
 };
 
@@ -127,7 +137,8 @@ struct RobotSessionOptions {
   // solve their joint graph with DgsNode (dgs.solver, which must refine: the partners' landmarks
   // a robot holds afterwards are its refined copies), each from its own part, as solve 1 + step;
   // no batch solve at the end. dgs.state_dir then receives the map after every solve
-  // (maps/step_<t>/map.g2o and robot_<r>.tum) and no journal: an online robot does not resume.
+  // (maps/step_<t>/map.g2o and robot_<r>.tum) and the journal: a restarted online robot takes
+  // the finished solves from it and resumes the one it was in (Restart, above).
   bool online = false;
   std::function<void(const SessionSolve&)> on_solve;  // after each group solve
   std::chrono::milliseconds rendezvous_timeout{60000};  // per event

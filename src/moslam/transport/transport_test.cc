@@ -5,6 +5,7 @@
 #include <functional>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -13,6 +14,7 @@
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/journal.h"
+#include "moslam/transport/solve_record.h"
 #include "moslam/transport/step_record.h"
 #include "moslam/transport/transport.h"
 
@@ -370,6 +372,83 @@ TEST(EventRecord, RoundTripsAndRejectsTruncatedTrailingAndRepeatedObjects) {
   AppendEventRecord({1, {}, {}}, huge);
   huge[4] = huge[5] = huge[6] = huge[7] = 0xFF;
   EXPECT_THROW(ReadEventRecord(huge, 0, "test"), InvalidInputError);
+}
+
+// The online group and solve records of a robot session (solve_record.h): bit-exact round trips,
+// and what a corrupt journal may hold refused.
+TEST(SolveRecord, RoundTripsBitExactAndRejectsCorruptRecords) {
+  using namespace transport_detail;
+  const SE3 x(SO3::Exp(Vector3(0.1, -0.2, 3.1)), Vector3(1.0 / 3.0, -2e-17, 5.5));
+  GroupRecord g;
+  g.step = 12;
+  g.robots = {1, 3, 4};
+  g.team.push_back({Key::Object(1, 4), Key::Object(5, 2), true, true, HeldEstimate{x, 9}});
+  g.team.push_back({Key::Object(3, 0), Key::Object(0, 7), false, false, HeldEstimate{}});
+  std::vector<std::uint8_t> bytes{0xAB};
+  AppendGroupRecord(g, bytes);
+  const GroupRecord gb = ReadGroupRecord(bytes, 1, "test");
+  EXPECT_EQ(gb.step, 12u);
+  EXPECT_EQ(gb.robots, g.robots);
+  ASSERT_EQ(gb.team.size(), 2u);
+  EXPECT_EQ(gb.team[0].mine, g.team[0].mine);
+  EXPECT_EQ(gb.team[0].other, g.team[0].other);
+  EXPECT_TRUE(gb.team[0].mine_is_alpha && gb.team[0].held);
+  EXPECT_EQ(gb.team[0].copy.step, 9);
+  EXPECT_EQ(gb.team[0].copy.pose.rotation().matrix(), x.rotation().matrix());  // bit for bit
+  EXPECT_EQ(gb.team[0].copy.pose.translation(), x.translation());
+  EXPECT_FALSE(gb.team[1].mine_is_alpha || gb.team[1].held);
+  std::vector<std::uint8_t> cut(bytes.begin(), bytes.end() - 1);
+  EXPECT_THROW(ReadGroupRecord(cut, 1, "test"), InvalidInputError);
+  g.robots = {3, 1};
+  std::vector<std::uint8_t> unordered;
+  AppendGroupRecord(g, unordered);
+  EXPECT_THROW(ReadGroupRecord(unordered, 0, "test"), InvalidInputError);
+
+  SolveRecord s;
+  s.step = 12;
+  s.estimate = {{Key::Pose(3, 0), SE3()}, {Key::Pose(3, 1), x}, {Key::Object(3, 0), x.inverse()}};
+  s.held = {{Key::Object(5, 2), HeldEstimate{x, 12}}};
+  s.rotation_rounds = 14;
+  s.pose_rounds = 12;
+  s.refine_steps = 4;
+  s.protocol_steps = 60;
+  s.object_object = 3;
+  s.team_factors = 2;
+  s.refine_status = StageStatus::kConverged;
+  bytes.clear();
+  AppendSolveRecord(s, bytes);
+  const SolveRecord sb = ReadSolveRecord(bytes, 0, "test");
+  ASSERT_EQ(sb.estimate.size(), 3u);
+  for (const auto& [k, v] : s.estimate) {
+    EXPECT_EQ(sb.estimate.at(k).rotation().matrix(), v.rotation().matrix());
+    EXPECT_EQ(sb.estimate.at(k).translation(), v.translation());
+  }
+  EXPECT_EQ(sb.held.at(Key::Object(5, 2)).step, 12);
+  EXPECT_EQ(sb.rotation_rounds, 14u);
+  EXPECT_EQ(sb.protocol_steps, 60u);
+  EXPECT_EQ(sb.refine_status, StageStatus::kConverged);
+  std::vector<std::uint8_t> again;
+  AppendSolveRecord(sb, again);
+  EXPECT_EQ(again, bytes);
+  std::vector<std::uint8_t> longer = bytes;
+  longer.push_back(0);
+  EXPECT_THROW(ReadSolveRecord(longer, 0, "test"), InvalidInputError);
+  // A NaN in a pose, a rotation that is not one, an unknown refine status.
+  std::vector<std::uint8_t> bad = bytes;
+  const std::size_t first_pose = 4 + 4 + 11;  // step, count, key
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::memcpy(&bad[first_pose], &nan, sizeof nan);
+  EXPECT_THROW(ReadSolveRecord(bad, 0, "test"), InvalidInputError);
+  bad = bytes;
+  const double two = 2.0;
+  std::memcpy(&bad[first_pose], &two, sizeof two);
+  EXPECT_THROW(ReadSolveRecord(bad, 0, "test"), InvalidInputError);
+  bad = bytes;
+  bad.back() = 9;
+  EXPECT_THROW(ReadSolveRecord(bad, 0, "test"), InvalidInputError);
+  std::vector<std::uint8_t> huge = bytes;  // a count far beyond the bytes: an error, no allocation
+  huge[4] = huge[5] = huge[6] = huge[7] = 0xFF;
+  EXPECT_THROW(ReadSolveRecord(huge, 0, "test"), InvalidInputError);
 }
 
 TEST(CheckPacket, AcceptsInfiniteChangeAndValidObjectLists) {
