@@ -174,8 +174,9 @@ TEST(OnlineSession, ARobotKilledInAndBetweenGroupSolvesResumesFromItsJournal) {
   for (const GroupSolveRecord& s : twin.solves) {
     for (int r : s.robots) ++solves_of[r];
   }
-  int victim = 0;
-  for (const auto& [r, n] : solves_of) victim = n > solves_of[victim] ? r : victim;
+  ASSERT_FALSE(solves_of.empty());
+  const int victim = std::max_element(solves_of.begin(), solves_of.end(), [](const auto& a,
+                                      const auto& b) { return a.second < b.second; })->first;
   ASSERT_GE(solves_of[victim], 4);
 
   const std::filesystem::path dir =

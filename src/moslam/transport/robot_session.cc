@@ -24,8 +24,8 @@
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/group_transport.h"
 #include "moslam/transport/journal.h"
-#include "moslam/transport/solve_record.h"
 #include "moslam/transport/record_bytes.h"
+#include "moslam/transport/solve_record.h"
 
 namespace moslam {
 
@@ -148,8 +148,8 @@ constexpr std::uint8_t kSolveRecord = 4;  // online: a group solve finished
 
 using transport_detail::Fingerprint;
 using transport_detail::GroupRecord;
-using transport_detail::SolveRecord;
 using transport_detail::RecordReader;
+using transport_detail::SolveRecord;
 using Record = transport_detail::RecordWriter;
 
 std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionOptions& options) {
@@ -485,11 +485,8 @@ class RobotSession::Impl {
       team = journaled->second.team;
     } else {
       formGroup(join, partners, range, solve, t, robots, team);
-      if (journal_) {
-        std::vector<std::uint8_t> r{kGroupRecord};
-        transport_detail::AppendGroupRecord({static_cast<std::uint32_t>(t), robots, team}, r);
-        journal_->append(r);
-      }
+      record(kGroupRecord, GroupRecord{static_cast<std::uint32_t>(t), robots, team},
+             transport_detail::AppendGroupRecord);
     }
     const Matrix6 lambda = options_.slam.rendezvous.lambda();
     RobotGroupPart part = BuildRobotGroupPart(slam, robots, shared_, team, lambda);
@@ -535,12 +532,8 @@ class RobotSession::Impl {
     done.object_object = static_cast<std::uint32_t>(part.object_object);
     done.team_factors = static_cast<std::uint32_t>(part.team_factors);
     done.refine_status = solved.program.refine.status;
-    if (journal_) {
-      std::vector<std::uint8_t> r{kSolveRecord};
-      transport_detail::AppendSolveRecord(done, r);
-      journal_->append(r);
-      std::filesystem::remove_all(solve_dir);  // the record replaces the solve's journal
-    }
+    record(kSolveRecord, done, transport_detail::AppendSolveRecord);
+    if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
     finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
   }
 
@@ -749,10 +742,18 @@ class RobotSession::Impl {
   }
 
   void record(std::size_t index, const EventPairs& pairs) {
+    record(kEventRecord,
+           transport_detail::EventRecord{static_cast<std::uint32_t>(index), pairs.pairs,
+                                         pairs.removed},
+           transport_detail::AppendEventRecord);
+  }
+
+  // Appends one record (its type byte, then `append`'s fields) to the journal, if there is one.
+  template <typename Fields, typename Append>
+  void record(std::uint8_t type, const Fields& fields, Append append) {
     if (!journal_) return;
-    std::vector<std::uint8_t> r{kEventRecord};
-    transport_detail::AppendEventRecord({static_cast<std::uint32_t>(index), pairs.pairs,
-                                         pairs.removed}, r);
+    std::vector<std::uint8_t> r{type};
+    append(fields, r);
     journal_->append(r);
   }
 
