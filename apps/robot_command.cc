@@ -276,7 +276,7 @@ nlohmann::json RendezvousJson(const RobotSessionResult& r) {
                       {"objects_sent", e.objects_sent}, {"new_shared", e.new_shared},
                       {"removed_shared", e.removed_shared},
                       {"binary_bytes", e.binary_bytes}, {"replayed", e.replayed},
-                      {"seconds", e.seconds}});
+                      {"skipped", e.skipped}, {"seconds", e.seconds}});
   }
   return events;
 }
@@ -347,7 +347,8 @@ int RunScenarioRobot(const RobotArgs& a) {
     };
     options.on_rendezvous = [](const SessionRendezvous& r) {
       fmt::print("rendezvous: step {} alpha {} beta {} shared {}{}\n", r.event.step, r.event.alpha,
-                 r.event.beta, r.new_shared, r.replayed ? " replayed" : "");
+                 r.event.beta, r.new_shared,
+                 r.replayed ? " replayed" : (r.skipped ? " skipped (peer left)" : ""));
       std::fflush(stdout);
     };
   }

@@ -436,7 +436,7 @@ TEST(Team, OnlineScenarioProcessesSaveEveryMapOfTheInProcessTwin) {
 }
 
 TEST(Team, ScenarioRobotsKilledInTheRendezvousAndInTheDgsAndRestartedLoseNothing) {
-  const int domain = 54, n = 6;
+  const int domain = 48, n = 6;
   const std::string uri = LoopbackConfigXml(domain, n);
   const fs::path out = FreshDir("scenario_restart");
   const auto deadline = Clock::now() + std::chrono::seconds(120);
@@ -505,7 +505,7 @@ TEST(Team, ScenarioRobotsKilledInTheRendezvousAndInTheDgsAndRestartedLoseNothing
 // --out takes its first solve from the journal, resumes the second from the solve's node journal,
 // and every map the team saves is still the in-process twin's.
 TEST(Team, AnOnlineRobotKilledInAGroupSolveAndRestartedLosesNothing) {
-  const int domain = 60, n = 6;
+  const int domain = 59, n = 6;
   const std::string uri = LoopbackConfigXml(domain, n);
   const fs::path out = FreshDir("online_restart");
   const auto deadline = Clock::now() + std::chrono::seconds(120);
@@ -562,6 +562,45 @@ TEST(Team, AnOnlineRobotKilledInAGroupSolveAndRestartedLosesNothing) {
   EXPECT_TRUE(j["ok"].get<bool>());
   EXPECT_GT(j["maps_compared"].get<int>(), 2 * j["group_solves"].get<int>());
   EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  fs::remove_all(out);
+}
+
+// An online robot killed for good after its first group solve: its partners find it gone, skip
+// their later rendezvous with it and finish the mission.
+TEST(Team, AnOnlineRobotThatDiesForGoodIsSkippedAndTheOthersFinish) {
+  const int domain = 49, n = 6, victim = 1;
+  const std::string uri = LoopbackConfigXml(domain, n);
+  const fs::path out = FreshDir("online_leave");
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  std::vector<std::unique_ptr<Child>> robots;
+  for (int r = 0; r < n; ++r) {
+    std::vector<std::string> a = {"robot", "--robot", std::to_string(r), "--domain",
+                                  std::to_string(domain), "--out",
+                                  (out / ("robot" + std::to_string(r))).string(), "--progress",
+                                  "--json", "--online", "--leave-timeout", "2", "--join-timeout",
+                                  "30", "--stall-timeout", "60", "--rendezvous-timeout", "30"};
+    a.insert(a.end(), kScenario.begin(), kScenario.end());
+    robots.push_back(std::make_unique<Child>(a, uri, out / ("stderr" + std::to_string(r))));
+  }
+  ASSERT_TRUE(robots[victim]->waitForLine(
+      [](const std::string& l) { return l.rfind("group solve: ", 0) == 0; }, deadline))
+      << robots[victim]->output();
+  robots[victim]->kill9();
+  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
+  int skipped = 0;
+  for (int r = 0; r < n; ++r) {
+    if (r == victim) continue;
+    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
+    const nlohmann::json j = LastJson(robots[r]->output());
+    ASSERT_TRUE(j.is_object()) << robots[r]->output();
+    for (const nlohmann::json& e : j["rendezvous"]) {
+      if (!e["skipped"].get<bool>()) continue;
+      ++skipped;
+      EXPECT_TRUE(e["alpha"].get<int>() == victim || e["beta"].get<int>() == victim) << e.dump();
+    }
+    EXPECT_TRUE(fs::exists(out / ("robot" + std::to_string(r)) / "maps" / "final" / "map.g2o"));
+  }
+  EXPECT_GT(skipped, 0);
   fs::remove_all(out);
 }
 

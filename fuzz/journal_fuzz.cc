@@ -2,11 +2,12 @@
 // record framing (length, CRC-32, a torn or corrupt tail) of journal.bin, and the protocol step
 // records of the DGS node (transport/step_record.h), whose estimates and coarse shares go to the
 // decoders of distributed/messages.h, and the rendezvous event records of a robot session
-// (transport/event_record.h) and the group and solve records of an online session
-// (transport/solve_record.h). The first byte picks which; the rest is its input. A malformed
-// input may only be rejected with a moslam::Error (the framing: cut at the first bad record); any
-// other exception, a crash, a sanitizer report or a hang is a bug. A step, event, group or solve
-// record that is accepted must encode back to the same bytes.
+// (transport/event_record.h) and the group, solve and departure records of an online session
+// (transport/solve_record.h, event_record.h). The first byte picks which; the rest is its
+// input. A malformed input may only be rejected with a moslam::Error (the framing: cut at the
+// first bad record); any other exception, a crash, a sanitizer report or a hang is a bug. A
+// step, event, group, solve or departure record that is accepted must encode back to the same
+// bytes.
 #include <unistd.h>
 
 #include <cstddef>
@@ -64,7 +65,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size == 0) return 0;
   const std::vector<std::uint8_t> bytes(data + 1, data + size);
   try {
-    switch (data[0] % 5) {
+    switch (data[0] % 6) {
       case 0:
         Framing(bytes);
         break;
@@ -77,8 +78,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       case 3:
         RoundTrip(bytes, ReadGroupRecord, AppendGroupRecord);
         break;
-      default:
+      case 4:
         RoundTrip(bytes, ReadSolveRecord, AppendSolveRecord);
+        break;
+      default:
+        RoundTrip(bytes, ReadLeftRecord, AppendLeftRecord);
     }
   } catch (const moslam::Error&) {
   }

@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <set>
+#include <vector>
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/centralized_two_stage.h"
@@ -310,6 +312,54 @@ TEST(OnlineTeam, OneRendezvousOfTheWholeTeamAtTheEndGivesTheBatchOptimum) {
     EXPECT_LT(MaxPoseDifference(r.estimate(), InOwnFrame(optimum, r.robot())), 1e-6)
         << "robot " << r.robot();
   }
+}
+
+// A robot that leaves the team (MultiRobotSlamConfig::leave_after): its later rendezvous are
+// skipped with nothing exchanged, the groups in range still list it (as gone), and no solve
+// includes it; before it leaves, everything is as without the departure.
+TEST(OnlineTeam, ARobotThatLeftTakesPartInNoRendezvousAndNoSolve) {
+  const SimulationData data = Simulation(3, 40, 3);
+  ASSERT_FALSE(data.rendezvous.empty());
+  const int leaves = data.rendezvous.front().alpha;
+  const int last = data.rendezvous.front().step;
+  MultiRobotSlamConfig config = MultiRobotSlamConfigForNoise(SensingConfig{});
+  OnlineOptions options;
+  options.lambda = config.rendezvous.lambda();
+  const MultiRobotSlamResult all = RunMultiRobotObjectSlam(data, config);
+  config.leave_after[leaves] = last;
+  OnlineTeam team(options);
+  int gone_listed = 0;
+  config.on_rendezvous = team.hook([&](const RendezvousGroup& g, const MultiRobotSlamResult&) {
+    const bool in_range = std::count(g.robots.begin(), g.robots.end(), leaves) > 0;
+    EXPECT_EQ(g.gone, in_range && g.step > last ? std::vector<int>{leaves} : std::vector<int>{});
+    gone_listed += g.gone.empty() ? 0 : 1;
+  });
+  const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, config);
+  EXPECT_GT(gone_listed, 0);
+  ASSERT_EQ(slam.rendezvous.size(), all.rendezvous.size());
+  int skipped = 0;
+  for (std::size_t i = 0; i < slam.rendezvous.size(); ++i) {
+    const RendezvousRecord& e = slam.rendezvous[i];
+    const bool with = e.event.alpha == leaves || e.event.beta == leaves;
+    EXPECT_EQ(e.skipped, with && e.event.step > last) << "event " << i;
+    if (e.skipped) {
+      ++skipped;
+      EXPECT_EQ(e.new_shared + e.injected + e.objects_sent, 0);
+    }
+    if (e.event.step <= last) {
+      EXPECT_EQ(e.new_shared, all.rendezvous[i].new_shared);
+    }
+  }
+  EXPECT_GT(skipped, 0);
+  for (const GroupSolveRecord& s : team.solves()) {
+    if (s.step > last) {
+      EXPECT_EQ(std::count(s.robots.begin(), s.robots.end(), leaves), 0);
+    }
+  }
+  config.leave_after = {{-1, 3}};
+  EXPECT_THROW(config.validate(), InvalidInputError);
+  config.leave_after = {{7, 3}};  // robot 7 of 3
+  EXPECT_THROW(RunMultiRobotObjectSlam(data, config), InvalidInputError);
 }
 
 }  // namespace

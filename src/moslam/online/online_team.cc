@@ -1,6 +1,8 @@
 #include "moslam/online/online_team.h"
 
+#include <algorithm>
 #include <chrono>
+#include <iterator>
 #include <set>
 #include <utility>
 
@@ -35,7 +37,10 @@ void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult
     }
     return team.robots[static_cast<std::size_t>(r)];
   };
-  for (const std::vector<int>& part : LinkedGroups(group.robots, team.shared)) {
+  std::vector<int> present;  // the robots that left take part in no solve
+  std::set_difference(group.robots.begin(), group.robots.end(), group.gone.begin(),
+                      group.gone.end(), std::back_inserter(present));
+  for (const std::vector<int>& part : LinkedGroups(present, team.shared)) {
     if (part.size() < 2) continue;  // nothing shared with the others yet
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<const ObjectSlam*> members;

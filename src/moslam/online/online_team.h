@@ -8,8 +8,8 @@
 //   RunMultiRobotObjectSlam(data, slam);   // the robots' maps are updated at every rendezvous
 //
 // At a group of robots in range (RendezvousGroup) the team splits it into the robots linked by
-// shared objects among them (LinkedGroups; a robot linked to none only refreshes its own
-// graph), solves each part of two or more robots, hands every robot its estimate in its own
+// shared objects among them (LinkedGroups, without the robots that have left: RendezvousGroup::
+// gone; a robot linked to none only refreshes its own graph), solves each part of two or more robots, hands every robot its estimate in its own
 // frame, the landmarks of its partners in range, and its team factors for the shared pairs with
 // every partner (so its own SLAM keeps what the team told it until the next rendezvous).
 #pragma once

@@ -37,6 +37,11 @@ void MultiRobotSlamConfig::validate() const {
   if (final_iterations < 0) {
     throw InvalidInputError("MultiRobotSlamConfig: final_iterations must be >= 0");
   }
+  for (const auto& [robot, step] : leave_after) {
+    if (robot < 0 || step < 0) {
+      throw InvalidInputError("MultiRobotSlamConfig: leave_after needs robot ids and steps >= 0");
+    }
+  }
 }
 
 MultiRobotSlamConfig MultiRobotSlamConfigForNoise(const SensingConfig& sensing) {
@@ -81,6 +86,17 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
     }
   }
 
+  for (const auto& [robot, step] : config.leave_after) {
+    if (robot >= n) {
+      throw InvalidInputError("RunMultiRobotObjectSlam: leave_after names robot " +
+                              std::to_string(robot) + " of " + std::to_string(n));
+    }
+  }
+  const auto left = [&](int robot, int t) {
+    const auto it = config.leave_after.find(robot);
+    return it != config.leave_after.end() && t > it->second;
+  };
+
   MultiRobotSlamResult out;
   out.robots.reserve(static_cast<std::size_t>(n));
   for (int r = 0; r < n; ++r) out.robots.emplace_back(r, config.slam);
@@ -108,6 +124,13 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
       auto& beta = out.robots[static_cast<std::size_t>(e.beta)];
       alpha.refresh(config.slam.iterations_per_update);
       beta.refresh(config.slam.iterations_per_update);
+      if (left(e.alpha, t) || left(e.beta, t)) {  // nothing exchanged
+        RendezvousRecord skipped;
+        skipped.event = e;
+        skipped.skipped = true;
+        out.rendezvous.push_back(skipped);
+        continue;
+      }
       std::optional<SE3> beta_T_alpha;
       if (config.known_initial_poses) {
         beta_T_alpha = BetaTAlpha(data.trajectories[static_cast<std::size_t>(e.alpha)].front(),
@@ -194,7 +217,11 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
         links.emplace_back(e.alpha, e.beta);
       }
       for (std::vector<int>& g : ConnectedRobots(robots, links)) {
-        config.on_rendezvous(RendezvousGroup{t, std::move(g)}, out);
+        RendezvousGroup group{t, std::move(g), {}};
+        for (int r : group.robots) {
+          if (left(r, t)) group.gone.push_back(r);
+        }
+        config.on_rendezvous(group, out);
       }
     }
   }

@@ -25,6 +25,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -42,6 +43,9 @@ struct MultiRobotSlamResult;
 struct RendezvousGroup {
   int step = 0;
   std::vector<int> robots;  // increasing ids, 2 or more
+  // Robots of `robots` that have left the team (MultiRobotSlamConfig::leave_after): in range by
+  // the events, but they take part in nothing (no solve includes them).
+  std::vector<int> gone;
 };
 
 struct MultiRobotSlamConfig {
@@ -58,6 +62,11 @@ struct MultiRobotSlamConfig {
   double outlier_fraction = 0.0;
   std::uint32_t outlier_seed = 1;
   int final_iterations = 10;  // Gauss-Newton iterations per robot after the last step
+  // Fault experiments: robots that leave the team for good (robot id -> the last step they take
+  // part in), as the robot processes handle them (transport/robot_session.h, online mapping). At
+  // a later step a rendezvous event with such a robot is skipped: both robots still refresh
+  // before it, no pair is exchanged (none injected), and the groups in range list it in `gone`.
+  std::map<int, int> leave_after;
   // Called after the rendezvous events of a time step, once per group of robots in range
   // (groups in the order of their lowest robot id), with the team as it is then: online
   // mapping solves the group's joint graph here (online/online_team.h), an evaluation can
@@ -83,6 +92,7 @@ struct RendezvousRecord {
   int removed_correct = 0;       // ... that were right
   int injected = 0;              // wrong pairs injected (MultiRobotSlamConfig::outlier_fraction)
   int truly_shared = 0;          // objects both robots had mapped then (ground truth)
+  bool skipped = false;          // one of the two had left (MultiRobotSlamConfig::leave_after)
   // Unknown initial poses: the alignment's outcome; `wrong`: accepted with most pairs wrong.
   std::optional<AlignmentStatus> alignment;
   int alignment_support = 0, alignment_rival = 0;  // ConstellationAlignment::support / rival

@@ -44,4 +44,23 @@ EventRecord ReadEventRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
   return record;
 }
 
+void AppendLeftRecord(const LeftRecord& record, std::vector<std::uint8_t>& out) {
+  RecordWriter b;
+  b.u16(record.robot).u32(record.step);
+  out.insert(out.end(), b.data().begin(), b.data().end());
+}
+
+LeftRecord ReadLeftRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
+                          const std::string& what) {
+  if (offset > bytes.size()) throw InvalidInputError(what + ": truncated journal record");
+  const std::vector<std::uint8_t> body(bytes.begin() + static_cast<std::ptrdiff_t>(offset),
+                                       bytes.end());
+  RecordReader p(body, what);
+  LeftRecord record;
+  record.robot = p.u16();
+  record.step = p.u32();
+  if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a departure record");
+  return record;
+}
+
 }  // namespace moslam::transport_detail

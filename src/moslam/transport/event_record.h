@@ -4,6 +4,11 @@
 // fuzz/journal_fuzz.cc. Little-endian, after the record type byte:
 //
 //   u32 event | u32 n | n x (u32 alpha object | u32 beta object) | u32 m | m x (the same)
+//
+// And the record of a partner found gone for good (online mapping: robot_session.h), from which
+// on the robot skips its rendezvous and leaves it out of its group solves:
+//
+//   u16 robot | u32 step (the time step at which it was found gone)
 #pragma once
 
 #include <cstdint>
@@ -28,5 +33,15 @@ void AppendEventRecord(const EventRecord& record, std::vector<std::uint8_t>& out
 // twice (what a rendezvous answer never does).
 EventRecord ReadEventRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                             const std::string& what);
+
+struct LeftRecord {
+  std::uint16_t robot = 0;
+  std::uint32_t step = 0;
+};
+
+void AppendLeftRecord(const LeftRecord& record, std::vector<std::uint8_t>& out);
+// As ReadEventRecord: throws InvalidInputError "<what>: ..." on truncated or trailing bytes.
+LeftRecord ReadLeftRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
+                          const std::string& what);
 
 }  // namespace moslam::transport_detail

@@ -62,10 +62,14 @@ OnlineRun RunTwin(const SimulationData& data, const RobotSessionOptions& session
 struct Crash : std::runtime_error {
   Crash() : std::runtime_error("simulated crash") {}
 };
+struct Leave : std::runtime_error {
+  Leave() : std::runtime_error("simulated departure") {}
+};
 
 // One session per robot, each on its thread over one in-process network, with the options
 // `options(robot)` gives; a session that throws Crash is restarted (a fresh transport, as a new
-// process) with the same options. Every other failure fails the test.
+// process) with the same options; one that throws Leave is gone for good (its transport closed,
+// its result left empty). Every other failure fails the test.
 std::vector<RobotSessionResult> RunSessions(
     const SimulationData& data, int robots,
     const std::function<RobotSessionOptions(int)>& options) {
@@ -87,6 +91,9 @@ std::vector<RobotSessionResult> RunSessions(
         } catch (const Crash&) {
           transports[ri].reset();  // the process is gone; restarted, it receives the history
           transports[ri] = net.connect(r, {[](const std::string&) {}});
+        } catch (const Leave&) {
+          transports[ri].reset();
+          return;
         } catch (const std::exception& e) {
           errors[ri] = e.what();
           return;
@@ -99,12 +106,14 @@ std::vector<RobotSessionResult> RunSessions(
   return results;
 }
 
-// Every group solve of every robot and its final map against the twin: the same steps, robots
-// and sweeps; returns the largest difference of a map (m or rad), counts the solves compared.
+// Every group solve of every robot (but `except`) and its final map against the twin: the same
+// steps, robots and sweeps; returns the largest difference of a map (m or rad), counts the
+// solves compared.
 double CompareWithTwin(const std::vector<RobotSessionResult>& results, const OnlineRun& twin,
-                       std::size_t* solves) {
+                       std::size_t* solves, int except = -1) {
   double largest_difference = 0.0;
   for (int r = 0; r < static_cast<int>(results.size()); ++r) {
+    if (r == except) continue;
     const RobotSessionResult& got = results[static_cast<std::size_t>(r)];
     std::vector<const GroupSolveRecord*> expected;
     for (const GroupSolveRecord& s : twin.solves) {
@@ -233,6 +242,120 @@ TEST(OnlineSession, ARobotKilledInAndBetweenGroupSolvesResumesFromItsJournal) {
                                         fmt::format("step_{:04d}", s.step) / "map.g2o"));
   }
   std::filesystem::remove_all(dir);
+}
+
+// A robot that leaves for good right after one of its group solves: its partners find it gone
+// when they wait for it, at a rendezvous or for its joining status, skip it from then on, and map
+// exactly as the twin in which it leaves after that step (MultiRobotSlamConfig::leave_after). At
+// the next step two events are added so that robot x, which shares objects with it but has not
+// found it gone, is in range of it only through robot a: x finds it gone while the group forms,
+// and its pairs with it become held factors of the solve with a.
+TEST(OnlineSession, ARobotThatLeavesForGoodIsSkippedAndTheOthersMapAsTheTwin) {
+  const ScenarioSpec spec = SixRobots();
+  SimulationData data = SimulateScenario(spec);
+  RobotSessionOptions base = OnlineSessionOptions(spec);
+  base.dgs.leave_timeout = milliseconds(300);
+  const OnlineRun full = RunTwin(data, base);
+  std::map<int, std::vector<int>> steps_of;  // robot -> steps of its solves
+  for (const GroupSolveRecord& s : full.solves) {
+    for (int r : s.robots) steps_of[r].push_back(s.step);
+  }
+  ASSERT_FALSE(steps_of.empty());
+  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
+                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  ASSERT_GE(steps_of[victim].size(), 3u);
+  const int last_step = steps_of[victim][1];  // it leaves after its second solve
+  RobotSessionOptions twin_options = base;
+  twin_options.slam.leave_after[victim] = last_step;
+
+  // x: shares objects with the victim and has no rendezvous with it in (last_step, meet]; a:
+  // linked to x at step meet, where the two added events are, with the victim in range of a.
+  const OnlineRun before = RunTwin(data, twin_options);
+  const int meet = last_step + 1;
+  ASSERT_LT(meet, data.numSteps());
+  const auto shares = [&](int p, int q) {
+    return std::any_of(before.slam.shared.begin(), before.slam.shared.end(), [&](const SharedObject& o) {
+      const int a = o.alpha_object.robot, b = o.beta_object.robot;
+      return (a == p && b == q) || (a == q && b == p);
+    });
+  };
+  const auto met_again = [&](int r) {
+    return std::any_of(data.rendezvous.begin(), data.rendezvous.end(), [&](const RendezvousEvent& e) {
+      return e.step > last_step && e.step <= meet &&
+             ((e.alpha == r && e.beta == victim) || (e.alpha == victim && e.beta == r));
+    });
+  };
+  const SimulationData original = data;
+  OnlineRun twin;
+  int x = -1, a = -1;
+  for (int r = 0; r < spec.robots && x < 0; ++r) {
+    if (r == victim || !shares(r, victim) || met_again(r)) continue;
+    for (int q = 0; q < spec.robots && x < 0; ++q) {
+      if (q == r || q == victim || !shares(r, q)) continue;
+      data = original;
+      const auto at = std::upper_bound(data.rendezvous.begin(), data.rendezvous.end(), meet,
+                                       [](int step, const RendezvousEvent& e) { return step < e.step; });
+      data.rendezvous.insert(at, {RendezvousEvent{meet, std::min(victim, q), std::max(victim, q)},
+                                  RendezvousEvent{meet, std::min(q, r), std::max(q, r)}});
+      twin = RunTwin(data, twin_options);
+      // The solve of x and a at `meet` holds x's pairs with the victim.
+      for (const GroupSolveRecord& s : twin.solves) {
+        if (s.step == meet && s.team_factors > 0 &&
+            std::count(s.robots.begin(), s.robots.end(), r) > 0 &&
+            std::count(s.robots.begin(), s.robots.end(), q) > 0) {
+          x = r;
+          a = q;
+        }
+      }
+    }
+  }
+  ASSERT_GE(x, 0) << "no robot x of the kind the test needs in this scenario";
+  int twin_skipped = 0;
+  for (const RendezvousRecord& e : twin.slam.rendezvous) twin_skipped += e.skipped ? 1 : 0;
+  ASSERT_GT(twin_skipped, 1);
+  for (const GroupSolveRecord& s : twin.solves) {
+    if (s.step > last_step) {
+      EXPECT_EQ(std::count(s.robots.begin(), s.robots.end(), victim), 0);
+    }
+  }
+
+  std::vector<std::pair<int, std::string>> log;
+  std::mutex log_mutex;
+  const std::vector<RobotSessionResult> results = RunSessions(data, spec.robots, [&](int r) {
+    RobotSessionOptions o = base;
+    o.log = [&, r](const std::string& text) {
+      std::lock_guard<std::mutex> lock(log_mutex);
+      log.emplace_back(r, text);
+    };
+    if (r == victim) {
+      o.on_solve = [&](const SessionSolve& s) {
+        if (s.step == last_step) throw Leave();
+      };
+    }
+    return o;
+  });
+  std::size_t solves = 0;
+  EXPECT_LE(CompareWithTwin(results, twin, &solves, victim), 1e-9);
+  int skipped = 0;
+  for (int r = 0; r < spec.robots; ++r) {
+    if (r == victim) continue;
+    for (const SessionRendezvous& e : results[static_cast<std::size_t>(r)].rendezvous) {
+      skipped += e.skipped ? 1 : 0;
+      EXPECT_EQ(e.skipped, e.event.step > last_step && (e.event.alpha == victim ||
+                                                         e.event.beta == victim));
+    }
+  }
+  EXPECT_EQ(skipped, twin_skipped);
+  // x found it gone at step meet, waiting for its joining status.
+  const std::string found = fmt::format("robot {} left for good", victim);
+  const std::string at = fmt::format("at step {})", meet);
+  EXPECT_TRUE(std::any_of(log.begin(), log.end(), [&](const auto& l) {
+    return l.first == x && l.second.find(found) != std::string::npos &&
+           l.second.find(at) != std::string::npos;
+  }));
+  std::printf("robot %d left after step %d: %d rendezvous skipped, robot %d found it gone in a "
+              "group with robot %d, %zu solves of the others compared with the twin\n",
+              victim, last_step, skipped, x, a, solves);
 }
 
 TEST(GroupTransport, MapsTheGroupsRobotsAndRoutesEverythingElse) {

@@ -145,9 +145,11 @@ constexpr std::uint8_t kHeaderRecord = 1;
 constexpr std::uint8_t kEventRecord = 2;
 constexpr std::uint8_t kGroupRecord = 3;  // online: a group formed (solve_record.h)
 constexpr std::uint8_t kSolveRecord = 4;  // online: a group solve finished
+constexpr std::uint8_t kLeftRecord = 5;   // online: a partner found gone for good
 
 using transport_detail::Fingerprint;
 using transport_detail::GroupRecord;
+using transport_detail::LeftRecord;
 using transport_detail::RecordReader;
 using transport_detail::SolveRecord;
 using Record = transport_detail::RecordWriter;
@@ -300,6 +302,12 @@ class RobotSession::Impl {
     std::set<int> everyone;
     for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
     transport_.setKnownRobots(everyone);
+    if (options_.online) {  // liveliness before the first solve (kPresenceSolve)
+      StatusPacket presence;
+      presence.robot = robot_;
+      presence.solve = kPresenceSolve;
+      transport_.publish(presence);
+    }
 
     ObjectSlam slam(robot_, options_.slam.slam);
     const RobotMeasurements& m = data_.measurements;
@@ -317,6 +325,7 @@ class RobotSession::Impl {
         if (e.alpha == robot_ || e.beta == robot_) mine.push_back(next);
       }
       if (mine.empty()) continue;
+      if (options_.online) noteAlive();
       // As RunMultiRobotObjectSlam: both robots refresh before an event (the later events of
       // the same step find nothing new).
       slam.refresh(options_.slam.slam.iterations_per_update);
@@ -327,36 +336,52 @@ class RobotSession::Impl {
         rec.event = e;
         rec.alpha = e.alpha == robot_;
         const auto te = Clock::now();
+        const int peer = rec.alpha ? e.beta : e.alpha;
         EventPairs pairs;
-        if (rec.alpha) {
+        const auto journaled = journaled_.find(index);
+        const bool peer_left = journaled == journaled_.end() && hasLeft(peer, t);
+        if (rec.alpha && !peer_left) {
           const ObjectMapMessage map = MakeObjectMapMessage(slam);
           rec.objects_sent = static_cast<int>(map.objects.size());
           rec.binary_bytes = static_cast<std::int64_t>(EncodeObjectMap(map).size());
         }
-        const auto journaled = journaled_.find(index);
         if (journaled != journaled_.end()) {
           pairs = journaled->second;
           rec.replayed = true;
           if (!rec.alpha) sendAnswer(e, pairs);  // the old process may have died before it left
+        } else if (peer_left) {
+          rec.skipped = true;
         } else if (rec.alpha) {
           if (!list_published) {
             publishList(slam, t);
             list_published = true;
           }
-          pairs = awaitAnswer(e, slam);
-          record(index, pairs);
-        } else {
-          const ObjectMapMessage received = awaitList(e);
+          if (std::optional<EventPairs> answer = awaitAnswer(e, slam)) {
+            pairs = std::move(*answer);
+            record(index, pairs);
+          } else {
+            rec.skipped = true;
+          }
+        } else if (const std::optional<ObjectMapMessage> received = awaitList(e)) {
           std::optional<SE3> beta_T_alpha;
           if (options_.slam.known_initial_poses) {
             beta_T_alpha = BetaTAlpha(data_.initial_poses[static_cast<std::size_t>(e.alpha)],
                                       data_.initial_poses[static_cast<std::size_t>(e.beta)]);
           }
           const SharedObjectsMessage answer =
-              AnswerObjectMap(received, slam, beta_T_alpha, shared_, options_.slam.rendezvous);
+              AnswerObjectMap(*received, slam, beta_T_alpha, shared_, options_.slam.rendezvous);
           pairs = {answer.pairs, answer.removed};
           sendAnswer(e, pairs);
           record(index, pairs);
+        } else {
+          rec.skipped = true;
+        }
+        if (rec.skipped) {  // the peer left for good: nothing exchanged
+          rec.seconds = std::chrono::duration<double>(Clock::now() - te).count();
+          result_.rendezvous_binary_bytes += rec.binary_bytes;
+          result_.rendezvous.push_back(rec);
+          if (options_.on_rendezvous) options_.on_rendezvous(rec);
+          continue;
         }
         SharedObjectsMessage answer;
         answer.sender = e.beta;
@@ -446,7 +471,7 @@ class RobotSession::Impl {
     for (const SharedObject& o : shared_) {
       const int a = o.alpha_object.robot, b = o.beta_object.robot;
       const int other = a == robot_ ? b : (b == robot_ ? a : robot_);
-      if (other != robot_ && range.count(other)) partners.insert(other);
+      if (other != robot_ && range.count(other) && !hasLeft(other, t)) partners.insert(other);
     }
     if (partners.empty()) return;  // linked to no robot in range: nothing to solve together
     const auto solve = static_cast<std::uint32_t>(t + 1);
@@ -454,12 +479,10 @@ class RobotSession::Impl {
     join.robot = robot_;
     join.solve = solve;
     join.neighbours.assign(partners.begin(), partners.end());
-    // Its pairs with robots outside the group, and its copies of their landmarks (GroupTeamFactors
-    // picks among the members' copies). Every robot of the group it shares a pair with is one of
-    // its partners, so leaving out its partners leaves out exactly its pairs within the group.
-    std::set<int> linked(partners.begin(), partners.end());
-    linked.insert(robot_);
-    for (const TeamPair& p : RobotTeamPairs(robot_, shared_, held_, linked)) {
+    // All its pairs with other robots, and its copies of their landmarks: formGroup keeps those
+    // with robots outside the group it forms (GroupTeamFactors picks among the members' copies),
+    // so the pairs with a partner found gone while the group forms are held ones.
+    for (const TeamPair& p : RobotTeamPairs(robot_, shared_, held_, {robot_})) {
       TeamPairEntry e;
       e.mine = p.mine.index;
       e.other_robot = p.other.robot;
@@ -485,6 +508,7 @@ class RobotSession::Impl {
       team = journaled->second.team;
     } else {
       formGroup(join, partners, range, solve, t, robots, team);
+      if (robots.size() < 2) return;  // its partners in range have all left
       record(kGroupRecord, GroupRecord{static_cast<std::uint32_t>(t), robots, team},
              transport_detail::AppendGroupRecord);
     }
@@ -580,8 +604,10 @@ class RobotSession::Impl {
     const auto deadline = Clock::now() + options_.dgs.join_timeout;
     std::map<int, std::vector<TeamPairEntry>> team_of;  // from each robot's joining status
     team_of[robot_] = join.team;
+    std::map<int, Clock::time_point> not_alive_since;
+    std::map<int, std::vector<int>> heard;
     while (true) {
-      std::map<int, std::vector<int>> heard;
+      heard.clear();
       for (const Received& r : pending_) {
         const auto* st = std::get_if<StatusPacket>(&r.packet);
         if (st && st->solve == solve && range.count(r.sender)) {
@@ -600,7 +626,9 @@ class RobotSession::Impl {
       }
       std::vector<int> missing;
       for (int r : group) {
-        if (r != robot_ && !heard.count(r)) missing.push_back(r);
+        if (r != robot_ && !heard.count(r) && !hasLeft(r, t) && !foundLeft(r, t, not_alive_since)) {
+          missing.push_back(r);
+        }
       }
       if (missing.empty()) break;
       if (Clock::now() > deadline) {
@@ -611,10 +639,13 @@ class RobotSession::Impl {
       }
       ingest(transport_.poll(std::chrono::milliseconds(50)));
     }
-    robots.assign(group.begin(), group.end());
+    for (int r : group) {  // without the robots that left
+      if (r == robot_ || (heard.count(r) && !hasLeft(r, t))) robots.push_back(r);
+    }
+    const std::set<int> members(robots.begin(), robots.end());
     for (int r : robots) {
       for (const TeamPairEntry& e : team_of.at(r)) {
-        if (group.count(e.other_robot)) continue;  // a partner's partner: solved, not held
+        if (members.count(e.other_robot)) continue;  // solved together, not held
         team.push_back({Key::Object(r, e.mine), Key::Object(e.other_robot, e.other),
                         e.mine_is_alpha, e.held, HeldEstimate{e.pose, static_cast<int>(e.step)}});
       }
@@ -692,6 +723,15 @@ class RobotSession::Impl {
                                   " holds the rendezvous journal of another run (other robot, "
                                   "scenario or options): remove it or choose another --out");
         }
+        continue;
+      }
+      if (type == kLeftRecord) {
+        if (!options_.online) throw InvalidInputError(what + ": a departure in a batch journal");
+        const LeftRecord left = transport_detail::ReadLeftRecord(records[i], 1, what);
+        if (left.robot >= data_.num_robots || left.robot == robot_) {
+          throw InvalidInputError(what + ": a departure of a robot not among its partners");
+        }
+        left_.emplace(left.robot, static_cast<int>(left.step));
         continue;
       }
       if (type == kGroupRecord || type == kSolveRecord) {
@@ -785,17 +825,22 @@ class RobotSession::Impl {
         lists_[std::make_pair(r.sender, list->step)].push_back(std::move(*list));
       } else if (auto* answer = std::get_if<SharedObjectsPacket>(&r.packet)) {
         answers_[std::make_pair(r.sender, answer->step)].push_back(std::move(*answer));
-      } else {
+      } else if (const auto* st = std::get_if<StatusPacket>(&r.packet);
+                 !st || st->solve != kPresenceSolve) {  // presence: only its liveliness counts
         pending_.push_back(std::move(r));
       }
     }
   }
 
-  // Polls until `ready()` or the rendezvous timeout.
+  // Polls until `ready()` (true) or, online, until the peer is found gone for good (false:
+  // foundLeft); throws at the rendezvous timeout.
   template <typename Ready>
-  void waitFor(const RendezvousEvent& e, const char* what, Ready ready) {
+  bool waitFor(const RendezvousEvent& e, const char* what, Ready ready) {
+    const int peer = e.alpha == robot_ ? e.beta : e.alpha;
     const auto deadline = Clock::now() + options_.rendezvous_timeout;
+    std::map<int, Clock::time_point> not_alive_since;
     while (!ready()) {
+      if (foundLeft(peer, e.step, not_alive_since)) return false;
       if (Clock::now() > deadline) {
         throw Error(fmt::format("robot {}: no {} from robot {} for the rendezvous of step {} "
                                 "within {} ms (not started, gone, or out of reach)",
@@ -804,13 +849,51 @@ class RobotSession::Impl {
       }
       ingest(transport_.poll(std::chrono::milliseconds(100)));
     }
+    return true;
+  }
+
+  // ---- robots that leave for good (online) ---------------------------------------------------
+  // The robots whose liveliness this one has seen asserted; returns those alive now.
+  std::set<int> noteAlive() {
+    std::set<int> alive = transport_.alive();
+    seen_alive_.insert(alive.begin(), alive.end());
+    return alive;
+  }
+
+  // Whether `robot` was found gone for good at step `t` or before.
+  bool hasLeft(int robot, int t) const {
+    const auto it = left_.find(robot);
+    return it != left_.end() && it->second <= t;
+  }
+
+  // Online, while `robot` is waited for at step t: whether it has now left for good, by the
+  // DgsNode's rule: seen alive before, and not alive for dgs.leave_timeout (`not_alive_since`
+  // keeps when each waited-for robot was first seen not alive). A robot found gone is journaled:
+  // from then on its rendezvous are skipped and no group solve includes it.
+  bool foundLeft(int robot, int t, std::map<int, Clock::time_point>& not_alive_since) {
+    if (!options_.online) return false;
+    const auto now = Clock::now();
+    if (noteAlive().count(robot) || !seen_alive_.count(robot)) {
+      not_alive_since.erase(robot);
+      return false;
+    }
+    const auto since = not_alive_since.emplace(robot, now).first->second;
+    if (now - since < options_.dgs.leave_timeout) return false;
+    left_[robot] = t;
+    record(kLeftRecord, LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(t)},
+           transport_detail::AppendLeftRecord);
+    options_.log(fmt::format("robot {} left for good (not alive for {} ms at step {}): its "
+                             "rendezvous are skipped and the group solves go on without it",
+                             robot, options_.dgs.leave_timeout.count(), t));
+    return true;
   }
 
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
-  ObjectMapMessage awaitList(const RendezvousEvent& e) {
+  // None: alpha left for good (online).
+  std::optional<ObjectMapMessage> awaitList(const RendezvousEvent& e) {
     const auto key = std::make_pair(e.alpha, static_cast<std::uint32_t>(e.step));
     ObjectMapMessage received;
-    waitFor(e, "object list", [&]() {
+    const bool ready = waitFor(e, "object list", [&]() {
       const auto it = lists_.find(key);
       if (it == lists_.end() || it->second.empty()) return false;
       ObjectMapMessage m;
@@ -829,14 +912,15 @@ class RobotSession::Impl {
         return false;
       }
     });
+    if (!ready) return std::nullopt;
     return received;
   }
 
   // Beta's answer to this robot's list of the event's step. Rejected: new pairs naming landmarks
   // this robot does not have or repeating a pair shared with beta (with known initial poses: any
   // object already shared between the two, as AnswerObjectMap excludes them), removed pairs that
-  // are not shared with beta.
-  EventPairs awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
+  // are not shared with beta. None: beta left for good (online).
+  std::optional<EventPairs> awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
     const auto key = std::make_pair(e.beta, static_cast<std::uint32_t>(e.step));
     std::set<std::uint64_t> mine_taken, theirs_taken;
     std::set<std::pair<std::uint64_t, std::uint64_t>> before;  // (this robot's, beta's)
@@ -852,7 +936,7 @@ class RobotSession::Impl {
     }
     const bool known = options_.slam.known_initial_poses;
     EventPairs pairs;
-    waitFor(e, "shared-object answer", [&]() {
+    const bool ready = waitFor(e, "shared-object answer", [&]() {
       const auto it = answers_.find(key);
       if (it == answers_.end() || it->second.empty()) return false;
       const SharedObjectsPacket& answer = it->second.front();
@@ -888,6 +972,7 @@ class RobotSession::Impl {
       answers_.erase(it);
       return true;
     });
+    if (!ready) return std::nullopt;
     return pairs;
   }
 
@@ -907,6 +992,8 @@ class RobotSession::Impl {
   std::map<std::pair<int, std::uint32_t>, std::deque<SharedObjectsPacket>> answers_;
   std::vector<Received> pending_;  // DGS packets
   HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
+  std::map<int, int> left_;        // online: robots found gone for good -> the step
+  std::set<int> seen_alive_;       // robots whose liveliness it has seen
   RobotSessionResult result_;
 };
 

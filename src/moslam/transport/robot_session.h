@@ -34,6 +34,17 @@
 // and lists that the in-process encoding refuses. A peer that does not answer within
 // rendezvous_timeout makes the robot fail (moslam::Error): the exchange is not skipped, since
 // skipping would change the result.
+// Leaving for good (online): every online robot publishes a presence status when it starts
+// (kPresenceSolve), so its liveliness is known before its first solve. A robot waited for (at a
+// rendezvous, or for its joining status) that was seen alive and is not alive for
+// dgs.leave_timeout has left for good, by the DgsNode's rule: the robot journals it, skips its
+// rendezvous with it from then on (SessionRendezvous::skipped; nothing exchanged) and leaves it
+// out of its group solves (its pairs with it become held factors); the others find the same
+// group, since a robot that left publishes no joining status. The twin:
+// MultiRobotSlamConfig::leave_after. Not covered: a robot that dies between its joining status
+// and its DgsNode's first status (its partners fail at the node's join_timeout), and one that
+// comes back after its partners found it gone (it fails at its next rendezvous with them). The
+// batch mode still fails at the rendezvous timeout (its DGS team could not form without it).
 // Restart (state_dir): the rendezvous phase is deterministic given the answers, so the journal
 // `rendezvous.bin` (journal.h) records only each finished event's pairs (added and removed:
 // event_record.h). A restarted process re-runs its SLAM from its measurements, takes finished
@@ -111,6 +122,7 @@ struct SessionRendezvous {
   int removed_shared = 0;        // pairs shared before that it removed (unknown initial poses)
   std::int64_t binary_bytes = 0;  // in-process encoding of what this robot sent for it
   bool replayed = false;         // taken from the journal
+  bool skipped = false;          // online: the peer had left for good; nothing exchanged
   double seconds = 0.0;          // waiting for the peer
 };
 

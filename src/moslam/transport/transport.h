@@ -60,6 +60,11 @@ inline constexpr std::uint32_t kMaxTransportCovarianceDimension = 6 * 256;
 // The distributed solve a DGS packet (estimates, status, coarse share) belongs to: 0 for the
 // batch solve after the mission; with online mapping, 1 + the time step of the rendezvous whose
 // group solves (a robot takes part in at most one solve per step).
+//
+// kPresenceSolve: a status of no solve, which an online robot publishes when it starts so that
+// its liveliness is asserted before its first solve (its partners tell a robot that has left for
+// good from one that is slow: robot_session.h). Every solve ignores it.
+inline constexpr std::uint32_t kPresenceSolve = 0xFFFFFFFFu;
 struct EstimatesPacket {
   int receiver = 0;
   std::uint32_t solve = 0;
