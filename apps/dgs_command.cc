@@ -114,6 +114,8 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
         {"status", ToString(r.status)},
         {"rounds", r.iterations},
         {"outliers", r.outliers},
+        {"polished", r.polished},
+        {"polish_refused", r.polish_refused},
         {"rejected", rejected},
         {"centralized_status", ToString(central.status)},
         {"centralized_rounds", central.iterations},

@@ -235,6 +235,7 @@ nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
     j["outliers"] = r.robust->outliers;  // robust factors of its subgraph with weight < 0.5
     j["readmitted"] = r.robust->readmitted;
     j["polished"] = r.robust->polished;
+    j["polish_refused"] = r.robust->polish_refused;  // it raised the inliers' cost: not kept
     j["weight_messages"] = r.weight_messages;
     j["weight_binary_bytes"] = r.weight_binary_bytes;
     j["dds_weight_bytes"] = r.transport.weights_bytes;

@@ -7,6 +7,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
+#include "moslam/distributed/robust_program.h"
 
 namespace moslam {
 
@@ -196,12 +197,16 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
       DgsOptions dgs = options.dgs;
       dgs.refine = true;
       const DgsResult polish = RunDgs(final_graph, r.values, dgs);
-      // A variable only rejected factors touch (a landmark whose observations and shared pairs
-      // were all rejected) is not in it: it keeps the rounds' estimate.
-      for (const auto& [k, x] : polish.values) r.values[k] = x;
       r.solve_bytes += polish.bytes;
       r.sweeps += polish.rotation.iterations + polish.pose.iterations + polish.refine.sweeps;
-      r.polished = true;
+      if (KeepInlierSolve(final_graph.cost(r.values), final_graph.cost(polish.values))) {
+        // A variable only rejected factors touch (a landmark whose observations and shared pairs
+        // were all rejected) is not in it: it keeps the rounds' estimate.
+        for (const auto& [k, x] : polish.values) r.values[k] = x;
+        r.polished = true;
+      } else {
+        r.polish_refused = true;
+      }
     } catch (const UnderdeterminedError&) {
       // The inliers leave a robot unlinked: keep the rounds' estimate.
     }

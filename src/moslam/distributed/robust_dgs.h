@@ -72,6 +72,7 @@ struct RobustDgsResult {
   int consistency_deferred = 0;        // too few to confirm themselves, left to GNC
   int readmitted = 0;   // of those, back after GNC: their residual at the estimate within c2
   bool polished = false;  // a last solve of the inliers alone (weights not all 1)
+  bool polish_refused = false;  // ... that raised their cost (KeepInlierSolve): not used
   std::int64_t bytes() const {
     return solve_bytes + weight_bytes + control_bytes + consistency_bytes;
   }

@@ -196,7 +196,7 @@ TEST(SeparatorConsistency, OneLandmarkPairedWithSeveralIsOneToOneExclusive) {
     observe(1, k, world_objects[k]);
   }
   for (std::uint64_t k = 0; k < 4; ++k) {  // four objects side by side, 5 cm apart
-    observe(0, 3 + k, beside_origin * SE3(SO3(), Vector3(0.05 * k, 0.0, 0.0)));
+    observe(0, 3 + k, beside_origin * SE3(SO3(), Vector3(0.05 * static_cast<double>(k), 0.0, 0.0)));
   }
   observe(1, 3, world_objects[3]);
   const std::size_t first_separator = g.factors().size();

@@ -1,6 +1,7 @@
 #include "moslam/distributed/robust_program.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <set>
 #include <string>
@@ -26,6 +27,10 @@ void RobustProgramOptions::validate() const {
     if (c.threshold == 0.0) c.threshold = gnc.threshold2();
     c.validate();
   }
+}
+
+bool KeepInlierSolve(double cost_before, double cost_after) {
+  return std::isfinite(cost_after) && cost_after <= cost_before * (1.0 + 1e-6) + 1e-12;
 }
 
 namespace {
@@ -426,8 +431,31 @@ class RobustProgram {
     if (TeamSum(exchangeWeights(full_, out_.weights, round, changed), 0) == 0.0) return;
     const std::vector<bool> inliers = Inliers(out_.weights);
     if (!linked(inliers)) return;
-    solve(SubGraph(p_.subgraph, inliers));
-    out_.polished = true;
+    const PoseGraph inlier_graph = SubGraph(p_.subgraph, inliers);
+    const double before = ownedCost(inlier_graph);
+    Values rounds = values_;
+    solve(inlier_graph);
+    TeamReport costs;
+    costs.value[0] = before;
+    costs.value[1] = ownedCost(inlier_graph);
+    const TeamStep got = step(costs);
+    if (KeepInlierSolve(TeamSum(got, 0), TeamSum(got, 1))) {
+      out_.polished = true;
+    } else {
+      values_ = std::move(rounds);
+      out_.polish_refused = true;
+    }
+  }
+
+  // F of the factors of `graph` it owns (its own, and its separators to robots of higher id) at
+  // its estimate and copies: summed over the team, F of the team's graph.
+  double ownedCost(const PoseGraph& graph) const {
+    double cost = 0.0;
+    for (const RelativePoseFactor& f : graph.factors()) {
+      if (std::min(f.a().robot, f.b().robot) != p_.robot) continue;
+      cost += f.cost(values_.at(f.a()), values_.at(f.b()));
+    }
+    return cost;
   }
 
   // Whether every live robot reaches robot 0 (or a prior) through separators of weight >= 0.5:

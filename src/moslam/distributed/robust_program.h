@@ -22,7 +22,9 @@
 //      if some weight is not 1, the inliers alone (SubGraph of weight >= 0.5) are solved once
 //      more, when every live robot is linked to robot 0 (or to a robot with a prior) through
 //      separators of weight >= 0.5 (flooded over the team in channel steps, a robot's flag per
-//      step); a variable no inlier touches keeps the rounds' estimate.
+//      step); a variable no inlier touches keeps the rounds' estimate. One more step reduces the
+//      inliers' cost before and after that solve (each robot the factors it owns): the solve is
+//      kept only when it does not raise it (KeepInlierSolve), else the rounds' estimate stays.
 // Before step 1, with options.check_separators, the pairwise check of the separators
 // (separator_consistency.h, PCM), as RunRobustDgs runs it:
 //   C1. every robot builds its own map (its own factors solved alone, the robust ones by GNC-TLS,
@@ -63,6 +65,14 @@
 
 namespace moslam {
 
+// Whether the inliers' solve (step 4; RunRobustDgs alike) is kept: when it does not raise their
+// cost F beyond rounding (relative 1e-6). It starts at the rounds' estimate, so a higher cost means
+// that its DGS did not solve. Seen (house, 4 robots, rendered perception, 30 % wrong pairs): stage
+// 1 ran to max_iterations without any robot solving, every robot waiting (flagged initialisation)
+// for a landmark whose only inlier factors are separators to robots that wait too; every
+// translation came back 0 and F went from 401 to 2.9e6.
+bool KeepInlierSolve(double cost_before, double cost_after);
+
 struct RobustProgramOptions {
   DgsOptions solver;  // every solve (the refinement is forced on; Jacobi order required)
   GncOptions gnc;
@@ -95,6 +105,7 @@ struct RobustProgramResult {
   int iterations = 0;   // weighted solves after the least-squares one
   int readmitted = 0;   // owned factors back after GNC (r2 within c2)
   bool polished = false;  // the inliers were solved alone
+  bool polish_refused = false;  // ... but that solve raised their cost: the rounds' estimate kept
   int outliers = 0;     // robust factors of the subgraph with weight < 0.5
   std::vector<RobotProgramResult> solves;  // least squares, the rounds, the inlier solve
   std::int64_t weight_messages = 0;  // WeightMessages sent (the check's verdicts included), and

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <memory>
 #include <mutex>
 #include <string>
@@ -127,6 +129,7 @@ void ExpectSameAsRunRobustDgs(const PoseGraph& graph, const Values& initial,
     EXPECT_EQ(r.status, reference.status) << "robot " << robot;
     EXPECT_EQ(r.iterations, reference.iterations) << "robot " << robot;
     EXPECT_EQ(r.polished, reference.polished) << "robot " << robot;
+    EXPECT_EQ(r.polish_refused, reference.polish_refused) << "robot " << robot;
     const std::vector<std::size_t>& index = team.factors.at(robot);
     ASSERT_EQ(r.weights.size(), index.size());
     for (std::size_t j = 0; j < index.size(); ++j) {
@@ -220,6 +223,62 @@ TEST(RobustProgram, InliersThatUnlinkARobotAreNotSolvedAlone) {
       RunRobustDgs(graph, gt, robust, ReferenceOptions(options));
   ASSERT_EQ(reference.outliers, 2);
   ASSERT_FALSE(reference.polished);
+  ExpectSameAsRunRobustDgs(graph, gt, robust, options, reference);
+}
+
+// Robot 0's landmark of object B is held only by its separator to robot 1's once GNC rejects
+// its own (weak, 10 m wrong) observation, and robot 1 reaches robot 0 only through separators:
+// the inliers' DGS cannot start (flagged initialisation: robot 0 waits for robot 1 to anchor that
+// landmark, robot 1 for robot 0), stage 1 runs to max_iterations and every translation comes
+// back 0. That solve raises the inliers' cost, so it is not kept (KeepInlierSolve), by the
+// in-process driver and by the robots alike.
+TEST(RobustProgram, AnInlierSolveThatRaisesTheCostIsNotKept) {
+  const SE3 frame1(SO3::Exp(Vector3(0.0, 0.0, 0.7)), Vector3(3.0, 2.0, 0.0));
+  const SE3 step(SO3(), Vector3(1.0, 0.0, 0.0));
+  const SE3 a(SO3::Exp(Vector3(0.0, 0.0, 0.3)), Vector3(2.0, 1.0, 0.0));
+  const SE3 b(SO3::Exp(Vector3(0.0, 0.0, -0.4)), Vector3(2.0, -1.0, 0.5));
+  Values gt = {{Key::Pose(0, 0), SE3()},         {Key::Pose(0, 1), step},
+               {Key::Pose(1, 0), frame1},        {Key::Pose(1, 1), frame1 * step},
+               {Key::Object(0, 0), a},           {Key::Object(0, 1), b},
+               {Key::Object(1, 0), a},           {Key::Object(1, 1), b}};
+  Matrix6 lambda = Matrix6::Identity();  // the paper's: 5 deg, 0.2 m
+  lambda.topLeftCorner<3, 3>() *= 1.0 / std::pow(5.0 * 3.14159265358979 / 180.0, 2);
+  lambda.bottomRightCorner<3, 3>() *= 1.0 / (0.2 * 0.2);
+  const Matrix6 stiff = 1e4 * Matrix6::Identity();
+  PoseGraph graph;
+  std::vector<bool> robust;
+  auto add = [&](Key x, Key y, const SE3& error, const Matrix6& information, bool is_robust) {
+    graph.add(RelativePoseFactor(x, y, gt.at(x).between(gt.at(y)) * error, information));
+    robust.push_back(is_robust);
+  };
+  for (int r = 0; r < 2; ++r) {
+    add(Key::Pose(r, 0), Key::Pose(r, 1), SE3(), stiff, false);
+    add(Key::Pose(r, 0), Key::Object(r, 0), SE3(), stiff, true);
+  }
+  add(Key::Pose(1, 1), Key::Object(1, 1), SE3(), stiff, true);
+  const std::size_t wrong = graph.factors().size();
+  add(Key::Pose(0, 1), Key::Object(0, 1), SE3(SO3(), Vector3(10.0, 0.0, 0.0)),
+      Matrix6::Identity(), true);
+  add(Key::Object(0, 0), Key::Object(1, 0), SE3(), lambda, true);
+  add(Key::Object(0, 1), Key::Object(1, 1), SE3(), lambda, true);
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  options.check_separators = false;
+  const RobustDgsResult reference = RunRobustDgs(graph, gt, robust, ReferenceOptions(options));
+  ASSERT_EQ(reference.outliers, 1);
+  EXPECT_LT(reference.weights[wrong], 0.5);
+  EXPECT_TRUE(reference.polish_refused);
+  EXPECT_FALSE(reference.polished);
+  EXPECT_LT(MaxPoseDifference(reference.values, gt), 1e-3);  // the rounds' estimate
+  // The failure it guards against: the inliers alone, solved from that estimate.
+  std::vector<bool> inliers(graph.factors().size(), true);
+  inliers[wrong] = false;
+  DgsOptions dgs = options.solver;
+  dgs.refine = true;
+  const DgsResult alone = RunDgs(SubGraph(graph, inliers), reference.values, dgs);
+  EXPECT_EQ(alone.rotation.status, StageStatus::kMaxIterations);
+  EXPECT_GT(SubGraph(graph, inliers).cost(alone.values),
+            1e3 * SubGraph(graph, inliers).cost(reference.values));
   ExpectSameAsRunRobustDgs(graph, gt, robust, options, reference);
 }
 
