@@ -19,9 +19,7 @@ void AppendEventRecord(const EventRecord& record, std::vector<std::uint8_t>& out
 
 EventRecord ReadEventRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                             const std::string& what) {
-  if (offset > bytes.size()) throw InvalidInputError(what + ": truncated journal record");
-  const std::vector<std::uint8_t> body(bytes.begin() + static_cast<std::ptrdiff_t>(offset),
-                                       bytes.end());
+  const std::vector<std::uint8_t> body = RecordBody(bytes, offset, what);
   RecordReader p(body, what);
   EventRecord record;
   record.event = p.u32();
@@ -52,9 +50,7 @@ void AppendLeftRecord(const LeftRecord& record, std::vector<std::uint8_t>& out) 
 
 LeftRecord ReadLeftRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                           const std::string& what) {
-  if (offset > bytes.size()) throw InvalidInputError(what + ": truncated journal record");
-  const std::vector<std::uint8_t> body(bytes.begin() + static_cast<std::ptrdiff_t>(offset),
-                                       bytes.end());
+  const std::vector<std::uint8_t> body = RecordBody(bytes, offset, what);
   RecordReader p(body, what);
   LeftRecord record;
   record.robot = p.u16();

@@ -42,6 +42,14 @@ class RecordWriter {
   std::vector<std::uint8_t> b_;
 };
 
+// The fields of a record from `offset` (just after its type byte) to the end; throws
+// InvalidInputError "<what>: truncated journal record" when the record is shorter.
+inline std::vector<std::uint8_t> RecordBody(const std::vector<std::uint8_t>& bytes,
+                                            std::size_t offset, const std::string& what) {
+  if (offset > bytes.size()) throw InvalidInputError(what + ": truncated journal record");
+  return {bytes.begin() + static_cast<std::ptrdiff_t>(offset), bytes.end()};
+}
+
 // Reads what RecordWriter wrote; throws InvalidInputError "<what>: truncated journal record".
 class RecordReader {
  public:

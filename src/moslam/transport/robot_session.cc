@@ -376,31 +376,7 @@ class RobotSession::Impl {
         } else {
           rec.skipped = true;
         }
-        if (rec.skipped) {  // the peer left for good: nothing exchanged
-          rec.seconds = std::chrono::duration<double>(Clock::now() - te).count();
-          result_.rendezvous_binary_bytes += rec.binary_bytes;
-          result_.rendezvous.push_back(rec);
-          if (options_.on_rendezvous) options_.on_rendezvous(rec);
-          continue;
-        }
-        SharedObjectsMessage answer;
-        answer.sender = e.beta;
-        answer.receiver = e.alpha;
-        answer.pairs = pairs.pairs;
-        answer.removed = pairs.removed;
-        if (!rec.alpha) rec.binary_bytes = static_cast<std::int64_t>(EncodeSharedObjects(answer).size());
-        // As RunMultiRobotObjectSlam: the removed pairs leave first, the new ones are appended.
-        for (const SharedObject& s : RemovedObjectsOf(answer)) {
-          if (!EraseShared(shared_, s)) {  // only a journal of another run gets here
-            throw InvalidInputError(fmt::format(
-                "robot {}: the rendezvous of step {} removes a pair never shared (journal of "
-                "another run?)", robot_, e.step));
-          }
-        }
-        const std::vector<SharedObject> added = SharedObjectsOf(answer);
-        shared_.insert(shared_.end(), added.begin(), added.end());
-        rec.new_shared = static_cast<int>(added.size());
-        rec.removed_shared = static_cast<int>(pairs.removed.size());
+        if (!rec.skipped) applyPairs(e, pairs, rec);  // skipped: the peer left, nothing exchanged
         rec.seconds = std::chrono::duration<double>(Clock::now() - te).count();
         result_.rendezvous_binary_bytes += rec.binary_bytes;
         result_.rendezvous.push_back(rec);
@@ -446,6 +422,28 @@ class RobotSession::Impl {
   }
 
  private:
+  // What event e changed, applied to the shared pairs as RunMultiRobotObjectSlam does (the
+  // removed pairs leave first, the new ones are appended), and counted in `rec`.
+  void applyPairs(const RendezvousEvent& e, const EventPairs& pairs, SessionRendezvous& rec) {
+    SharedObjectsMessage answer;
+    answer.sender = e.beta;
+    answer.receiver = e.alpha;
+    answer.pairs = pairs.pairs;
+    answer.removed = pairs.removed;
+    if (!rec.alpha) rec.binary_bytes = static_cast<std::int64_t>(EncodeSharedObjects(answer).size());
+    for (const SharedObject& s : RemovedObjectsOf(answer)) {
+      if (!EraseShared(shared_, s)) {  // only a journal of another run gets here
+        throw InvalidInputError(fmt::format(
+            "robot {}: the rendezvous of step {} removes a pair never shared (journal of "
+            "another run?)", robot_, e.step));
+      }
+    }
+    const std::vector<SharedObject> added = SharedObjectsOf(answer);
+    shared_.insert(shared_.end(), added.begin(), added.end());
+    rec.new_shared = static_cast<int>(added.size());
+    rec.removed_shared = static_cast<int>(pairs.removed.size());
+  }
+
   // ---- online mapping ---------------------------------------------------------------------
   // The group solve of step t (RobotSessionOptions::online; OnlineTeam::onRendezvous is the
   // in-process twin): the robots connected to this one through the step's events, split by the

@@ -53,12 +53,6 @@ std::uint32_t Count(RecordReader& p, std::size_t each, std::size_t size, const s
   return n;
 }
 
-std::vector<std::uint8_t> Body(const std::vector<std::uint8_t>& bytes, std::size_t offset,
-                               const std::string& what) {
-  if (offset > bytes.size()) throw InvalidInputError(what + ": truncated journal record");
-  return {bytes.begin() + static_cast<std::ptrdiff_t>(offset), bytes.end()};
-}
-
 }  // namespace
 
 void AppendGroupRecord(const GroupRecord& record, std::vector<std::uint8_t>& out) {
@@ -80,7 +74,7 @@ void AppendGroupRecord(const GroupRecord& record, std::vector<std::uint8_t>& out
 
 GroupRecord ReadGroupRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                             const std::string& what) {
-  const std::vector<std::uint8_t> body = Body(bytes, offset, what);
+  const std::vector<std::uint8_t> body = RecordBody(bytes, offset, what);
   RecordReader p(body, what);
   GroupRecord record;
   record.step = p.u32();
@@ -138,7 +132,7 @@ void AppendSolveRecord(const SolveRecord& record, std::vector<std::uint8_t>& out
 
 SolveRecord ReadSolveRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                             const std::string& what) {
-  const std::vector<std::uint8_t> body = Body(bytes, offset, what);
+  const std::vector<std::uint8_t> body = RecordBody(bytes, offset, what);
   RecordReader p(body, what);
   SolveRecord record;
   record.step = p.u32();
