@@ -87,26 +87,26 @@ LocalGraph::LocalGraph(int robot, const PoseGraph& subgraph, const Values& initi
     if (a >= 0 && b >= 0) parent[Find(parent, a)] = Find(parent, b);
   }
   std::map<int, int> root_to_group;
-  std::vector<int> group_of(n);
+  group_of_.assign(static_cast<std::size_t>(n), 0);
   for (int i = 0; i < n; ++i) {
     const auto [it, inserted] =
         root_to_group.emplace(Find(parent, i), static_cast<int>(root_to_group.size()));
-    group_of[i] = it->second;
+    group_of_[i] = it->second;
   }
   group_fixed_.assign(root_to_group.size(), false);
   group_separators_.assign(root_to_group.size(), {});
   for (std::size_t i : inner_) {
     const Key a = factors_[i].a(), b = factors_[i].b();
-    if (a == anchor_ && b != anchor_) group_fixed_[group_of[unknownIndex(b)]] = true;
-    if (b == anchor_ && a != anchor_) group_fixed_[group_of[unknownIndex(a)]] = true;
+    if (a == anchor_ && b != anchor_) group_fixed_[group_of_[unknownIndex(b)]] = true;
+    if (b == anchor_ && a != anchor_) group_fixed_[group_of_[unknownIndex(a)]] = true;
   }
   for (const PriorFactor& p : priors_) {
     const int i = unknownIndex(p.key());
-    if (i >= 0) group_fixed_[group_of[i]] = true;
+    if (i >= 0) group_fixed_[group_of_[i]] = true;
   }
   for (std::size_t s = 0; s < separators_.size(); ++s) {
     const int i = unknownIndex(separators_[s].own);
-    if (i >= 0) group_separators_[group_of[i]].push_back(s);
+    if (i >= 0) group_separators_[group_of_[i]].push_back(s);
   }
 }
 
@@ -133,13 +133,20 @@ std::map<int, int> LocalGraph::neighbourLinks() const {
 }
 
 bool LocalGraph::anchored(const std::vector<bool>& usable) const {
-  for (std::size_t g = 0; g < group_fixed_.size(); ++g) {
-    if (group_fixed_[g]) continue;
-    bool reached = false;
+  const std::vector<bool> unknowns = anchoredUnknowns(usable);
+  return std::all_of(unknowns.begin(), unknowns.end(), [](bool a) { return a; });
+}
+
+std::vector<bool> LocalGraph::anchoredUnknowns(const std::vector<bool>& usable) const {
+  std::vector<bool> group(group_fixed_.size());
+  for (std::size_t g = 0; g < group.size(); ++g) {
+    bool reached = group_fixed_[g];
     for (std::size_t s : group_separators_[g]) reached = reached || usable[s];
-    if (!reached) return false;
+    group[g] = reached;
   }
-  return true;
+  std::vector<bool> out(group_of_.size());
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = group[static_cast<std::size_t>(group_of_[i])];
+  return out;
 }
 
 }  // namespace moslam

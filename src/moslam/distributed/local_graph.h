@@ -60,6 +60,8 @@ class LocalGraph {
 
   // Whether every group of unknowns is tied down when the separators with usable[s] are used.
   bool anchored(const std::vector<bool>& usable) const;
+  // Per unknown (by unknownIndex): whether its group is tied down with those separators.
+  std::vector<bool> anchoredUnknowns(const std::vector<bool>& usable) const;
 
  private:
   int robot_;
@@ -75,6 +77,7 @@ class LocalGraph {
   std::vector<Key> neighbour_list_;
   std::map<Key, int> neighbour_slot_;
   std::map<int, std::vector<Key>> shared_with_;
+  std::vector<int> group_of_;                             // per unknown
   std::vector<bool> group_fixed_;                         // per group of unknowns
   std::vector<std::vector<std::size_t>> group_separators_;  // per group: its separators
   Values initial_;                                        // own variables

@@ -52,8 +52,8 @@ void LocalSystem::setDamping(double lambda, std::vector<Eigen::VectorXd> diagona
   damping_diagonal_ = std::move(diagonal);
 }
 
-void LocalSystem::assemble(const std::vector<bool>& use) {
-  if (factorized_ && use == use_) return;
+void LocalSystem::assemble(const std::vector<bool>& use, const std::vector<bool>& held) {
+  if (factorized_ && use == use_ && held == held_) return;
   const Key& anchor = graph_.anchor();
   const Eigen::MatrixXd* anchor_value = graph_.ownsAnchor() ? &anchor_value_ : nullptr;
   auto fixedValue = [&](const Key& k) -> const Eigen::MatrixXd* {
@@ -92,9 +92,23 @@ void LocalSystem::assemble(const std::vector<bool>& use) {
       problem_->add(damping, nullptr, nullptr);
     }
   }
+  if (!held.empty()) {
+    LinearTerm hold;
+    hold.unary = true;
+    hold.A_a = Eigen::MatrixXd::Identity(block_size_, block_size_);
+    hold.C = Eigen::MatrixXd::Zero(block_size_, num_cols_);
+    hold.W = Eigen::MatrixXd::Identity(block_size_, block_size_);
+    const auto& unknowns = graph_.unknowns();
+    for (std::size_t i = 0; i < unknowns.size(); ++i) {
+      if (!held[i]) continue;
+      hold.a = unknowns[i];
+      problem_->add(hold, nullptr, nullptr);
+    }
+  }
   problem_->factorize();
   G0_ = problem_->rhs();
   use_ = use;
+  held_ = held;
   factorized_ = true;
   separator_row_.assign(separators.size(), -1);
   for (std::size_t s = 0; s < separators.size(); ++s) {

@@ -42,9 +42,12 @@ class LocalSystem {
   const Eigen::MatrixXd& coupling(std::size_t separator) const { return coupling_[separator]; }
 
   // Assembles and factorizes the normal equations with the separators s with use[s] (unless the
-  // factorization for exactly these is kept). Throws NumericalError when H_rr is not positive
-  // definite.
-  void assemble(const std::vector<bool>& use);
+  // factorization for exactly these is kept). `held` (empty, or one flag per unknown): unknowns
+  // not solved now, groups no term ties down yet (flagged initialisation); each gets an identity
+  // block so that H_rr stays positive definite, and its solution means nothing. Inner factors
+  // never join a held unknown to a solved one, so the solved ones are exact. Throws NumericalError
+  // when H_rr is not positive definite.
+  void assemble(const std::vector<bool>& use, const std::vector<bool>& held = {});
   bool factorized() const { return factorized_; }
   // The separators of the factorization (empty before the first).
   const std::vector<bool>& use() const { return use_; }
@@ -66,7 +69,7 @@ class LocalSystem {
   Eigen::MatrixXd anchor_value_;
   double lambda_ = 0.0;
   std::vector<Eigen::VectorXd> damping_diagonal_;
-  std::vector<bool> use_;
+  std::vector<bool> use_, held_;
   bool factorized_ = false;
   Eigen::MatrixXd G0_;
   std::vector<Eigen::Index> separator_row_;

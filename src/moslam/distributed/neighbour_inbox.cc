@@ -13,6 +13,7 @@ NeighbourInbox::Stage& NeighbourInbox::stage(DgsStage stage) {
   if (box.values.size() != n) {
     box.values.assign(n, Eigen::VectorXd::Zero(StageDimension(stage)));
     box.has.assign(n, 0);
+    box.initialised.assign(n, 0);
   }
   return box;
 }
@@ -47,13 +48,13 @@ ReceiveStatus NeighbourInbox::receive(const Message& m, bool left) {
     return ReceiveStatus::kStale;
   }
   box.last_iteration[m.sender] = m.iteration;
-  if (m.initialised) box.initialised_robots.insert(m.sender);
   for (std::size_t i = 0; i < m.keys.size(); ++i) {
     const int slot = graph_.slot(m.keys[i]);
     if (slot < 0) continue;  // a variable this robot does not need
     const auto j = static_cast<std::size_t>(slot);
     box.values[j] = Eigen::Map<const Eigen::VectorXd>(m.entry(i), dim);
     box.has[j] = 1;
+    if (m.initialised) box.initialised[j] = 1;
   }
   return ReceiveStatus::kAccepted;
 }
@@ -88,9 +89,10 @@ void NeighbourInbox::add(DgsStage s, int slot, const Eigen::VectorXd& delta) {
   box.values[j] += delta;
 }
 
-bool NeighbourInbox::initialised(DgsStage stage, int robot) const {
+bool NeighbourInbox::initialisedSlot(DgsStage stage, int slot) const {
   const auto it = stages_.find(stage);
-  return it != stages_.end() && it->second.initialised_robots.count(robot) > 0;
+  return it != stages_.end() && !it->second.initialised.empty() &&
+         it->second.initialised[static_cast<std::size_t>(slot)] != 0;
 }
 
 void NeighbourInbox::forget(DgsStage s) {

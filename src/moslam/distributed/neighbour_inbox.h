@@ -1,6 +1,7 @@
 // What a DGS agent (robot_agent.h) received from its neighbours: per stage, the latest estimate
 // of each neighbour variable (by LocalGraph slot), the last iteration accepted from each sender
-// and which senders said they are initialised (flagged initialisation, DGS.md).
+// and which variables came in a message flagged initialised (flagged initialisation, DGS.md, per
+// variable: robot_agent.h).
 //
 // receive() keeps, per stage and sender, only messages newer than the last accepted (iteration
 // strictly larger); duplicates and older messages (stale, reordered) are counted and ignored, as
@@ -10,7 +11,6 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <map>
-#include <set>
 #include <vector>
 
 #include "moslam/distributed/dgs_types.h"
@@ -40,8 +40,9 @@ class NeighbourInbox {
   void set(DgsStage stage, int slot, const Eigen::VectorXd& value);
   // value += delta for the variable in `slot` (one not received counts as 0 and is then held).
   void add(DgsStage stage, int slot, const Eigen::VectorXd& delta);
-  // Whether `robot` said it has solved in `stage`.
-  bool initialised(DgsStage stage, int robot) const;
+  // Whether the variable in `slot` came in a message of `stage` flagged initialised (its owner
+  // solved it: an agent sends only the variables it has solved once it is initialised).
+  bool initialisedSlot(DgsStage stage, int slot) const;
   // Forgets the values of `stage` (not the iterations accepted).
   void forget(DgsStage stage);
 
@@ -52,8 +53,8 @@ class NeighbourInbox {
   struct Stage {
     std::vector<Eigen::VectorXd> values;  // by slot
     std::vector<char> has;
+    std::vector<char> initialised;  // by slot: carried by a message flagged initialised
     std::map<int, std::int64_t> last_iteration;
-    std::set<int> initialised_robots;
   };
   Stage& stage(DgsStage stage);
 

@@ -63,6 +63,7 @@ void RobotAgent::startRotation() {
   requireState(AgentState::kIdle, "startRotation()");
   x_.clear();
   for (const Key& k : graph_.unknowns()) x_.push_back(RowMajor(graph_.initial(k).rotation().matrix()));
+  solved_.assign(x_.size(), false);
   state_ = AgentState::kRotation;
   prepareStage(DgsStage::kRotation);
   iteration_ = 0;
@@ -84,6 +85,7 @@ void RobotAgent::startPose() {
     if (v) R_hat_[neighbours[i]] = ProjectToRotation(*v);
   }
   x_.assign(unknowns.size(), Eigen::VectorXd::Zero(6));
+  solved_.assign(x_.size(), false);
   state_ = AgentState::kPose;
   prepareStage(DgsStage::kPose);
   iteration_ = 0;
@@ -119,7 +121,7 @@ bool RobotAgent::usable(const Separator& s, DgsStage stage) const {
   // rotation is known) takes part from the start; the values are the CG vectors.
   if (stage == DgsStage::kPose && cg_active_) return pose_.built(s.factor);
   if (inbox_.get(stage, s.slot) == nullptr) return false;
-  if (options_.flagged_initialisation && !inbox_.initialised(stage, s.foreign_robot)) return false;
+  if (options_.flagged_initialisation && !inbox_.initialisedSlot(stage, s.slot)) return false;
   if (stage == DgsStage::kPose && R_hat_.count(s.foreign) == 0) return false;
   return true;
 }
@@ -161,11 +163,18 @@ void RobotAgent::prepareStage(DgsStage stage) {
                          std::move(anchor_value));
 }
 
-bool RobotAgent::solvable(DgsStage stage, std::vector<bool>& use) const {
+bool RobotAgent::solvable(DgsStage stage, std::vector<bool>& use, std::vector<bool>* held) const {
   const auto& separators = graph_.separators();
   use.assign(separators.size(), false);
   for (std::size_t s = 0; s < separators.size(); ++s) use[s] = usable(separators[s], stage);
-  return graph_.anchored(use);  // else some variables are not anchored yet: wait
+  if (held) held->clear();
+  if (graph_.anchored(use)) return true;
+  if (!held) return false;  // some variables are not anchored yet: wait
+  const std::vector<bool> anchored = graph_.anchoredUnknowns(use);
+  if (std::none_of(anchored.begin(), anchored.end(), [](bool a) { return a; })) return false;
+  held->resize(anchored.size());
+  for (std::size_t i = 0; i < anchored.size(); ++i) (*held)[i] = !anchored[i];
+  return true;
 }
 
 Eigen::MatrixXd RobotAgent::localRhs(DgsStage stage) const {
@@ -237,15 +246,18 @@ bool RobotAgent::iterate() {
     throw InvalidInputError("DGS robot " + std::to_string(robot()) +
                             ": iterate() in the refinement before beginStep()");
   }
-  std::vector<bool> use;
-  if (!solvable(stage, use)) return false;
+  std::vector<bool> use, held;
+  const bool by_groups = stage != DgsStage::kRefine && !cg_active_;
+  if (!solvable(stage, use, by_groups ? &held : nullptr)) return false;
   LocalSystem& sys = system(stage);
-  sys.assemble(use);
+  sys.assemble(use, held);
   const std::vector<Eigen::MatrixXd> solution = sys.solve(localRhs(stage));
 
   const double gamma = stage == DgsStage::kRefine ? options_.refine_gamma : options_.gamma;
   double change2 = 0.0;
   for (std::size_t i = 0; i < x_.size(); ++i) {
+    if (!held.empty() && held[i]) continue;  // not tied down yet: keeps its value, unsent
+    if (by_groups) solved_[i] = true;
     // Stage 1: X = R^T, whose column-major flattening is r (row by row).
     const Eigen::VectorXd x_new =
         Eigen::Map<const Eigen::VectorXd>(solution[i].data(), solution[i].size());
@@ -255,7 +267,8 @@ bool RobotAgent::iterate() {
     x_[i] = (1.0 - gamma) * x_[i] + gamma * x_new;
   }
   before_coarse_.clear();
-  progress_.record(std::sqrt(change2));
+  // Some groups still wait: not converged, whatever the solved ones did.
+  progress_.record(held.empty() ? std::sqrt(change2) : std::numeric_limits<double>::infinity());
   ++iteration_;
   return true;
 }
@@ -268,7 +281,9 @@ std::vector<OutgoingMessage> RobotAgent::outgoing() const {
   }
   const DgsStage stage = currentStage();
   const int dim = StageDimension(stage);
-  for (const auto& [to, keys] : graph_.sharedWith()) {
+  // After its first solve of stage 1 or 2, the variables it has solved (flagged initialisation).
+  const bool only_solved = stage != DgsStage::kRefine && !cg_active_ && progress_.initialised();
+  for (const auto& [to, shared] : graph_.sharedWith()) {
     OutgoingMessage o;
     o.to = to;
     Message& m = o.message;
@@ -276,9 +291,12 @@ std::vector<OutgoingMessage> RobotAgent::outgoing() const {
     m.iteration = static_cast<std::uint32_t>(iteration_);
     m.sender = robot();
     m.initialised = progress_.initialised();
-    m.keys = keys;
-    m.values.reserve(keys.size() * static_cast<std::size_t>(dim));
-    for (const Key& k : keys) {
+    for (const Key& k : shared) {
+      const int i = graph_.unknownIndex(k);
+      if (!only_solved || i < 0 || solved_[static_cast<std::size_t>(i)]) m.keys.push_back(k);
+    }
+    m.values.reserve(m.keys.size() * static_cast<std::size_t>(dim));
+    for (const Key& k : m.keys) {
       Eigen::VectorXd v;
       const int i = graph_.unknownIndex(k);
       if (i >= 0) {

@@ -25,7 +25,14 @@
 // solved in that stage (its messages say `initialised`). Without it, a separator is used as soon
 // as some estimate of the neighbour arrived (the driver first exchanges initial estimates). An
 // agent whose variables are not all connected, through inner edges, to the anchor, a prior or a
-// usable separator cannot solve: iterate() then waits (returns false, changes nothing).
+// usable separator cannot solve: iterate() then waits (returns false, changes nothing). In stages
+// 1 and 2 (by sweeps) an agent solves the groups that are tied down and holds the others (beyond
+// DGS.md, where the flag is one bit per robot): its messages then carry only the variables it has
+// solved in the stage, a receiver uses a separator only once its foreign variable came in a
+// message flagged initialised, and the agent reports an infinite change until every group is
+// solved, so no stopping rule ends the stage before. Without it, a landmark whose only factors
+// are separators (its own observation rejected by the robust solve) to a robot that reaches the
+// anchor only through this robot's other variables deadlocked the two: each waited for the other.
 //
 // Messages: receive() keeps, per stage and sender, only messages newer than the last accepted
 // (iteration strictly larger); duplicates and older (stale, reordered) messages are counted and
@@ -234,7 +241,9 @@ class RobotAgent {
   DgsStage currentStage() const;
   bool usable(const Separator& s, DgsStage stage) const;
   // The separators the current stage can use; false when some group of unknowns is not anchored.
-  bool solvable(DgsStage stage, std::vector<bool>& use) const;
+  // With `held` (stages 1 and 2 by sweeps): true as soon as one group is, `held` flagging the
+  // unknowns of the groups that are not (empty when none is).
+  bool solvable(DgsStage stage, std::vector<bool>& use, std::vector<bool>* held = nullptr) const;
   LocalSystem& system(DgsStage stage) { return stage == DgsStage::kRotation ? rotation_ : pose_; }
   const LocalSystem& system(DgsStage stage) const {
     return stage == DgsStage::kRotation ? rotation_ : pose_;
@@ -273,6 +282,7 @@ class RobotAgent {
   AgentState state_ = AgentState::kIdle;
   int iteration_ = 0;  // solves in the current stage: the messages' iteration numbers
   std::vector<Eigen::VectorXd> x_;              // per unknown, StageDimension of the stage
+  std::vector<bool> solved_;                    // stages 1 and 2: per unknown, solved in the stage
   std::vector<Eigen::VectorXd> before_coarse_;  // x_ before the coarse corrections since the
                                                 // last solve (empty: none)
   std::vector<Eigen::VectorXd> relaxed_;        // stage-1 result kept for relaxedRotations()

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <functional>
+#include <limits>
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/centralized_two_stage.h"
@@ -147,6 +149,66 @@ TEST(RobotAgent, FlaggedInitialisationWaitsForAnInitialisedNeighbour) {
   eager.receive(MessageFrom(0, DgsStage::kRotation, 0, false, {k03},
                             [&](const Key&) { return r03; }));
   EXPECT_TRUE(eager.iterate());
+}
+
+// Robot 0's landmark B has no factor of its own left (the robust solve rejected its
+// observation), only its separator to robot 1's copy, and robot 1 reaches robot 0 only through
+// separators. Robot 0 solves what is tied down and sends only that; robot 1 solves from it
+// (never from B's unsolved value) and robot 0 then solves B. Waiting for every group to be tied
+// down, as one flag per robot would, deadlocked the two.
+TEST(RobotAgent, FlaggedInitialisationSolvesTheGroupsTiedDownAndSendsOnlyThose) {
+  const SE3 frame1(SO3::Exp(Vector3(0.0, 0.0, 0.7)), Vector3(3.0, 2.0, 0.0));
+  const SE3 step(SO3(), Vector3(1.0, 0.0, 0.0));
+  const SE3 a(SO3::Exp(Vector3(0.0, 0.0, 0.3)), Vector3(2.0, 1.0, 0.0));
+  const SE3 b(SO3::Exp(Vector3(0.0, 0.0, -0.4)), Vector3(2.0, -1.0, 0.5));
+  const Values gt = {{Key::Pose(0, 0), SE3()},  {Key::Pose(0, 1), step},
+                     {Key::Pose(1, 0), frame1}, {Key::Pose(1, 1), frame1 * step},
+                     {Key::Object(0, 0), a},    {Key::Object(0, 1), b},
+                     {Key::Object(1, 0), a},    {Key::Object(1, 1), b}};
+  PoseGraph g;
+  auto add = [&](Key x, Key y) {
+    g.add(RelativePoseFactor(x, y, gt.at(x).between(gt.at(y)), Matrix6::Identity()));
+  };
+  for (int r = 0; r < 2; ++r) {
+    add(Key::Pose(r, 0), Key::Pose(r, 1));
+    add(Key::Pose(r, 0), Key::Object(r, 0));
+  }
+  add(Key::Pose(1, 1), Key::Object(1, 1));
+  add(Key::Object(0, 0), Key::Object(1, 0));
+  add(Key::Object(0, 1), Key::Object(1, 1));
+  const std::vector<RobotSubgraph> parts = PartitionByRobot(g);
+  Values initial = gt;  // B starts far off: a receiver using it would not be exact
+  initial[Key::Object(0, 1)] = SE3(SO3::Exp(Vector3(1.0, 0.5, 0.0)), Vector3(9.0, 9.0, 9.0));
+  RobotAgent robot0(0, parts[0].graph, initial, GaugeAnchor(g));
+  RobotAgent robot1(1, parts[1].graph, initial, GaugeAnchor(g));
+  const Key kb = Key::Object(0, 1);
+  auto keysTo1 = [&]() {
+    const std::vector<OutgoingMessage> out = robot0.outgoing();
+    EXPECT_EQ(out.size(), 1u);
+    return out.empty() ? std::vector<Key>{} : out[0].message.keys;
+  };
+  robot0.startRotation();
+  robot1.startRotation();
+  // Before any solve: every shared variable, not flagged (a receiver does not use them).
+  EXPECT_EQ(keysTo1(), (std::vector<Key>{Key::Object(0, 0), kb}));
+  ASSERT_EQ(robot1.receive(robot0.outgoing()[0].message), ReceiveStatus::kAccepted);
+  EXPECT_FALSE(robot1.iterate());
+  // Robot 0 solves the group tied to the anchor and holds B; not converged while B waits.
+  ASSERT_TRUE(robot0.iterate());
+  EXPECT_TRUE(robot0.initialised());
+  EXPECT_EQ(robot0.lastChange(), std::numeric_limits<double>::infinity());
+  EXPECT_EQ(keysTo1(), std::vector<Key>{Key::Object(0, 0)});
+  ASSERT_TRUE(robot0.outgoing()[0].message.initialised);
+  ASSERT_EQ(robot1.receive(robot0.outgoing()[0].message), ReceiveStatus::kAccepted);
+  ASSERT_TRUE(robot1.iterate());
+  for (const auto& [k, r] : robot1.relaxedRotations()) {
+    EXPECT_LT((r - RowMajor(gt.at(k).rotation().matrix())).norm(), 1e-12) << ToString(k);
+  }
+  ASSERT_EQ(robot0.receive(robot1.outgoing()[0].message), ReceiveStatus::kAccepted);
+  ASSERT_TRUE(robot0.iterate());
+  EXPECT_TRUE(std::isfinite(robot0.lastChange()));
+  EXPECT_EQ(keysTo1(), (std::vector<Key>{Key::Object(0, 0), kb}));
+  EXPECT_LT((robot0.relaxedRotations().at(kb) - RowMajor(b.rotation().matrix())).norm(), 1e-12);
 }
 
 TEST(RobotAgent, ReceiveKeepsOnlyNewerMessages) {

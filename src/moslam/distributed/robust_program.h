@@ -67,10 +67,13 @@ namespace moslam {
 
 // Whether the inliers' solve (step 4; RunRobustDgs alike) is kept: when it does not raise their
 // cost F beyond rounding (relative 1e-6). It starts at the rounds' estimate, so a higher cost means
-// that its DGS did not solve. Seen (house, 4 robots, rendered perception, 30 % wrong pairs): stage
-// 1 ran to max_iterations without any robot solving, every robot waiting (flagged initialisation)
-// for a landmark whose only inlier factors are separators to robots that wait too; every
-// translation came back 0 and F went from 401 to 2.9e6.
+// that its DGS did not solve. Seen (house, 4 robots, rendered perception, 30 % wrong pairs) while
+// an agent solved only once every variable of it was tied down: stage 1 ran to max_iterations
+// without any robot solving, each waiting (flagged initialisation) for a landmark whose only
+// inlier factors are separators to robots that waited too; every translation came back 0 and F
+// went from 401 to 2.9e6. The agents now solve the groups tied down first (robot_agent.h); a
+// solve that still fails (a robot or landmark the inliers do not tie to robot 0 at all, though
+// the robots are linked) is what this turns away.
 bool KeepInlierSolve(double cost_before, double cost_after);
 
 struct RobustProgramOptions {

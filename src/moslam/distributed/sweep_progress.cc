@@ -15,7 +15,10 @@ void SweepProgress::reset() {
 
 void SweepProgress::record(double change) {
   last_change_ = change;
-  if (change == 0.0) {
+  if (std::isinf(change)) {
+    recent_changes_.clear();
+    zero_changes_ = 0;
+  } else if (change == 0.0) {
     ++zero_changes_;
   } else {
     zero_changes_ = 0;

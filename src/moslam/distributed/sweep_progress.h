@@ -14,7 +14,8 @@ class SweepProgress {
 
   // A new stage or step: not solved, nothing measured.
   void reset();
-  // A solve that changed the robot's stacked unknowns by `change` (2-norm).
+  // A solve that changed the robot's stacked unknowns by `change` (2-norm). +infinity: a solve
+  // of part of them, the others still waiting (robot_agent.h); the error bound then starts over.
   void record(double change);
 
   int solves() const { return solves_; }
