@@ -13,6 +13,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -599,6 +600,49 @@ TEST(Team, AnOnlineRobotThatDiesForGoodIsSkippedAndTheOthersFinish) {
       EXPECT_TRUE(e["alpha"].get<int>() == victim || e["beta"].get<int>() == victim) << e.dump();
     }
     EXPECT_TRUE(fs::exists(out / ("robot" + std::to_string(r)) / "maps" / "final" / "map.g2o"));
+  }
+  EXPECT_GT(skipped, 0);
+  fs::remove_all(out);
+}
+
+// A batch robot killed for good after its first rendezvous: its partners at later rendezvous
+// find it gone and skip them, the others find it gone as the batch solve forms, and they solve
+// without it (robot_session.h; the result against the twin: RobotSession.TheOthersSolveTheBatch...).
+TEST(Team, ABatchRobotThatDiesInTheRendezvousPhaseIsLeftOutAndTheOthersSolve) {
+  const int domain = 47, n = 6, victim = 1;
+  const std::string uri = LoopbackConfigXml(domain, n);
+  const fs::path out = FreshDir("batch_leave");
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  std::vector<std::unique_ptr<Child>> robots;
+  for (int r = 0; r < n; ++r) {
+    std::vector<std::string> a = {"robot", "--robot", std::to_string(r), "--domain",
+                                  std::to_string(domain), "--out",
+                                  (out / ("robot" + std::to_string(r))).string(), "--progress",
+                                  "--json", "--leave-timeout", "2", "--join-timeout", "30",
+                                  "--stall-timeout", "60", "--rendezvous-timeout", "30"};
+    a.insert(a.end(), kScenario.begin(), kScenario.end());
+    robots.push_back(std::make_unique<Child>(a, uri, out / ("stderr" + std::to_string(r))));
+  }
+  ASSERT_TRUE(robots[victim]->waitForLine(
+      [](const std::string& l) { return l.rfind("rendezvous: ", 0) == 0; }, deadline))
+      << robots[victim]->output();
+  robots[victim]->kill9();
+  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
+  int skipped = 0;
+  for (int r = 0; r < n; ++r) {
+    if (r == victim) continue;
+    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
+    const nlohmann::json j = LastJson(robots[r]->output());
+    ASSERT_TRUE(j.is_object()) << robots[r]->output();
+    for (const nlohmann::json& e : j["rendezvous"]) {
+      if (!e["skipped"].get<bool>()) continue;
+      ++skipped;
+      EXPECT_TRUE(e["alpha"].get<int>() == victim || e["beta"].get<int>() == victim) << e.dump();
+    }
+    const std::vector<int> team = j["team"].get<std::vector<int>>();
+    EXPECT_EQ(std::count(team.begin(), team.end(), victim), 0) << j["team"].dump();
+    EXPECT_TRUE(std::count(team.begin(), team.end(), r) == 1) << j["team"].dump();
+    EXPECT_TRUE(fs::exists(out / ("robot" + std::to_string(r)) / "result.g2o"));
   }
   EXPECT_GT(skipped, 0);
   fs::remove_all(out);

@@ -63,9 +63,11 @@ struct MultiRobotSlamConfig {
   std::uint32_t outlier_seed = 1;
   int final_iterations = 10;  // Gauss-Newton iterations per robot after the last step
   // Fault experiments: robots that leave the team for good (robot id -> the last step they take
-  // part in), as the robot processes handle them (transport/robot_session.h, online mapping). At
-  // a later step a rendezvous event with such a robot is skipped: both robots still refresh
-  // before it, no pair is exchanged (none injected), and the groups in range list it in `gone`.
+  // part in), as the robot processes handle them (transport/robot_session.h). At a later step a
+  // rendezvous event with such a robot is skipped: both robots still refresh before it, no pair is
+  // exchanged (none injected), and the groups in range list it in `gone`. The batch solve of the
+  // processes then leaves it out with its pairs (the joint graph of the others, BuildGroupProblem
+  // of online/group_solve.h with no held estimates).
   std::map<int, int> leave_after;
   // Called after the rendezvous events of a time step, once per group of robots in range
   // (groups in the order of their lowest robot id), with the team as it is then: online

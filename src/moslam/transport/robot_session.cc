@@ -143,9 +143,9 @@ using Clock = std::chrono::steady_clock;
 constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'R', 'D', 'V', '2'};
 constexpr std::uint8_t kHeaderRecord = 1;
 constexpr std::uint8_t kEventRecord = 2;
-constexpr std::uint8_t kGroupRecord = 3;  // online: a group formed (solve_record.h)
+constexpr std::uint8_t kGroupRecord = 3;  // a group formed (solve_record.h; batch: at the end)
 constexpr std::uint8_t kSolveRecord = 4;  // online: a group solve finished
-constexpr std::uint8_t kLeftRecord = 5;   // online: a partner found gone for good
+constexpr std::uint8_t kLeftRecord = 5;   // a partner found gone for good
 
 using transport_detail::Fingerprint;
 using transport_detail::GroupRecord;
@@ -302,7 +302,7 @@ class RobotSession::Impl {
     std::set<int> everyone;
     for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
     transport_.setKnownRobots(everyone);
-    if (options_.online) {  // liveliness before the first solve (kPresenceSolve)
+    {  // liveliness before the first solve (kPresenceSolve): a robot that leaves is found gone
       StatusPacket presence;
       presence.robot = robot_;
       presence.solve = kPresenceSolve;
@@ -325,7 +325,7 @@ class RobotSession::Impl {
         if (e.alpha == robot_ || e.beta == robot_) mine.push_back(next);
       }
       if (mine.empty()) continue;
-      if (options_.online) noteAlive();
+      noteAlive();
       // As RunMultiRobotObjectSlam: both robots refresh before an event (the later events of
       // the same step find nothing new).
       slam.refresh(options_.slam.slam.iterations_per_update);
@@ -404,11 +404,23 @@ class RobotSession::Impl {
     result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     result_.rendezvous_transport = transport_.stats();
     result_.shared = shared_;
-    result_.subgraph = SessionSubgraph(slam, shared_, options_.slam.rendezvous.lambda());
     result_.initial = slam.estimate();
     result_.poses = slam.numPoses();
     result_.landmarks = static_cast<int>(slam.landmarks().size());
+    std::vector<int> closure, robots;
+    if (batchGroup(closure, robots)) {
+      solveWithoutTheRobotsThatLeft(slam, closure, robots);
+    } else {
+      result_.subgraph = SessionSubgraph(slam, shared_, options_.slam.rendezvous.lambda());
+      solveBatch();
+    }
+    result_.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    return result_;
+  }
 
+ private:
+  // The batch solve of the whole team (none of its robots left): DgsNode on the robot's subgraph.
+  void solveBatch() {
     PrefetchedTransport dgs_transport(transport_, std::move(pending_));
     pending_.clear();
     DgsNodeOptions node_options = options_.dgs;
@@ -417,11 +429,124 @@ class RobotSession::Impl {
     }
     DgsNode node(robot_, result_.subgraph, result_.initial, dgs_transport, node_options);
     result_.dgs = node.run();
-    result_.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    return result_;
   }
 
- private:
+  // ---- batch: robots that left for good ---------------------------------------------------
+  // Before the batch solve every robot with shared pairs publishes a joining status of solve
+  // 1 + T (T: its number of steps) listing every robot it shares pairs with, gone or not, and
+  // waits for those of the closure (formGroup): a robot that left for good publishes none and is
+  // found gone (or was, at a rendezvous), so every robot of the closure finds the same
+  // departures. Returns whether some robot of `closure` (increasing, this robot among them) left;
+  // `robots`: the closure without them. The closure is journaled (a group record of step T), so a
+  // robot restarted in the solve takes the same way.
+  bool batchGroup(std::vector<int>& closure, std::vector<int>& robots) {
+    const int end = data_.numSteps();
+    const auto solve = static_cast<std::uint32_t>(end + 1);
+    if (const auto journaled = journaled_groups_.find(end); journaled != journaled_groups_.end()) {
+      closure = journaled->second.robots;
+    } else {
+      std::set<int> partners;
+      for (const SharedObject& o : shared_) {
+        for (int r : {o.alpha_object.robot, o.beta_object.robot}) {
+          if (r != robot_) partners.insert(r);
+        }
+      }
+      if (partners.empty()) return false;  // linked to no robot: the batch solve as before
+      StatusPacket join;
+      join.robot = robot_;
+      join.solve = solve;
+      join.neighbours.assign(partners.begin(), partners.end());
+      transport_.publish(join);
+      std::set<int> everyone;
+      for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
+      std::vector<TeamPair> none;
+      formGroup(join, partners, everyone, solve, end, robots, none, &closure);
+      record(kGroupRecord, GroupRecord{static_cast<std::uint32_t>(end), closure, {}},
+             transport_detail::AppendGroupRecord);
+    }
+    robots.clear();
+    for (int r : closure) {
+      if (r == robot_ || !hasLeft(r, end)) robots.push_back(r);
+    }
+    return robots.size() != closure.size();
+  }
+
+  // The batch solve of `robots`, the closure without the robots that left: their pairs dropped,
+  // the robots re-labelled 0..k-1 (GroupTransport) so that the lowest of them holds the gauge
+  // (robot 0 may have left), as the in-process twin solves the joint graph of the robots that
+  // stay (BuildGroupProblem without held estimates). Its DgsNode journals in
+  // <state_dir>/solves/batch; the result, in the robots' own ids, in <state_dir>/result.g2o.
+  void solveWithoutTheRobotsThatLeft(const ObjectSlam& slam, const std::vector<int>& closure,
+                                     const std::vector<int>& robots) {
+    std::vector<int> gone;
+    std::set_difference(closure.begin(), closure.end(), robots.begin(), robots.end(),
+                        std::back_inserter(gone));
+    const auto real = [&](Key k) {
+      return Key{robots[static_cast<std::size_t>(k.robot)], k.kind, k.index};
+    };
+    if (robots.size() < 2) {  // every partner left: its own map is its result
+      for (const auto& [k, x] : slam.estimate()) result_.dgs.estimate.emplace(k, x);
+      result_.dgs.team = robots;
+      result_.subgraph = slam.graph();
+      saveBatchResult();
+      return;
+    }
+    const auto solve = static_cast<std::uint32_t>(data_.numSteps() + 1);
+    RobotGroupPart part =
+        BuildRobotGroupPart(slam, robots, shared_, {}, options_.slam.rendezvous.lambda());
+    std::vector<Received> mine;
+    for (auto it = pending_.begin(); it != pending_.end();) {
+      if (SolveOf(*it) == solve) {
+        mine.push_back(std::move(*it));
+        it = pending_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    GroupTransport group_transport(
+        transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
+        std::move(mine));
+    DgsNodeOptions node_options = options_.dgs;
+    node_options.solve = solve;
+    if (!options_.dgs.state_dir.empty()) {
+      node_options.state_dir =
+          (std::filesystem::path(options_.dgs.state_dir) / "solves" / "batch").string();
+    }
+    if (node_options.gnc && node_options.robust.empty()) {
+      node_options.robust = ObjectFactors(part.subgraph);
+    }
+    node_options.log = [this, gone, robots](const std::string& text) {
+      options_.log(fmt::format("batch solve without robot(s) {} (robots {} as 0..{}): {}",
+                               fmt::join(gone, ","), fmt::join(robots, ","), robots.size() - 1,
+                               text));
+    };
+    DgsNode node(part.local, part.subgraph, std::move(part.initial), group_transport, node_options);
+    DgsNodeResult solved = node.run();
+    for (const RelativePoseFactor& f : part.subgraph.factors()) {
+      result_.subgraph.add(RelativePoseFactor(real(f.a()), real(f.b()), f.measured(), f.information()));
+    }
+    Values estimate, neighbours;
+    for (const auto& [k, x] : solved.estimate) estimate.emplace(real(k), x);
+    for (const auto& [k, x] : solved.neighbours) neighbours.emplace(real(k), x);
+    solved.estimate = std::move(estimate);
+    solved.neighbours = std::move(neighbours);
+    for (std::vector<int>* ids : {&solved.team, &solved.left}) {
+      for (int& r : *ids) r = robots[static_cast<std::size_t>(r)];
+    }
+    result_.dgs = std::move(solved);
+    saveBatchResult();
+  }
+
+  // <state_dir>/result.g2o as the batch DgsNode writes it: the subgraph and the estimate.
+  void saveBatchResult() const {
+    if (options_.dgs.state_dir.empty()) return;
+    const std::filesystem::path dir(options_.dgs.state_dir);
+    G2oWriteOptions write;
+    write.scheme = KeyScheme::kWithObjects;
+    WriteG2oFile((dir / "result.g2o.tmp").string(), result_.subgraph, result_.dgs.estimate, write);
+    std::filesystem::rename(dir / "result.g2o.tmp", dir / "result.g2o");
+  }
+
   // What event e changed, applied to the shared pairs as RunMultiRobotObjectSlam does (the
   // removed pairs leave first, the new ones are appended), and counted in `rec`.
   void applyPairs(const RendezvousEvent& e, const EventPairs& pairs, SessionRendezvous& rec) {
@@ -595,8 +720,10 @@ class RobotSession::Impl {
 
   // Waits for the joining statuses of the closure of `partners` within `range` (after publishing
   // `join`); the group's robots and its held factors from every member's status.
+  // `closure` (optional): the robots of the closure, increasing, those that left included.
   void formGroup(const StatusPacket& join, const std::set<int>& partners, const std::set<int>& range,
-                 std::uint32_t solve, int t, std::vector<int>& robots, std::vector<TeamPair>& team) {
+                 std::uint32_t solve, int t, std::vector<int>& robots, std::vector<TeamPair>& team,
+                 std::vector<int>* closure = nullptr) {
     std::set<int> group{robot_};
     group.insert(partners.begin(), partners.end());
     const auto deadline = Clock::now() + options_.dgs.join_timeout;
@@ -609,8 +736,11 @@ class RobotSession::Impl {
       for (const Received& r : pending_) {
         const auto* st = std::get_if<StatusPacket>(&r.packet);
         if (st && st->solve == solve && range.count(r.sender)) {
-          heard[r.sender] = st->neighbours;
-          // Its first status of the solve (in order per sender) is the one it joined with.
+          // Its first status of the solve (in order per sender) is the one it joined with; the
+          // later ones are its DgsNode's, whose neighbours are those of the group that formed
+          // (without the robots that left: a robot that read them instead formed another
+          // closure, and took the batch solve of the whole team while the others left it).
+          heard.try_emplace(r.sender, st->neighbours);
           team_of.try_emplace(r.sender, st->team);
         }
       }
@@ -637,6 +767,7 @@ class RobotSession::Impl {
       }
       ingest(transport_.poll(std::chrono::milliseconds(50)));
     }
+    if (closure) closure->assign(group.begin(), group.end());
     for (int r : group) {  // without the robots that left
       if (r == robot_ || (heard.count(r) && !hasLeft(r, t))) robots.push_back(r);
     }
@@ -724,7 +855,6 @@ class RobotSession::Impl {
         continue;
       }
       if (type == kLeftRecord) {
-        if (!options_.online) throw InvalidInputError(what + ": a departure in a batch journal");
         const LeftRecord left = transport_detail::ReadLeftRecord(records[i], 1, what);
         if (left.robot >= data_.num_robots || left.robot == robot_) {
           throw InvalidInputError(what + ": a departure of a robot not among its partners");
@@ -733,9 +863,14 @@ class RobotSession::Impl {
         continue;
       }
       if (type == kGroupRecord || type == kSolveRecord) {
-        if (!options_.online) throw InvalidInputError(what + ": a group solve in a batch journal");
+        if (!options_.online && type == kSolveRecord) {
+          throw InvalidInputError(what + ": a group solve in a batch journal");
+        }
         if (type == kGroupRecord) {
           GroupRecord g = transport_detail::ReadGroupRecord(records[i], 1, what);
+          if (!options_.online && g.step != static_cast<std::uint32_t>(data_.numSteps())) {
+            throw InvalidInputError(what + ": a batch journal's group record is not of the end");
+          }
           if (g.robots.empty() || !std::binary_search(g.robots.begin(), g.robots.end(), robot_) ||
               g.robots.back() >= data_.num_robots) {
             throw InvalidInputError(what + ": a group record of robots not in the team");
@@ -819,6 +954,9 @@ class RobotSession::Impl {
 
   void ingest(std::vector<Received> packets) {
     for (Received& r : packets) {
+      // A packet proves its sender was alive, even one that is gone by the time this robot
+      // looks at the liveliness (its presence status, kPresenceSolve, is there for that).
+      seen_alive_.insert(r.sender);
       if (auto* list = std::get_if<ObjectListPacket>(&r.packet)) {
         lists_[std::make_pair(r.sender, list->step)].push_back(std::move(*list));
       } else if (auto* answer = std::get_if<SharedObjectsPacket>(&r.packet)) {
@@ -830,7 +968,7 @@ class RobotSession::Impl {
     }
   }
 
-  // Polls until `ready()` (true) or, online, until the peer is found gone for good (false:
+  // Polls until `ready()` (true) or until the peer is found gone for good (false:
   // foundLeft); throws at the rendezvous timeout.
   template <typename Ready>
   bool waitFor(const RendezvousEvent& e, const char* what, Ready ready) {
@@ -850,7 +988,7 @@ class RobotSession::Impl {
     return true;
   }
 
-  // ---- robots that leave for good (online) ---------------------------------------------------
+  // ---- robots that leave for good -----------------------------------------------------------
   // The robots whose liveliness this one has seen asserted; returns those alive now.
   std::set<int> noteAlive() {
     std::set<int> alive = transport_.alive();
@@ -864,12 +1002,11 @@ class RobotSession::Impl {
     return it != left_.end() && it->second <= t;
   }
 
-  // Online, while `robot` is waited for at step t: whether it has now left for good, by the
+  // While `robot` is waited for at step t: whether it has now left for good, by the
   // DgsNode's rule: seen alive before, and not alive for dgs.leave_timeout (`not_alive_since`
   // keeps when each waited-for robot was first seen not alive). A robot found gone is journaled:
   // from then on its rendezvous are skipped and no group solve includes it.
   bool foundLeft(int robot, int t, std::map<int, Clock::time_point>& not_alive_since) {
-    if (!options_.online) return false;
     const auto now = Clock::now();
     if (noteAlive().count(robot) || !seen_alive_.count(robot)) {
       not_alive_since.erase(robot);
@@ -881,13 +1018,13 @@ class RobotSession::Impl {
     record(kLeftRecord, LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(t)},
            transport_detail::AppendLeftRecord);
     options_.log(fmt::format("robot {} left for good (not alive for {} ms at step {}): its "
-                             "rendezvous are skipped and the group solves go on without it",
+                             "rendezvous are skipped and the solves go on without it",
                              robot, options_.dgs.leave_timeout.count(), t));
     return true;
   }
 
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
-  // None: alpha left for good (online).
+  // None: alpha left for good.
   std::optional<ObjectMapMessage> awaitList(const RendezvousEvent& e) {
     const auto key = std::make_pair(e.alpha, static_cast<std::uint32_t>(e.step));
     ObjectMapMessage received;
@@ -917,7 +1054,7 @@ class RobotSession::Impl {
   // Beta's answer to this robot's list of the event's step. Rejected: new pairs naming landmarks
   // this robot does not have or repeating a pair shared with beta (with known initial poses: any
   // object already shared between the two, as AnswerObjectMap excludes them), removed pairs that
-  // are not shared with beta. None: beta left for good (online).
+  // are not shared with beta. None: beta left for good.
   std::optional<EventPairs> awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
     const auto key = std::make_pair(e.beta, static_cast<std::uint32_t>(e.step));
     std::set<std::uint64_t> mine_taken, theirs_taken;
@@ -981,7 +1118,7 @@ class RobotSession::Impl {
   bool ran_ = false;
   std::unique_ptr<Journal> journal_;
   std::map<std::size_t, EventPairs> journaled_;  // event index -> what it changed
-  std::map<int, GroupRecord> journaled_groups_;  // online, by step: groups formed
+  std::map<int, GroupRecord> journaled_groups_;  // by step: groups formed (batch: the end)
   std::map<int, SolveRecord> journaled_solves_;  // online, by step: group solves finished
   std::uint32_t revision_ = 0;
   std::vector<SharedObject> shared_;
@@ -990,7 +1127,7 @@ class RobotSession::Impl {
   std::map<std::pair<int, std::uint32_t>, std::deque<SharedObjectsPacket>> answers_;
   std::vector<Received> pending_;  // DGS packets
   HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
-  std::map<int, int> left_;        // online: robots found gone for good -> the step
+  std::map<int, int> left_;        // robots found gone for good -> the step
   std::set<int> seen_alive_;       // robots whose liveliness it has seen
   RobotSessionResult result_;
 };

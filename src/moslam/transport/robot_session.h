@@ -32,19 +32,25 @@
 // Faults. Received packets are validated by the transport (unknown robots, malformed content);
 // the session also rejects (logs and ignores) answers naming objects this robot does not have
 // and lists that the in-process encoding refuses. A peer that does not answer within
-// rendezvous_timeout makes the robot fail (moslam::Error): the exchange is not skipped, since
-// skipping would change the result.
-// Leaving for good (online): every online robot publishes a presence status when it starts
-// (kPresenceSolve), so its liveliness is known before its first solve. A robot waited for (at a
-// rendezvous, or for its joining status) that was seen alive and is not alive for
-// dgs.leave_timeout has left for good, by the DgsNode's rule: the robot journals it, skips its
-// rendezvous with it from then on (SessionRendezvous::skipped; nothing exchanged) and leaves it
-// out of its group solves (its pairs with it become held factors); the others find the same
-// group, since a robot that left publishes no joining status. The twin:
-// MultiRobotSlamConfig::leave_after. Not covered: a robot that dies between its joining status
+// rendezvous_timeout, and has not left for good (below), makes the robot fail (moslam::Error):
+// the exchange is not skipped, since skipping would change the result.
+// Leaving for good: every robot publishes a presence status when it starts (kPresenceSolve), so
+// its liveliness is known before its first solve. A robot waited for (at a rendezvous, or for its
+// joining status) that was seen alive (a packet of it received, or its liveliness asserted) and is
+// not alive for dgs.leave_timeout has left for good, by the DgsNode's rule: the robot journals it
+// and skips its rendezvous with it from then on (SessionRendezvous::skipped; nothing exchanged).
+// Online, no group solve includes it (its pairs with it become held factors); the others find
+// the same group, since a robot that left publishes no joining status. The twin:
+// MultiRobotSlamConfig::leave_after. Batch: before the solve, every robot with shared pairs
+// publishes a joining status listing all the robots it shares pairs with, gone or not, and waits
+// for those of the closure, so every robot of the closure finds the same departures; when a robot
+// of it left, the others solve without it: its pairs dropped, the robots re-labelled so that the
+// lowest holds the gauge (it may be robot 0), as the twin solves the joint graph of the robots
+// that stay (BuildGroupProblem with no held estimates; its DgsNode journals in
+// state_dir/solves/batch, the result in state_dir/result.g2o in the robots' own ids); with no
+// departure, the batch solve as before. Not covered: a robot that dies between its joining status
 // and its DgsNode's first status (its partners fail at the node's join_timeout), and one that
-// comes back after its partners found it gone (it fails at its next rendezvous with them). The
-// batch mode still fails at the rendezvous timeout (its DGS team could not form without it).
+// comes back after its partners found it gone (it fails at its next rendezvous with them).
 // Restart (state_dir): the rendezvous phase is deterministic given the answers, so the journal
 // `rendezvous.bin` (journal.h) records only each finished event's pairs (added and removed:
 // event_record.h). A restarted process re-runs its SLAM from its measurements, takes finished
@@ -122,7 +128,7 @@ struct SessionRendezvous {
   int removed_shared = 0;        // pairs shared before that it removed (unknown initial poses)
   std::int64_t binary_bytes = 0;  // in-process encoding of what this robot sent for it
   bool replayed = false;         // taken from the journal
-  bool skipped = false;          // online: the peer had left for good; nothing exchanged
+  bool skipped = false;          // the peer had left for good; nothing exchanged
   double seconds = 0.0;          // waiting for the peer
 };
 

@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <map>
+#include <memory>
 #include <mutex>
 #include <random>
 #include <set>
@@ -17,6 +19,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/metrics/metrics.h"
+#include "moslam/online/group_solve.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/robot_session.h"
 
@@ -319,6 +322,127 @@ TEST(RobotSession, ARobotThatCrashesInTheRendezvousPhaseAndRestartsLosesNothing)
     ScenarioSpec spec = Small();
     spec.known_initial_poses = known;
     CrashAndRestartInTheRendezvousPhase(spec);
+  }
+}
+
+// The batch twin of a team that `victim` leaves after step `last_step`
+// (MultiRobotSlamConfig::leave_after): per robot that stays, its estimate in the joint solve of
+// the robots linked to it without the victim (BuildGroupProblem, no held estimates: their pairs
+// with it dropped; the lowest of them holds the gauge), or its own map when it is linked to none.
+struct LeaveTwin {
+  MultiRobotSlamResult slam;
+  std::map<int, Values> estimates;
+  int skipped = 0;
+  int solves = 0;  // parts of two or more robots solved together
+};
+LeaveTwin BatchTwinWithoutTheVictim(const ScenarioSpec& spec, const SimulationData& data,
+                                    int victim, int last_step) {
+  LeaveTwin twin;
+  MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
+  config.leave_after[victim] = last_step;
+  twin.slam = RunMultiRobotObjectSlam(data, config);
+  for (const RendezvousRecord& e : twin.slam.rendezvous) twin.skipped += e.skipped ? 1 : 0;
+  std::vector<int> stay;
+  for (int r = 0; r < spec.robots; ++r) {
+    if (r != victim) stay.push_back(r);
+  }
+  for (const std::vector<int>& part : LinkedGroups(stay, twin.slam.shared)) {
+    if (part.size() < 2) {
+      twin.estimates[part[0]] = twin.slam.robots[static_cast<std::size_t>(part[0])].estimate();
+      continue;
+    }
+    std::vector<const ObjectSlam*> members;
+    for (int r : part) members.push_back(&twin.slam.robots[static_cast<std::size_t>(r)]);
+    ++twin.solves;
+    const GroupProblem problem =
+        BuildGroupProblem(members, twin.slam.shared, {}, config.rendezvous.lambda());
+    EXPECT_EQ(problem.team_factors, 0);
+    const DgsResult dgs = RunDgs(problem.graph, problem.initial, DriverOptions(DgsNodeOptions{}));
+    for (const auto& [k, x] : dgs.values) {
+      const int r = part[static_cast<std::size_t>(k.robot)];
+      twin.estimates[r].emplace(Key{r, k.kind, k.index}, x);
+    }
+  }
+  return twin;
+}
+
+// A robot that leaves for good in the rendezvous phase of a batch mission (robot 0, the gauge's
+// owner, and the robot with the most events): its partners at later rendezvous find it gone
+// (seen alive, then not alive for leave_timeout) and skip them; before the batch solve every
+// robot that shares pairs with it finds it gone while the team forms, and the others solve
+// without it, each estimate the twin's to 1e-9. Before, the first partner to wait for it failed
+// at rendezvous_timeout.
+TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
+  ScenarioSpec spec = Small();
+  spec.robots = 4;
+  const SimulationData data = SimulateScenario(spec);
+  std::map<int, std::vector<int>> steps_of;  // robot -> the steps of its events
+  for (const RendezvousEvent& e : data.rendezvous) {
+    for (int r : {e.alpha, e.beta}) steps_of[r].push_back(e.step);
+  }
+  const int busiest = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
+                                       const auto& b) { return a.second.size() < b.second.size(); })->first;
+  for (const int victim : std::set<int>{0, busiest}) {
+    SCOPED_TRACE("robot " + std::to_string(victim) + " leaves");
+    const std::vector<int>& steps = steps_of[victim];
+    ASSERT_GE(steps.size(), 2u);
+    const int last_step = steps.front();  // it leaves after the events of its first step
+    ASSERT_GT(steps.back(), last_step);   // and misses a later one
+    const LeaveTwin twin = BatchTwinWithoutTheVictim(spec, data, victim, last_step);
+    ASSERT_GT(twin.skipped, 0);
+    ASSERT_GE(twin.solves, 1);  // some robots that stay solve together
+
+    InProcessNetwork net;
+    Log log;
+    std::vector<std::unique_ptr<Transport>> transports;
+    for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+    std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+    std::vector<std::string> errors(results.size());
+    struct Leave {};
+    std::vector<std::thread> threads;
+    for (int r = 0; r < spec.robots; ++r) {
+      threads.emplace_back([&, r]() {
+        const auto ri = static_cast<std::size_t>(r);
+        RobotSessionOptions o = Options(spec, log);
+        o.dgs.leave_timeout = milliseconds(300);
+        if (r == victim) {
+          const auto events_at_last = std::count(steps.begin(), steps.end(), last_step);
+          auto seen = std::make_shared<std::int64_t>(0);
+          o.on_rendezvous = [seen, events_at_last](const SessionRendezvous&) {
+            if (++*seen == events_at_last) throw Leave{};
+          };
+        }
+        try {
+          RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+          results[ri] = session.run();
+          if (r == victim) errors[ri] = "the victim did not leave";
+        } catch (const Leave&) {
+          transports[ri].reset();  // gone for good
+        } catch (const std::exception& e) {
+          errors[ri] = e.what();
+        }
+      });
+    }
+    for (auto& t : threads) t.join();
+    for (const std::string& e : errors) ASSERT_EQ(e, "");
+    int skipped = 0;
+    for (int r = 0; r < spec.robots; ++r) {
+      if (r == victim) continue;
+      const RobotSessionResult& got = results[static_cast<std::size_t>(r)];
+      for (const SessionRendezvous& e : got.rendezvous) {
+        if (!e.skipped) continue;
+        ++skipped;
+        EXPECT_TRUE(e.event.alpha == victim || e.event.beta == victim);
+      }
+      const Values& expected = twin.estimates.at(r);
+      EXPECT_EQ(got.dgs.estimate.size(), expected.size()) << "robot " << r;
+      EXPECT_LE(MaxPoseDifference(got.dgs.estimate, expected), 1e-9) << "robot " << r;
+      EXPECT_EQ(std::count(got.dgs.team.begin(), got.dgs.team.end(), victim), 0);
+      for (const auto& [k, x] : got.dgs.estimate) EXPECT_EQ(k.robot, r);
+    }
+    EXPECT_EQ(skipped, twin.skipped);
+    EXPECT_TRUE(log.contains("robot " + std::to_string(victim) + " left for good"));
+    EXPECT_TRUE(log.contains("batch solve without robot(s) " + std::to_string(victim)));
   }
 }
 
