@@ -523,7 +523,8 @@ class RobotSession::Impl {
     DgsNode node(part.local, part.subgraph, std::move(part.initial), group_transport, node_options);
     DgsNodeResult solved = node.run();
     for (const RelativePoseFactor& f : part.subgraph.factors()) {
-      result_.subgraph.add(RelativePoseFactor(real(f.a()), real(f.b()), f.measured(), f.information()));
+      result_.subgraph.add(
+          RelativePoseFactor(real(f.a()), real(f.b()), f.measured(), f.information()));
     }
     Values estimate, neighbours;
     for (const auto& [k, x] : solved.estimate) estimate.emplace(real(k), x);
