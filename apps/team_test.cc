@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -566,52 +567,16 @@ TEST(Team, AnOnlineRobotKilledInAGroupSolveAndRestartedLosesNothing) {
   fs::remove_all(out);
 }
 
-// An online robot killed for good after its first group solve: its partners find it gone, skip
-// their later rendezvous with it and finish the mission.
-TEST(Team, AnOnlineRobotThatDiesForGoodIsSkippedAndTheOthersFinish) {
-  const int domain = 49, n = 6, victim = 1;
+// n robots of kScenario as processes in DDS domain `domain` (with `extra` flags, leaving after
+// 2 s unseen), `victim` killed with SIGKILL once it prints a line starting with `kill_after`.
+// Every other robot must exit 0 with a JSON summary, which `check` gets with its --out folder;
+// the rendezvous they skipped, each with the victim, are counted in `skipped`.
+void KillOneForGood(int domain, int n, int victim, const std::string& name,
+                    const std::vector<std::string>& extra, const std::string& kill_after,
+                    const std::function<void(int, const nlohmann::json&, const fs::path&)>& check,
+                    int* skipped) {
   const std::string uri = LoopbackConfigXml(domain, n);
-  const fs::path out = FreshDir("online_leave");
-  const auto deadline = Clock::now() + std::chrono::seconds(120);
-  std::vector<std::unique_ptr<Child>> robots;
-  for (int r = 0; r < n; ++r) {
-    std::vector<std::string> a = {"robot", "--robot", std::to_string(r), "--domain",
-                                  std::to_string(domain), "--out",
-                                  (out / ("robot" + std::to_string(r))).string(), "--progress",
-                                  "--json", "--online", "--leave-timeout", "2", "--join-timeout",
-                                  "30", "--stall-timeout", "60", "--rendezvous-timeout", "30"};
-    a.insert(a.end(), kScenario.begin(), kScenario.end());
-    robots.push_back(std::make_unique<Child>(a, uri, out / ("stderr" + std::to_string(r))));
-  }
-  ASSERT_TRUE(robots[victim]->waitForLine(
-      [](const std::string& l) { return l.rfind("group solve: ", 0) == 0; }, deadline))
-      << robots[victim]->output();
-  robots[victim]->kill9();
-  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
-  int skipped = 0;
-  for (int r = 0; r < n; ++r) {
-    if (r == victim) continue;
-    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
-    const nlohmann::json j = LastJson(robots[r]->output());
-    ASSERT_TRUE(j.is_object()) << robots[r]->output();
-    for (const nlohmann::json& e : j["rendezvous"]) {
-      if (!e["skipped"].get<bool>()) continue;
-      ++skipped;
-      EXPECT_TRUE(e["alpha"].get<int>() == victim || e["beta"].get<int>() == victim) << e.dump();
-    }
-    EXPECT_TRUE(fs::exists(out / ("robot" + std::to_string(r)) / "maps" / "final" / "map.g2o"));
-  }
-  EXPECT_GT(skipped, 0);
-  fs::remove_all(out);
-}
-
-// A batch robot killed for good after its first rendezvous: its partners at later rendezvous
-// find it gone and skip them, the others find it gone as the batch solve forms, and they solve
-// without it (robot_session.h; the result against the twin: RobotSession.TheOthersSolveTheBatch...).
-TEST(Team, ABatchRobotThatDiesInTheRendezvousPhaseIsLeftOutAndTheOthersSolve) {
-  const int domain = 47, n = 6, victim = 1;
-  const std::string uri = LoopbackConfigXml(domain, n);
-  const fs::path out = FreshDir("batch_leave");
+  const fs::path out = FreshDir(name);
   const auto deadline = Clock::now() + std::chrono::seconds(120);
   std::vector<std::unique_ptr<Child>> robots;
   for (int r = 0; r < n; ++r) {
@@ -620,15 +585,16 @@ TEST(Team, ABatchRobotThatDiesInTheRendezvousPhaseIsLeftOutAndTheOthersSolve) {
                                   (out / ("robot" + std::to_string(r))).string(), "--progress",
                                   "--json", "--leave-timeout", "2", "--join-timeout", "30",
                                   "--stall-timeout", "60", "--rendezvous-timeout", "30"};
+    a.insert(a.end(), extra.begin(), extra.end());
     a.insert(a.end(), kScenario.begin(), kScenario.end());
     robots.push_back(std::make_unique<Child>(a, uri, out / ("stderr" + std::to_string(r))));
   }
   ASSERT_TRUE(robots[victim]->waitForLine(
-      [](const std::string& l) { return l.rfind("rendezvous: ", 0) == 0; }, deadline))
+      [&](const std::string& l) { return l.rfind(kill_after, 0) == 0; }, deadline))
       << robots[victim]->output();
   robots[victim]->kill9();
   EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
-  int skipped = 0;
+  *skipped = 0;
   for (int r = 0; r < n; ++r) {
     if (r == victim) continue;
     ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
@@ -636,16 +602,41 @@ TEST(Team, ABatchRobotThatDiesInTheRendezvousPhaseIsLeftOutAndTheOthersSolve) {
     ASSERT_TRUE(j.is_object()) << robots[r]->output();
     for (const nlohmann::json& e : j["rendezvous"]) {
       if (!e["skipped"].get<bool>()) continue;
-      ++skipped;
+      ++*skipped;
       EXPECT_TRUE(e["alpha"].get<int>() == victim || e["beta"].get<int>() == victim) << e.dump();
     }
-    const std::vector<int> team = j["team"].get<std::vector<int>>();
-    EXPECT_EQ(std::count(team.begin(), team.end(), victim), 0) << j["team"].dump();
-    EXPECT_TRUE(std::count(team.begin(), team.end(), r) == 1) << j["team"].dump();
-    EXPECT_TRUE(fs::exists(out / ("robot" + std::to_string(r)) / "result.g2o"));
+    check(r, j, out / ("robot" + std::to_string(r)));
   }
-  EXPECT_GT(skipped, 0);
   fs::remove_all(out);
+}
+
+// An online robot killed for good after its first group solve: its partners find it gone, skip
+// their later rendezvous with it and finish the mission.
+TEST(Team, AnOnlineRobotThatDiesForGoodIsSkippedAndTheOthersFinish) {
+  int skipped = 0;
+  KillOneForGood(49, 6, 1, "online_leave", {"--online"}, "group solve: ",
+                 [](int, const nlohmann::json&, const fs::path& out) {
+                   EXPECT_TRUE(fs::exists(out / "maps" / "final" / "map.g2o"));
+                 },
+                 &skipped);
+  EXPECT_GT(skipped, 0);
+}
+
+// A batch robot killed for good after its first rendezvous: its partners at later rendezvous
+// find it gone and skip them, the others find it gone as the batch solve forms, and they solve
+// without it (robot_session.h; the result against the twin: RobotSession.TheOthersSolveTheBatch...).
+TEST(Team, ABatchRobotThatDiesInTheRendezvousPhaseIsLeftOutAndTheOthersSolve) {
+  const int victim = 1;
+  int skipped = 0;
+  KillOneForGood(47, 6, victim, "batch_leave", {}, "rendezvous: ",
+                 [&](int r, const nlohmann::json& j, const fs::path& out) {
+                   const std::vector<int> team = j["team"].get<std::vector<int>>();
+                   EXPECT_EQ(std::count(team.begin(), team.end(), victim), 0) << j["team"].dump();
+                   EXPECT_EQ(std::count(team.begin(), team.end(), r), 1) << j["team"].dump();
+                   EXPECT_TRUE(fs::exists(out / "result.g2o"));
+                 },
+                 &skipped);
+  EXPECT_GT(skipped, 0);
 }
 
 }  // namespace

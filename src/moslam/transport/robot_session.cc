@@ -494,18 +494,9 @@ class RobotSession::Impl {
     const auto solve = static_cast<std::uint32_t>(data_.numSteps() + 1);
     RobotGroupPart part =
         BuildRobotGroupPart(slam, robots, shared_, {}, options_.slam.rendezvous.lambda());
-    std::vector<Received> mine;
-    for (auto it = pending_.begin(); it != pending_.end();) {
-      if (SolveOf(*it) == solve) {
-        mine.push_back(std::move(*it));
-        it = pending_.erase(it);
-      } else {
-        ++it;
-      }
-    }
     GroupTransport group_transport(
         transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
-        std::move(mine));
+        takePending(solve));
     DgsNodeOptions node_options = options_.dgs;
     node_options.solve = solve;
     if (!options_.dgs.state_dir.empty()) {
@@ -638,18 +629,9 @@ class RobotSession::Impl {
     }
     const Matrix6 lambda = options_.slam.rendezvous.lambda();
     RobotGroupPart part = BuildRobotGroupPart(slam, robots, shared_, team, lambda);
-    std::vector<Received> mine;
-    for (auto it = pending_.begin(); it != pending_.end();) {
-      if (SolveOf(*it) == solve) {
-        mine.push_back(std::move(*it));
-        it = pending_.erase(it);
-      } else {
-        ++it;
-      }
-    }
     GroupTransport group_transport(
         transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
-        std::move(mine));
+        takePending(solve));
     DgsNodeOptions node_options = options_.dgs;
     node_options.solve = solve;
     // Its own journal, so that a robot restarted in the solve resumes it (dgs_node.h).
@@ -796,6 +778,20 @@ class RobotSession::Impl {
     WriteTumTrajectories(tmp.string(), slam.estimate());
     std::filesystem::remove_all(final_dir);
     std::filesystem::rename(tmp, final_dir);
+  }
+
+  // The packets of `solve` received so far, taken out of pending_ (for its GroupTransport).
+  std::vector<Received> takePending(std::uint32_t solve) {
+    std::vector<Received> mine;
+    for (auto it = pending_.begin(); it != pending_.end();) {
+      if (SolveOf(*it) == solve) {
+        mine.push_back(std::move(*it));
+        it = pending_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    return mine;
   }
 
   static std::uint32_t SolveOf(const Received& r) {
