@@ -4,6 +4,7 @@
 // logged; a robot that crashes in the rendezvous phase and restarts from its journal loses
 // nothing. Between processes over DDS: apps/team_test.cc.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -333,7 +334,7 @@ struct LeaveTwin {
   MultiRobotSlamResult slam;
   std::map<int, Values> estimates;
   int skipped = 0;
-  int solves = 0;  // parts of two or more robots solved together
+  std::vector<int> solved;  // the robots of parts of two or more, solved together
 };
 LeaveTwin BatchTwinWithoutTheVictim(const ScenarioSpec& spec, const SimulationData& data,
                                     int victim, int last_step) {
@@ -353,7 +354,7 @@ LeaveTwin BatchTwinWithoutTheVictim(const ScenarioSpec& spec, const SimulationDa
     }
     std::vector<const ObjectSlam*> members;
     for (int r : part) members.push_back(&twin.slam.robots[static_cast<std::size_t>(r)]);
-    ++twin.solves;
+    twin.solved.insert(twin.solved.end(), part.begin(), part.end());
     const GroupProblem problem =
         BuildGroupProblem(members, twin.slam.shared, {}, config.rendezvous.lambda());
     EXPECT_EQ(problem.team_factors, 0);
@@ -371,7 +372,8 @@ LeaveTwin BatchTwinWithoutTheVictim(const ScenarioSpec& spec, const SimulationDa
 // (seen alive, then not alive for leave_timeout) and skip them; before the batch solve every
 // robot that shares pairs with it finds it gone while the team forms, and the others solve
 // without it, each estimate the twin's to 1e-9. Before, the first partner to wait for it failed
-// at rendezvous_timeout.
+// at rendezvous_timeout. Third case: besides, a robot that stays crashes in round 3 of that solve
+// and restarts from its journal (the closure journaled, the node's in solves/batch): the same.
 TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
   ScenarioSpec spec = Small();
   spec.robots = 4;
@@ -382,15 +384,20 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
   }
   const int busiest = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
                                        const auto& b) { return a.second.size() < b.second.size(); })->first;
-  for (const int victim : std::set<int>{0, busiest}) {
-    SCOPED_TRACE("robot " + std::to_string(victim) + " leaves");
+  const fs::path dir = fs::temp_directory_path() /
+                       ("moslam_batch_leave_" + std::to_string(::getpid()));
+  for (const auto& [victim, crash] : {std::pair{0, false}, std::pair{busiest, false},
+                                      std::pair{busiest, true}}) {
+    SCOPED_TRACE("robot " + std::to_string(victim) + " leaves" + (crash ? ", another crashes" : ""));
+    fs::remove_all(dir);
     const std::vector<int>& steps = steps_of[victim];
     ASSERT_GE(steps.size(), 2u);
     const int last_step = steps.front();  // it leaves after the events of its first step
     ASSERT_GT(steps.back(), last_step);   // and misses a later one
     const LeaveTwin twin = BatchTwinWithoutTheVictim(spec, data, victim, last_step);
     ASSERT_GT(twin.skipped, 0);
-    ASSERT_GE(twin.solves, 1);  // some robots that stay solve together
+    ASSERT_GE(twin.solved.size(), 2u);  // some robots that stay solve together
+    const int crasher = crash ? twin.solved.front() : -1;
 
     InProcessNetwork net;
     Log log;
@@ -399,11 +406,12 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
     std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
     std::vector<std::string> errors(results.size());
     struct Leave {};
+    struct Crash {};
     std::vector<std::thread> threads;
     for (int r = 0; r < spec.robots; ++r) {
       threads.emplace_back([&, r]() {
         const auto ri = static_cast<std::size_t>(r);
-        RobotSessionOptions o = Options(spec, log);
+        RobotSessionOptions o = Options(spec, log, (dir / std::to_string(r)).string());
         o.dgs.leave_timeout = milliseconds(300);
         if (r == victim) {
           const auto events_at_last = std::count(steps.begin(), steps.end(), last_step);
@@ -413,6 +421,21 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
           };
         }
         try {
+          if (r == crasher) {
+            RobotSessionOptions first = o;
+            first.dgs.on_round = [](const DgsNodeRound& round) {
+              if (round.round == 3) throw Crash{};
+            };
+            try {
+              RobotSession session(SliceForRobot(data, r), *transports[ri], first);
+              session.run();
+              errors[ri] = "the robot did not crash";
+              return;
+            } catch (const Crash&) {
+            }
+            transports[ri].reset();  // the process is gone
+            transports[ri] = net.connect(r, {log.sink()});  // restarted: receives the history
+          }
           RobotSession session(SliceForRobot(data, r), *transports[ri], o);
           results[ri] = session.run();
           if (r == victim) errors[ri] = "the victim did not leave";
@@ -439,11 +462,18 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
       EXPECT_LE(MaxPoseDifference(got.dgs.estimate, expected), 1e-9) << "robot " << r;
       EXPECT_EQ(std::count(got.dgs.team.begin(), got.dgs.team.end(), victim), 0);
       for (const auto& [k, x] : got.dgs.estimate) EXPECT_EQ(k.robot, r);
+      EXPECT_TRUE(fs::exists(dir / std::to_string(r) / "result.g2o"));
     }
     EXPECT_EQ(skipped, twin.skipped);
     EXPECT_TRUE(log.contains("robot " + std::to_string(victim) + " left for good"));
     EXPECT_TRUE(log.contains("batch solve without robot(s) " + std::to_string(victim)));
+    if (crash) {
+      const DgsNodeResult& restarted = results[static_cast<std::size_t>(crasher)].dgs;
+      EXPECT_EQ(restarted.incarnation, 1u);
+      EXPECT_GE(restarted.replayed_rounds, 2);
+    }
   }
+  fs::remove_all(dir);
 }
 
 TEST(RobotSession, ValidatesItsInputs) {
