@@ -568,11 +568,14 @@ TEST(Team, AnOnlineRobotKilledInAGroupSolveAndRestartedLosesNothing) {
 }
 
 // n robots of kScenario as processes in DDS domain `domain` (with `extra` flags, leaving after
-// 2 s unseen), `victim` killed with SIGKILL once it prints a line starting with `kill_after`.
-// Every other robot must exit 0 with a JSON summary, which `check` gets with its --out folder;
-// the rendezvous they skipped, each with the victim, are counted in `skipped`.
+// 2 s unseen), `victim` killed with SIGKILL once it prints a line starting with `kill_after`,
+// after every robot printed one starting with `first_everywhere` (if not empty): a robot that
+// dies before a partner ever heard from it is waited for until the rendezvous timeout
+// (robot_session.h). Every other robot must exit 0 with a JSON summary, which `check` gets with
+// its --out folder; the rendezvous they skipped, each with the victim, are counted in `skipped`.
 void KillOneForGood(int domain, int n, int victim, const std::string& name,
-                    const std::vector<std::string>& extra, const std::string& kill_after,
+                    const std::vector<std::string>& extra, const std::string& first_everywhere,
+                    const std::string& kill_after,
                     const std::function<void(int, const nlohmann::json&, const fs::path&)>& check,
                     int* skipped) {
   const std::string uri = LoopbackConfigXml(domain, n);
@@ -589,8 +592,13 @@ void KillOneForGood(int domain, int n, int victim, const std::string& name,
     a.insert(a.end(), kScenario.begin(), kScenario.end());
     robots.push_back(std::make_unique<Child>(a, uri, out / ("stderr" + std::to_string(r))));
   }
-  ASSERT_TRUE(robots[victim]->waitForLine(
-      [&](const std::string& l) { return l.rfind(kill_after, 0) == 0; }, deadline))
+  const auto starts = [](const std::string& prefix) {
+    return [prefix](const std::string& l) { return l.rfind(prefix, 0) == 0; };
+  };
+  for (int r = 0; r < n && !first_everywhere.empty(); ++r) {
+    ASSERT_TRUE(robots[r]->waitForLine(starts(first_everywhere), deadline)) << robots[r]->output();
+  }
+  ASSERT_TRUE(robots[victim]->waitForLine(starts(kill_after), deadline))
       << robots[victim]->output();
   robots[victim]->kill9();
   EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
@@ -614,7 +622,7 @@ void KillOneForGood(int domain, int n, int victim, const std::string& name,
 // their later rendezvous with it and finish the mission.
 TEST(Team, AnOnlineRobotThatDiesForGoodIsSkippedAndTheOthersFinish) {
   int skipped = 0;
-  KillOneForGood(49, 6, 1, "online_leave", {"--online"}, "group solve: ",
+  KillOneForGood(49, 6, 1, "online_leave", {"--online"}, "", "group solve: ",
                  [](int, const nlohmann::json&, const fs::path& out) {
                    EXPECT_TRUE(fs::exists(out / "maps" / "final" / "map.g2o"));
                  },
@@ -622,13 +630,14 @@ TEST(Team, AnOnlineRobotThatDiesForGoodIsSkippedAndTheOthersFinish) {
   EXPECT_GT(skipped, 0);
 }
 
-// A batch robot killed for good after its first rendezvous: its partners at later rendezvous
-// find it gone and skip them, the others find it gone as the batch solve forms, and they solve
-// without it (robot_session.h; the result against the twin: RobotSession.TheOthersSolveTheBatch...).
+// A batch robot killed for good after its second rendezvous, once every robot has had one: its
+// partners at later rendezvous find it gone and skip them, the others find it gone as the batch
+// solve forms, and they solve without it (robot_session.h; the result against the twin:
+// RobotSession.TheOthersSolveTheBatch...).
 TEST(Team, ABatchRobotThatDiesInTheRendezvousPhaseIsLeftOutAndTheOthersSolve) {
   const int victim = 1;
   int skipped = 0;
-  KillOneForGood(47, 6, victim, "batch_leave", {}, "rendezvous: ",
+  KillOneForGood(47, 6, victim, "batch_leave", {}, "rendezvous: ", "rendezvous: ",
                  [&](int r, const nlohmann::json& j, const fs::path& out) {
                    const std::vector<int> team = j["team"].get<std::vector<int>>();
                    EXPECT_EQ(std::count(team.begin(), team.end(), victim), 0) << j["team"].dump();

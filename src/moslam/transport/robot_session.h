@@ -48,9 +48,12 @@
 // lowest holds the gauge (it may be robot 0), as the twin solves the joint graph of the robots
 // that stay (BuildGroupProblem with no held estimates; its DgsNode journals in
 // state_dir/solves/batch, the result in state_dir/result.g2o in the robots' own ids); with no
-// departure, the batch solve as before. Not covered: a robot that dies between its joining status
-// and its DgsNode's first status (its partners fail at the node's join_timeout), and one that
-// comes back after its partners found it gone (it fails at its next rendezvous with them).
+// departure, the batch solve as before. Not covered: a robot that dies before a partner ever
+// heard from it (its presence status did not reach that partner: DDS delivers a transient-local
+// sample only while its writer lives; the partner cannot tell it from a robot not started yet
+// and waits until rendezvous_timeout), one that dies between its joining status and its
+// DgsNode's first status (its partners fail at the node's join_timeout), and one that comes back
+// after its partners found it gone (it fails at its next rendezvous with them).
 // Restart (state_dir): the rendezvous phase is deterministic given the answers, so the journal
 // `rendezvous.bin` (journal.h) records only each finished event's pairs (added and removed:
 // event_record.h). A restarted process re-runs its SLAM from its measurements, takes finished
