@@ -132,11 +132,6 @@ std::map<int, int> LocalGraph::neighbourLinks() const {
   return links;
 }
 
-bool LocalGraph::anchored(const std::vector<bool>& usable) const {
-  const std::vector<bool> unknowns = anchoredUnknowns(usable);
-  return std::all_of(unknowns.begin(), unknowns.end(), [](bool a) { return a; });
-}
-
 std::vector<bool> LocalGraph::anchoredUnknowns(const std::vector<bool>& usable) const {
   std::vector<bool> group(group_fixed_.size());
   for (std::size_t g = 0; g < group.size(); ++g) {

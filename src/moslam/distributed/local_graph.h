@@ -58,9 +58,8 @@ class LocalGraph {
   // For each neighbouring robot, which of this robot's variables it needs (ordered).
   const std::map<int, std::vector<Key>>& sharedWith() const { return shared_with_; }
 
-  // Whether every group of unknowns is tied down when the separators with usable[s] are used.
-  bool anchored(const std::vector<bool>& usable) const;
-  // Per unknown (by unknownIndex): whether its group is tied down with those separators.
+  // Per unknown (by unknownIndex): whether its group of unknowns is tied down when the
+  // separators with usable[s] are used.
   std::vector<bool> anchoredUnknowns(const std::vector<bool>& usable) const;
 
  private:

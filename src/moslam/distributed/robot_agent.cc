@@ -168,9 +168,9 @@ bool RobotAgent::solvable(DgsStage stage, std::vector<bool>& use, std::vector<bo
   use.assign(separators.size(), false);
   for (std::size_t s = 0; s < separators.size(); ++s) use[s] = usable(separators[s], stage);
   if (held) held->clear();
-  if (graph_.anchored(use)) return true;
-  if (!held) return false;  // some variables are not anchored yet: wait
   const std::vector<bool> anchored = graph_.anchoredUnknowns(use);
+  if (std::all_of(anchored.begin(), anchored.end(), [](bool a) { return a; })) return true;
+  if (!held) return false;  // some variables are not anchored yet: wait
   if (std::none_of(anchored.begin(), anchored.end(), [](bool a) { return a; })) return false;
   held->resize(anchored.size());
   for (std::size_t i = 0; i < anchored.size(); ++i) (*held)[i] = !anchored[i];
@@ -247,7 +247,7 @@ bool RobotAgent::iterate() {
                             ": iterate() in the refinement before beginStep()");
   }
   std::vector<bool> use, held;
-  const bool by_groups = stage != DgsStage::kRefine && !cg_active_;
+  const bool by_groups = solvesByGroups(stage);
   if (!solvable(stage, use, by_groups ? &held : nullptr)) return false;
   LocalSystem& sys = system(stage);
   sys.assemble(use, held);
@@ -282,7 +282,7 @@ std::vector<OutgoingMessage> RobotAgent::outgoing() const {
   const DgsStage stage = currentStage();
   const int dim = StageDimension(stage);
   // After its first solve of stage 1 or 2, the variables it has solved (flagged initialisation).
-  const bool only_solved = stage != DgsStage::kRefine && !cg_active_ && progress_.initialised();
+  const bool only_solved = solvesByGroups(stage) && progress_.initialised();
   for (const auto& [to, shared] : graph_.sharedWith()) {
     OutgoingMessage o;
     o.to = to;

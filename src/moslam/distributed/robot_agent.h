@@ -244,6 +244,9 @@ class RobotAgent {
   // With `held` (stages 1 and 2 by sweeps): true as soon as one group is, `held` flagging the
   // unknowns of the groups that are not (empty when none is).
   bool solvable(DgsStage stage, std::vector<bool>& use, std::vector<bool>* held = nullptr) const;
+  // Stages 1 and 2 by sweeps (not the refinement, not conjugate gradients): the groups of its
+  // unknowns that are tied down are solved and sent first (see the top).
+  bool solvesByGroups(DgsStage stage) const { return stage != DgsStage::kRefine && !cg_active_; }
   LocalSystem& system(DgsStage stage) { return stage == DgsStage::kRotation ? rotation_ : pose_; }
   const LocalSystem& system(DgsStage stage) const {
     return stage == DgsStage::kRotation ? rotation_ : pose_;
