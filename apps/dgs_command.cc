@@ -132,6 +132,8 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
         {"bytes_control", r.control_bytes},
         {"bytes_consistency", r.consistency_bytes},
         {"consistency_rejected", r.consistency_rejected},
+        {"retests", r.retests},
+        {"retest_readmitted", r.retest_readmitted},
         {"consistency_deferred", r.consistency_deferred},
         {"sweeps", r.sweeps},
         {"seconds", r.seconds},
@@ -160,6 +162,10 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
     fmt::print("separator check: {} rejected before GNC, {} left to it (too few to confirm "
                "themselves, their robots linked otherwise)\n",
                r.consistency_rejected, r.consistency_deferred);
+    if (options.retest_left_out && options.check_separators) {
+      fmt::print("re-tested against the joint estimate: {} left-out separator(s), {} back\n",
+                 r.retests, r.retest_readmitted);
+    }
     fmt::print("traffic: {} bytes (solves {}, weights {} in {} messages, control {}, separator "
                "check {}); {} sweeps; {:.3f} s\n",
                r.bytes(), r.solve_bytes, r.weight_bytes, r.weight_messages, r.control_bytes,

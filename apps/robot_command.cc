@@ -83,6 +83,7 @@ DgsNodeOptions NodeOptions(const SolveFlags& f) {
     f.robust_args.applyTo(&r);
     o.gnc = r.gnc;
     if (r.check_separators) o.separator_check = r.consistency;
+    o.retest_left_out = r.retest_left_out;
     o.solver.refine = true;
   }
   return o;
@@ -96,6 +97,7 @@ RobustDgsOptions ReferenceRobustOptions(const DgsNodeOptions& o) {
   r.gnc = *o.gnc;
   r.check_separators = o.separator_check.has_value();
   if (o.separator_check) r.consistency = *o.separator_check;
+  r.retest_left_out = o.retest_left_out;
   return r;
 }
 
@@ -234,6 +236,8 @@ nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
     j["gnc_rounds"] = r.robust->iterations;
     j["outliers"] = r.robust->outliers;  // robust factors of its subgraph with weight < 0.5
     j["readmitted"] = r.robust->readmitted;
+    j["retests"] = r.robust->retests;  // --retest-left-out: the team's
+    j["retest_readmitted"] = r.robust->retest_readmitted;  // of those, its own back
     j["polished"] = r.robust->polished;
     j["polish_refused"] = r.robust->polish_refused;  // it raised the inliers' cost: not kept
     j["weight_messages"] = r.weight_messages;
@@ -614,7 +618,7 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
   j["in_process_variables"] = expected.size();
   if (robust) {
     std::int64_t messages = 0, binary = 0, dds = 0, check_binary = 0, check_dds = 0;
-    int rounds = 0, outliers = 0, check_rejected = 0;
+    int rounds = 0, outliers = 0, check_rejected = 0, retests = 0, retest_readmitted = 0;
     for (const auto& [r, s] : t.summaries) {
       messages += s["weight_messages"].get<std::int64_t>();
       binary += s["weight_binary_bytes"].get<std::int64_t>();
@@ -624,6 +628,8 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
       check_dds += s["dds_covariance_bytes"].get<std::int64_t>();
       rounds = std::max(rounds, s["gnc_rounds"].get<int>());
       outliers += s["outliers"].get<int>();
+      retests = std::max(retests, s["retests"].get<int>());
+      retest_readmitted += s["retest_readmitted"].get<int>();
     }
     j["gnc_rounds"] = rounds;
     j["in_process_gnc_rounds"] = robust->iterations;
@@ -639,6 +645,10 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
     j["check_binary_bytes"] = check_binary;
     j["in_process_check_bytes"] = robust->consistency_bytes;
     j["dds_covariance_bytes"] = check_dds;
+    j["retests"] = retests;
+    j["retest_readmitted"] = retest_readmitted;
+    j["in_process_retests"] = robust->retests;
+    j["in_process_retest_readmitted"] = robust->retest_readmitted;
     fmt::print("separator check: {} separators left out (in-process {}); {} B binary for it "
                "(in-process {} B), {} B CDR payload of covariances\n",
                check_rejected, robust->consistency_rejected, check_binary,

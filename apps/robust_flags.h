@@ -16,8 +16,10 @@ struct RobustSolveArgs {
   std::string separator_test = "map";  // map | measurement
   double gnc_threshold = 0.0;          // 0: GncOptions' default
   int separator_support = 3;           // 0: no separator check
+  bool retest_left_out = true;
   // The GNC threshold and the separator check (whether, its kind and support) in `options`.
   void applyTo(RobustDgsOptions* options) const {
+    options->retest_left_out = retest_left_out;
     options->gnc.threshold = gnc_threshold;
     options->consistency.map_uncertainty = separator_test == "map";
     options->check_separators = separator_support > 0;
@@ -25,13 +27,25 @@ struct RobustSolveArgs {
   }
   // The same flags again, for a child process.
   std::vector<std::string> args() const {
-    return {"--separator-test", separator_test, "--gnc-threshold",
-            fmt::format("{}", gnc_threshold), "--separator-support",
-            std::to_string(separator_support)};
+    std::vector<std::string> a = {"--separator-test", separator_test, "--gnc-threshold",
+                                  fmt::format("{}", gnc_threshold), "--separator-support",
+                                  std::to_string(separator_support)};
+    if (!retest_left_out) a.push_back("--no-retest-left-out");
+    return a;
   }
 };
 
-// --separator-test and --gnc-threshold, written into `args` (which must outlive the parse).
+// --no-retest-left-out (AddRobustSolveFlags adds it; `moslam simulate` alone).
+inline void AddRetestFlag(CLI::App* sub, bool* retest) {
+  sub->add_flag("!--no-retest-left-out", *retest,
+                "--robust: do not test, after the inliers' solve, each separator the pairwise "
+                "check left out that agrees with at least --separator-support kept ones of its "
+                "robot pair against the joint estimate (one more solve each; it comes back when it "
+                "raises the optimal cost by at most c2 / 2)");
+}
+
+// --separator-test, --gnc-threshold, --separator-support and --no-retest-left-out, written into
+// `args` (which must outlive the parse).
 inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
   sub->add_option("--separator-test", args->separator_test,
                   "--robust: the pairwise check of the separators with each robot's map "
@@ -50,6 +64,7 @@ inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
                   "pairwise consistent set if it has at least this many (0: no check)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  AddRetestFlag(sub, &args->retest_left_out);
 }
 
 }  // namespace moslam::cli

@@ -30,6 +30,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/experiments/online_experiment.h"
 #include "moslam/experiments/simulation_experiment.h"
+#include "robust_flags.h"
 
 namespace moslam::cli {
 
@@ -49,6 +50,7 @@ struct SimulateArgs {
   double outliers = 0.0;
   bool robust = false;
   double gnc_threshold = 0.0;
+  bool retest_left_out = true;
   bool skip_unlinked = false;
   std::vector<std::string> table{"all"};
   bool json = false;
@@ -107,6 +109,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "22.46, chi-square 6 dof at 0.999)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  AddRetestFlag(sub, &args->retest_left_out);
   sub->add_flag("--skip-unlinked", args->skip_unlinked,
                 "leave out (and count) the runs in which a robot never links to robot 0, instead "
                 "of failing");
@@ -202,6 +205,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         c.outlier_fraction = a.outliers;
         c.robust = a.robust;
         c.gnc_threshold = a.gnc_threshold;
+        c.retest_left_out = a.retest_left_out;
         c.skip_unlinked = a.skip_unlinked;
         c.perceive = perceive;
         results.push_back(RunExperiment(c, results.empty() ? &first : nullptr));

@@ -100,4 +100,17 @@ inline PoseGraph DriftingPairWithWrongSeparators(std::vector<bool>* wrong) {
   return g;
 }
 
+// The same pair, and a copy of its separator 3 turned 0.4 m / 2.3 deg (wrong, the last factor): a
+// near miss that the drift between separators lets pass the pairwise test with several right ones.
+inline PoseGraph DriftingPairWithANearMiss(std::vector<bool>* wrong) {
+  PoseGraph g = DriftingPairWithWrongSeparators(wrong);
+  const RelativePoseFactor copied = g.factors()[g.factors().size() - wrong->size() + 3];
+  g.add(RelativePoseFactor(copied.a(), copied.b(),
+                           copied.measured() * SE3(SO3::Exp(Vector3(0.0, 0.0, 0.04)),
+                                                   Vector3(0.4, 0.0, 0.0)),
+                           copied.information()));
+  wrong->push_back(true);
+  return g;
+}
+
 }  // namespace moslam::test

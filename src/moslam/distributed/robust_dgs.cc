@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <map>
 #include <set>
 
@@ -46,6 +47,74 @@ int Readmit(const PoseGraph& graph, const Values& values, const std::vector<bool
   return count;
 }
 
+// The variables the factors of weight >= 0.5 touch.
+std::set<Key> InlierKeys(const PoseGraph& graph, const std::vector<double>& weights) {
+  std::set<Key> held;
+  for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+    if (weights[i] < 0.5) continue;
+    held.insert(graph.factors()[i].a());
+    held.insert(graph.factors()[i].b());
+  }
+  return held;
+}
+
+// The check's rejects to re-test (RobustDgsOptions::retest_left_out) at the inliers' optimum
+// `values`: robust separators left out by the check, still rejected, passing the pairwise test
+// with at least min_support kept separators of their pair, both variables held by inliers (a
+// variable only the candidate held would take any value: no cost to raise). By r^T Omega r at
+// `values`, then factor order.
+std::vector<std::size_t> RetestCandidates(const PoseGraph& graph,
+                                          const SeparatorConsistencyResult& check,
+                                          const std::vector<bool>& robust,
+                                          const std::vector<double>& weights, const Values& values,
+                                          int min_support) {
+  const std::set<Key> held = InlierKeys(graph, weights);
+  const std::vector<double> r2 = SquaredResiduals(graph, values);
+  std::vector<std::pair<double, std::size_t>> order;
+  if (check.support.size() != graph.factors().size()) return {};  // no check ran
+  for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+    const RelativePoseFactor& f = graph.factors()[i];
+    if (robust[i] && !check.kept[i] && weights[i] < 0.5 && check.support[i] >= min_support &&
+        held.count(f.a()) && held.count(f.b())) {
+      order.emplace_back(r2[i], i);
+    }
+  }
+  std::sort(order.begin(), order.end());
+  std::vector<std::size_t> out;
+  for (const auto& [e, i] : order) out.push_back(i);
+  return out;
+}
+
+// Re-tests the candidates in turn from the inliers' optimum `values` (F0 its cost): the inliers
+// and candidate i solved by solve(graph, start, i) from the current estimate, the candidate kept
+// (weight 1, the new optimum the estimate) when 2 (F1 - F0) <= c2, F1 as cost(graph, estimate)
+// reports it. Returns how many came back.
+template <class Solve, class Cost>
+int Retest(const PoseGraph& graph, const std::vector<std::size_t>& candidates, double c2,
+           std::vector<double>* weights, Values* values, const Solve& solve, const Cost& cost) {
+  int back = 0;
+  double f0 = cost(SubGraph(graph, Inliers(*weights)), *values);
+  for (std::size_t i : candidates) {
+    std::vector<double> trial = *weights;
+    trial[i] = 1.0;
+    const PoseGraph g = SubGraph(graph, Inliers(trial));
+    Values x = *values;
+    try {
+      for (const auto& [k, v] : solve(g, *values, i)) x[k] = v;
+    } catch (const UnderdeterminedError&) {
+      continue;
+    }
+    const double f1 = cost(g, x);
+    if (std::isfinite(f1) && 2.0 * (f1 - f0) <= c2) {
+      *weights = std::move(trial);
+      *values = std::move(x);
+      f0 = f1;
+      ++back;
+    }
+  }
+  return back;
+}
+
 std::vector<bool> Select(const std::vector<bool>& mask, const std::vector<std::size_t>& index) {
   std::vector<bool> out;
   for (std::size_t i : index) out.push_back(mask[i]);
@@ -73,14 +142,26 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
   // inliers alone are solved.
   const int readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
   if (readmitted > 0 || !AllWeightsOne(r.weights)) {
+    bool solved = false;
     try {
       // A variable only rejected factors touch is not in it: it keeps GNC's estimate.
       for (const auto& [k, x] :
            Optimize(SubGraph(graph, Inliers(r.weights)), r.values, solver).values) {
         r.values[k] = x;
       }
+      solved = true;
     } catch (const UnderdeterminedError&) {
       // The inliers leave part of the graph unanchored: keep GNC's estimate.
+    }
+    if (solved && options.retest_left_out) {
+      Retest(graph,
+             RetestCandidates(graph, check, robust, r.weights, r.values,
+                              options.consistency.min_support),
+             options.gnc.threshold2(), &r.weights, &r.values,
+             [&](const PoseGraph& g, const Values& start, std::size_t) {
+               return Optimize(g, start, solver).values;
+             },
+             [](const PoseGraph& g, const Values& x) { return g.cost(x); });
     }
   }
   r.outliers = CountOutliers(robust, r.weights);
@@ -210,6 +291,61 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     } catch (const UnderdeterminedError&) {
       // The inliers leave a robot unlinked: keep the rounds' estimate.
     }
+  }
+  if (options.retest_left_out && r.polished) {
+    // First the higher robot of each pair sends the lower its estimates of its variables, held by
+    // inliers, in the separators the check left out that are still rejected (for their residuals).
+    const std::set<Key> held = InlierKeys(graph, r.weights);
+    std::map<std::pair<int, int>, std::set<Key>> sent;
+    for (std::size_t i = 0; i < n; ++i) {
+      const RelativePoseFactor& f = graph.factors()[i];
+      const int a = f.a().robot, b = f.b().robot;
+      if (a == b || check.kept[i] || !robust[i] || r.weights[i] >= 0.5) continue;
+      const Key& higher = a > b ? f.a() : f.b();
+      if (held.count(higher)) sent[{std::min(a, b), std::max(a, b)}].insert(higher);
+    }
+    for (const auto& [pair, keys] : sent) {
+      Message m;
+      m.stage = DgsStage::kPose;
+      m.sender = pair.second;
+      for (const Key& k : keys) m.appendPose(k, r.values.at(k));
+      r.consistency_bytes += static_cast<std::int64_t>(EncodeMessage(m).size());
+    }
+    const std::vector<std::size_t> candidates = RetestCandidates(
+        graph, check, robust, r.weights, r.values, options.consistency.min_support);
+    std::set<int> robot_set;
+    for (const Key& k : graph.keys()) robot_set.insert(k.robot);
+    Coordinator coordinator({robot_set.begin(), robot_set.end()}, &r.control_bytes);
+    std::uint32_t step = 0;
+    // F over the team: each robot the factors it owns (a separator: the lower robot), reduced.
+    const auto team_cost = [&](const PoseGraph& g, const Values& x) {
+      std::map<int, double> share;
+      for (int robot : robot_set) share[robot] = 0.0;
+      for (const RelativePoseFactor& f : g.factors()) {
+        share[std::min(f.a().robot, f.b().robot)] += f.cost(x.at(f.a()), x.at(f.b()));
+      }
+      return coordinator.reduce(share, ++step, /*take_max=*/false);
+    };
+    const auto trial_solve = [&](const PoseGraph& g, const Values& start, std::size_t i) {
+      // The candidate's owner sends the other robot its trial weight.
+      const RelativePoseFactor& f = graph.factors()[i];
+      WeightMessage m;
+      m.sender = std::min(f.a().robot, f.b().robot);
+      m.receiver = std::max(f.a().robot, f.b().robot);
+      m.round = step;
+      m.weights = {1.0};
+      r.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
+      ++r.weight_messages;
+      DgsOptions dgs = options.dgs;
+      dgs.refine = true;
+      const DgsResult trial = RunDgs(g, start, dgs);
+      r.solve_bytes += trial.bytes;
+      r.sweeps += trial.rotation.iterations + trial.pose.iterations + trial.refine.sweeps;
+      return trial.values;
+    };
+    r.retests = static_cast<int>(candidates.size());
+    r.retest_readmitted = Retest(graph, candidates, options.gnc.threshold2(), &r.weights,
+                                 &r.values, trial_solve, team_cost);
   }
   r.outliers = CountOutliers(robust, r.weights);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

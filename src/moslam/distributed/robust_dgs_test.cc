@@ -243,6 +243,62 @@ TEST(SeparatorConsistency, MapUncertaintyKeepsRightSeparatorsAcrossDrift) {
   EXPECT_EQ(exact_maps.messages, 1);
 }
 
+// The re-test (RobustDgsOptions::retest_left_out) on two drifting robots: a pairwise test
+// stricter than the joint one (threshold 12 against c2 22.46, as when the first-order map
+// covariances are too small) leaves out right separator 2, whose residual at the estimate without
+// it exceeds c2, so the readmission does not bring it back. The near miss (a copy of separator 3
+// turned 0.4 m / 2.3 deg) passes the pairwise test with enough kept ones to be re-tested too, and
+// stays out: with it the optimum's cost rises by more than c2 / 2. The two wrong separators 30
+// deg off agree with none and are not re-tested.
+TEST(RobustDgs, RetestBringsBackARightSeparatorTheCheckLeftOutAndNotAWrongOne) {
+  std::vector<bool> wrong;
+  const PoseGraph g = test::DriftingPairWithANearMiss(&wrong);
+  const std::size_t first = g.factors().size() - wrong.size();
+  std::vector<bool> right(g.factors().size(), true);
+  for (std::size_t s = 0; s < wrong.size(); ++s) right[first + s] = !wrong[s];
+  const Values initial = ChordalInitialization(g, SE3());
+  const Values optimum = Optimize(SubGraph(g, right), initial).values;
+
+  RobustDgsOptions options;
+  options.consistency.threshold = 12.0;
+  options.retest_left_out = false;
+  const std::vector<bool> robust = DefaultRobustFactors(g);
+  // The support the check reports: separator 2 agrees with at least min_support kept ones, the
+  // 30 deg wrong ones with none; -1 for the factors inside a robot.
+  const SeparatorConsistencyResult check = CheckSeparators(g, options, robust);
+  EXPECT_FALSE(check.kept[first + 2]);
+  EXPECT_GE(check.support[first + 2], options.consistency.min_support);
+  EXPECT_EQ(check.support[first + 6], 0);
+  EXPECT_EQ(check.support[first + 7], 0);
+  EXPECT_EQ(check.support[0], -1);
+  const RobustDgsResult plain = RunRobustDgs(g, initial, robust, options);
+  EXPECT_EQ(plain.weights[first + 2], 0.0);
+  EXPECT_EQ(plain.readmitted, 0);
+  EXPECT_GT(MaxDistance(plain.values, optimum), 0.05);
+
+  options.retest_left_out = true;
+  const RobustDgsResult r = RunRobustDgs(g, initial, robust, options);
+  EXPECT_EQ(r.consistency_rejected, plain.consistency_rejected);
+  EXPECT_EQ(r.retests, 2);  // separator 2 and the 0.4 m copy
+  EXPECT_EQ(r.retest_readmitted, 1);
+  for (std::size_t s = 0; s < wrong.size(); ++s) {
+    EXPECT_EQ(r.weights[first + s], wrong[s] ? 0.0 : 1.0) << "separator " << s;
+  }
+  EXPECT_LT(MaxDistance(r.values, optimum), 1e-6);
+  // Each re-test: a solve, a weight message and a reduction of F (the first for F0).
+  EXPECT_GT(r.solve_bytes, plain.solve_bytes);
+  EXPECT_EQ(r.weight_messages, plain.weight_messages + 2);
+  EXPECT_GT(r.control_bytes, plain.control_bytes);
+  // The centralized reference makes the same decisions.
+  const GncResult central = SolveRobustCentralized(
+      g, [](const PoseGraph& kept) { return ChordalInitialization(kept, SE3()); }, robust,
+      options);
+  for (std::size_t i = 0; i < r.weights.size(); ++i) {
+    EXPECT_EQ(central.weights[i] < 0.5, r.weights[i] < 0.5) << "factor " << i;
+  }
+  EXPECT_LT(MaxDistance(central.values, optimum), 1e-6);
+}
+
 // With the separator check first: blocks_world in 16 robots, 90 % of the separators wrong.
 TEST(RobustDgs, WithTheSeparatorCheckReachesTheCleanOptimumAtNinetyPercent) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(16));

@@ -123,6 +123,7 @@ class RobustProgram {
       // RunRobustDgs readmits and solves the inliers whether GNC ran or not.
       fetchLeftOut(kept);
       finish(OwnedResiduals(), round);
+      if (options_.retest_left_out && out_.polished) retest(kept, round + 1);
     } else if (started) {
       finish(r2, round);
     }
@@ -255,6 +256,7 @@ class RobustProgram {
     struct Verdict {
       bool checked = false, confirmed = false;
       std::vector<std::size_t> best;  // positions in pairs_[other]
+      std::vector<int> support;       // per position: the members of best it agrees with
     };
     std::map<int, Verdict> verdicts;
     for (const auto& [other, list] : pairs_) {
@@ -280,7 +282,8 @@ class RobustProgram {
         covariance = it->second.covariance;
       }
       v.checked = true;
-      v.best = ConsistentSeparators(separators, map, *theirs, covariance, consistency_);
+      v.best = ConsistentSeparators(separators, map, *theirs, covariance, consistency_,
+                                    &v.support);
       v.confirmed = static_cast<int>(v.best.size()) >= consistency_.min_support;
     }
     const auto verdictWeights = [&](int other, bool final) {
@@ -346,6 +349,14 @@ class RobustProgram {
       }
     }
     exchangeVerdicts(true, label);
+    // The support of the separators it checked (against their best set when that is kept).
+    for (const auto& [other, v] : verdicts) {
+      if (!v.checked) continue;
+      const std::vector<std::size_t>& list = pairs_.at(other);
+      for (std::size_t j = 0; j < list.size(); ++j) {
+        support_[list[j]] = v.best.empty() ? 0 : v.support[j];
+      }
+    }
     std::vector<bool> kept(p_.subgraph.factors().size(), true);
     for (const auto& [other, list] : pairs_) {
       const auto theirs = kept_by_other.find(other);
@@ -441,6 +452,7 @@ class RobustProgram {
     const TeamStep got = step(costs);
     if (KeepInlierSolve(TeamSum(got, 0), TeamSum(got, 1))) {
       out_.polished = true;
+      inlier_cost_ = TeamSum(got, 1);
     } else {
       values_ = std::move(rounds);
       out_.polish_refused = true;
@@ -486,6 +498,107 @@ class RobustProgram {
     }
   }
 
+  // ---- the re-test of the check's rejects (RobustProgramOptions::retest_left_out) ----------
+  // Whether an inlier (weight >= 0.5; every factor touching its variables is in the subgraph)
+  // touches its variable `key`.
+  bool held(const Key& key) const {
+    const std::vector<RelativePoseFactor>& factors = p_.subgraph.factors();
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      if (out_.weights[i] >= 0.5 && (factors[i].a() == key || factors[i].b() == key)) return true;
+    }
+    return false;
+  }
+
+  // As RunRobustDgs: R1, the higher robot of each pair sends the lower its estimates of its
+  // variables, held by inliers, in the robust separators the check left out and still rejected;
+  // R2, the lower robot's candidates (support, both ends held) by r^T Omega r, then subgraph
+  // order; then per candidate, team-wide in increasing r^T Omega r (ties: the lower robot): a step
+  // choosing it, a step with its trial weight, the solve of the inliers with it, a step reducing
+  // their cost F1; it stays when 2 (F1 - F0) <= c2, else the weights and estimate go back.
+  void retest(const std::vector<bool>& kept, std::uint32_t round) {
+    const std::vector<RelativePoseFactor>& factors = p_.subgraph.factors();
+    const auto left_out = [&](std::size_t i) {
+      return p_.robust[i] && !kept[i] && out_.weights[i] < 0.5;
+    };
+    std::vector<OutgoingMessage> estimates;
+    for (const auto& [other, list] : pairs_) {
+      OutgoingMessage o = emptyMessageTo(other);
+      if (other < p_.robot) {
+        std::set<Key> keys;
+        for (std::size_t i : list) {
+          const Key mine = factors[i].a().robot == p_.robot ? factors[i].a() : factors[i].b();
+          if (left_out(i) && held(mine)) keys.insert(mine);
+        }
+        for (const Key& k : keys) o.message.appendPose(k, values_.at(k));
+        if (!keys.empty()) countCheck(EncodeMessage(o.message).size());
+      }
+      estimates.push_back(std::move(o));
+    }
+    TeamReport report;
+    report.sent = true;
+    const TeamStep got = step(report, {}, estimates);
+    std::set<Key> held_there;
+    for (const Message& m : got.estimates) {
+      if (m.sender < p_.robot) continue;
+      for (std::size_t e = 0; e < m.keys.size(); ++e) {
+        values_[m.keys[e]] = m.pose(e);
+        held_there.insert(m.keys[e]);
+      }
+    }
+    std::vector<std::pair<double, std::size_t>> mine;
+    for (const auto& [other, list] : pairs_) {
+      if (other < p_.robot) continue;
+      for (std::size_t i : list) {
+        const RelativePoseFactor& f = factors[i];
+        const bool a_mine = f.a().robot == p_.robot;
+        const auto it = support_.find(i);
+        if (left_out(i) && it != support_.end() && it->second >= consistency_.min_support &&
+            held(a_mine ? f.a() : f.b()) && held_there.count(a_mine ? f.b() : f.a())) {
+          mine.emplace_back(2.0 * f.cost(values_.at(f.a()), values_.at(f.b())), i);
+        }
+      }
+    }
+    std::sort(mine.begin(), mine.end());
+    std::size_t next = 0;
+    double f0 = inlier_cost_;
+    for (std::uint32_t k = round;; ++k) {
+      TeamReport offer;
+      offer.value[0] = next < mine.size() ? 1.0 : 0.0;
+      offer.value[1] = next < mine.size() ? mine[next].first : 0.0;
+      const TeamStep offers = step(offer);
+      int chosen = -1;
+      double best = 0.0;
+      for (const auto& [r, o] : offers.reports) {  // robot id order: ties to the lower
+        if (o.value[0] == 1.0 && (chosen < 0 || o.value[1] < best)) {
+          chosen = r;
+          best = o.value[1];
+        }
+      }
+      if (chosen < 0) return;
+      ++out_.retests;
+      const std::vector<double> weights = out_.weights;
+      const Values values = values_;
+      std::size_t candidate = factors.size();
+      if (chosen == p_.robot) {
+        candidate = mine[next++].second;
+        out_.weights[candidate] = 1.0;
+      }
+      exchangeWeights(full_, out_.weights, k, 0.0);
+      const PoseGraph trial = SubGraph(p_.subgraph, Inliers(out_.weights));
+      solve(trial);
+      TeamReport cost;
+      cost.value[0] = ownedCost(trial);
+      const double f1 = TeamSum(step(cost), 0);
+      if (std::isfinite(f1) && 2.0 * (f1 - f0) <= options_.gnc.threshold2()) {
+        f0 = f1;
+        if (candidate < factors.size()) ++out_.retest_readmitted;
+      } else {
+        out_.weights = weights;
+        values_ = values;
+      }
+    }
+  }
+
   const RobustRobotProblem& p_;
   const RobustProgramOptions& options_;
   const AgentFactory& make_agent_;
@@ -495,6 +608,8 @@ class RobustProgram {
   RobustIndex full_;                         // the whole subgraph's robust factors
   std::map<int, std::vector<std::size_t>> pairs_;  // per neighbour: every separator to it
   Values values_;                                  // its estimate and copies
+  std::map<std::size_t, int> support_;  // per separator it checked: the check's support
+  double inlier_cost_ = 0.0;            // F of the inliers' solve, when kept
   RobustProgramResult out_;
 };
 

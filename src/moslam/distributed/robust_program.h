@@ -83,6 +83,9 @@ struct RobustProgramOptions {
   // threshold 0 means GNC's c2.
   bool check_separators = true;
   SeparatorConsistencyOptions consistency{0.0, 3, 2};
+  // After the inliers' solve, the check's rejects re-tested against the joint estimate, as
+  // RobustDgsOptions::retest_left_out (step 5 at the top; without the check, nothing to re-test).
+  bool retest_left_out = true;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
@@ -107,6 +110,8 @@ struct RobustProgramResult {
   GncStatus status = GncStatus::kAllInliers;
   int iterations = 0;   // weighted solves after the least-squares one
   int readmitted = 0;   // owned factors back after GNC (r2 within c2)
+  int retests = 0;            // candidates re-tested by the team (retest_left_out), and of those
+  int retest_readmitted = 0;  // it owns, the ones back
   bool polished = false;  // the inliers were solved alone
   bool polish_refused = false;  // ... but that solve raised their cost: the rounds' estimate kept
   int outliers = 0;     // robust factors of the subgraph with weight < 0.5

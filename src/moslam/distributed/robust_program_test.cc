@@ -104,6 +104,7 @@ RobustDgsOptions ReferenceOptions(const RobustProgramOptions& o) {
   r.gnc = o.gnc;
   r.check_separators = o.check_separators;
   r.consistency = o.consistency;
+  r.retest_left_out = o.retest_left_out;
   return r;
 }
 
@@ -342,10 +343,37 @@ TEST(RobustProgram, TheCheckWithMapCovariancesIsRunRobustDgs) {
   const TeamOutcome team = RunTeam(graph, initial, robust, options);
   ASSERT_EQ(team.error, "");
   // Robot 1's map estimates of its 8 separator variables and their covariance, then its
-  // estimates of the 2 in the rejected separators (for the readmission): RunRobustDgs's count.
-  EXPECT_EQ(team.results.at(1).check_messages, 3);
+  // estimates of the 2 in the rejected separators for the readmission, and again after the
+  // inliers' solve for the re-test (which finds no candidate): RunRobustDgs's count.
+  EXPECT_EQ(team.results.at(1).check_messages, 4);
   EXPECT_EQ(team.results.at(1).check_bytes, reference.consistency_bytes);
   EXPECT_EQ(team.results.at(0).check_rejected, 2);
+}
+
+// The re-test of the check's rejects (robust_dgs_test.cc, the same layout): the robots' programs
+// re-test the same two separators in the same order and reach RunRobustDgs's weights and estimate.
+TEST(RobustProgram, TheRetestOfTheChecksRejectsIsRunRobustDgs) {
+  std::vector<bool> wrong;
+  const PoseGraph graph = test::DriftingPairWithANearMiss(&wrong);
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  options.consistency.threshold = 12.0;
+  options.retest_left_out = true;
+  const RobustDgsResult reference =
+      RunRobustDgs(graph, initial, robust, ReferenceOptions(options));
+  ASSERT_EQ(reference.retests, 2);
+  ASSERT_EQ(reference.retest_readmitted, 1);
+  ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference);
+  const TeamOutcome team = RunTeam(graph, initial, robust, options);
+  ASSERT_EQ(team.error, "");
+  EXPECT_EQ(team.results.at(0).retests, 2);
+  EXPECT_EQ(team.results.at(1).retests, 2);
+  EXPECT_EQ(team.results.at(0).retest_readmitted, 1);  // robot 0 owns the separators
+  EXPECT_EQ(team.results.at(1).retest_readmitted, 0);
+  // Robot 1 sends every message of the check, the re-test's estimates included.
+  EXPECT_EQ(team.results.at(1).check_bytes, reference.consistency_bytes);
 }
 
 TEST(RobustProgram, RejectsBadInput) {

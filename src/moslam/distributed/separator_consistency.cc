@@ -175,7 +175,8 @@ std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFact
                                               const SeparatorCheckMap& a_map,
                                               const Message& b_estimates,
                                               const Eigen::MatrixXd& b_covariance,
-                                              const SeparatorConsistencyOptions& options) {
+                                              const SeparatorConsistencyOptions& options,
+                                              std::vector<int>* support) {
   const int ra = a_map.robot(), rb = b_estimates.sender;
   const std::vector<Key> ka = SeparatorVariables(separators, ra);
   const std::vector<Key> kb = SeparatorVariables(separators, rb);
@@ -245,6 +246,14 @@ std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFact
   std::vector<std::size_t> best;
   for (int p : MaximumClique(g).nodes) best.push_back(static_cast<std::size_t>(p));
   std::sort(best.begin(), best.end());
+  if (support) {
+    support->assign(separators.size(), 0);
+    for (std::size_t i = 0; i < separators.size(); ++i) {
+      for (std::size_t m : best) {
+        if (m != i && g.adjacent(static_cast<int>(i), static_cast<int>(m))) ++(*support)[i];
+      }
+    }
+  }
   return best;
 }
 
@@ -262,6 +271,7 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
   const auto& factors = graph.factors();
   SeparatorConsistencyResult out;
   out.kept.assign(factors.size(), true);
+  out.support.assign(factors.size(), -1);
   std::map<std::pair<int, int>, std::vector<std::size_t>> pairs;
   for (std::size_t i = 0; i < factors.size(); ++i) {
     const int a = factors[i].a().robot, b = factors[i].b().robot;
@@ -284,6 +294,12 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
   struct Unconfirmed {
     std::pair<int, int> pair;
     std::vector<std::size_t> list, best;  // its separators; its largest consistent set
+    std::vector<int> support;             // per separator: the members of best it agrees with
+  };
+  // The support of a pair's separators: against its best set if that is kept, else none.
+  const auto set_support = [&](const std::vector<std::size_t>& list,
+                               const std::vector<int>& support, bool kept) {
+    for (std::size_t p = 0; p < list.size(); ++p) out.support[list[p]] = kept ? support[p] : 0;
   };
   std::vector<Unconfirmed> unconfirmed;
   const auto reject_except = [&](const std::vector<std::size_t>& list,
@@ -321,14 +337,17 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
       SB = DecodeCovarianceMessage(wire_cov).covariance;
     }
     std::vector<std::size_t> best;
-    for (std::size_t p : ConsistentSeparators(separators, A, DecodeMessage(wire), SB, options)) {
+    std::vector<int> support;
+    for (std::size_t p :
+         ConsistentSeparators(separators, A, DecodeMessage(wire), SB, options, &support)) {
       best.push_back(list[p]);
     }
     if (static_cast<int>(best.size()) >= options.min_support) {
       reject_except(list, best);
+      set_support(list, support, true);
       confirmed.push_back(pair);
     } else {
-      unconfirmed.push_back({pair, list, best});  // judged below, once every pair is known
+      unconfirmed.push_back({pair, list, best, support});  // judged below, once every pair is known
     }
   }
   // The robots linked through confirmed pairs: the same group.
@@ -345,9 +364,11 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
       ++out.robot_pairs_deferred;
       out.deferred += static_cast<int>(u.best.size());
       reject_except(u.list, u.best);
+      set_support(u.list, u.support, true);
     } else {
       ++out.robot_pairs_rejected;
       reject_except(u.list, {});
+      set_support(u.list, u.support, false);
     }
   }
   return out;

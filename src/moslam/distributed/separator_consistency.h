@@ -75,6 +75,10 @@ struct SeparatorConsistencyResult {
   int deferred = 0;              // their separators kept
   std::int64_t bytes = 0;        // the local estimates and covariances sent
   std::int64_t messages = 0;
+  // Per factor of the graph: for a separator, how many of the separators kept of its robot pair
+  // it passes the pairwise test with (one-to-one exclusions counting as failures); -1 for the
+  // other factors and for pairs not checked. What RobustDgsOptions::retest_left_out reads.
+  std::vector<int> support;
 };
 
 // One robot's own map for the check: the factors between its own variables in `graph` (the whole
@@ -114,13 +118,15 @@ std::vector<Key> SeparatorVariables(const std::vector<RelativePoseFactor>& separ
 // (in the order both hold them), `a_map` a's map, `b_estimates` and `b_covariance` what b sent
 // (its map's estimates of SeparatorVariables(separators, b) and their joint covariance; the
 // covariance is ignored without options.map_uncertainty). Returns the largest pairwise-consistent
-// set as positions in `separators`, increasing. Throws InvalidInputError when b's message does
-// not hold exactly those variables or the covariance has the wrong size.
+// set as positions in `separators`, increasing; with `support`, per separator how many members of
+// that set it passes the pairwise test with (not counting itself). Throws InvalidInputError when
+// b's message does not hold exactly those variables or the covariance has the wrong size.
 std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
                                               const SeparatorCheckMap& a_map,
                                               const Message& b_estimates,
                                               const Eigen::MatrixXd& b_covariance,
-                                              const SeparatorConsistencyOptions& options);
+                                              const SeparatorConsistencyOptions& options,
+                                              std::vector<int>* support = nullptr);
 
 // robust (empty, or one flag per factor of graph): the intra-robot factors it marks (object
 // measurements) are robust in each robot's own map too: the map is then its GNC-TLS estimate

@@ -417,6 +417,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     options.dgs.coarse_correction = config.two_level_dgs;
     options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
     options.gnc.threshold = config.gnc_threshold;
+    options.retest_left_out = config.retest_left_out;
     RobustDgsResult r;
     try {
       r = RunRobustDgs(joint.graph, joint.initial, robust, options);

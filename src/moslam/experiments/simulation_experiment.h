@@ -94,6 +94,8 @@ struct ExperimentConfig {
   bool robust = false;
   // GNC's threshold on r^T Omega r of an object-object factor (0: GncOptions' default).
   double gnc_threshold = 0.0;
+  // RobustDgsOptions::retest_left_out.
+  bool retest_left_out = true;
   // A run in which some robot never gets linked to robot 0 (no rendezvous aligned, or, with
   // robust, the separator check refused all its links) is left out of the mean and counted
   // (ExperimentResult::skipped), instead of failing the experiment.

@@ -308,6 +308,7 @@ class DgsNode::Impl final : public TeamChannel {
     options.gnc = *options_.gnc;
     options.check_separators = options_.separator_check.has_value();
     if (options_.separator_check) options.consistency = *options_.separator_check;
+    options.retest_left_out = options_.retest_left_out;
     bool first = true;
     const AgentFactory make = [&](const PoseGraph& graph, const Values& start) -> RobotAgent& {
       for (const auto& [k, x] : agent_->estimate()) own_[k] = x;
@@ -455,19 +456,34 @@ class DgsNode::Impl final : public TeamChannel {
     const auto now = Clock::now();
     if (!force && now - last_snapshot_ < std::chrono::seconds(1)) return;
     last_snapshot_ = now;
-    const std::filesystem::path dir(options_.state_dir);
-    const auto tmp = dir / "estimate.g2o.tmp";
-    WriteG2oFile(tmp.string(), subgraph_, currentEstimate(), g2o_options_);
-    std::filesystem::rename(tmp, dir / "estimate.g2o");
+    write("estimate.g2o", currentEstimate());
+  }
+
+  // The robot's final variables: the robust program's estimate, which need not be its last
+  // solve's (a refused inliers' solve, a rejected re-test: the agent holds what was turned
+  // down), else the agent's.
+  Values finalEstimate() const {
+    Values v = currentEstimate();
+    if (result_.robust) {
+      for (const auto& [k, x] : result_.robust->estimate) v[k] = x;
+    }
+    return v;
   }
 
   void saveResult() {
     if (options_.state_dir.empty()) return;
-    snapshot(true);
+    last_snapshot_ = Clock::now();
+    const Values final_estimate = finalEstimate();
+    write("estimate.g2o", final_estimate);
+    write("result.g2o", final_estimate);
+  }
+
+  // `name` in the state directory, written whole or not at all.
+  void write(const std::string& name, const Values& values) const {
     const std::filesystem::path dir(options_.state_dir);
-    const auto tmp = dir / "result.g2o.tmp";
-    WriteG2oFile(tmp.string(), subgraph_, currentEstimate(), g2o_options_);
-    std::filesystem::rename(tmp, dir / "result.g2o");
+    const auto tmp = dir / (name + ".tmp");
+    WriteG2oFile(tmp.string(), subgraph_, values, g2o_options_);
+    std::filesystem::rename(tmp, dir / name);
   }
 
   // ---- protocol ---------------------------------------------------------------------------

@@ -82,6 +82,8 @@ struct DgsNodeOptions {
   // With gnc: the pairwise check of the separators before GNC (robust_program.h, C1-C4; the map
   // covariances in CovariancePackets); none: GNC alone. Its threshold 0: GNC's c2.
   std::optional<SeparatorConsistencyOptions> separator_check;
+  // With separator_check: its rejects re-tested after the inliers' solve (robust_program.h).
+  bool retest_left_out = true;
   std::function<void(const DgsNodeRound&)> on_round;  // after every step (also replayed ones)
   std::function<void(const std::string&)> log;  // team, leaves, failures; default: stderr
 

@@ -592,5 +592,61 @@ TEST(DgsNode, TheSeparatorCheckOverTheTransportEqualsRunRobustDgs) {
   fs::remove_all(dir);
 }
 
+// The re-test of the check's rejects (robust_program.h) over the transport: RunRobustDgs's
+// weights and estimate, and robot 0 killed two steps before the end (in the last re-test's solve)
+// and restarted from its journal changes nothing.
+TEST(DgsNode, TheRetestOfTheChecksRejectsOverTheTransportSurvivesARestart) {
+  Dataset data;
+  std::vector<bool> wrong;
+  data.graph = test::DriftingPairWithANearMiss(&wrong);
+  data.initial = ChordalInitialization(data.graph, SE3());
+  DgsNodeOptions o = WholeSolver();
+  o.gnc = GncOptions();
+  o.separator_check = SeparatorConsistencyOptions{12.0, 3, 2};
+  o.retest_left_out = true;
+  RobustDgsOptions ro;
+  ro.dgs = DriverOptions(o);
+  ro.gnc = *o.gnc;
+  ro.consistency = *o.separator_check;
+  ro.retest_left_out = true;
+  const RobustDgsResult reference =
+      RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), ro);
+  ASSERT_EQ(reference.retests, 2);
+  ASSERT_EQ(reference.retest_readmitted, 1);
+  std::uint32_t steps = 0;
+  {
+    InProcessNetwork net;
+    const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
+    ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+    EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+    ExpectReferenceWeights(team, data.graph, reference);
+    EXPECT_EQ(team.results.at(0).robust->retest_readmitted, 1);
+    steps = static_cast<std::uint32_t>(team.results.at(0).robust->channel_steps);
+  }
+  const fs::path dir = FreshDir("retest_restart");
+  std::atomic<int> crashes{0};
+  InProcessNetwork net;
+  const TeamResult team = RunTeam(net, data, [&](int robot) {
+    RobotSetup s{o, false};
+    s.options.state_dir = (dir / std::to_string(robot)).string();
+    if (robot == 0) {
+      s.restart_after_crash = true;
+      s.options.on_round = [&](const DgsNodeRound& r) {
+        if (!r.replayed && r.round == steps - 2 && crashes == 0) {
+          ++crashes;
+          throw Crash();
+        }
+      };
+    }
+    return s;
+  });
+  ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+  EXPECT_EQ(crashes, 1);
+  EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+  ExpectReferenceWeights(team, data.graph, reference);
+  EXPECT_EQ(team.results.at(0).replayed_rounds, static_cast<int>(steps) - 2);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace moslam
