@@ -385,6 +385,14 @@ class RobustProgram {
   // After GNC: the higher robot of each pair sends the lower its estimates of its variables in
   // the robust separators the check left out (empty messages elsewhere), for their residuals.
   void fetchLeftOut(const std::vector<bool>& kept) {
+    sendLeftOut([&](std::size_t i, const Key&) { return !kept[i] && p_.robust[i]; });
+  }
+
+  // One step: the higher robot of each pair sends the lower its estimates of its variable `mine`
+  // in the separators i with select(i, mine) (empty messages elsewhere), each message counted
+  // with the check. Returns the variables received, now among its copies.
+  template <class Select>
+  std::set<Key> sendLeftOut(const Select& select) {
     (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
     std::vector<OutgoingMessage> estimates;
     for (const auto& [other, list] : pairs_) {
@@ -392,9 +400,9 @@ class RobustProgram {
       if (other < p_.robot) {
         std::set<Key> keys;
         for (std::size_t i : list) {
-          if (kept[i] || !p_.robust[i]) continue;
           const RelativePoseFactor& f = p_.subgraph.factors()[i];
-          keys.insert(f.a().robot == p_.robot ? f.a() : f.b());
+          const Key mine = f.a().robot == p_.robot ? f.a() : f.b();
+          if (select(i, mine)) keys.insert(mine);
         }
         for (const Key& k : keys) o.message.appendPose(k, values_.at(k));
         if (!keys.empty()) countCheck(EncodeMessage(o.message).size());
@@ -404,10 +412,15 @@ class RobustProgram {
     TeamReport report;
     report.sent = true;
     const TeamStep got = step(report, {}, estimates);
+    std::set<Key> received;
     for (const Message& m : got.estimates) {
       if (m.sender < p_.robot) continue;
-      for (std::size_t e = 0; e < m.keys.size(); ++e) values_[m.keys[e]] = m.pose(e);
+      for (std::size_t e = 0; e < m.keys.size(); ++e) {
+        values_[m.keys[e]] = m.pose(e);
+        received.insert(m.keys[e]);
+      }
     }
+    return received;
   }
 
   // r^T Omega r of the robust factors it owns at the current estimate and copies (0 elsewhere).
@@ -520,31 +533,8 @@ class RobustProgram {
     const auto left_out = [&](std::size_t i) {
       return p_.robust[i] && !kept[i] && out_.weights[i] < 0.5;
     };
-    std::vector<OutgoingMessage> estimates;
-    for (const auto& [other, list] : pairs_) {
-      OutgoingMessage o = emptyMessageTo(other);
-      if (other < p_.robot) {
-        std::set<Key> keys;
-        for (std::size_t i : list) {
-          const Key mine = factors[i].a().robot == p_.robot ? factors[i].a() : factors[i].b();
-          if (left_out(i) && held(mine)) keys.insert(mine);
-        }
-        for (const Key& k : keys) o.message.appendPose(k, values_.at(k));
-        if (!keys.empty()) countCheck(EncodeMessage(o.message).size());
-      }
-      estimates.push_back(std::move(o));
-    }
-    TeamReport report;
-    report.sent = true;
-    const TeamStep got = step(report, {}, estimates);
-    std::set<Key> held_there;
-    for (const Message& m : got.estimates) {
-      if (m.sender < p_.robot) continue;
-      for (std::size_t e = 0; e < m.keys.size(); ++e) {
-        values_[m.keys[e]] = m.pose(e);
-        held_there.insert(m.keys[e]);
-      }
-    }
+    const std::set<Key> held_there =
+        sendLeftOut([&](std::size_t i, const Key& mine) { return left_out(i) && held(mine); });
     std::vector<std::pair<double, std::size_t>> mine;
     for (const auto& [other, list] : pairs_) {
       if (other < p_.robot) continue;
@@ -583,6 +573,9 @@ class RobustProgram {
         candidate = mine[next++].second;
         out_.weights[candidate] = 1.0;
       }
+      // The candidate's robots need not be neighbours in the last solve: an agent of the whole
+      // subgraph for the weight step (see AgentFactory).
+      (void)make_agent_(p_.subgraph, values_);
       exchangeWeights(full_, out_.weights, k, 0.0);
       const PoseGraph trial = SubGraph(p_.subgraph, Inliers(out_.weights));
       solve(trial);

@@ -25,6 +25,15 @@
 //      step); a variable no inlier touches keeps the rounds' estimate. One more step reduces the
 //      inliers' cost before and after that solve (each robot the factors it owns): the solve is
 //      kept only when it does not raise it (KeepInlierSolve), else the rounds' estimate stays.
+//   5. with the check and retest_left_out, when that solve was kept, as RunRobustDgs: one step in
+//      which the higher robot of each pair sends the lower its estimates of its variables, held
+//      by inliers, in the robust separators the check left out and still rejected; the lower
+//      robot's candidates are those with the check's support and both ends held. Then per
+//      candidate: a step in which every robot offers its untried candidate of lowest r^T Omega r
+//      (the team takes the lowest, ties to the lower robot id; none left: done), a weight step
+//      (the owner's weight 1), the solve of the inliers with it, and a step reducing their cost
+//      F1: it stays when 2 (F1 - F0) <= c2 (F0 the inliers' cost so far), else every robot puts
+//      its weights and estimate back.
 // Before step 1, with options.check_separators, the pairwise check of the separators
 // (separator_consistency.h, PCM), as RunRobustDgs runs it:
 //   C1. every robot builds its own map (its own factors solved alone, the robust ones by GNC-TLS,

@@ -100,6 +100,28 @@ fs::path FreshDir(const std::string& name) {
   return dir;
 }
 
+// RunTeam with every robot journaling in dir/<robot>: robot `victim` is killed once right after
+// protocol step `round` (a step it computed, not one it replayed) and restarts from its journal.
+// The returned team's kills are counted in *crashes.
+TeamResult RunTeamKillingOnce(InProcessNetwork& net, const Dataset& data, const DgsNodeOptions& o,
+                              const fs::path& dir, int victim, std::uint32_t round,
+                              std::atomic<int>* crashes) {
+  return RunTeam(net, data, [&](int robot) {
+    RobotSetup s{o, false};
+    s.options.state_dir = (dir / std::to_string(robot)).string();
+    if (robot == victim) {
+      s.restart_after_crash = true;
+      s.options.on_round = [=](const DgsNodeRound& r) {
+        if (!r.replayed && r.round == round && *crashes == 0) {
+          ++*crashes;
+          throw Crash();
+        }
+      };
+    }
+    return s;
+  });
+}
+
 DgsNodeOptions Options() {
   DgsNodeOptions o;
   o.join_timeout = std::chrono::seconds(20);
@@ -451,20 +473,7 @@ TEST(DgsNode, TheRobustSolveEqualsTheInProcessRobustDriverAndSurvivesARestart) {
   const fs::path dir = FreshDir("robust_restart");
   std::atomic<int> crashes{0};
   InProcessNetwork net;
-  const TeamResult team = RunTeam(net, data, [&](int robot) {
-    RobotSetup s{base, false};
-    s.options.state_dir = (dir / std::to_string(robot)).string();
-    if (robot == 1) {
-      s.restart_after_crash = true;
-      s.options.on_round = [&](const DgsNodeRound& r) {
-        if (!r.replayed && r.round == crash_at && crashes == 0) {
-          ++crashes;
-          throw Crash();
-        }
-      };
-    }
-    return s;
-  });
+  const TeamResult team = RunTeamKillingOnce(net, data, base, dir, 1, crash_at, &crashes);
   ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
   EXPECT_EQ(crashes, 1);
   EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
@@ -518,14 +527,17 @@ TEST(DgsNode, ValidatesOptions) {
 // blocks_world with the maps taken as exact, and on two drifting robots with their maps'
 // covariances in CovariancePackets, also when robot 0 dies right after the step that brought
 // robot 1's covariance and restarts from its journal.
+// RunRobustDgs with the robust options of the nodes `o` (GNC, the separator check, the re-test).
+RobustDgsResult RobustReference(const Dataset& data, const DgsNodeOptions& o) {
+  RobustDgsOptions ro;
+  ro.dgs = DriverOptions(o);
+  ro.gnc = *o.gnc;
+  ro.consistency = *o.separator_check;
+  ro.retest_left_out = o.retest_left_out;
+  return RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), ro);
+}
+
 TEST(DgsNode, TheSeparatorCheckOverTheTransportEqualsRunRobustDgs) {
-  const auto reference_of = [](const Dataset& data, const DgsNodeOptions& o) {
-    RobustDgsOptions ro;
-    ro.dgs = DriverOptions(o);
-    ro.gnc = *o.gnc;
-    ro.consistency = *o.separator_check;
-    return RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), ro);
-  };
   {
     SCOPED_TRACE("blocks_world 4, 90 % wrong separators, the maps taken as exact");
     const Dataset clean = ReadG2oFolder(BlocksWorld(4));
@@ -539,7 +551,7 @@ TEST(DgsNode, TheSeparatorCheckOverTheTransportEqualsRunRobustDgs) {
     o.gnc->threshold = 1.0;
     o.separator_check = SeparatorConsistencyOptions{0.0, 3, 2};
     o.separator_check->map_uncertainty = false;
-    const RobustDgsResult reference = reference_of(data, o);
+    const RobustDgsResult reference = RobustReference(data, o);
     ASSERT_GT(reference.consistency_rejected, 0);
     InProcessNetwork net;
     const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
@@ -561,25 +573,12 @@ TEST(DgsNode, TheSeparatorCheckOverTheTransportEqualsRunRobustDgs) {
   DgsNodeOptions o = WholeSolver();
   o.gnc = GncOptions();
   o.separator_check = SeparatorConsistencyOptions{0.0, 3, 2};
-  const RobustDgsResult reference = reference_of(data, o);
+  const RobustDgsResult reference = RobustReference(data, o);
   ASSERT_EQ(reference.consistency_rejected, 2);
   const fs::path dir = FreshDir("check_restart");
   std::atomic<int> crashes{0};
   InProcessNetwork net;
-  const TeamResult team = RunTeam(net, data, [&](int robot) {
-    RobotSetup s{o, false};
-    s.options.state_dir = (dir / std::to_string(robot)).string();
-    if (robot == 0) {
-      s.restart_after_crash = true;
-      s.options.on_round = [&](const DgsNodeRound& r) {
-        if (!r.replayed && r.round == 1 && crashes == 0) {
-          ++crashes;
-          throw Crash();
-        }
-      };
-    }
-    return s;
-  });
+  const TeamResult team = RunTeamKillingOnce(net, data, o, dir, 0, 1, &crashes);
   ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
   EXPECT_EQ(crashes, 1);
   EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
@@ -604,13 +603,7 @@ TEST(DgsNode, TheRetestOfTheChecksRejectsOverTheTransportSurvivesARestart) {
   o.gnc = GncOptions();
   o.separator_check = SeparatorConsistencyOptions{12.0, 3, 2};
   o.retest_left_out = true;
-  RobustDgsOptions ro;
-  ro.dgs = DriverOptions(o);
-  ro.gnc = *o.gnc;
-  ro.consistency = *o.separator_check;
-  ro.retest_left_out = true;
-  const RobustDgsResult reference =
-      RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), ro);
+  const RobustDgsResult reference = RobustReference(data, o);
   ASSERT_EQ(reference.retests, 2);
   ASSERT_EQ(reference.retest_readmitted, 1);
   std::uint32_t steps = 0;
@@ -626,20 +619,7 @@ TEST(DgsNode, TheRetestOfTheChecksRejectsOverTheTransportSurvivesARestart) {
   const fs::path dir = FreshDir("retest_restart");
   std::atomic<int> crashes{0};
   InProcessNetwork net;
-  const TeamResult team = RunTeam(net, data, [&](int robot) {
-    RobotSetup s{o, false};
-    s.options.state_dir = (dir / std::to_string(robot)).string();
-    if (robot == 0) {
-      s.restart_after_crash = true;
-      s.options.on_round = [&](const DgsNodeRound& r) {
-        if (!r.replayed && r.round == steps - 2 && crashes == 0) {
-          ++crashes;
-          throw Crash();
-        }
-      };
-    }
-    return s;
-  });
+  const TeamResult team = RunTeamKillingOnce(net, data, o, dir, 0, steps - 2, &crashes);
   ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
   EXPECT_EQ(crashes, 1);
   EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
