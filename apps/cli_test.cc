@@ -279,6 +279,33 @@ TEST(CliDgs, ObjectsAreReportedSeparately) {
   fs::remove_all(dir);
 }
 
+// `dgs --robust` on a spoiled blocks_world (4 robots, 30 % wrong separators, seed 1): the check
+// leaves out exactly the wrong ones, one of them agrees with enough kept ones to be re-tested
+// against the joint estimate and stays out; --no-retest-left-out skips the re-test.
+TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
+  const fs::path dir = fs::temp_directory_path() / "moslam_cli_dgs_spoiled";
+  fs::remove_all(dir);
+  const CommandResult spoil =
+      RunMoslam("spoil " + kBlocksWorld + "4robots --fraction 0.3 --seed 1 --out " + dir.string());
+  ASSERT_EQ(spoil.exit_code, 0) << spoil.out;
+  const std::string robust = "dgs " + dir.string() +
+                             " --robust --gnc-threshold 1 --separator-test measurement --json";
+  const CommandResult r = RunMoslam(robust);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(LastLine(r.out));
+  EXPECT_EQ(j["consistency_rejected"], 14);
+  EXPECT_EQ(j["outliers"], 14);
+  EXPECT_EQ(j["retests"], 1);
+  EXPECT_EQ(j["retest_readmitted"], 0);
+  const CommandResult off = RunMoslam(robust + " --no-retest-left-out");
+  ASSERT_EQ(off.exit_code, 0) << off.out;
+  const auto k = nlohmann::json::parse(LastLine(off.out));
+  EXPECT_EQ(k["retests"], 0);
+  EXPECT_EQ(k["outliers"], 14);
+  EXPECT_LT(k["bytes"].get<long long>(), j["bytes"].get<long long>());
+  fs::remove_all(dir);
+}
+
 }  // namespace
 
 // `moslam simulate`: one small run end to end, the documented JSON, the Fig. 4 plot, bad input.
