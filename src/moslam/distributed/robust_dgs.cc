@@ -47,6 +47,30 @@ int Readmit(const PoseGraph& graph, const Values& values, const std::vector<bool
   return count;
 }
 
+// The bytes of what the higher robot of each pair sends the lower (one message per pair with a
+// variable to send; robust_program.cc sends the same): its estimates in `values` of its variables
+// in the separators i with select(i, its variable).
+template <class Select>
+std::int64_t LeftOutEstimateBytes(const PoseGraph& graph, const Values& values,
+                                  const Select& select) {
+  std::map<std::pair<int, int>, std::set<Key>> sent;
+  for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+    const RelativePoseFactor& f = graph.factors()[i];
+    const int a = f.a().robot, b = f.b().robot;
+    const Key& higher = a > b ? f.a() : f.b();
+    if (a != b && select(i, higher)) sent[{std::min(a, b), std::max(a, b)}].insert(higher);
+  }
+  std::int64_t bytes = 0;
+  for (const auto& [pair, keys] : sent) {
+    Message m;
+    m.stage = DgsStage::kPose;
+    m.sender = pair.second;
+    for (const Key& k : keys) m.appendPose(k, values.at(k));
+    bytes += static_cast<std::int64_t>(EncodeMessage(m).size());
+  }
+  return bytes;
+}
+
 // The variables the factors of weight >= 0.5 touch.
 std::set<Key> InlierKeys(const PoseGraph& graph, const std::vector<double>& weights) {
   std::set<Key> held;
@@ -254,21 +278,9 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
   r.consistency_rejected = check.rejected;
   r.consistency_deferred = check.deferred;
   // The separators the check left out that agree with the estimate come back: the robot of
-  // higher id sends the other its estimates of their poses (one message per robot pair).
-  std::map<std::pair<int, int>, std::set<Key>> ask;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (check.kept[i] || !robust[i]) continue;
-    const RelativePoseFactor& f = graph.factors()[i];
-    const int a = f.a().robot, b = f.b().robot;
-    ask[{std::min(a, b), std::max(a, b)}].insert(a > b ? f.a() : f.b());
-  }
-  for (const auto& [pair, keys] : ask) {
-    Message m;
-    m.stage = DgsStage::kRefine;
-    m.sender = pair.second;
-    for (const Key& k : keys) m.appendPose(k, r.values.at(k));
-    r.consistency_bytes += static_cast<std::int64_t>(EncodeMessage(m).size());
-  }
+  // higher id sends the other its estimates of their poses.
+  r.consistency_bytes += LeftOutEstimateBytes(
+      graph, r.values, [&](std::size_t i, const Key&) { return !check.kept[i] && robust[i]; });
   r.readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
   // The estimate of the inliers alone, where some weight is not 1 (the rounds kept a sliver,
   // min_weight, of every rejected factor) or some separator came back.
@@ -296,21 +308,9 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     // First the higher robot of each pair sends the lower its estimates of its variables, held by
     // inliers, in the separators the check left out that are still rejected (for their residuals).
     const std::set<Key> held = InlierKeys(graph, r.weights);
-    std::map<std::pair<int, int>, std::set<Key>> sent;
-    for (std::size_t i = 0; i < n; ++i) {
-      const RelativePoseFactor& f = graph.factors()[i];
-      const int a = f.a().robot, b = f.b().robot;
-      if (a == b || check.kept[i] || !robust[i] || r.weights[i] >= 0.5) continue;
-      const Key& higher = a > b ? f.a() : f.b();
-      if (held.count(higher)) sent[{std::min(a, b), std::max(a, b)}].insert(higher);
-    }
-    for (const auto& [pair, keys] : sent) {
-      Message m;
-      m.stage = DgsStage::kPose;
-      m.sender = pair.second;
-      for (const Key& k : keys) m.appendPose(k, r.values.at(k));
-      r.consistency_bytes += static_cast<std::int64_t>(EncodeMessage(m).size());
-    }
+    r.consistency_bytes += LeftOutEstimateBytes(graph, r.values, [&](std::size_t i, const Key& k) {
+      return !check.kept[i] && robust[i] && r.weights[i] < 0.5 && held.count(k) > 0;
+    });
     const std::vector<std::size_t> candidates = RetestCandidates(
         graph, check, robust, r.weights, r.values, options.consistency.min_support);
     std::set<int> robot_set;
