@@ -139,6 +139,25 @@ std::vector<RobotSessionResult> RunSessions(const ScenarioSpec& spec,
   return results;
 }
 
+// What a test's hook throws to kill a robot process.
+struct Crash {};
+
+// Robot r's process killed once: its session with `first` runs until a hook of `first` throws
+// Crash; then the process is gone (its transport destroyed) and restarts (a new transport, which
+// receives the history), in `transport`. Returns false when the session ended without a crash.
+bool RunUntilKilled(InProcessNetwork& net, Log& log, std::unique_ptr<Transport>& transport,
+                    const RobotScenarioData& slice, const RobotSessionOptions& first) {
+  try {
+    RobotSession session(slice, *transport, first);
+    session.run();
+    return false;
+  } catch (const Crash&) {
+  }
+  transport.reset();
+  transport = net.connect(slice.robot, {log.sink()});
+  return true;
+}
+
 TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
   const ScenarioSpec spec = Small();
   const SimulationData data = SimulateScenario(spec);
@@ -273,7 +292,6 @@ void CrashAndRestartInTheRendezvousPhase(const ScenarioSpec& spec) {
   for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
   std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
   std::vector<std::string> errors(results.size());
-  struct Crash {};
   std::vector<std::thread> threads;
   for (int r = 0; r < spec.robots; ++r) {
     threads.emplace_back([&, r]() {
@@ -282,21 +300,16 @@ void CrashAndRestartInTheRendezvousPhase(const ScenarioSpec& spec) {
       try {
         RobotSessionOptions o = Options(spec, log, state);
         if (r == victim) {
+          RobotSessionOptions first = o;
           int seen = 0;
-          o.on_rendezvous = [&seen](const SessionRendezvous&) {
+          first.on_rendezvous = [&seen](const SessionRendezvous&) {
             if (++seen == 2) throw Crash{};
           };
-          try {
-            RobotSession session(SliceForRobot(data, r, spec.known_initial_poses),
-                                 *transports[ri], o);
-            session.run();
+          if (!RunUntilKilled(net, log, transports[ri],
+                              SliceForRobot(data, r, spec.known_initial_poses), first)) {
             errors[ri] = "the victim did not crash";
             return;
-          } catch (const Crash&) {
           }
-          transports[ri].reset();  // the process is gone
-          transports[ri] = net.connect(r, {log.sink()});  // restarted: receives the history
-          o.on_rendezvous = nullptr;
         }
         RobotSession session(SliceForRobot(data, r, spec.known_initial_poses), *transports[ri], o);
         results[ri] = session.run();
@@ -406,7 +419,6 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
     std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
     std::vector<std::string> errors(results.size());
     struct Leave {};
-    struct Crash {};
     std::vector<std::thread> threads;
     for (int r = 0; r < spec.robots; ++r) {
       threads.emplace_back([&, r]() {
@@ -426,15 +438,10 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
             first.dgs.on_round = [](const DgsNodeRound& round) {
               if (round.round == 3) throw Crash{};
             };
-            try {
-              RobotSession session(SliceForRobot(data, r), *transports[ri], first);
-              session.run();
+            if (!RunUntilKilled(net, log, transports[ri], SliceForRobot(data, r), first)) {
               errors[ri] = "the robot did not crash";
               return;
-            } catch (const Crash&) {
             }
-            transports[ri].reset();  // the process is gone
-            transports[ri] = net.connect(r, {log.sink()});  // restarted: receives the history
           }
           RobotSession session(SliceForRobot(data, r), *transports[ri], o);
           results[ri] = session.run();
