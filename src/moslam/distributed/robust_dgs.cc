@@ -71,6 +71,13 @@ std::int64_t LeftOutEstimateBytes(const PoseGraph& graph, const Values& values,
   return bytes;
 }
 
+// The robots the graph's variables belong to, increasing.
+std::vector<int> RobotsOf(const PoseGraph& graph) {
+  std::set<int> robots;
+  for (const Key& k : graph.keys()) robots.insert(k.robot);
+  return {robots.begin(), robots.end()};
+}
+
 // The variables the factors of weight >= 0.5 touch.
 std::set<Key> InlierKeys(const PoseGraph& graph, const std::vector<double>& weights) {
   std::set<Key> held;
@@ -313,14 +320,13 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     });
     const std::vector<std::size_t> candidates = RetestCandidates(
         graph, check, robust, r.weights, r.values, options.consistency.min_support);
-    std::set<int> robot_set;
-    for (const Key& k : graph.keys()) robot_set.insert(k.robot);
-    Coordinator coordinator({robot_set.begin(), robot_set.end()}, &r.control_bytes);
+    const std::vector<int> robots = RobotsOf(graph);
+    Coordinator coordinator(robots, &r.control_bytes);
     std::uint32_t step = 0;
     // F over the team: each robot the factors it owns (a separator: the lower robot), reduced.
     const auto team_cost = [&](const PoseGraph& g, const Values& x) {
       std::map<int, double> share;
-      for (int robot : robot_set) share[robot] = 0.0;
+      for (int robot : robots) share[robot] = 0.0;
       for (const RelativePoseFactor& f : g.factors()) {
         share[std::min(f.a().robot, f.b().robot)] += f.cost(x.at(f.a()), x.at(f.b()));
       }
@@ -363,9 +369,7 @@ RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
   dgs.refine = true;
 
   // Who owns which weight; the separators each owner sends, per (owner, other robot).
-  std::set<int> robot_set;
-  for (const Key& k : graph.keys()) robot_set.insert(k.robot);
-  const std::vector<int> robots(robot_set.begin(), robot_set.end());
+  const std::vector<int> robots = RobotsOf(graph);
   std::vector<int> owner(n);
   std::map<std::pair<int, int>, std::vector<std::size_t>> separators;
   for (std::size_t i = 0; i < n; ++i) {
