@@ -202,7 +202,8 @@ GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
 }
 
 std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const Values& solution,
-                                            const std::vector<SharedObject>& shared, int step) {
+                                            const std::vector<SharedObject>& shared, int step,
+                                            const std::set<int>& left) {
   for (const auto& [k, x] : problem.initial) {
     if (solution.count(k) == 0) {
       throw InvalidInputError("SplitGroupSolution: the solution has no value for " + ToString(k));
@@ -210,7 +211,7 @@ std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const V
   }
   std::vector<GroupUpdate> out;
   for (int r : problem.robots) {
-    out.push_back(RobotGroupUpdate(problem.robots, r, solution, shared, step));
+    if (!left.count(r)) out.push_back(RobotGroupUpdate(problem.robots, r, solution, shared, step, left));
   }
   return out;
 }
@@ -265,7 +266,8 @@ RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<in
 }
 
 GroupUpdate RobotGroupUpdate(const std::vector<int>& robots, int robot, const Values& solution,
-                             const std::vector<SharedObject>& shared, int step) {
+                             const std::vector<SharedObject>& shared, int step,
+                             const std::set<int>& left) {
   const int local = LocalIndex(robots, robot, "RobotGroupUpdate");
   const auto value = [&](Key k) -> const SE3& {
     const auto it = solution.find(k);
@@ -286,7 +288,7 @@ GroupUpdate RobotGroupUpdate(const std::vector<int>& robots, int robot, const Va
                                       std::pair{s.beta_object, s.alpha_object}}) {
       if (mine.robot != robot || other.robot == robot) continue;
       const auto j = std::lower_bound(robots.begin(), robots.end(), other.robot);
-      if (j == robots.end() || *j != other.robot) continue;
+      if (j == robots.end() || *j != other.robot || left.count(other.robot)) continue;
       u.held[other] = {to_own * value(Relabel(other, static_cast<int>(j - robots.begin()))), step};
     }
   }

@@ -46,7 +46,15 @@ void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult
     std::vector<const ObjectSlam*> members;
     for (int r : part) members.push_back(&robot(r));
     const GroupProblem problem = BuildGroupProblem(members, team.shared, held_, options_.lambda);
-    const DgsResult solved = RunDgs(problem.graph, problem.initial, options_.solver);
+    FaultInjection faults;
+    std::set<int> dies;
+    for (std::size_t i = 0; i < part.size(); ++i) {
+      const auto it = options_.dies_in_solve.find(part[i]);
+      if (it == options_.dies_in_solve.end() || it->second != group.step) continue;
+      faults.silent.push_back({static_cast<int>(i), DgsStage::kRotation, 1});
+      dies.insert(part[i]);
+    }
+    const DgsResult solved = RunDgs(problem.graph, problem.initial, options_.solver, faults);
     GroupSolveRecord rec;
     rec.step = group.step;
     rec.robots = part;
@@ -61,7 +69,8 @@ void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult
     rec.final_cost = problem.graph.cost(solved.values);
     rec.messages = solved.messages;
     rec.bytes = solved.bytes;
-    for (GroupUpdate& u : SplitGroupSolution(problem, solved.values, team.shared, group.step)) {
+    for (GroupUpdate& u :
+         SplitGroupSolution(problem, solved.values, team.shared, group.step, dies)) {
       HeldEstimates& h = held_[u.robot];
       for (auto& [k, x] : u.held) h[k] = x;
       ObjectSlam& r = robot(u.robot);

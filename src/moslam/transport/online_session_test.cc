@@ -52,10 +52,12 @@ ScenarioSpec SixRobots() {
   return spec;
 }
 
-OnlineRun RunTwin(const SimulationData& data, const RobotSessionOptions& session) {
+OnlineRun RunTwin(const SimulationData& data, const RobotSessionOptions& session,
+                  const std::map<int, int>& dies_in_solve = {}) {
   OnlineOptions options;
   options.solver = DriverOptions(session.dgs);
   options.lambda = session.slam.rendezvous.lambda();
+  options.dies_in_solve = dies_in_solve;
   return RunOnline(data, session.slam, options);
 }
 
@@ -70,12 +72,17 @@ struct Leave : std::runtime_error {
 // `options(robot)` gives; a session that throws Crash is restarted (a fresh transport, as a new
 // process) with the same options; one that throws Leave is gone for good (its transport closed,
 // its result left empty). Every other failure fails the test.
+// `wrap` (optional) puts a transport of the test's between a robot's session and the network.
+using WrapTransport = std::function<std::unique_ptr<Transport>(int robot, std::unique_ptr<Transport>)>;
 std::vector<RobotSessionResult> RunSessions(
     const SimulationData& data, int robots,
-    const std::function<RobotSessionOptions(int)>& options) {
+    const std::function<RobotSessionOptions(int)>& options, const WrapTransport& wrap = {}) {
   InProcessNetwork net;
   std::vector<std::unique_ptr<Transport>> transports;
-  for (int r = 0; r < robots; ++r) transports.push_back(net.connect(r, {[](const std::string&) {}}));
+  for (int r = 0; r < robots; ++r) {
+    std::unique_ptr<Transport> t = net.connect(r, {[](const std::string&) {}});
+    transports.push_back(wrap ? wrap(r, std::move(t)) : std::move(t));
+  }
   std::vector<RobotSessionResult> results(static_cast<std::size_t>(robots));
   std::vector<std::string> errors(results.size());
   std::vector<std::thread> threads;
@@ -356,6 +363,102 @@ TEST(OnlineSession, ARobotThatLeavesForGoodIsSkippedAndTheOthersMapAsTheTwin) {
   std::printf("robot %d left after step %d: %d rendezvous skipped, robot %d found it gone in a "
               "group with robot %d, %zu solves of the others compared with the twin\n",
               victim, last_step, skipped, x, a, solves);
+}
+
+// A robot's transport that dies (throws Leave) when the robot publishes its second status of
+// `solve`: after the session's joining status, at its DgsNode's first one.
+class DyingAtItsNodesFirstStatus final : public Transport {
+ public:
+  DyingAtItsNodesFirstStatus(std::unique_ptr<Transport> inner, std::uint32_t solve)
+      : inner_(std::move(inner)), solve_(solve) {}
+  int self() const override { return inner_->self(); }
+  // Nothing leaves a dead robot (the node's failure status neither).
+  void send(const EstimatesPacket& p) override { if (!dead_) inner_->send(p); }
+  void send(const SharedObjectsPacket& p) override { if (!dead_) inner_->send(p); }
+  void send(const WeightsPacket& p) override { if (!dead_) inner_->send(p); }
+  void send(const CovariancePacket& p) override { if (!dead_) inner_->send(p); }
+  void publish(const StatusPacket& p) override {
+    if (dead_) return;
+    if (p.solve == solve_ && ++statuses_ == 2) {
+      dead_ = true;
+      throw Leave();
+    }
+    inner_->publish(p);
+  }
+  void publish(const ObjectListPacket& p) override { if (!dead_) inner_->publish(p); }
+  void publish(const CoarsePacket& p) override { if (!dead_) inner_->publish(p); }
+  std::vector<Received> poll(milliseconds timeout) override { return inner_->poll(timeout); }
+  std::set<int> alive() const override { return inner_->alive(); }
+  void setKnownRobots(const std::set<int>& robots) override { inner_->setKnownRobots(robots); }
+  TransportStats stats() const override { return inner_->stats(); }
+
+ private:
+  std::unique_ptr<Transport> inner_;
+  std::uint32_t solve_;
+  int statuses_ = 0;
+  bool dead_ = false;
+};
+
+// A robot that dies between its joining status of a group solve and its DgsNode's first status:
+// its partners formed the group with it, their nodes count its joining status as its join, find
+// it gone at the first step and finish the solve without it (keeping their copies of its
+// landmarks from before), and take it as gone for good; every map of the others equals the
+// twin's in which it is silent in that solve and leaves after it (OnlineOptions::dies_in_solve).
+// Before, its partner in the solve failed (no value for its landmarks), and the team with it.
+TEST(OnlineSession, ARobotThatDiesBetweenItsJoiningStatusAndItsNodesFirstStatusIsLeftOut) {
+  const ScenarioSpec spec = SixRobots();
+  const SimulationData data = SimulateScenario(spec);
+  RobotSessionOptions base = OnlineSessionOptions(spec);
+  base.dgs.leave_timeout = milliseconds(300);
+  const OnlineRun twin = RunTwin(data, base);
+  std::map<int, std::vector<int>> steps_of;  // robot -> steps of its solves
+  for (const GroupSolveRecord& s : twin.solves) {
+    for (int r : s.robots) steps_of[r].push_back(s.step);
+  }
+  ASSERT_FALSE(steps_of.empty());
+  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
+                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  ASSERT_GE(steps_of[victim].size(), 3u);
+  const int dies_at = steps_of[victim][1];  // in its second solve
+  std::vector<std::pair<int, std::string>> log;
+  std::mutex log_mutex;
+  const std::vector<RobotSessionResult> results = RunSessions(
+      data, spec.robots,
+      [&](int r) {
+        RobotSessionOptions o = base;
+        o.log = [&, r](const std::string& text) {
+          std::lock_guard<std::mutex> lock(log_mutex);
+          log.emplace_back(r, text);
+        };
+        return o;
+      },
+      [&](int r, std::unique_ptr<Transport> t) -> std::unique_ptr<Transport> {
+        if (r != victim) return t;
+        return std::make_unique<DyingAtItsNodesFirstStatus>(std::move(t),
+                                                            static_cast<std::uint32_t>(dies_at + 1));
+      });
+  RobotSessionOptions twin_options = base;
+  twin_options.slam.leave_after[victim] = dies_at;
+  const OnlineRun dying = RunTwin(data, twin_options, {{victim, dies_at}});
+  std::size_t solves = 0;
+  EXPECT_LE(CompareWithTwin(results, dying, &solves, victim), 1e-9);
+  int skipped = 0;
+  for (int r = 0; r < spec.robots; ++r) {
+    if (r == victim) continue;
+    for (const SessionRendezvous& e : results[static_cast<std::size_t>(r)].rendezvous) {
+      skipped += e.skipped ? 1 : 0;
+      EXPECT_EQ(e.skipped, e.event.step > dies_at && (e.event.alpha == victim ||
+                                                       e.event.beta == victim));
+    }
+  }
+  EXPECT_GT(skipped, 0);
+  const std::string found = fmt::format("robot {} left for good (left during the group solve "
+                                        "of step {})", victim, dies_at);
+  EXPECT_TRUE(std::any_of(log.begin(), log.end(), [&](const auto& l) {
+    return l.second.find(found) != std::string::npos;
+  }));
+  std::printf("robot %d died in its solve of step %d: %d rendezvous skipped, %zu solves of the "
+              "others compared with the twin\n", victim, dies_at, skipped, solves);
 }
 
 TEST(GroupTransport, MapsTheGroupsRobotsAndRoutesEverythingElse) {

@@ -649,7 +649,16 @@ class RobotSession::Impl {
     const DgsNodeResult solved = node.run();
     Values solution = solved.estimate;
     solution.insert(solved.neighbours.begin(), solved.neighbours.end());
-    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_, t);
+    // Members that left during the solve (the node's rule) are gone for good for this robot too:
+    // their copies are not taken, their later rendezvous skipped, no later solve includes them.
+    std::set<int> left_solve;
+    for (int local : solved.left) {
+      const int r = robots.at(static_cast<std::size_t>(local));
+      left_solve.insert(r);
+      if (hasLeft(r, t)) continue;
+      markLeft(r, t, fmt::format("left during the group solve of step {}", t));
+    }
+    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_, t, left_solve);
 
     SolveRecord done;
     done.step = static_cast<std::uint32_t>(t);
@@ -1011,13 +1020,18 @@ class RobotSession::Impl {
     }
     const auto since = not_alive_since.emplace(robot, now).first->second;
     if (now - since < options_.dgs.leave_timeout) return false;
+    markLeft(robot, t, fmt::format("not alive for {} ms at step {}",
+                                   options_.dgs.leave_timeout.count(), t));
+    return true;
+  }
+
+  // `robot` is gone for good from step t on; journaled.
+  void markLeft(int robot, int t, const std::string& why) {
     left_[robot] = t;
     record(kLeftRecord, LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(t)},
            transport_detail::AppendLeftRecord);
-    options_.log(fmt::format("robot {} left for good (not alive for {} ms at step {}): its "
-                             "rendezvous are skipped and the solves go on without it",
-                             robot, options_.dgs.leave_timeout.count(), t));
-    return true;
+    options_.log(fmt::format("robot {} left for good ({}): its rendezvous are skipped and the "
+                             "solves go on without it", robot, why));
   }
 
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
