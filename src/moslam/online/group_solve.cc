@@ -202,8 +202,7 @@ GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
 }
 
 std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const Values& solution,
-                                            const std::vector<SharedObject>& shared, int step,
-                                            const std::set<int>& left) {
+                                            const std::vector<SharedObject>& shared, int step) {
   for (const auto& [k, x] : problem.initial) {
     if (solution.count(k) == 0) {
       throw InvalidInputError("SplitGroupSolution: the solution has no value for " + ToString(k));
@@ -211,7 +210,7 @@ std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const V
   }
   std::vector<GroupUpdate> out;
   for (int r : problem.robots) {
-    if (!left.count(r)) out.push_back(RobotGroupUpdate(problem.robots, r, solution, shared, step, left));
+    out.push_back(RobotGroupUpdate(problem.robots, r, solution, shared, step));
   }
   return out;
 }
@@ -288,7 +287,9 @@ GroupUpdate RobotGroupUpdate(const std::vector<int>& robots, int robot, const Va
                                       std::pair{s.beta_object, s.alpha_object}}) {
       if (mine.robot != robot || other.robot == robot) continue;
       const auto j = std::lower_bound(robots.begin(), robots.end(), other.robot);
-      if (j == robots.end() || *j != other.robot || left.count(other.robot)) continue;
+      if (j == robots.end() || *j != other.robot) continue;
+      const Key key = Relabel(other, static_cast<int>(j - robots.begin()));
+      if (left.count(other.robot) && solution.count(key) == 0) continue;  // keeps its copy
       u.held[other] = {to_own * value(Relabel(other, static_cast<int>(j - robots.begin()))), step};
     }
   }

@@ -128,20 +128,18 @@ struct GroupUpdate {
   HeldEstimates held;   // the landmarks of its partners in the group, in its own frame, at `step`
 };
 
-// Per robot of the problem (in its order) but those in `left` (robots that left during the
-// solve: RobotGroupUpdate), held copies stamped `step`. `solution`: re-labelled keys, every
-// variable of the problem. Throws InvalidInputError when a variable is missing.
+// Per robot of the problem (in its order), held copies stamped `step`. `solution`: re-labelled
+// keys, every variable of the problem. Throws InvalidInputError when a variable is missing.
 std::vector<GroupUpdate> SplitGroupSolution(const GroupProblem& problem, const Values& solution,
-                                            const std::vector<SharedObject>& shared, int step,
-                                            const std::set<int>& left = {});
+                                            const std::vector<SharedObject>& shared, int step);
 
 // The update of `robot` (one of `robots`, the group as in BuildRobotGroupPart) from `solution`
 // (re-labelled keys): every variable of that robot it holds and the landmarks of its partners in
 // the group (a robot process: its own estimate and its copies of its neighbours' variables).
-// `left`: robots of the group that left during the solve (transport/dgs_node.h): their variables
-// may be missing from the solution, and its copies of their landmarks are not taken (the robot
-// keeps the copies it held before). Throws InvalidInputError when its first pose or the landmark
-// of a partner that did not leave is missing.
+// `left`: robots of the group that left during the solve (transport/dgs_node.h): the solution
+// holds their variables only when they sent some before they left; a landmark of theirs it lacks
+// is not taken (the robot keeps the copy it held before). Throws InvalidInputError when its first
+// pose or the landmark of a partner that did not leave is missing.
 GroupUpdate RobotGroupUpdate(const std::vector<int>& robots, int robot, const Values& solution,
                              const std::vector<SharedObject>& shared, int step,
                              const std::set<int>& left = {});

@@ -71,31 +71,37 @@ TEST(LinkedGroups, SplitsRobotsBySharedPairsAmongThem) {
 }
 
 // A robot's update takes its own variables in its own frame and the landmarks of its partners
-// in the group, but not those of a partner that left during the solve: their values may be
-// missing, and its copies of them stay what they were (a missing partner that did not leave is
-// an error).
-TEST(RobotGroupUpdate, TakesNoCopyOfAPartnerThatLeftTheSolve) {
+// in the group; of a partner that left during the solve, only those the solution holds (it sent
+// them before it left): a missing one keeps the robot's earlier copy, where a missing landmark of
+// a partner that did not leave is an error.
+TEST(RobotGroupUpdate, TakesWhatASolutionHoldsOfAPartnerThatLeftTheSolve) {
   const std::vector<int> robots = {2, 4, 7};  // group ids 0, 1, 2
   const std::vector<SharedObject> shared = {{Key::Object(4, 1), Key::Object(2, 3)},
-                                            {Key::Object(7, 0), Key::Object(4, 2)}};
+                                            {Key::Object(7, 0), Key::Object(4, 2)},
+                                            {Key::Object(7, 5), Key::Object(4, 1)}};
   const SE3 first(SO3::Exp(Vector3(0.0, 0.0, 0.5)), Vector3(1.0, 2.0, 0.0));
   const SE3 landmark(SO3(), Vector3(3.0, 0.0, 0.0)), partner(SO3(), Vector3(0.0, 1.0, 0.0));
-  Values solution;  // re-labelled: robot 4 is 1; robot 7 (2) left before sending anything
+  Values solution;  // re-labelled: robot 4 is 1; of robot 7 (2), only its landmark 5
   solution[Key::Pose(1, 0)] = first;
   solution[Key::Object(1, 1)] = landmark;
   solution[Key::Object(1, 2)] = landmark;
   solution[Key::Object(0, 3)] = partner;
+  solution[Key::Object(2, 5)] = partner;
   EXPECT_THROW(RobotGroupUpdate(robots, 4, solution, shared, 5), InvalidInputError);
   const GroupUpdate u = RobotGroupUpdate(robots, 4, solution, shared, 5, {7});
   EXPECT_EQ(u.estimate.size(), 3u);
   EXPECT_LT(SE3::Log(u.estimate.at(Key::Pose(4, 0))).norm(), 1e-15);
   EXPECT_LT(SE3::Log((first.inverse() * landmark).between(u.estimate.at(Key::Object(4, 1)))).norm(),
             1e-12);
-  ASSERT_EQ(u.held.size(), 1u);  // robot 2's landmark, not robot 7's
-  EXPECT_EQ(u.held.count(Key::Object(2, 3)), 1u);
-  EXPECT_EQ(u.held.at(Key::Object(2, 3)).step, 5);
-  EXPECT_LT(SE3::Log((first.inverse() * partner).between(u.held.at(Key::Object(2, 3)).pose)).norm(),
-            1e-12);
+  ASSERT_EQ(u.held.size(), 2u);  // robot 2's landmark 3 and robot 7's landmark 5, not its 0
+  EXPECT_EQ(u.held.count(Key::Object(7, 0)), 0u);
+  for (const Key k : {Key::Object(2, 3), Key::Object(7, 5)}) {
+    ASSERT_EQ(u.held.count(k), 1u);
+    EXPECT_EQ(u.held.at(k).step, 5);
+    EXPECT_LT(SE3::Log((first.inverse() * partner).between(u.held.at(k).pose)).norm(), 1e-12);
+  }
+  solution.erase(Key::Object(0, 3));  // robot 2 did not leave
+  EXPECT_THROW(RobotGroupUpdate(robots, 4, solution, shared, 5, {7}), InvalidInputError);
 }
 
 SimulationData Simulation(int robots, int poses, unsigned seed) {

@@ -40,21 +40,20 @@ void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult
   std::vector<int> present;  // the robots that left take part in no solve
   std::set_difference(group.robots.begin(), group.robots.end(), group.gone.begin(),
                       group.gone.end(), std::back_inserter(present));
+  present.erase(std::remove_if(present.begin(), present.end(),
+                               [&](int r) {
+                                 const auto it = options_.dies_in_solve.find(r);
+                                 return it != options_.dies_in_solve.end() &&
+                                        it->second == group.step;
+                               }),
+                present.end());
   for (const std::vector<int>& part : LinkedGroups(present, team.shared)) {
     if (part.size() < 2) continue;  // nothing shared with the others yet
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<const ObjectSlam*> members;
     for (int r : part) members.push_back(&robot(r));
     const GroupProblem problem = BuildGroupProblem(members, team.shared, held_, options_.lambda);
-    FaultInjection faults;
-    std::set<int> dies;
-    for (std::size_t i = 0; i < part.size(); ++i) {
-      const auto it = options_.dies_in_solve.find(part[i]);
-      if (it == options_.dies_in_solve.end() || it->second != group.step) continue;
-      faults.silent.push_back({static_cast<int>(i), DgsStage::kRotation, 1});
-      dies.insert(part[i]);
-    }
-    const DgsResult solved = RunDgs(problem.graph, problem.initial, options_.solver, faults);
+    const DgsResult solved = RunDgs(problem.graph, problem.initial, options_.solver);
     GroupSolveRecord rec;
     rec.step = group.step;
     rec.robots = part;
@@ -69,8 +68,7 @@ void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult
     rec.final_cost = problem.graph.cost(solved.values);
     rec.messages = solved.messages;
     rec.bytes = solved.bytes;
-    for (GroupUpdate& u :
-         SplitGroupSolution(problem, solved.values, team.shared, group.step, dies)) {
+    for (GroupUpdate& u : SplitGroupSolution(problem, solved.values, team.shared, group.step)) {
       HeldEstimates& h = held_[u.robot];
       for (auto& [k, x] : u.held) h[k] = x;
       ObjectSlam& r = robot(u.robot);

@@ -32,12 +32,11 @@ struct OnlineOptions {
   // order, two-level, error-bound rule, refinement).
   DgsOptions solver = DefaultSolver();
   Matrix6 lambda = RendezvousConfig().lambda();  // object-object information
-  // Fault experiments (robot id -> step): the robot joins its group solve of that step and never
-  // answers in it, as a robot process that dies between its joining status and its DGS node's
-  // first status (transport/robot_session.h): the solve runs with it silent from the first sweep
-  // (dgs_driver.h, FaultInjection), the others keep their copies of its landmarks from before,
-  // and its own map is not updated. Give it MultiRobotSlamConfig::leave_after the same step, so
-  // that it takes part in nothing later.
+  // Fault experiments (robot id -> step): the robot takes part in the rendezvous of that step and
+  // in no group solve from then on, as a robot process that dies after its joining status and
+  // before its first step of the solve (transport/robot_session.h: its partners form the group
+  // again without it, its pairs with them held). Give it MultiRobotSlamConfig::leave_after the
+  // same step, so that it takes part in nothing later.
   std::map<int, int> dies_in_solve;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;

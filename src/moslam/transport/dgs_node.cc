@@ -38,6 +38,12 @@ void DgsNodeOptions::validate() const {
   if (!gnc && !robust.empty()) {
     throw InvalidInputError("DGS node options: a robust mask without gnc options");
   }
+  if (!std::is_sorted(team.begin(), team.end()) ||
+      std::adjacent_find(team.begin(), team.end()) != team.end() ||
+      (!team.empty() && team.front() < 0)) {
+    throw InvalidInputError("DGS node options: the team's robot ids must be distinct, "
+                            "non-negative and increasing");
+  }
   if (!gnc && separator_check) {
     throw InvalidInputError("DGS node options: a separator check without gnc options");
   }
@@ -562,6 +568,10 @@ class DgsNode::Impl final : public TeamChannel {
   void formTeam() {
     const auto deadline = Clock::now() + options_.join_timeout;
     transport_.publish(baseStatus());
+    if (!options_.team.empty()) {
+      setTeam(std::set<int>(options_.team.begin(), options_.team.end()));
+      return;
+    }
     std::set<int> known = neighbours_;
     known.insert(robot_);
     heard_.insert(robot_);
@@ -587,10 +597,21 @@ class DgsNode::Impl final : public TeamChannel {
                                 robot_, options_.join_timeout.count(), fmt::join(missing, ", ")));
       }
     }
+    setTeam(known);
+  }
+
+  void setTeam(const std::set<int>& known) {
     if (!known.count(0)) {
       throw UnderdeterminedError(fmt::format(
           "robot {}: its team {} has no robot 0, whose first pose fixes the gauge", robot_,
           fmt::join(known, ", ")));
+    }
+    if (!known.count(robot_) ||
+        !std::includes(known.begin(), known.end(), neighbours_.begin(), neighbours_.end())) {
+      throw InvalidInputError(fmt::format("robot {}: the team given, {}, lacks the robot or one "
+                                          "of its neighbours {}",
+                                          robot_, fmt::join(known, ", "),
+                                          fmt::join(neighbours_, ", ")));
     }
     team_ = known;
     Bytes b;
@@ -629,6 +650,7 @@ class DgsNode::Impl final : public TeamChannel {
         if (IsStage(st->stage) && st->state != RobotState::kFailed &&
             st->state != RobotState::kDone && st->round > 0) {
           statuses_[r.sender][st->round] = *st;
+          stepped_.insert(r.sender);
         }
       } else if (auto* e = std::get_if<EstimatesPacket>(&r.packet)) {
         if (e->solve != options_.solve) continue;
@@ -729,6 +751,7 @@ class DgsNode::Impl final : public TeamChannel {
       ingest(transport_.poll(std::chrono::milliseconds(100)));
       const auto now = Clock::now();
       const std::set<int> alive = transport_.alive();
+      std::vector<int> never_stepped;  // of a team given: gone before they took a step
       for (int r : waiting) {
         if (alive.count(r) && !failed(r)) {
           not_alive_since.erase(r);
@@ -736,6 +759,10 @@ class DgsNode::Impl final : public TeamChannel {
         }
         const auto [it, inserted] = not_alive_since.emplace(r, now);
         if (now - it->second >= options_.leave_timeout) {
+          if (!options_.team.empty() && !stepped_.count(r)) {
+            never_stepped.push_back(r);
+            continue;
+          }
           log(fmt::format("robot {} left (step {}): continuing without it", r, s));
           left_.insert(r);
           record(Bytes()
@@ -744,6 +771,14 @@ class DgsNode::Impl final : public TeamChannel {
                      .u32(s)
                      .data());
         }
+      }
+      if (!never_stepped.empty()) {
+        throw TeamChangedError(
+            never_stepped,
+            fmt::format("robot {}: robot(s) {} of the team given left before their first step "
+                        "(not alive for {} ms at step {}): the solve stops, to be formed again "
+                        "without them",
+                        robot_, fmt::join(never_stepped, ", "), options_.leave_timeout.count(), s));
       }
       if (now - start > options_.stall_timeout) {
         throw Error(fmt::format("robot {}: no progress for {} ms at step {}, waiting for "
@@ -813,6 +848,7 @@ class DgsNode::Impl final : public TeamChannel {
   std::unique_ptr<RobotAgent> agent_;  // the agent at work (robust: of the current solve)
   Values own_;                         // the robot's variables as the last solves left them
   std::vector<bool> robust_;           // with options_.gnc: per subgraph factor
+  std::set<int> stepped_;  // robots from which a status of a step (round >= 1) arrived
   std::set<int> neighbours_;           // of the subgraph (the team's; the packets it accepts)
   std::set<int> step_neighbours_;      // of the agent at work (status, what a step waits for)
   std::set<Key> neighbour_keys_;

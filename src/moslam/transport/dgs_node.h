@@ -8,7 +8,8 @@
 // Protocol (every robot runs the same program on the same information, so all decide alike):
 //   1. Join: publish a status listing its neighbours (the robots its separators reach); collect
 //      statuses until every robot of the closure (itself, its neighbours, theirs, ...) has been
-//      heard. That closure is the team; robot 0 (owner of the gauge anchor) must be in it.
+//      heard. That closure is the team; robot 0 (owner of the gauge anchor) must be in it. With
+//      options.team (a robot session formed it from its joining statuses) there is no wait.
 //   2. Steps: the program's channel steps, numbered 1, 2, ... over the whole solve (the `round`
 //      of the packets). At step s the robot sends its estimates to its neighbours, its coarse
 //      share (if any) and its status (the program's TeamReport) to every robot, then waits until
@@ -43,6 +44,7 @@
 #include <string>
 #include <vector>
 
+#include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/robot_program.h"
 #include "moslam/distributed/robust_program.h"
@@ -84,6 +86,17 @@ struct DgsNodeOptions {
   std::optional<SeparatorConsistencyOptions> separator_check;
   // With separator_check: its rejects re-tested after the inliers' solve (robust_program.h).
   bool retest_left_out = true;
+  // The team, when the caller formed it already (a robot session, from the joining statuses of
+  // its robots: robot_session.h): the node then does not wait for a status of each robot before
+  // its first step. A robot of it found gone (the leave rule) before any status of a step of it
+  // arrived (it died after it joined) stops the solve: run() throws TeamChangedError naming it,
+  // and the caller forms the team again without it. (Taking it as silent from the first step
+  // instead leaves its variables at nothing: with the gauge's owner, or a robot that links the
+  // others, the rest of the team has no anchor and its estimate collapses.) Every robot of the
+  // team waits for it at the same first step, so all stop alike. Increasing ids, this robot,
+  // robot 0 and its neighbours among them. Empty: the node forms the team from the statuses
+  // (step 1 of the protocol above).
+  std::vector<int> team;
   std::function<void(const DgsNodeRound&)> on_round;  // after every step (also replayed ones)
   std::function<void(const std::string&)> log;  // team, leaves, failures; default: stderr
 
@@ -122,6 +135,17 @@ struct DgsNodeResult {
                                            // keys it does not need)
   TransportStats transport;
   double seconds = 0.0;
+};
+
+// DgsNode::run with DgsNodeOptions::team: robots of the team left before their first step.
+class TeamChangedError : public Error {
+ public:
+  TeamChangedError(std::vector<int> robots, const std::string& what)
+      : Error(what), robots_(std::move(robots)) {}
+  const std::vector<int>& robots() const { return robots_; }  // the node's ids, increasing
+
+ private:
+  std::vector<int> robots_;
 };
 
 class DgsNode {

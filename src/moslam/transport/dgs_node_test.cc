@@ -280,6 +280,56 @@ TEST(DgsNode, TheOthersFinishWithoutARobotThatLeaves) {
   EXPECT_LE(MaxPoseDifference(reference.values, survivors), 1e-9);
 }
 
+// With the team given (a robot session formed it), the nodes start without waiting for the
+// others' statuses and equal the driver; a robot of the team that never takes a step (here: never
+// starts) stops the solve of every other at the first step, TeamChangedError naming it, rather
+// than leaving them to solve with nothing of its variables (robot 0's absence would leave them
+// with no anchor). A team given that lacks the robot or a neighbour is refused.
+TEST(DgsNode, WithTheTeamGivenARobotThatNeverStepsStopsTheSolveForEveryRobot) {
+  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  DgsNodeOptions base = Options();
+  base.team = {0, 1, 2, 3};
+  base.leave_timeout = std::chrono::milliseconds(200);
+  const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
+  {
+    InProcessNetwork net;
+    const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{base, false}; });
+    ASSERT_TRUE(team.errors.empty());
+    EXPECT_LE(MaxPoseDifference(reference.values, team.merged()), 1e-9);
+  }
+  for (const int absent : {0, 2}) {
+    InProcessNetwork net;
+    std::map<int, std::vector<int>> named;
+    std::mutex mutex;
+    std::vector<std::thread> threads;
+    for (const RobotSubgraph& part : PartitionByRobot(data.graph)) {
+      if (part.robot == absent) continue;
+      threads.emplace_back([&, part]() {
+        auto transport = net.connect(part.robot, {[](const std::string&) {}});
+        DgsNode node(part.robot, part.graph, data.initial, *transport, base);
+        try {
+          node.run();
+        } catch (const TeamChangedError& e) {
+          std::lock_guard<std::mutex> lock(mutex);
+          named[part.robot] = e.robots();
+        }
+      });
+    }
+    for (std::thread& t : threads) t.join();
+    EXPECT_EQ(named.size(), 3u) << "robot " << absent << " absent";
+    for (const auto& [r, robots] : named) EXPECT_EQ(robots, std::vector<int>{absent});
+  }
+  const auto parts = PartitionByRobot(data.graph);
+  InProcessNetwork net;
+  auto t = net.connect(1);
+  DgsNodeOptions o = Options();
+  o.team = {0, 2, 3};  // robot 1 itself is missing
+  DgsNode lacking(1, parts[1].graph, data.initial, *t, o);
+  EXPECT_THROW(lacking.run(), InvalidInputError);
+  o.team = {1, 0};
+  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+}
+
 // The whole solver: the two-level stages with the error-bound rule, then the refinement.
 DgsNodeOptions WholeSolver() {
   DgsNodeOptions o = Options();

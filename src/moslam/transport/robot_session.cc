@@ -249,6 +249,28 @@ struct EventPairs {
   Pairs removed;
 };
 
+// A solve formed again without robots that left before its first step (DgsNode's
+// TeamChangedError): attempt a of solve s is s + a * 2^24 (solves of steps < 2^24).
+constexpr std::uint32_t kAttemptShift = 24;
+std::uint32_t AttemptSolve(std::uint32_t solve, int attempt) {
+  return solve + (static_cast<std::uint32_t>(attempt) << kAttemptShift);
+}
+// Whether packets of solve `a` are of a solve before `b` (of an earlier step, or an earlier
+// attempt of the same step); presence statuses are of none.
+bool SolveBefore(std::uint32_t a, std::uint32_t b) {
+  if (a == kPresenceSolve) return false;
+  constexpr std::uint32_t step_mask = (1u << kAttemptShift) - 1;
+  const std::uint32_t sa = a & step_mask, sb = b & step_mask;
+  return sa < sb || (sa == sb && (a >> kAttemptShift) < (b >> kAttemptShift));
+}
+
+// The ids 0..n-1 of a group's robots as its DgsNode sees them (GroupTransport).
+std::vector<int> GroupIds(std::size_t n) {
+  std::vector<int> ids(n);
+  for (std::size_t i = 0; i < n; ++i) ids[i] = static_cast<int>(i);
+  return ids;
+}
+
 }  // namespace
 
 class RobotSession::Impl {
@@ -407,23 +429,41 @@ class RobotSession::Impl {
     result_.initial = slam.estimate();
     result_.poses = slam.numPoses();
     result_.landmarks = static_cast<int>(slam.landmarks().size());
-    std::vector<int> closure, robots;
-    if (batchGroup(closure, robots)) {
-      solveWithoutTheRobotsThatLeft(slam, closure, robots);
-    } else {
-      result_.subgraph = SessionSubgraph(slam, shared_, options_.slam.rendezvous.lambda());
-      solveBatch();
+    // A robot of the team that leaves before its first step stops the solve (DgsNode's
+    // TeamChangedError); the team is formed again without it, as when it had left before.
+    const int end = data_.numSteps();
+    for (int attempt = journaledAttempt(end);; ++attempt) {
+      std::vector<int> closure, robots;
+      const bool departures = batchGroup(closure, robots, attempt);
+      try {
+        if (departures) {
+          solveWithoutTheRobotsThatLeft(slam, closure, robots, attempt);
+        } else {
+          result_.subgraph = SessionSubgraph(slam, shared_, options_.slam.rendezvous.lambda());
+          solveBatch(closure);
+        }
+        break;
+      } catch (const TeamChangedError& e) {
+        for (int r : e.robots()) {
+          markLeft(departures ? robots.at(static_cast<std::size_t>(r)) : r, end,
+                   "it joined the batch solve and left before its first step");
+        }
+        result_.subgraph = PoseGraph();
+      }
     }
     result_.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return result_;
   }
 
  private:
-  // The batch solve of the whole team (none of its robots left): DgsNode on the robot's subgraph.
-  void solveBatch() {
+  // The batch solve of the whole team (none of its robots left): DgsNode on the robot's subgraph;
+  // its team the closure the joining statuses formed (empty, for a robot linked to none: the
+  // node forms it).
+  void solveBatch(const std::vector<int>& closure) {
     PrefetchedTransport dgs_transport(transport_, std::move(pending_));
     pending_.clear();
     DgsNodeOptions node_options = options_.dgs;
+    node_options.team = closure;
     if (node_options.gnc && node_options.robust.empty()) {
       node_options.robust = ObjectFactors(result_.subgraph);
     }
@@ -439,10 +479,12 @@ class RobotSession::Impl {
   // departures. Returns whether some robot of `closure` (increasing, this robot among them) left;
   // `robots`: the closure without them. The closure is journaled (a group record of step T), so a
   // robot restarted in the solve takes the same way.
-  bool batchGroup(std::vector<int>& closure, std::vector<int>& robots) {
+  // Attempt a > 0 (the team formed again: run()) uses solve AttemptSolve(1 + T, a).
+  bool batchGroup(std::vector<int>& closure, std::vector<int>& robots, int attempt) {
     const int end = data_.numSteps();
-    const auto solve = static_cast<std::uint32_t>(end + 1);
-    if (const auto journaled = journaled_groups_.find(end); journaled != journaled_groups_.end()) {
+    const auto solve = AttemptSolve(static_cast<std::uint32_t>(end + 1), attempt);
+    if (const auto journaled = journaled_groups_.find(end);
+        journaled != journaled_groups_.end() && attempt == journaledAttempt(end)) {
       closure = journaled->second.robots;
     } else {
       std::set<int> partners;
@@ -463,6 +505,7 @@ class RobotSession::Impl {
       formGroup(join, partners, everyone, solve, end, robots, none, &closure);
       record(kGroupRecord, GroupRecord{static_cast<std::uint32_t>(end), closure, {}},
              transport_detail::AppendGroupRecord);
+      ++group_records_[end];
     }
     robots.clear();
     for (int r : closure) {
@@ -477,7 +520,7 @@ class RobotSession::Impl {
   // stay (BuildGroupProblem without held estimates). Its DgsNode journals in
   // <state_dir>/solves/batch; the result, in the robots' own ids, in <state_dir>/result.g2o.
   void solveWithoutTheRobotsThatLeft(const ObjectSlam& slam, const std::vector<int>& closure,
-                                     const std::vector<int>& robots) {
+                                     const std::vector<int>& robots, int attempt) {
     std::vector<int> gone;
     std::set_difference(closure.begin(), closure.end(), robots.begin(), robots.end(),
                         std::back_inserter(gone));
@@ -491,7 +534,7 @@ class RobotSession::Impl {
       saveBatchResult();
       return;
     }
-    const auto solve = static_cast<std::uint32_t>(data_.numSteps() + 1);
+    const auto solve = AttemptSolve(static_cast<std::uint32_t>(data_.numSteps() + 1), attempt);
     RobotGroupPart part =
         BuildRobotGroupPart(slam, robots, shared_, {}, options_.slam.rendezvous.lambda());
     GroupTransport group_transport(
@@ -499,9 +542,12 @@ class RobotSession::Impl {
         takePending(solve));
     DgsNodeOptions node_options = options_.dgs;
     node_options.solve = solve;
+    node_options.team = GroupIds(robots.size());
     if (!options_.dgs.state_dir.empty()) {
-      node_options.state_dir =
-          (std::filesystem::path(options_.dgs.state_dir) / "solves" / "batch").string();
+      node_options.state_dir = (std::filesystem::path(options_.dgs.state_dir) / "solves" /
+                                (attempt == 0 ? std::string("batch")
+                                              : fmt::format("batch_attempt_{}", attempt)))
+                                   .string();
     }
     if (node_options.gnc && node_options.robust.empty()) {
       node_options.robust = ObjectFactors(part.subgraph);
@@ -582,14 +628,92 @@ class RobotSession::Impl {
     for (const std::vector<int>& g : ConnectedRobots(in_range, links)) {
       if (std::binary_search(g.begin(), g.end(), robot_)) range.insert(g.begin(), g.end());
     }
+    // A member that leaves before its first step stops the solve (DgsNode's TeamChangedError):
+    // found gone, the group is formed again without it, as if it had left before (attempt a of
+    // the solve: AttemptSolve).
+    std::vector<int> robots;
+    std::optional<RobotGroupPart> part;
+    std::optional<DgsNodeResult> result;
+    std::filesystem::path solve_dir;
+    for (int attempt = journaledAttempt(t); !result; ++attempt) {
+      const auto solve = AttemptSolve(static_cast<std::uint32_t>(t + 1), attempt);
+      std::vector<TeamPair> team;
+      if (!joinGroup(t, range, solve, attempt, robots, team)) return;
+      part = BuildRobotGroupPart(slam, robots, shared_, team, options_.slam.rendezvous.lambda());
+      GroupTransport group_transport(
+          transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
+          takePending(solve));
+      DgsNodeOptions node_options = options_.dgs;
+      node_options.solve = solve;
+      node_options.team = GroupIds(robots.size());  // formed by the joining statuses
+      // Its own journal, so that a robot restarted in the solve resumes it (dgs_node.h).
+      solve_dir = options_.dgs.state_dir.empty()
+                      ? std::filesystem::path()
+                      : std::filesystem::path(options_.dgs.state_dir) / "solves" /
+                            (attempt == 0 ? fmt::format("step_{:04d}", t)
+                                          : fmt::format("step_{:04d}_attempt_{}", t, attempt));
+      node_options.state_dir = solve_dir.string();
+      node_options.log = [this, t, robots](const std::string& text) {
+        options_.log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t,
+                                 fmt::join(robots, ","), robots.size() - 1, text));
+      };
+      DgsNode node(part->local, part->subgraph, part->initial, group_transport, node_options);
+      try {
+        result = node.run();
+      } catch (const TeamChangedError& e) {
+        for (int local : e.robots()) {
+          markLeft(robots.at(static_cast<std::size_t>(local)), t,
+                   fmt::format("it joined the group solve of step {} and left before its first "
+                               "step",
+                               t));
+        }
+        if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
+      }
+    }
+    const DgsNodeResult& solved = *result;
+    Values solution = solved.estimate;
+    solution.insert(solved.neighbours.begin(), solved.neighbours.end());
+    // Members that left during the solve (the node's rule) are gone for good for this robot too:
+    // their copies are not taken, their later rendezvous skipped, no later solve includes them.
+    std::set<int> left_solve;
+    for (int local : solved.left) {
+      const int r = robots.at(static_cast<std::size_t>(local));
+      left_solve.insert(r);
+      if (hasLeft(r, t)) continue;
+      markLeft(r, t, fmt::format("left during the group solve of step {}", t));
+    }
+    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_, t, left_solve);
+
+    SolveRecord done;
+    done.step = static_cast<std::uint32_t>(t);
+    done.estimate = update.estimate;
+    done.held = update.held;
+    done.rotation_rounds = static_cast<std::uint32_t>(solved.rotation_rounds);
+    done.pose_rounds = static_cast<std::uint32_t>(solved.pose_rounds);
+    done.refine_steps = static_cast<std::uint32_t>(solved.program.refine.iterations);
+    done.protocol_steps = static_cast<std::uint32_t>(solved.program.channel_steps);
+    done.object_object = static_cast<std::uint32_t>(part->object_object);
+    done.team_factors = static_cast<std::uint32_t>(part->team_factors);
+    done.refine_status = solved.program.refine.status;
+    record(kSolveRecord, done, transport_detail::AppendSolveRecord);
+    if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
+    finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
+  }
+
+  // Attempt `attempt` (solve `solve`) of the group solve of step t: publishes the robot's joining
+  // status and forms the group with its partners in `range` (or takes the group journaled for
+  // this attempt: restarted in the solve); false when it has no partner left to solve with.
+  bool joinGroup(int t, const std::set<int>& range, std::uint32_t solve, int attempt,
+                 std::vector<int>& robots, std::vector<TeamPair>& team) {
+    robots.clear();
+    team.clear();
     std::set<int> partners;
     for (const SharedObject& o : shared_) {
       const int a = o.alpha_object.robot, b = o.beta_object.robot;
       const int other = a == robot_ ? b : (b == robot_ ? a : robot_);
       if (other != robot_ && range.count(other) && !hasLeft(other, t)) partners.insert(other);
     }
-    if (partners.empty()) return;  // linked to no robot in range: nothing to solve together
-    const auto solve = static_cast<std::uint32_t>(t + 1);
+    if (partners.empty()) return false;  // linked to no robot in range: nothing to solve together
     StatusPacket join;
     join.robot = robot_;
     join.solve = solve;
@@ -614,66 +738,20 @@ class RobotSession::Impl {
     transport_.publish(join);
     // Drop what earlier solves left; wait for the joining statuses of the closure.
     pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
-                                  [&](const Received& r) { return SolveOf(r) < solve; }),
+                                  [&](const Received& r) { return SolveBefore(SolveOf(r), solve); }),
                    pending_.end());
-    std::vector<int> robots;
-    std::vector<TeamPair> team;
-    if (const auto journaled = journaled_groups_.find(t); journaled != journaled_groups_.end()) {
+    if (const auto journaled = journaled_groups_.find(t);
+        journaled != journaled_groups_.end() && attempt == journaledAttempt(t)) {
       robots = journaled->second.robots;  // restarted in the solve: its partners formed it
       team = journaled->second.team;
-    } else {
-      formGroup(join, partners, range, solve, t, robots, team);
-      if (robots.size() < 2) return;  // its partners in range have all left
-      record(kGroupRecord, GroupRecord{static_cast<std::uint32_t>(t), robots, team},
-             transport_detail::AppendGroupRecord);
+      return true;
     }
-    const Matrix6 lambda = options_.slam.rendezvous.lambda();
-    RobotGroupPart part = BuildRobotGroupPart(slam, robots, shared_, team, lambda);
-    GroupTransport group_transport(
-        transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
-        takePending(solve));
-    DgsNodeOptions node_options = options_.dgs;
-    node_options.solve = solve;
-    // Its own journal, so that a robot restarted in the solve resumes it (dgs_node.h).
-    const std::filesystem::path solve_dir =
-        options_.dgs.state_dir.empty()
-            ? std::filesystem::path()
-            : std::filesystem::path(options_.dgs.state_dir) / "solves" / fmt::format("step_{:04d}", t);
-    node_options.state_dir = solve_dir.string();
-    node_options.log = [this, t, robots](const std::string& text) {
-      options_.log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t,
-                               fmt::join(robots, ","), robots.size() - 1, text));
-    };
-    DgsNode node(part.local, std::move(part.subgraph), std::move(part.initial), group_transport,
-                 node_options);
-    const DgsNodeResult solved = node.run();
-    Values solution = solved.estimate;
-    solution.insert(solved.neighbours.begin(), solved.neighbours.end());
-    // Members that left during the solve (the node's rule) are gone for good for this robot too:
-    // their copies are not taken, their later rendezvous skipped, no later solve includes them.
-    std::set<int> left_solve;
-    for (int local : solved.left) {
-      const int r = robots.at(static_cast<std::size_t>(local));
-      left_solve.insert(r);
-      if (hasLeft(r, t)) continue;
-      markLeft(r, t, fmt::format("left during the group solve of step {}", t));
-    }
-    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_, t, left_solve);
-
-    SolveRecord done;
-    done.step = static_cast<std::uint32_t>(t);
-    done.estimate = update.estimate;
-    done.held = update.held;
-    done.rotation_rounds = static_cast<std::uint32_t>(solved.rotation_rounds);
-    done.pose_rounds = static_cast<std::uint32_t>(solved.pose_rounds);
-    done.refine_steps = static_cast<std::uint32_t>(solved.program.refine.iterations);
-    done.protocol_steps = static_cast<std::uint32_t>(solved.program.channel_steps);
-    done.object_object = static_cast<std::uint32_t>(part.object_object);
-    done.team_factors = static_cast<std::uint32_t>(part.team_factors);
-    done.refine_status = solved.program.refine.status;
-    record(kSolveRecord, done, transport_detail::AppendSolveRecord);
-    if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
-    finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
+    formGroup(join, partners, range, solve, t, robots, team);
+    if (robots.size() < 2) return false;  // its partners in range have all left
+    record(kGroupRecord, GroupRecord{static_cast<std::uint32_t>(t), robots, team},
+           transport_detail::AppendGroupRecord);
+    ++group_records_[t];
+    return true;
   }
 
   // A group solve of step t taken from the journal (restart): the robot's map and held copies
@@ -808,6 +886,7 @@ class RobotSession::Impl {
     if (const auto* s = std::get_if<StatusPacket>(&r.packet)) return s->solve;
     if (const auto* c = std::get_if<CoarsePacket>(&r.packet)) return c->solve;
     if (const auto* w = std::get_if<WeightsPacket>(&r.packet)) return w->solve;
+    if (const auto* v = std::get_if<CovariancePacket>(&r.packet)) return v->solve;
     return 0;
   }
 
@@ -882,7 +961,8 @@ class RobotSession::Impl {
             throw InvalidInputError(what + ": a group record of robots not in the team");
           }
           const int step = static_cast<int>(g.step);
-          journaled_groups_[step] = std::move(g);
+          journaled_groups_[step] = std::move(g);  // the last attempt's
+          ++group_records_[step];
         } else {
           SolveRecord solve = transport_detail::ReadSolveRecord(records[i], 1, what);
           for (const auto& [k, x] : solve.estimate) {
@@ -1000,6 +1080,12 @@ class RobotSession::Impl {
     std::set<int> alive = transport_.alive();
     seen_alive_.insert(alive.begin(), alive.end());
     return alive;
+  }
+
+  // The attempt of the solve of step t whose group the journal holds last (0: none).
+  int journaledAttempt(int t) const {
+    const auto it = group_records_.find(t);
+    return it == group_records_.end() ? 0 : it->second - 1;
   }
 
   // Whether `robot` was found gone for good at step `t` or before.
@@ -1130,6 +1216,7 @@ class RobotSession::Impl {
   std::unique_ptr<Journal> journal_;
   std::map<std::size_t, EventPairs> journaled_;  // event index -> what it changed
   std::map<int, GroupRecord> journaled_groups_;  // by step: groups formed (batch: the end)
+  std::map<int, int> group_records_;  // by step: group records journaled (one per attempt)
   std::map<int, SolveRecord> journaled_solves_;  // online, by step: group solves finished
   std::uint32_t revision_ = 0;
   std::vector<SharedObject> shared_;

@@ -48,12 +48,19 @@
 // lowest holds the gauge (it may be robot 0), as the twin solves the joint graph of the robots
 // that stay (BuildGroupProblem with no held estimates; its DgsNode journals in
 // state_dir/solves/batch, the result in state_dir/result.g2o in the robots' own ids); with no
-// departure, the batch solve as before. Not covered: a robot that dies before a partner ever
-// heard from it (its presence status did not reach that partner: DDS delivers a transient-local
-// sample only while its writer lives; the partner cannot tell it from a robot not started yet
-// and waits until rendezvous_timeout), one that dies between its joining status and its
-// DgsNode's first status (its partners fail at the node's join_timeout), and one that comes back
-// after its partners found it gone (it fails at its next rendezvous with them).
+// departure, the batch solve as before. The joining statuses form the team of every solve (batch
+// and online: DgsNodeOptions::team), so a robot that dies after its joining status and before
+// its first step of the solve is waited for at that first step; every other robot of the team
+// finds it gone there (DgsNode's TeamChangedError), journals it as gone for good and forms the
+// team again without it, as if it had left before: attempt a of the solve runs as solve
+// AttemptSolve(s, a) = s + a 2^24, its own packets (the stopped attempt's are dropped), node
+// journal in solves/step_<t>_attempt_<a> (batch: solves/batch_attempt_<a>), and a group record
+// per attempt (a restarted robot resumes the last). The twin: OnlineOptions::dies_in_solve;
+// batch, the solve without it. Not covered: a robot that dies before a partner ever heard from it
+// (its presence status did not reach that partner: DDS delivers a transient-local sample only
+// while its writer lives; the partner cannot tell it from a robot not started yet and waits until
+// rendezvous_timeout), and one that comes back after its partners found it gone (it fails at its
+// next rendezvous with them).
 // Restart (state_dir): the rendezvous phase is deterministic given the answers, so the journal
 // `rendezvous.bin` (journal.h) records only each finished event's pairs (added and removed:
 // event_record.h). A restarted process re-runs its SLAM from its measurements, takes finished

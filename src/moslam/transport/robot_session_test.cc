@@ -21,6 +21,7 @@
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/online/group_solve.h"
+#include "moslam/transport/dying_transport_test_util.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/robot_session.h"
 
@@ -481,6 +482,80 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
     }
   }
   fs::remove_all(dir);
+}
+
+// A batch robot that dies between its joining status and its DgsNode's first status: the others
+// formed the closure with it (none left); their nodes find it gone at the first step, before it
+// took any (TeamChangedError), and the team is formed again without it: the others solve as when
+// it had left before (its pairs dropped, the lowest robot holding the gauge), each estimate the
+// twin's to 1e-9 (robot 0, the gauge's owner, and the robot with the most events). Before, the
+// others failed at the node's join_timeout; taken as silent in the solve instead, robot 0's death
+// left the others with no anchor (their positions collapsed).
+TEST(RobotSession, ABatchRobotThatDiesBeforeItsNodesFirstStatusIsLeftOutOfTheSolve) {
+  ScenarioSpec spec = Small();
+  spec.robots = 4;
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  ASSERT_TRUE(ref.joint.unanchored_robots.empty());
+  std::map<int, int> events_of;
+  for (const RendezvousEvent& e : data.rendezvous) {
+    for (int r : {e.alpha, e.beta}) ++events_of[r];
+  }
+  const int busiest = std::max_element(events_of.begin(), events_of.end(), [](const auto& a,
+                                       const auto& b) { return a.second < b.second; })->first;
+  for (const int victim : {0, busiest}) {
+    SCOPED_TRACE("robot " + std::to_string(victim) + " dies");
+    const LeaveTwin twin = BatchTwinWithoutTheVictim(spec, data, victim, data.numSteps());
+    ASSERT_GE(twin.solved.size(), 2u);
+    InProcessNetwork net;
+    Log log;
+    std::vector<std::unique_ptr<Transport>> transports;
+    struct Death {};
+    for (int r = 0; r < spec.robots; ++r) {
+      std::unique_ptr<Transport> t = net.connect(r, {log.sink()});
+      if (r == victim) {  // its second status of a solve: the joining status, then its node's
+        auto statuses = std::make_shared<int>(0);
+        t = std::make_unique<DyingTransport>(
+            std::move(t),
+            [statuses](const StatusPacket& p) { return p.solve != kPresenceSolve && ++*statuses == 2; },
+            [] { throw Death{}; });
+      }
+      transports.push_back(std::move(t));
+    }
+    std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+    std::vector<std::string> errors(results.size());
+    std::vector<std::thread> threads;
+    for (int r = 0; r < spec.robots; ++r) {
+      threads.emplace_back([&, r]() {
+        const auto ri = static_cast<std::size_t>(r);
+        RobotSessionOptions o = Options(spec, log);
+        o.dgs.leave_timeout = milliseconds(300);
+        try {
+          RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+          results[ri] = session.run();
+          if (r == victim) errors[ri] = "the victim did not die";
+        } catch (const Death&) {
+          transports[ri].reset();
+        } catch (const std::exception& e) {
+          errors[ri] = e.what();
+        }
+      });
+    }
+    for (auto& t : threads) t.join();
+    for (const std::string& e : errors) ASSERT_EQ(e, "");
+    for (int r = 0; r < spec.robots; ++r) {
+      if (r == victim) continue;
+      const DgsNodeResult& got = results[static_cast<std::size_t>(r)].dgs;
+      const Values& expected = twin.estimates.at(r);
+      EXPECT_EQ(got.estimate.size(), expected.size()) << "robot " << r;
+      EXPECT_LE(MaxPoseDifference(got.estimate, expected), 1e-9) << "robot " << r;
+      EXPECT_EQ(std::count(got.team.begin(), got.team.end(), victim), 0);
+    }
+    EXPECT_TRUE(log.contains("robot " + std::to_string(victim) +
+                             " left for good (it joined the batch solve and left before its "
+                             "first step)"));
+    EXPECT_TRUE(log.contains("batch solve without robot(s) " + std::to_string(victim)));
+  }
 }
 
 TEST(RobotSession, ValidatesItsInputs) {
