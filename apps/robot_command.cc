@@ -59,7 +59,8 @@ void AddSolveFlags(CLI::App* sub, SolveFlags& f) {
                 "too (the refinement is forced on)");
   AddRobustSolveFlags(sub, &f.robust_args);
   sub->add_option("--leave-timeout", f.leave_timeout,
-                  "Seconds a waited-for robot may be unreachable before it counts as gone")
+                  "Seconds a waited-for robot may be unreachable before it counts as gone (one "
+                  "never heard from too: start every robot within this of its first rendezvous)")
       ->check(CLI::PositiveNumber);
   sub->add_option("--join-timeout", f.join_timeout, "Seconds to wait for the team to form")
       ->check(CLI::PositiveNumber);

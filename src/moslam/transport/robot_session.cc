@@ -1094,20 +1094,25 @@ class RobotSession::Impl {
     return it != left_.end() && it->second <= t;
   }
 
-  // While `robot` is waited for at step t: whether it has now left for good, by the
-  // DgsNode's rule: seen alive before, and not alive for dgs.leave_timeout (`not_alive_since`
-  // keeps when each waited-for robot was first seen not alive). A robot found gone is journaled:
-  // from then on its rendezvous are skipped and no group solve includes it.
+  // While `robot` is waited for at step t: whether it has now left for good, by the DgsNode's
+  // rule: not alive for dgs.leave_timeout (`not_alive_since` keeps when each waited-for robot was
+  // first seen not alive). Seen alive before or never: a robot that died before this one's
+  // transport heard from it (DDS delivers a transient-local sample only while its writer lives)
+  // cannot be told from one that never started, and both are gone for the team (every robot of
+  // the team is started within leave_timeout of its first rendezvous). A robot found gone is
+  // journaled: from then on its rendezvous are skipped and no group solve includes it.
   bool foundLeft(int robot, int t, std::map<int, Clock::time_point>& not_alive_since) {
     const auto now = Clock::now();
-    if (noteAlive().count(robot) || !seen_alive_.count(robot)) {
+    if (noteAlive().count(robot)) {
       not_alive_since.erase(robot);
       return false;
     }
     const auto since = not_alive_since.emplace(robot, now).first->second;
     if (now - since < options_.dgs.leave_timeout) return false;
-    markLeft(robot, t, fmt::format("not alive for {} ms at step {}",
-                                   options_.dgs.leave_timeout.count(), t));
+    markLeft(robot, t,
+             fmt::format("{} for {} ms at step {}",
+                         seen_alive_.count(robot) ? "not alive" : "never heard from, not alive",
+                         options_.dgs.leave_timeout.count(), t));
     return true;
   }
 

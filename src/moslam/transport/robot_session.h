@@ -36,8 +36,11 @@
 // the exchange is not skipped, since skipping would change the result.
 // Leaving for good: every robot publishes a presence status when it starts (kPresenceSolve), so
 // its liveliness is known before its first solve. A robot waited for (at a rendezvous, or for its
-// joining status) that was seen alive (a packet of it received, or its liveliness asserted) and is
-// not alive for dgs.leave_timeout has left for good, by the DgsNode's rule: the robot journals it
+// joining status) that is not alive for dgs.leave_timeout has left for good, by the DgsNode's
+// rule, whether it was seen alive before or never (one that died before this robot's transport
+// heard from it, as DDS delivers a transient-local sample only while its writer lives, cannot be
+// told from one that never started: so every robot of a team must be started within
+// leave_timeout of its first rendezvous): the robot journals it
 // and skips its rendezvous with it from then on (SessionRendezvous::skipped; nothing exchanged).
 // Online, no group solve includes it (its pairs with it become held factors); the others find
 // the same group, since a robot that left publishes no joining status. The twin:
@@ -56,11 +59,8 @@
 // AttemptSolve(s, a) = s + a 2^24, its own packets (the stopped attempt's are dropped), node
 // journal in solves/step_<t>_attempt_<a> (batch: solves/batch_attempt_<a>), and a group record
 // per attempt (a restarted robot resumes the last). The twin: OnlineOptions::dies_in_solve;
-// batch, the solve without it. Not covered: a robot that dies before a partner ever heard from it
-// (its presence status did not reach that partner: DDS delivers a transient-local sample only
-// while its writer lives; the partner cannot tell it from a robot not started yet and waits until
-// rendezvous_timeout), and one that comes back after its partners found it gone (it fails at its
-// next rendezvous with them).
+// batch, the solve without it. Not covered: a robot that comes back after its partners found it
+// gone (it fails at its next rendezvous with them).
 // Restart (state_dir): the rendezvous phase is deterministic given the answers, so the journal
 // `rendezvous.bin` (journal.h) records only each finished event's pairs (added and removed:
 // event_record.h). A restarted process re-runs its SLAM from its measurements, takes finished

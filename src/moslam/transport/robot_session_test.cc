@@ -484,6 +484,84 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
   fs::remove_all(dir);
 }
 
+// A batch robot that dies before some of its later partners ever heard from it (their links to
+// it down from the start: DDS may not deliver its presence status before it dies): they cannot
+// tell it from a robot not started; waiting for it at their rendezvous, they take it as gone for
+// good after leave_timeout, never heard from; the others solve as when it left, each estimate
+// the twin's to 1e-9. Before, such a partner failed at rendezvous_timeout. (A first version waited
+// rendezvous_timeout for a robot never heard from: a partner waiting meanwhile for that partner's
+// answer timed out first and failed.)
+TEST(RobotSession, ARobotNeverHeardFromByAPartnerIsTakenAsGoneAfterTheLeaveTimeout) {
+  ScenarioSpec spec = Small();
+  spec.robots = 4;
+  const SimulationData data = SimulateScenario(spec);
+  std::map<int, std::vector<int>> steps_of;  // robot -> the steps of its events
+  for (const RendezvousEvent& e : data.rendezvous) {
+    for (int r : {e.alpha, e.beta}) steps_of[r].push_back(e.step);
+  }
+  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
+                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  const int last_step = steps_of[victim].front();  // it leaves after the events of its first step
+  std::set<int> met, unheard;  // its partners up to then; those it meets only later
+  for (const RendezvousEvent& e : data.rendezvous) {
+    if (e.alpha != victim && e.beta != victim) continue;
+    (e.step <= last_step ? met : unheard).insert(e.alpha == victim ? e.beta : e.alpha);
+  }
+  for (int r : met) unheard.erase(r);
+  ASSERT_FALSE(unheard.empty()) << "no later partner of the kind the test needs";
+  const LeaveTwin twin = BatchTwinWithoutTheVictim(spec, data, victim, last_step);
+  ASSERT_GT(twin.skipped, 0);
+
+  InProcessNetwork net;
+  for (int r = 0; r < spec.robots; ++r) {
+    if (r != victim && !met.count(r)) net.setLink(victim, r, false);  // it never reaches them
+  }
+  Log log;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+  std::vector<std::string> errors(results.size());
+  struct Leave {};
+  std::vector<std::thread> threads;
+  for (int r = 0; r < spec.robots; ++r) {
+    threads.emplace_back([&, r]() {
+      const auto ri = static_cast<std::size_t>(r);
+      RobotSessionOptions o = Options(spec, log);
+      o.dgs.leave_timeout = milliseconds(300);
+      if (r == victim) {
+        const auto events_at_last = std::count(steps_of[victim].begin(), steps_of[victim].end(),
+                                               last_step);
+        auto seen = std::make_shared<std::int64_t>(0);
+        o.on_rendezvous = [seen, events_at_last](const SessionRendezvous&) {
+          if (++*seen == events_at_last) throw Leave{};
+        };
+      }
+      try {
+        RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+        results[ri] = session.run();
+        if (r == victim) errors[ri] = "the victim did not leave";
+      } catch (const Leave&) {
+        transports[ri].reset();
+      } catch (const std::exception& e) {
+        errors[ri] = e.what();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& e : errors) ASSERT_EQ(e, "");
+  int skipped = 0;
+  for (int r = 0; r < spec.robots; ++r) {
+    if (r == victim) continue;
+    const RobotSessionResult& got = results[static_cast<std::size_t>(r)];
+    for (const SessionRendezvous& e : got.rendezvous) skipped += e.skipped ? 1 : 0;
+    const Values& expected = twin.estimates.at(r);
+    EXPECT_EQ(got.dgs.estimate.size(), expected.size()) << "robot " << r;
+    EXPECT_LE(MaxPoseDifference(got.dgs.estimate, expected), 1e-9) << "robot " << r;
+  }
+  EXPECT_EQ(skipped, twin.skipped);
+  EXPECT_TRUE(log.contains("robot " + std::to_string(victim) + " left for good (never heard from"));
+}
+
 // A batch robot that dies between its joining status and its DgsNode's first status: the others
 // formed the closure with it (none left); their nodes find it gone at the first step, before it
 // took any (TeamChangedError), and the team is formed again without it: the others solve as when
