@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -73,11 +74,13 @@ struct Leave : std::runtime_error {
 // `options(robot)` gives; a session that throws Crash is restarted (a fresh transport, as a new
 // process) with the same options; one that throws Leave is gone for good (its transport closed,
 // its result left empty). Every other failure fails the test.
-// `wrap` (optional) puts a transport of the test's between a robot's session and the network.
+// `wrap` (optional) puts a transport of the test's between a robot's session and the network;
+// `before_restart` (optional) is called with the robot before a crashed session restarts.
 using WrapTransport = std::function<std::unique_ptr<Transport>(int robot, std::unique_ptr<Transport>)>;
 std::vector<RobotSessionResult> RunSessions(
     const SimulationData& data, int robots,
-    const std::function<RobotSessionOptions(int)>& options, const WrapTransport& wrap = {}) {
+    const std::function<RobotSessionOptions(int)>& options, const WrapTransport& wrap = {},
+    const std::function<void(int)>& before_restart = {}) {
   InProcessNetwork net;
   std::vector<std::unique_ptr<Transport>> transports;
   for (int r = 0; r < robots; ++r) {
@@ -98,6 +101,7 @@ std::vector<RobotSessionResult> RunSessions(
           return;
         } catch (const Crash&) {
           transports[ri].reset();  // the process is gone; restarted, it receives the history
+          if (before_restart) before_restart(r);
           transports[ri] = net.connect(r, {[](const std::string&) {}});
         } catch (const Leave&) {
           transports[ri].reset();
@@ -364,6 +368,94 @@ TEST(OnlineSession, ARobotThatLeavesForGoodIsSkippedAndTheOthersMapAsTheTwin) {
   std::printf("robot %d left after step %d: %d rendezvous skipped, robot %d found it gone in a "
               "group with robot %d, %zu solves of the others compared with the twin\n",
               victim, last_step, skipped, x, a, solves);
+}
+
+// A robot that comes back after its partners found it gone (killed right after its second solve,
+// restarted from its journal once the partner of its next rendezvous has found it gone): the
+// partner's presence status lists it, so at that rendezvous it learns that the team went on
+// without it, leaves the team (its presence status says so) and maps alone to the end; the others
+// map exactly as the twin in which it leaves after its second solve. Before, it failed at that
+// rendezvous (rendezvous_timeout).
+TEST(OnlineSession, ARobotBackAfterItWasFoundGoneContinuesAloneAndTheOthersMapAsTheTwin) {
+  const ScenarioSpec spec = SixRobots();
+  const SimulationData data = SimulateScenario(spec);
+  RobotSessionOptions base = OnlineSessionOptions(spec);
+  base.dgs.leave_timeout = milliseconds(300);
+  const OnlineRun full = RunTwin(data, base);
+  std::map<int, std::vector<int>> steps_of;  // robot -> steps of its solves
+  for (const GroupSolveRecord& s : full.solves) {
+    for (int r : s.robots) steps_of[r].push_back(s.step);
+  }
+  ASSERT_FALSE(steps_of.empty());
+  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
+                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  ASSERT_GE(steps_of[victim].size(), 3u);
+  const int last_step = steps_of[victim][1];
+  int partner = -1;  // of its first rendezvous after it died
+  for (const RendezvousEvent& e : data.rendezvous) {
+    if (e.step > last_step && (e.alpha == victim || e.beta == victim)) {
+      partner = e.alpha == victim ? e.beta : e.alpha;
+      break;
+    }
+  }
+  ASSERT_GE(partner, 0);
+  RobotSessionOptions twin_options = base;
+  twin_options.slam.leave_after[victim] = last_step;
+  const OnlineRun twin = RunTwin(data, twin_options);
+
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("moslam_online_back_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::mutex log_mutex;
+  std::condition_variable logged;
+  std::vector<std::pair<int, std::string>> log;
+  const std::string found = fmt::format("robot {} left for good", victim);
+  std::atomic<bool> crashed{false};
+  const std::vector<RobotSessionResult> results = RunSessions(
+      data, spec.robots,
+      [&](int r) {
+        RobotSessionOptions o = base;
+        o.dgs.state_dir = (dir / std::to_string(r)).string();
+        o.log = [&, r](const std::string& text) {
+          std::lock_guard<std::mutex> lock(log_mutex);
+          log.emplace_back(r, text);
+          logged.notify_all();
+        };
+        if (r == victim) {
+          o.on_solve = [&](const SessionSolve& s) {
+            if (!s.replayed && s.step == last_step && !crashed.exchange(true)) throw Crash();
+          };
+        }
+        return o;
+      },
+      {},
+      [&](int) {  // back only once its next partner has found it gone
+        std::unique_lock<std::mutex> lock(log_mutex);
+        logged.wait(lock, [&] {
+          return std::any_of(log.begin(), log.end(), [&](const auto& l) {
+            return l.first == partner && l.second.find(found) != std::string::npos;
+          });
+        });
+      });
+  ASSERT_TRUE(crashed);
+  std::size_t solves = 0;
+  EXPECT_LE(CompareWithTwin(results, twin, &solves, victim), 1e-9);
+  const RobotSessionResult& back = results[static_cast<std::size_t>(victim)];
+  EXPECT_FALSE(back.final_estimate.empty());
+  for (const SessionRendezvous& e : back.rendezvous) {
+    EXPECT_EQ(e.skipped, e.event.step > last_step) << "step " << e.event.step;
+  }
+  ASSERT_EQ(back.solves.size(), 2u);  // both replayed from its journal, none after
+  for (const SessionSolve& s : back.solves) EXPECT_TRUE(s.replayed);
+  const std::string alone =
+      fmt::format("robot {} found this robot gone: it continues alone", partner);
+  EXPECT_TRUE(std::any_of(log.begin(), log.end(), [&](const auto& l) {
+    return l.first == victim && l.second.find(alone) != std::string::npos;
+  }));
+  std::printf("robot %d back after robot %d found it gone: %zu solves of the others compared with "
+              "the twin\n",
+              victim, partner, solves);
+  std::filesystem::remove_all(dir);
 }
 
 // A robot that dies between its joining status of a group solve and its DgsNode's first status:

@@ -324,12 +324,7 @@ class RobotSession::Impl {
     std::set<int> everyone;
     for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
     transport_.setKnownRobots(everyone);
-    {  // liveliness before the first solve (kPresenceSolve): a robot that leaves is found gone
-      StatusPacket presence;
-      presence.robot = robot_;
-      presence.solve = kPresenceSolve;
-      transport_.publish(presence);
-    }
+    publishPresence();  // liveliness before the first solve: a robot that leaves is found gone
 
     ObjectSlam slam(robot_, options_.slam.slam);
     const RobotMeasurements& m = data_.measurements;
@@ -482,6 +477,10 @@ class RobotSession::Impl {
   // Attempt a > 0 (the team formed again: run()) uses solve AttemptSolve(1 + T, a).
   bool batchGroup(std::vector<int>& closure, std::vector<int>& robots, int attempt) {
     const int end = data_.numSteps();
+    if (out_) {  // it left the team: its own map is its result
+      closure = robots = {robot_};
+      return true;
+    }
     const auto solve = AttemptSolve(static_cast<std::uint32_t>(end + 1), attempt);
     if (const auto journaled = journaled_groups_.find(end);
         journaled != journaled_groups_.end() && attempt == journaledAttempt(end)) {
@@ -838,6 +837,11 @@ class RobotSession::Impl {
       ingest(transport_.poll(std::chrono::milliseconds(50)));
     }
     if (closure) closure->assign(group.begin(), group.end());
+    std::vector<int> heard_members;
+    for (int r : group) {
+      if (heard.count(r)) heard_members.push_back(r);
+    }
+    applyGoneLists(heard_members, t);  // gone for one member, gone for all (this robot: it leaves)
     for (int r : group) {  // without the robots that left
       if (r == robot_ || (heard.count(r) && !hasLeft(r, t))) robots.push_back(r);
     }
@@ -941,10 +945,14 @@ class RobotSession::Impl {
       }
       if (type == kLeftRecord) {
         const LeftRecord left = transport_detail::ReadLeftRecord(records[i], 1, what);
-        if (left.robot >= data_.num_robots || left.robot == robot_) {
+        if (left.robot >= data_.num_robots) {
           throw InvalidInputError(what + ": a departure of a robot not among its partners");
         }
-        left_.emplace(left.robot, static_cast<int>(left.step));
+        if (left.robot == robot_) {  // the team had found it gone: it continues alone
+          leaveTheTeam(static_cast<int>(left.step));
+        } else {
+          left_.emplace(left.robot, static_cast<int>(left.step));
+        }
         continue;
       }
       if (type == kGroupRecord || type == kSolveRecord) {
@@ -1048,7 +1056,19 @@ class RobotSession::Impl {
       } else if (auto* answer = std::get_if<SharedObjectsPacket>(&r.packet)) {
         answers_[std::make_pair(r.sender, answer->step)].push_back(std::move(*answer));
       } else if (const auto* st = std::get_if<StatusPacket>(&r.packet);
-                 !st || st->solve != kPresenceSolve) {  // presence: only its liveliness counts
+                 st && st->solve == kPresenceSolve) {
+        // A robot found gone that is back (restarted after leave_timeout): it learns from this
+        // robot's presence status, sent again, that the team went on without it (once per
+        // presence it sends: two robots gone for each other do not answer each other forever).
+        const bool news = presence_.count(r.sender) == 0 ||
+                          presence_[r.sender].neighbours != st->neighbours ||
+                          presence_[r.sender].state != st->state;
+        presence_[r.sender] = *st;
+        if (news && r.sender != robot_ && st->state != RobotState::kFailed &&
+            left_.count(r.sender) > 0) {
+          publishPresence();
+        }
+      } else {
         pending_.push_back(std::move(r));
       }
     }
@@ -1102,6 +1122,17 @@ class RobotSession::Impl {
   // the team is started within leave_timeout of its first rendezvous). A robot found gone is
   // journaled: from then on its rendezvous are skipped and no group solve includes it.
   bool foundLeft(int robot, int t, std::map<int, Clock::time_point>& not_alive_since) {
+    if (hasLeft(robot, t)) return true;
+    if (const auto p = presence_.find(robot); p != presence_.end()) {
+      if (p->second.state == RobotState::kFailed) {  // it left the team (found gone, it is back)
+        markLeft(robot, t, fmt::format("it left the team, at step {}", t));
+        return true;
+      }
+      if (std::binary_search(p->second.neighbours.begin(), p->second.neighbours.end(), robot_)) {
+        foundGoneBy(robot, t);
+        return true;
+      }
+    }
     const auto now = Clock::now();
     if (noteAlive().count(robot)) {
       not_alive_since.erase(robot);
@@ -1116,13 +1147,77 @@ class RobotSession::Impl {
     return true;
   }
 
-  // `robot` is gone for good from step t on; journaled.
+  // `robot` is gone for good from step t on; journaled, and listed in this robot's presence
+  // status (the robots it forms groups with exclude it alike; a robot back after it was found
+  // gone learns it there).
   void markLeft(int robot, int t, const std::string& why) {
     left_[robot] = t;
     record(kLeftRecord, LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(t)},
            transport_detail::AppendLeftRecord);
     options_.log(fmt::format("robot {} left for good ({}): its rendezvous are skipped and the "
                              "solves go on without it", robot, why));
+    publishPresence();
+  }
+
+  // Robot `by` lists this robot as gone (it is back after leave_timeout): it leaves the team at
+  // step t, journaled, and says so in its presence status (state kFailed).
+  void foundGoneBy(int by, int t) {
+    if (out_) return;
+    options_.log(fmt::format("robot {} found this robot gone: it continues alone from step {} (no "
+                             "more rendezvous or solves)",
+                             by, t));
+    record(kLeftRecord, LeftRecord{static_cast<std::uint16_t>(robot_), static_cast<std::uint32_t>(t)},
+           transport_detail::AppendLeftRecord);
+    leaveTheTeam(t);
+    publishPresence();
+  }
+
+  // This robot was found gone by the team (it is back after leave_timeout): from step t on it
+  // takes part in no rendezvous and no solve, every other robot gone for it.
+  void leaveTheTeam(int t) {
+    out_ = true;
+    for (int r = 0; r < data_.num_robots; ++r) {
+      if (r != robot_) left_.emplace(r, t);
+    }
+  }
+
+  // Its presence status (kPresenceSolve): liveliness before its first solve; the robots it found
+  // gone for good (neighbours); state kFailed once it left the team.
+  void publishPresence() {
+    StatusPacket presence;
+    presence.robot = robot_;
+    presence.solve = kPresenceSolve;
+    if (out_) {
+      presence.state = RobotState::kFailed;
+    } else {
+      for (const auto& [r, step] : left_) presence.neighbours.push_back(r);
+    }
+    transport_.publish(presence);
+  }
+
+  // The robots of `heard` (a group forming at step t) that one of them, or this robot, found gone
+  // for good (their presence statuses precede their joining statuses): gone for this robot too,
+  // so that every member forms the same group; true when this robot is among them (it then
+  // leaves the team).
+  bool applyGoneLists(const std::vector<int>& heard, int t) {
+    for (int m : heard) {
+      const auto p = presence_.find(m);
+      if (m == robot_ || p == presence_.end()) continue;
+      if (p->second.state == RobotState::kFailed) {  // it left the team
+        if (!hasLeft(m, t)) markLeft(m, t, fmt::format("it left the team, at step {}", t));
+        continue;
+      }
+      for (int r : p->second.neighbours) {
+        if (r == robot_) {
+          foundGoneBy(m, t);
+          return true;
+        }
+        if (!hasLeft(r, t) && r < data_.num_robots) {
+          markLeft(r, t, fmt::format("robot {} found it gone, at step {}", m, t));
+        }
+      }
+    }
+    return false;
   }
 
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
@@ -1231,6 +1326,8 @@ class RobotSession::Impl {
   std::vector<Received> pending_;  // DGS packets
   HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
   std::map<int, int> left_;        // robots found gone for good -> the step
+  std::map<int, StatusPacket> presence_;  // the latest presence status of each robot
+  bool out_ = false;  // the team found this robot gone (it came back): it continues alone
   std::set<int> seen_alive_;       // robots whose liveliness it has seen
   RobotSessionResult result_;
 };

@@ -59,8 +59,14 @@
 // AttemptSolve(s, a) = s + a 2^24, its own packets (the stopped attempt's are dropped), node
 // journal in solves/step_<t>_attempt_<a> (batch: solves/batch_attempt_<a>), and a group record
 // per attempt (a restarted robot resumes the last). The twin: OnlineOptions::dies_in_solve;
-// batch, the solve without it. Not covered: a robot that comes back after its partners found it
-// gone (it fails at its next rendezvous with them).
+// batch, the solve without it. A robot found gone lists the robots it found gone in its presence
+// status (sent again at every departure it finds, and when a robot it found gone sends its own:
+// one back after leave_timeout); a robot that reads its own id there has been found gone by the
+// team: it leaves the team (journaled as a departure of itself), takes part in no rendezvous or
+// solve from then on (batch: its own map is its result) and says so in its presence status (state
+// kFailed), so that every robot waiting for it takes it as gone at once. A group that forms
+// applies every member's list (presence statuses precede joining statuses, in order per robot):
+// a robot found gone by one member is gone for all of them, so all form the same group.
 // Restart (state_dir): the rendezvous phase is deterministic given the answers, so the journal
 // `rendezvous.bin` (journal.h) records only each finished event's pairs (added and removed:
 // event_record.h). A restarted process re-runs its SLAM from its measurements, takes finished

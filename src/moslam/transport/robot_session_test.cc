@@ -3,10 +3,12 @@
 // AssembleJointProblem, RunDgs in Jacobi order); forged object lists and answers are rejected and
 // logged; a robot that crashes in the rendezvous phase and restarts from its journal loses
 // nothing. Between processes over DDS: apps/team_test.cc.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <condition_variable>
 #include <filesystem>
 #include <functional>
 #include <limits>
@@ -69,18 +71,28 @@ class Log {
     return [this](const std::string& s) {
       std::lock_guard<std::mutex> lock(mutex_);
       lines_.push_back(s);
+      logged_.notify_all();
     };
   }
   bool contains(const std::string& text) {
     std::lock_guard<std::mutex> lock(mutex_);
+    return has(text);
+  }
+  // Blocks until a line contains `text`.
+  void waitFor(const std::string& text) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    logged_.wait(lock, [&] { return has(text); });
+  }
+
+ private:
+  bool has(const std::string& text) const {
     for (const std::string& l : lines_) {
       if (l.find(text) != std::string::npos) return true;
     }
     return false;
   }
-
- private:
   std::mutex mutex_;
+  std::condition_variable logged_;
   std::vector<std::string> lines_;
 };
 
@@ -147,7 +159,8 @@ struct Crash {};
 // Crash; then the process is gone (its transport destroyed) and restarts (a new transport, which
 // receives the history), in `transport`. Returns false when the session ended without a crash.
 bool RunUntilKilled(InProcessNetwork& net, Log& log, std::unique_ptr<Transport>& transport,
-                    const RobotScenarioData& slice, const RobotSessionOptions& first) {
+                    const RobotScenarioData& slice, const RobotSessionOptions& first,
+                    const std::function<void()>& before_restart = {}) {
   try {
     RobotSession session(slice, *transport, first);
     session.run();
@@ -155,6 +168,7 @@ bool RunUntilKilled(InProcessNetwork& net, Log& log, std::unique_ptr<Transport>&
   } catch (const Crash&) {
   }
   transport.reset();
+  if (before_restart) before_restart();
   transport = net.connect(slice.robot, {log.sink()});
   return true;
 }
@@ -560,6 +574,90 @@ TEST(RobotSession, ARobotNeverHeardFromByAPartnerIsTakenAsGoneAfterTheLeaveTimeo
   }
   EXPECT_EQ(skipped, twin.skipped);
   EXPECT_TRUE(log.contains("robot " + std::to_string(victim) + " left for good (never heard from"));
+}
+
+// A batch robot that comes back after its partners found it gone (killed after the events of its
+// first step, restarted from its journal once a robot has found it gone: the partner of its next
+// rendezvous, the first to wait for it): at that rendezvous the partner's
+// presence status lists it, so it leaves the team, skips its later rendezvous and takes its own
+// map as its result; the others solve without it, each estimate the twin's to 1e-9. Before, it
+// failed at that rendezvous.
+TEST(RobotSession, ABatchRobotBackAfterItWasFoundGoneContinuesAlone) {
+  ScenarioSpec spec = Small();
+  spec.robots = 4;
+  const SimulationData data = SimulateScenario(spec);
+  std::map<int, std::vector<int>> steps_of;  // robot -> the steps of its events
+  for (const RendezvousEvent& e : data.rendezvous) {
+    for (int r : {e.alpha, e.beta}) steps_of[r].push_back(e.step);
+  }
+  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
+                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  const int last_step = steps_of[victim].front();
+  int partner = -1;  // of its first rendezvous after it died
+  for (const RendezvousEvent& e : data.rendezvous) {
+    if (e.step > last_step && (e.alpha == victim || e.beta == victim)) {
+      partner = e.alpha == victim ? e.beta : e.alpha;
+      break;
+    }
+  }
+  ASSERT_GE(partner, 0);
+  const LeaveTwin twin = BatchTwinWithoutTheVictim(spec, data, victim, last_step);
+  const fs::path dir = fs::temp_directory_path() /
+                       ("moslam_batch_back_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  InProcessNetwork net;
+  Log log;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
+  std::vector<std::string> errors(results.size());
+  std::vector<std::thread> threads;
+  for (int r = 0; r < spec.robots; ++r) {
+    threads.emplace_back([&, r]() {
+      const auto ri = static_cast<std::size_t>(r);
+      RobotSessionOptions o = Options(spec, log, (dir / std::to_string(r)).string());
+      o.dgs.leave_timeout = milliseconds(300);
+      try {
+        if (r == victim) {
+          RobotSessionOptions first = o;
+          const auto events_at_last = std::count(steps_of[victim].begin(), steps_of[victim].end(),
+                                                 last_step);
+          auto seen = std::make_shared<std::int64_t>(0);
+          first.on_rendezvous = [seen, events_at_last](const SessionRendezvous&) {
+            if (++*seen == events_at_last) throw Crash{};
+          };
+          if (!RunUntilKilled(net, log, transports[ri], SliceForRobot(data, r), first,
+                              [&] { log.waitFor(fmt::format("robot {} left for good", victim)); })) {
+            errors[ri] = "the robot did not crash";
+            return;
+          }
+        }
+        RobotSession session(SliceForRobot(data, r), *transports[ri], o);
+        results[ri] = session.run();
+      } catch (const std::exception& e) {
+        errors[ri] = e.what();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& e : errors) ASSERT_EQ(e, "");
+  for (int r = 0; r < spec.robots; ++r) {
+    const RobotSessionResult& got = results[static_cast<std::size_t>(r)];
+    if (r == victim) {
+      EXPECT_EQ(got.dgs.team, std::vector<int>{victim});
+      EXPECT_EQ(got.dgs.estimate.size(), static_cast<std::size_t>(got.poses + got.landmarks));
+      for (const SessionRendezvous& e : got.rendezvous) {
+        EXPECT_EQ(e.skipped, e.event.step > last_step) << "step " << e.event.step;
+      }
+      continue;
+    }
+    const Values& expected = twin.estimates.at(r);
+    EXPECT_EQ(got.dgs.estimate.size(), expected.size()) << "robot " << r;
+    EXPECT_LE(MaxPoseDifference(got.dgs.estimate, expected), 1e-9) << "robot " << r;
+  }
+  EXPECT_TRUE(log.contains(fmt::format("robot {} found this robot gone: it continues alone",
+                                       partner)));
+  fs::remove_all(dir);
 }
 
 // A batch robot that dies between its joining status and its DgsNode's first status: the others
