@@ -26,6 +26,7 @@
 #include "moslam/transport/journal.h"
 #include "moslam/transport/record_bytes.h"
 #include "moslam/transport/solve_record.h"
+#include "moslam/transport/team_membership.h"
 
 namespace moslam {
 
@@ -309,6 +310,15 @@ class RobotSession::Impl {
         std::fflush(stderr);
       };
     }
+    TeamMembership::Options membership;
+    membership.leave_timeout = options_.dgs.leave_timeout;
+    membership.log = options_.log;
+    membership.journal = [this](int robot, int step) {
+      record(kLeftRecord,
+             LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(step)},
+             transport_detail::AppendLeftRecord);
+    };
+    membership_ = std::make_unique<TeamMembership>(robot_, n, transport_, std::move(membership));
     if (!options_.dgs.state_dir.empty()) std::filesystem::create_directories(options_.dgs.state_dir);
     if (!options_.dgs.state_dir.empty()) {
       journal_ = std::make_unique<Journal>(
@@ -324,7 +334,7 @@ class RobotSession::Impl {
     std::set<int> everyone;
     for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
     transport_.setKnownRobots(everyone);
-    publishPresence();  // liveliness before the first solve: a robot that leaves is found gone
+    membership_->publishPresence();  // liveliness before the first solve
 
     ObjectSlam slam(robot_, options_.slam.slam);
     const RobotMeasurements& m = data_.measurements;
@@ -342,7 +352,7 @@ class RobotSession::Impl {
         if (e.alpha == robot_ || e.beta == robot_) mine.push_back(next);
       }
       if (mine.empty()) continue;
-      noteAlive();
+      membership_->noteAlive();
       // As RunMultiRobotObjectSlam: both robots refresh before an event (the later events of
       // the same step find nothing new).
       slam.refresh(options_.slam.slam.iterations_per_update);
@@ -477,7 +487,7 @@ class RobotSession::Impl {
   // Attempt a > 0 (the team formed again: run()) uses solve AttemptSolve(1 + T, a).
   bool batchGroup(std::vector<int>& closure, std::vector<int>& robots, int attempt) {
     const int end = data_.numSteps();
-    if (out_) {  // it left the team: its own map is its result
+    if (membership_->out()) {  // it left the team: its own map is its result
       closure = robots = {robot_};
       return true;
     }
@@ -841,7 +851,7 @@ class RobotSession::Impl {
     for (int r : group) {
       if (heard.count(r)) heard_members.push_back(r);
     }
-    applyGoneLists(heard_members, t);  // gone for one member, gone for all (this robot: it leaves)
+    membership_->applyGoneLists(heard_members, t);  // gone for one, gone for all (self: it leaves)
     for (int r : group) {  // without the robots that left
       if (r == robot_ || (heard.count(r) && !hasLeft(r, t))) robots.push_back(r);
     }
@@ -948,11 +958,7 @@ class RobotSession::Impl {
         if (left.robot >= data_.num_robots) {
           throw InvalidInputError(what + ": a departure of a robot not among its partners");
         }
-        if (left.robot == robot_) {  // the team had found it gone: it continues alone
-          leaveTheTeam(static_cast<int>(left.step));
-        } else {
-          left_.emplace(left.robot, static_cast<int>(left.step));
-        }
+        membership_->restore(left.robot, static_cast<int>(left.step));  // self: left the team
         continue;
       }
       if (type == kGroupRecord || type == kSolveRecord) {
@@ -1048,27 +1054,13 @@ class RobotSession::Impl {
 
   void ingest(std::vector<Received> packets) {
     for (Received& r : packets) {
-      // A packet proves its sender was alive, even one that is gone by the time this robot
-      // looks at the liveliness (its presence status, kPresenceSolve, is there for that).
-      seen_alive_.insert(r.sender);
+      membership_->onPacket(r);
       if (auto* list = std::get_if<ObjectListPacket>(&r.packet)) {
         lists_[std::make_pair(r.sender, list->step)].push_back(std::move(*list));
       } else if (auto* answer = std::get_if<SharedObjectsPacket>(&r.packet)) {
         answers_[std::make_pair(r.sender, answer->step)].push_back(std::move(*answer));
       } else if (const auto* st = std::get_if<StatusPacket>(&r.packet);
-                 st && st->solve == kPresenceSolve) {
-        // A robot found gone that is back (restarted after leave_timeout): it learns from this
-        // robot's presence status, sent again, that the team went on without it (once per
-        // presence it sends: two robots gone for each other do not answer each other forever).
-        const bool news = presence_.count(r.sender) == 0 ||
-                          presence_[r.sender].neighbours != st->neighbours ||
-                          presence_[r.sender].state != st->state;
-        presence_[r.sender] = *st;
-        if (news && r.sender != robot_ && st->state != RobotState::kFailed &&
-            left_.count(r.sender) > 0) {
-          publishPresence();
-        }
-      } else {
+                 !st || st->solve != kPresenceSolve) {  // presence: the membership's alone
         pending_.push_back(std::move(r));
       }
     }
@@ -1094,131 +1086,18 @@ class RobotSession::Impl {
     return true;
   }
 
-  // ---- robots that leave for good -----------------------------------------------------------
-  // The robots whose liveliness this one has seen asserted; returns those alive now.
-  std::set<int> noteAlive() {
-    std::set<int> alive = transport_.alive();
-    seen_alive_.insert(alive.begin(), alive.end());
-    return alive;
-  }
-
   // The attempt of the solve of step t whose group the journal holds last (0: none).
   int journaledAttempt(int t) const {
     const auto it = group_records_.find(t);
     return it == group_records_.end() ? 0 : it->second - 1;
   }
 
-  // Whether `robot` was found gone for good at step `t` or before.
-  bool hasLeft(int robot, int t) const {
-    const auto it = left_.find(robot);
-    return it != left_.end() && it->second <= t;
-  }
-
-  // While `robot` is waited for at step t: whether it has now left for good, by the DgsNode's
-  // rule: not alive for dgs.leave_timeout (`not_alive_since` keeps when each waited-for robot was
-  // first seen not alive). Seen alive before or never: a robot that died before this one's
-  // transport heard from it (DDS delivers a transient-local sample only while its writer lives)
-  // cannot be told from one that never started, and both are gone for the team (every robot of
-  // the team is started within leave_timeout of its first rendezvous). A robot found gone is
-  // journaled: from then on its rendezvous are skipped and no group solve includes it.
+  // ---- robots that leave for good (team_membership.h) ---------------------------------------
+  bool hasLeft(int robot, int t) const { return membership_->hasLeft(robot, t); }
   bool foundLeft(int robot, int t, std::map<int, Clock::time_point>& not_alive_since) {
-    if (hasLeft(robot, t)) return true;
-    if (const auto p = presence_.find(robot); p != presence_.end()) {
-      if (p->second.state == RobotState::kFailed) {  // it left the team (found gone, it is back)
-        markLeft(robot, t, fmt::format("it left the team, at step {}", t));
-        return true;
-      }
-      if (std::binary_search(p->second.neighbours.begin(), p->second.neighbours.end(), robot_)) {
-        foundGoneBy(robot, t);
-        return true;
-      }
-    }
-    const auto now = Clock::now();
-    if (noteAlive().count(robot)) {
-      not_alive_since.erase(robot);
-      return false;
-    }
-    const auto since = not_alive_since.emplace(robot, now).first->second;
-    if (now - since < options_.dgs.leave_timeout) return false;
-    markLeft(robot, t,
-             fmt::format("{} for {} ms at step {}",
-                         seen_alive_.count(robot) ? "not alive" : "never heard from, not alive",
-                         options_.dgs.leave_timeout.count(), t));
-    return true;
+    return membership_->foundLeft(robot, t, not_alive_since);
   }
-
-  // `robot` is gone for good from step t on; journaled, and listed in this robot's presence
-  // status (the robots it forms groups with exclude it alike; a robot back after it was found
-  // gone learns it there).
-  void markLeft(int robot, int t, const std::string& why) {
-    left_[robot] = t;
-    record(kLeftRecord, LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(t)},
-           transport_detail::AppendLeftRecord);
-    options_.log(fmt::format("robot {} left for good ({}): its rendezvous are skipped and the "
-                             "solves go on without it", robot, why));
-    publishPresence();
-  }
-
-  // Robot `by` lists this robot as gone (it is back after leave_timeout): it leaves the team at
-  // step t, journaled, and says so in its presence status (state kFailed).
-  void foundGoneBy(int by, int t) {
-    if (out_) return;
-    options_.log(fmt::format("robot {} found this robot gone: it continues alone from step {} (no "
-                             "more rendezvous or solves)",
-                             by, t));
-    record(kLeftRecord, LeftRecord{static_cast<std::uint16_t>(robot_), static_cast<std::uint32_t>(t)},
-           transport_detail::AppendLeftRecord);
-    leaveTheTeam(t);
-    publishPresence();
-  }
-
-  // This robot was found gone by the team (it is back after leave_timeout): from step t on it
-  // takes part in no rendezvous and no solve, every other robot gone for it.
-  void leaveTheTeam(int t) {
-    out_ = true;
-    for (int r = 0; r < data_.num_robots; ++r) {
-      if (r != robot_) left_.emplace(r, t);
-    }
-  }
-
-  // Its presence status (kPresenceSolve): liveliness before its first solve; the robots it found
-  // gone for good (neighbours); state kFailed once it left the team.
-  void publishPresence() {
-    StatusPacket presence;
-    presence.robot = robot_;
-    presence.solve = kPresenceSolve;
-    if (out_) {
-      presence.state = RobotState::kFailed;
-    } else {
-      for (const auto& [r, step] : left_) presence.neighbours.push_back(r);
-    }
-    transport_.publish(presence);
-  }
-
-  // The robots of `heard` (a group forming at step t) that one of them, or this robot, found gone
-  // for good (their presence statuses precede their joining statuses): gone for this robot too,
-  // so that every member forms the same group; true when this robot is among them (it then
-  // leaves the team).
-  bool applyGoneLists(const std::vector<int>& heard, int t) {
-    for (int m : heard) {
-      const auto p = presence_.find(m);
-      if (m == robot_ || p == presence_.end()) continue;
-      if (p->second.state == RobotState::kFailed) {  // it left the team
-        if (!hasLeft(m, t)) markLeft(m, t, fmt::format("it left the team, at step {}", t));
-        continue;
-      }
-      for (int r : p->second.neighbours) {
-        if (r == robot_) {
-          foundGoneBy(m, t);
-          return true;
-        }
-        if (!hasLeft(r, t) && r < data_.num_robots) {
-          markLeft(r, t, fmt::format("robot {} found it gone, at step {}", m, t));
-        }
-      }
-    }
-    return false;
-  }
+  void markLeft(int robot, int t, const std::string& why) { membership_->markLeft(robot, t, why); }
 
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
   // None: alpha left for good.
@@ -1325,10 +1204,7 @@ class RobotSession::Impl {
   std::map<std::pair<int, std::uint32_t>, std::deque<SharedObjectsPacket>> answers_;
   std::vector<Received> pending_;  // DGS packets
   HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
-  std::map<int, int> left_;        // robots found gone for good -> the step
-  std::map<int, StatusPacket> presence_;  // the latest presence status of each robot
-  bool out_ = false;  // the team found this robot gone (it came back): it continues alone
-  std::set<int> seen_alive_;       // robots whose liveliness it has seen
+  std::unique_ptr<TeamMembership> membership_;  // which robots it still counts on
   RobotSessionResult result_;
 };
 

@@ -34,14 +34,14 @@
 // and lists that the in-process encoding refuses. A peer that does not answer within
 // rendezvous_timeout, and has not left for good (below), makes the robot fail (moslam::Error):
 // the exchange is not skipped, since skipping would change the result.
-// Leaving for good: every robot publishes a presence status when it starts (kPresenceSolve), so
-// its liveliness is known before its first solve. A robot waited for (at a rendezvous, or for its
-// joining status) that is not alive for dgs.leave_timeout has left for good, by the DgsNode's
-// rule, whether it was seen alive before or never (one that died before this robot's transport
-// heard from it, as DDS delivers a transient-local sample only while its writer lives, cannot be
-// told from one that never started: so every robot of a team must be started within
-// leave_timeout of its first rendezvous): the robot journals it
-// and skips its rendezvous with it from then on (SessionRendezvous::skipped; nothing exchanged).
+// Leaving for good (the rules: team_membership.h): every robot publishes a presence status when
+// it starts (kPresenceSolve), so its liveliness is known before its first solve. A robot waited
+// for (at a rendezvous, or for its joining status) that is not alive for dgs.leave_timeout has
+// left for good, by the DgsNode's rule, whether it was seen alive before or never (one that died
+// before this robot's transport heard from it, as DDS delivers a transient-local sample only
+// while its writer lives, cannot be told from one that never started: so every robot of a team
+// must be started within leave_timeout of its first rendezvous): the robot journals it and
+// skips its rendezvous with it from then on (SessionRendezvous::skipped; nothing exchanged).
 // Online, no group solve includes it (its pairs with it become held factors); the others find
 // the same group, since a robot that left publishes no joining status. The twin:
 // MultiRobotSlamConfig::leave_after. Batch: before the solve, every robot with shared pairs
