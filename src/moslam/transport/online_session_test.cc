@@ -25,6 +25,7 @@
 #include "moslam/transport/group_transport.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/robot_session.h"
+#include "moslam/transport/session_test_util.h"
 
 namespace moslam {
 namespace {
@@ -76,7 +77,8 @@ struct Leave : std::runtime_error {
 // its result left empty). Every other failure fails the test.
 // `wrap` (optional) puts a transport of the test's between a robot's session and the network;
 // `before_restart` (optional) is called with the robot before a crashed session restarts.
-using WrapTransport = std::function<std::unique_ptr<Transport>(int robot, std::unique_ptr<Transport>)>;
+using WrapTransport =
+    std::function<std::unique_ptr<Transport>(int robot, std::unique_ptr<Transport>)>;
 std::vector<RobotSessionResult> RunSessions(
     const SimulationData& data, int robots,
     const std::function<RobotSessionOptions(int)>& options, const WrapTransport& wrap = {},
@@ -256,6 +258,22 @@ TEST(OnlineSession, ARobotKilledInAndBetweenGroupSolvesResumesFromItsJournal) {
   std::filesystem::remove_all(dir);
 }
 
+// The rendezvous the robots but `victim` skipped; each must be with the victim after `step`.
+int SkippedWithTheVictimAfter(const std::vector<RobotSessionResult>& results, int victim,
+                              int step) {
+  int skipped = 0;
+  for (int r = 0; r < static_cast<int>(results.size()); ++r) {
+    if (r == victim) continue;
+    for (const SessionRendezvous& e : results[static_cast<std::size_t>(r)].rendezvous) {
+      skipped += e.skipped ? 1 : 0;
+      EXPECT_EQ(e.skipped,
+                e.event.step > step && (e.event.alpha == victim || e.event.beta == victim))
+          << "robot " << r << " step " << e.event.step;
+    }
+  }
+  return skipped;
+}
+
 // A robot that leaves for good right after one of its group solves: its partners find it gone
 // when they wait for it, at a rendezvous or for its joining status, skip it from then on, and map
 // exactly as the twin in which it leaves after that step (MultiRobotSlamConfig::leave_after). At
@@ -268,13 +286,9 @@ TEST(OnlineSession, ARobotThatLeavesForGoodIsSkippedAndTheOthersMapAsTheTwin) {
   RobotSessionOptions base = OnlineSessionOptions(spec);
   base.dgs.leave_timeout = milliseconds(300);
   const OnlineRun full = RunTwin(data, base);
-  std::map<int, std::vector<int>> steps_of;  // robot -> steps of its solves
-  for (const GroupSolveRecord& s : full.solves) {
-    for (int r : s.robots) steps_of[r].push_back(s.step);
-  }
+  std::map<int, std::vector<int>> steps_of = SolveStepsOf(full);
   ASSERT_FALSE(steps_of.empty());
-  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
-                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  const int victim = Busiest(steps_of);
   ASSERT_GE(steps_of[victim].size(), 3u);
   const int last_step = steps_of[victim][1];  // it leaves after its second solve
   RobotSessionOptions twin_options = base;
@@ -348,15 +362,7 @@ TEST(OnlineSession, ARobotThatLeavesForGoodIsSkippedAndTheOthersMapAsTheTwin) {
   });
   std::size_t solves = 0;
   EXPECT_LE(CompareWithTwin(results, twin, &solves, victim), 1e-9);
-  int skipped = 0;
-  for (int r = 0; r < spec.robots; ++r) {
-    if (r == victim) continue;
-    for (const SessionRendezvous& e : results[static_cast<std::size_t>(r)].rendezvous) {
-      skipped += e.skipped ? 1 : 0;
-      EXPECT_EQ(e.skipped, e.event.step > last_step && (e.event.alpha == victim ||
-                                                         e.event.beta == victim));
-    }
-  }
+  const int skipped = SkippedWithTheVictimAfter(results, victim, last_step);
   EXPECT_EQ(skipped, twin_skipped);
   // x found it gone at step meet, waiting for its joining status.
   const std::string found = fmt::format("robot {} left for good", victim);
@@ -382,22 +388,12 @@ TEST(OnlineSession, ARobotBackAfterItWasFoundGoneContinuesAloneAndTheOthersMapAs
   RobotSessionOptions base = OnlineSessionOptions(spec);
   base.dgs.leave_timeout = milliseconds(300);
   const OnlineRun full = RunTwin(data, base);
-  std::map<int, std::vector<int>> steps_of;  // robot -> steps of its solves
-  for (const GroupSolveRecord& s : full.solves) {
-    for (int r : s.robots) steps_of[r].push_back(s.step);
-  }
+  std::map<int, std::vector<int>> steps_of = SolveStepsOf(full);
   ASSERT_FALSE(steps_of.empty());
-  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
-                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  const int victim = Busiest(steps_of);
   ASSERT_GE(steps_of[victim].size(), 3u);
   const int last_step = steps_of[victim][1];
-  int partner = -1;  // of its first rendezvous after it died
-  for (const RendezvousEvent& e : data.rendezvous) {
-    if (e.step > last_step && (e.alpha == victim || e.beta == victim)) {
-      partner = e.alpha == victim ? e.beta : e.alpha;
-      break;
-    }
-  }
+  const int partner = FirstPartnerAfter(data, victim, last_step);  // the first to wait for it
   ASSERT_GE(partner, 0);
   RobotSessionOptions twin_options = base;
   twin_options.slam.leave_after[victim] = last_step;
@@ -472,10 +468,7 @@ TEST(OnlineSession, ARobotThatDiesBetweenItsJoiningStatusAndItsNodesFirstStatusI
   RobotSessionOptions base = OnlineSessionOptions(spec);
   base.dgs.leave_timeout = milliseconds(300);
   const OnlineRun full = RunTwin(data, base);
-  std::map<int, std::vector<int>> steps_of;  // robot -> steps of its solves
-  for (const GroupSolveRecord& s : full.solves) {
-    for (int r : s.robots) steps_of[r].push_back(s.step);
-  }
+  std::map<int, std::vector<int>> steps_of = SolveStepsOf(full);
   ASSERT_FALSE(steps_of.empty());
   const auto twin_of = [&](int victim, int dies_at) {
     RobotSessionOptions o = base;
@@ -488,8 +481,7 @@ TEST(OnlineSession, ARobotThatDiesBetweenItsJoiningStatusAndItsNodesFirstStatusI
     int victim = -1, dies_at = -1;
   };
   std::vector<Case> cases;
-  const int busiest = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
-                                       const auto& b) { return a.second.size() < b.second.size(); })->first;
+  const int busiest = Busiest(steps_of);
   ASSERT_GE(steps_of[busiest].size(), 3u);
   cases.push_back({busiest, steps_of[busiest][1]});
   for (const GroupSolveRecord& s : full.solves) {
@@ -532,15 +524,7 @@ TEST(OnlineSession, ARobotThatDiesBetweenItsJoiningStatusAndItsNodesFirstStatusI
     const OnlineRun twin = twin_of(victim, dies_at);
     std::size_t solves = 0;
     EXPECT_LE(CompareWithTwin(results, twin, &solves, victim), 1e-9);
-    int skipped = 0;
-    for (int r = 0; r < spec.robots; ++r) {
-      if (r == victim) continue;
-      for (const SessionRendezvous& e : results[static_cast<std::size_t>(r)].rendezvous) {
-        skipped += e.skipped ? 1 : 0;
-        EXPECT_EQ(e.skipped, e.event.step > dies_at && (e.event.alpha == victim ||
-                                                         e.event.beta == victim));
-      }
-    }
+    const int skipped = SkippedWithTheVictimAfter(results, victim, dies_at);
     const std::string found = fmt::format("robot {} left for good (it joined the group solve of "
                                           "step {} and left before its first step)", victim, dies_at);
     EXPECT_TRUE(std::any_of(log.begin(), log.end(), [&](const auto& l) {

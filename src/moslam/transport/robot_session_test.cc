@@ -26,6 +26,7 @@
 #include "moslam/transport/dying_transport_test_util.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/robot_session.h"
+#include "moslam/transport/session_test_util.h"
 
 namespace moslam {
 namespace {
@@ -171,6 +172,57 @@ bool RunUntilKilled(InProcessNetwork& net, Log& log, std::unique_ptr<Transport>&
   if (before_restart) before_restart();
   transport = net.connect(slice.robot, {log.sink()});
   return true;
+}
+
+// What a test's hook throws when a robot's process is gone for good (its battery died).
+struct Gone {};
+
+// The session with `o` throws What{} right after its `events`-th rendezvous.
+template <typename What>
+void ThrowAfterRendezvous(RobotSessionOptions& o, std::int64_t events) {
+  auto seen = std::make_shared<std::int64_t>(0);
+  o.on_rendezvous = [seen, events](const SessionRendezvous&) {
+    if (++*seen == events) throw What{};
+  };
+}
+
+// One session per robot, each on a thread of its own, over `transports` (robot r's at index r),
+// with robot r's slice of `data` and the options `options(r)`; `before(r)`, when given, runs
+// first on the robot's thread (a kill and restart: RunUntilKilled) and returns false when what
+// it expected did not happen. A robot whose session throws Gone is gone for good: its transport
+// closed, its result empty, listed in `*gone`. Fails the test when a session throws anything
+// else.
+std::vector<RobotSessionResult> RunSessionsWithFaults(
+    const SimulationData& data, std::vector<std::unique_ptr<Transport>>& transports,
+    const std::function<RobotSessionOptions(int)>& options, std::set<int>* gone,
+    const std::function<bool(int)>& before = {}) {
+  const int robots = static_cast<int>(transports.size());
+  std::vector<RobotSessionResult> results(transports.size());
+  std::vector<std::string> errors(results.size());
+  std::mutex mutex;
+  std::vector<std::thread> threads;
+  for (int r = 0; r < robots; ++r) {
+    threads.emplace_back([&, r]() {
+      const auto ri = static_cast<std::size_t>(r);
+      try {
+        if (before && !before(r)) {
+          errors[ri] = "the robot's fault did not happen";
+          return;
+        }
+        RobotSession session(SliceForRobot(data, r), *transports[ri], options(r));
+        results[ri] = session.run();
+      } catch (const Gone&) {
+        transports[ri].reset();
+        std::lock_guard<std::mutex> lock(mutex);
+        gone->insert(r);
+      } catch (const std::exception& e) {
+        errors[ri] = e.what();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (const std::string& e : errors) EXPECT_EQ(e, "");
+  return results;
 }
 
 TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
@@ -406,12 +458,8 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
   ScenarioSpec spec = Small();
   spec.robots = 4;
   const SimulationData data = SimulateScenario(spec);
-  std::map<int, std::vector<int>> steps_of;  // robot -> the steps of its events
-  for (const RendezvousEvent& e : data.rendezvous) {
-    for (int r : {e.alpha, e.beta}) steps_of[r].push_back(e.step);
-  }
-  const int busiest = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
-                                       const auto& b) { return a.second.size() < b.second.size(); })->first;
+  std::map<int, std::vector<int>> steps_of = EventStepsOf(data);
+  const int busiest = Busiest(steps_of);
   const fs::path dir = fs::temp_directory_path() /
                        ("moslam_batch_leave_" + std::to_string(::getpid()));
   for (const auto& [victim, crash] : {std::pair{0, false}, std::pair{busiest, false},
@@ -431,45 +479,27 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
     Log log;
     std::vector<std::unique_ptr<Transport>> transports;
     for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
-    std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
-    std::vector<std::string> errors(results.size());
-    struct Leave {};
-    std::vector<std::thread> threads;
-    for (int r = 0; r < spec.robots; ++r) {
-      threads.emplace_back([&, r]() {
-        const auto ri = static_cast<std::size_t>(r);
-        RobotSessionOptions o = Options(spec, log, (dir / std::to_string(r)).string());
-        o.dgs.leave_timeout = milliseconds(300);
-        if (r == victim) {
-          const auto events_at_last = std::count(steps.begin(), steps.end(), last_step);
-          auto seen = std::make_shared<std::int64_t>(0);
-          o.on_rendezvous = [seen, events_at_last](const SessionRendezvous&) {
-            if (++*seen == events_at_last) throw Leave{};
+    const auto options = [&](int r) {
+      RobotSessionOptions o = Options(spec, log, (dir / std::to_string(r)).string());
+      o.dgs.leave_timeout = milliseconds(300);
+      if (r == victim) {
+        ThrowAfterRendezvous<Gone>(o, std::count(steps.begin(), steps.end(), last_step));
+      }
+      return o;
+    };
+    std::set<int> gone;
+    const std::vector<RobotSessionResult> results =
+        RunSessionsWithFaults(data, transports, options, &gone, [&](int r) {
+          if (r != crasher) return true;
+          RobotSessionOptions first = options(r);
+          first.dgs.on_round = [](const DgsNodeRound& round) {
+            if (round.round == 3) throw Crash{};
           };
-        }
-        try {
-          if (r == crasher) {
-            RobotSessionOptions first = o;
-            first.dgs.on_round = [](const DgsNodeRound& round) {
-              if (round.round == 3) throw Crash{};
-            };
-            if (!RunUntilKilled(net, log, transports[ri], SliceForRobot(data, r), first)) {
-              errors[ri] = "the robot did not crash";
-              return;
-            }
-          }
-          RobotSession session(SliceForRobot(data, r), *transports[ri], o);
-          results[ri] = session.run();
-          if (r == victim) errors[ri] = "the victim did not leave";
-        } catch (const Leave&) {
-          transports[ri].reset();  // gone for good
-        } catch (const std::exception& e) {
-          errors[ri] = e.what();
-        }
-      });
-    }
-    for (auto& t : threads) t.join();
-    for (const std::string& e : errors) ASSERT_EQ(e, "");
+          return RunUntilKilled(net, log, transports[static_cast<std::size_t>(r)],
+                                SliceForRobot(data, r), first);
+        });
+    ASSERT_FALSE(HasFailure());
+    ASSERT_EQ(gone, std::set<int>{victim});
     int skipped = 0;
     for (int r = 0; r < spec.robots; ++r) {
       if (r == victim) continue;
@@ -509,12 +539,8 @@ TEST(RobotSession, ARobotNeverHeardFromByAPartnerIsTakenAsGoneAfterTheLeaveTimeo
   ScenarioSpec spec = Small();
   spec.robots = 4;
   const SimulationData data = SimulateScenario(spec);
-  std::map<int, std::vector<int>> steps_of;  // robot -> the steps of its events
-  for (const RendezvousEvent& e : data.rendezvous) {
-    for (int r : {e.alpha, e.beta}) steps_of[r].push_back(e.step);
-  }
-  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
-                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  std::map<int, std::vector<int>> steps_of = EventStepsOf(data);
+  const int victim = Busiest(steps_of);
   const int last_step = steps_of[victim].front();  // it leaves after the events of its first step
   std::set<int> met, unheard;  // its partners up to then; those it meets only later
   for (const RendezvousEvent& e : data.rendezvous) {
@@ -533,36 +559,18 @@ TEST(RobotSession, ARobotNeverHeardFromByAPartnerIsTakenAsGoneAfterTheLeaveTimeo
   Log log;
   std::vector<std::unique_ptr<Transport>> transports;
   for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
-  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
-  std::vector<std::string> errors(results.size());
-  struct Leave {};
-  std::vector<std::thread> threads;
-  for (int r = 0; r < spec.robots; ++r) {
-    threads.emplace_back([&, r]() {
-      const auto ri = static_cast<std::size_t>(r);
-      RobotSessionOptions o = Options(spec, log);
-      o.dgs.leave_timeout = milliseconds(300);
-      if (r == victim) {
-        const auto events_at_last = std::count(steps_of[victim].begin(), steps_of[victim].end(),
-                                               last_step);
-        auto seen = std::make_shared<std::int64_t>(0);
-        o.on_rendezvous = [seen, events_at_last](const SessionRendezvous&) {
-          if (++*seen == events_at_last) throw Leave{};
-        };
-      }
-      try {
-        RobotSession session(SliceForRobot(data, r), *transports[ri], o);
-        results[ri] = session.run();
-        if (r == victim) errors[ri] = "the victim did not leave";
-      } catch (const Leave&) {
-        transports[ri].reset();
-      } catch (const std::exception& e) {
-        errors[ri] = e.what();
-      }
-    });
-  }
-  for (auto& t : threads) t.join();
-  for (const std::string& e : errors) ASSERT_EQ(e, "");
+  std::set<int> gone;
+  const std::vector<RobotSessionResult> results =
+      RunSessionsWithFaults(data, transports, [&](int r) {
+        RobotSessionOptions o = Options(spec, log);
+        o.dgs.leave_timeout = milliseconds(300);
+        if (r == victim) {
+          ThrowAfterRendezvous<Gone>(o, std::count(steps_of[victim].begin(), steps_of[victim].end(), last_step));
+        }
+        return o;
+      }, &gone);
+  ASSERT_FALSE(HasFailure());
+  ASSERT_EQ(gone, std::set<int>{victim});
   int skipped = 0;
   for (int r = 0; r < spec.robots; ++r) {
     if (r == victim) continue;
@@ -586,20 +594,10 @@ TEST(RobotSession, ABatchRobotBackAfterItWasFoundGoneContinuesAlone) {
   ScenarioSpec spec = Small();
   spec.robots = 4;
   const SimulationData data = SimulateScenario(spec);
-  std::map<int, std::vector<int>> steps_of;  // robot -> the steps of its events
-  for (const RendezvousEvent& e : data.rendezvous) {
-    for (int r : {e.alpha, e.beta}) steps_of[r].push_back(e.step);
-  }
-  const int victim = std::max_element(steps_of.begin(), steps_of.end(), [](const auto& a,
-                                      const auto& b) { return a.second.size() < b.second.size(); })->first;
+  std::map<int, std::vector<int>> steps_of = EventStepsOf(data);
+  const int victim = Busiest(steps_of);
   const int last_step = steps_of[victim].front();
-  int partner = -1;  // of its first rendezvous after it died
-  for (const RendezvousEvent& e : data.rendezvous) {
-    if (e.step > last_step && (e.alpha == victim || e.beta == victim)) {
-      partner = e.alpha == victim ? e.beta : e.alpha;
-      break;
-    }
-  }
+  const int partner = FirstPartnerAfter(data, victim, last_step);  // the first to wait for it
   ASSERT_GE(partner, 0);
   const LeaveTwin twin = BatchTwinWithoutTheVictim(spec, data, victim, last_step);
   const fs::path dir = fs::temp_directory_path() /
@@ -609,38 +607,24 @@ TEST(RobotSession, ABatchRobotBackAfterItWasFoundGoneContinuesAlone) {
   Log log;
   std::vector<std::unique_ptr<Transport>> transports;
   for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
-  std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
-  std::vector<std::string> errors(results.size());
-  std::vector<std::thread> threads;
-  for (int r = 0; r < spec.robots; ++r) {
-    threads.emplace_back([&, r]() {
-      const auto ri = static_cast<std::size_t>(r);
-      RobotSessionOptions o = Options(spec, log, (dir / std::to_string(r)).string());
-      o.dgs.leave_timeout = milliseconds(300);
-      try {
-        if (r == victim) {
-          RobotSessionOptions first = o;
-          const auto events_at_last = std::count(steps_of[victim].begin(), steps_of[victim].end(),
-                                                 last_step);
-          auto seen = std::make_shared<std::int64_t>(0);
-          first.on_rendezvous = [seen, events_at_last](const SessionRendezvous&) {
-            if (++*seen == events_at_last) throw Crash{};
-          };
-          if (!RunUntilKilled(net, log, transports[ri], SliceForRobot(data, r), first,
-                              [&] { log.waitFor(fmt::format("robot {} left for good", victim)); })) {
-            errors[ri] = "the robot did not crash";
-            return;
-          }
-        }
-        RobotSession session(SliceForRobot(data, r), *transports[ri], o);
-        results[ri] = session.run();
-      } catch (const std::exception& e) {
-        errors[ri] = e.what();
-      }
-    });
-  }
-  for (auto& t : threads) t.join();
-  for (const std::string& e : errors) ASSERT_EQ(e, "");
+  const auto options = [&](int r) {
+    RobotSessionOptions o = Options(spec, log, (dir / std::to_string(r)).string());
+    o.dgs.leave_timeout = milliseconds(300);
+    return o;
+  };
+  std::set<int> gone;
+  const std::vector<RobotSessionResult> results =
+      RunSessionsWithFaults(data, transports, options, &gone, [&](int r) {
+        if (r != victim) return true;
+        RobotSessionOptions first = options(r);
+        const std::vector<int>& steps = steps_of[victim];
+        ThrowAfterRendezvous<Crash>(first, std::count(steps.begin(), steps.end(), last_step));
+        return RunUntilKilled(net, log, transports[static_cast<std::size_t>(r)],
+                              SliceForRobot(data, r), first,
+                              [&] { log.waitFor(fmt::format("robot {} left for good", victim)); });
+      });
+  ASSERT_FALSE(HasFailure());
+  ASSERT_TRUE(gone.empty());
   for (int r = 0; r < spec.robots; ++r) {
     const RobotSessionResult& got = results[static_cast<std::size_t>(r)];
     if (r == victim) {
@@ -673,12 +657,7 @@ TEST(RobotSession, ABatchRobotThatDiesBeforeItsNodesFirstStatusIsLeftOutOfTheSol
   const SimulationData data = SimulateScenario(spec);
   const Reference ref = InProcess(spec, data);
   ASSERT_TRUE(ref.joint.unanchored_robots.empty());
-  std::map<int, int> events_of;
-  for (const RendezvousEvent& e : data.rendezvous) {
-    for (int r : {e.alpha, e.beta}) ++events_of[r];
-  }
-  const int busiest = std::max_element(events_of.begin(), events_of.end(), [](const auto& a,
-                                       const auto& b) { return a.second < b.second; })->first;
+  const int busiest = Busiest(EventStepsOf(data));
   for (const int victim : {0, busiest}) {
     SCOPED_TRACE("robot " + std::to_string(victim) + " dies");
     const LeaveTwin twin = BatchTwinWithoutTheVictim(spec, data, victim, data.numSteps());
@@ -686,7 +665,6 @@ TEST(RobotSession, ABatchRobotThatDiesBeforeItsNodesFirstStatusIsLeftOutOfTheSol
     InProcessNetwork net;
     Log log;
     std::vector<std::unique_ptr<Transport>> transports;
-    struct Death {};
     for (int r = 0; r < spec.robots; ++r) {
       std::unique_ptr<Transport> t = net.connect(r, {log.sink()});
       if (r == victim) {  // its second status of a solve: the joining status, then its node's
@@ -694,31 +672,19 @@ TEST(RobotSession, ABatchRobotThatDiesBeforeItsNodesFirstStatusIsLeftOutOfTheSol
         t = std::make_unique<DyingTransport>(
             std::move(t),
             [statuses](const StatusPacket& p) { return p.solve != kPresenceSolve && ++*statuses == 2; },
-            [] { throw Death{}; });
+            [] { throw Gone{}; });
       }
       transports.push_back(std::move(t));
     }
-    std::vector<RobotSessionResult> results(static_cast<std::size_t>(spec.robots));
-    std::vector<std::string> errors(results.size());
-    std::vector<std::thread> threads;
-    for (int r = 0; r < spec.robots; ++r) {
-      threads.emplace_back([&, r]() {
-        const auto ri = static_cast<std::size_t>(r);
-        RobotSessionOptions o = Options(spec, log);
-        o.dgs.leave_timeout = milliseconds(300);
-        try {
-          RobotSession session(SliceForRobot(data, r), *transports[ri], o);
-          results[ri] = session.run();
-          if (r == victim) errors[ri] = "the victim did not die";
-        } catch (const Death&) {
-          transports[ri].reset();
-        } catch (const std::exception& e) {
-          errors[ri] = e.what();
-        }
-      });
-    }
-    for (auto& t : threads) t.join();
-    for (const std::string& e : errors) ASSERT_EQ(e, "");
+    std::set<int> gone;
+    const std::vector<RobotSessionResult> results =
+        RunSessionsWithFaults(data, transports, [&](int) {
+          RobotSessionOptions o = Options(spec, log);
+          o.dgs.leave_timeout = milliseconds(300);
+          return o;
+        }, &gone);
+    ASSERT_FALSE(HasFailure());
+    ASSERT_EQ(gone, std::set<int>{victim});
     for (int r = 0; r < spec.robots; ++r) {
       if (r == victim) continue;
       const DgsNodeResult& got = results[static_cast<std::size_t>(r)].dgs;
