@@ -45,6 +45,16 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
       line += fmt::format(" {} {}/{} (all {}/{})", label, c.accepted_visible, c.true_visible,
                           c.accepted, c.true_detections);
     }
+    // The accepted detections that are not true, against the nearest same-label object seen.
+    int near = 0;
+    std::string errors;
+    for (const auto& [t, r] : p.false_accepted_errors) {
+      near += t <= 0.1 && r <= 10.0 ? 1 : 0;
+      errors += fmt::format(" {:.2f} m / {:.0f} deg;", t, r);
+    }
+    line += fmt::format("\naccepted false detections: {}, {} of them within 10 cm / 10 deg of a "
+                        "same-label object seen (nearest:{})",
+                        p.false_accepted_errors.size(), near, errors);
     fmt::print(stderr, "{}\n", line);
     m.perception_rejected_inliers = p.rejected_inliers;
     m.perception_rejected_inliers_false = p.rejected_inliers_false;

@@ -92,6 +92,9 @@ TEST(RenderedSensing, CountsTrueDetectionsOfObjectsSeenEnoughByClass) {
   EXPECT_EQ(chair.accepted_visible, all.accepted_visible);
   EXPECT_EQ(all.accepted_visible, all.accepted);
   EXPECT_LE(all.accepted, stats.accepted);
+  // Every accepted detection that is not true has its error to the nearest same-label object.
+  EXPECT_EQ(stats.false_accepted_errors.size(),
+            static_cast<std::size_t>(stats.accepted - all.accepted));
   config.min_visible_fraction = 1.5;  // a share
   EXPECT_THROW(PerceiveSimulation(data, config), InvalidInputError);
 }

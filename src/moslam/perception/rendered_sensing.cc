@@ -108,6 +108,20 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
         d.label = o.detection.label;
         d.measurement = o.body_T_object;
         d.information = o.registration.information;
+        if (!truth) {  // against the nearest same-label object seen
+          std::pair<double, double> nearest{std::numeric_limits<double>::infinity(),
+                                            std::numeric_limits<double>::infinity()};
+          const SE3& est = o.registration.camera_T_object;
+          for (const VisibleObject& v : frame.objects) {
+            if (v.label != o.detection.label) continue;
+            const double t = (est.translation() - v.camera_T_object.translation()).norm();
+            if (t < nearest.first) {
+              nearest = {t, SO3::Log(v.camera_T_object.rotation().inverse() * est.rotation())
+                                    .norm() * kRadToDeg};
+            }
+          }
+          stats.false_accepted_errors.push_back(nearest);
+        }
         if (truth) {
           ++of_class->accepted;
           if (visible) ++of_class->accepted_visible;

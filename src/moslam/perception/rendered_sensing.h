@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "moslam/detection/evaluation.h"  // BoxIou
@@ -54,6 +55,11 @@ struct RenderedSensingStats {
   int segmentation_failed = 0, other_rejected = 0;
   std::vector<double> translation_errors;  // m, accepted true detections
   std::vector<double> rotation_errors_deg;
+  // Accepted detections that are not true (no same-label object box at IoU >= 0.5): the error of
+  // their pose against the nearest same-label object seen in the frame, (m, deg); +inf when the
+  // frame shows none. A small error is a real object whose box the detector drew otherwise (an
+  // occluded object's full extent against its visible pixels), a large one a false measurement.
+  std::vector<std::pair<double, double>> false_accepted_errors;
   StageTimes times;                        // summed over the frames
   double render_ms = 0.0;
   double template_seconds = 0.0;
