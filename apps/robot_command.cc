@@ -296,6 +296,7 @@ void AddSessionSummary(const ScenarioSpec& spec, const RobotSessionResult& r, nl
   j["landmarks"] = r.landmarks;
   j["shared"] = SharedJson(r.shared);
   j["rendezvous"] = RendezvousJson(r);
+  j["left_team"] = r.left_team;  // the team had found it gone: it mapped alone from then on
   j["rendezvous_binary_bytes"] = r.rendezvous_binary_bytes;
   j["rendezvous_dds_samples"] = r.rendezvous_transport.objects_sent;
   j["rendezvous_dds_bytes"] = r.rendezvous_transport.objects_bytes;

@@ -700,6 +700,7 @@ TEST(Team, AnOnlineRobotBackAfterItWasFoundGoneContinuesAlone) {
     ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
     const nlohmann::json j = LastJson(robots[r]->output());
     ASSERT_TRUE(j.is_object()) << robots[r]->output();
+    EXPECT_EQ(j["left_team"].get<bool>(), r == victim) << "robot " << r;
     EXPECT_TRUE(fs::exists(out / ("robot" + std::to_string(r)) / "maps" / "final" / "map.g2o"));
   }
   std::ifstream err(out / ("stderr" + std::to_string(victim)));

@@ -438,6 +438,11 @@ TEST(OnlineSession, ARobotBackAfterItWasFoundGoneContinuesAloneAndTheOthersMapAs
   EXPECT_LE(CompareWithTwin(results, twin, &solves, victim), 1e-9);
   const RobotSessionResult& back = results[static_cast<std::size_t>(victim)];
   EXPECT_FALSE(back.final_estimate.empty());
+  EXPECT_TRUE(back.left_team);
+  EXPECT_GT(back.left_team_step, last_step);
+  for (int r = 0; r < spec.robots; ++r) {
+    EXPECT_EQ(results[static_cast<std::size_t>(r)].left_team, r == victim) << "robot " << r;
+  }
   for (const SessionRendezvous& e : back.rendezvous) {
     EXPECT_EQ(e.skipped, e.event.step > last_step) << "step " << e.event.step;
   }

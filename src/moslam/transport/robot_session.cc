@@ -426,6 +426,7 @@ class RobotSession::Impl {
       result_.landmarks = static_cast<int>(slam.landmarks().size());
       saveMap(slam, "final");
       result_.seconds = result_.slam_seconds;
+      noteLeftTeam();
       return result_;
     }
     result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -457,6 +458,7 @@ class RobotSession::Impl {
       }
     }
     result_.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    noteLeftTeam();
     return result_;
   }
 
@@ -1093,6 +1095,10 @@ class RobotSession::Impl {
   }
 
   // ---- robots that leave for good (team_membership.h) ---------------------------------------
+  void noteLeftTeam() {
+    result_.left_team = membership_->out();
+    result_.left_team_step = membership_->outStep();
+  }
   bool hasLeft(int robot, int t) const { return membership_->hasLeft(robot, t); }
   bool foundLeft(int robot, int t, std::map<int, Clock::time_point>& not_alive_since) {
     return membership_->foundLeft(robot, t, not_alive_since);

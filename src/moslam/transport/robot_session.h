@@ -196,6 +196,10 @@ struct RobotSessionResult {
   DgsNodeResult dgs;                          // the batch solve (not online)
   std::vector<SessionSolve> solves;           // online: the group solves, in order
   Values final_estimate;                      // online: its map at the end (own frame)
+  // The team had found this robot gone (it came back): it left the team at left_team_step and
+  // mapped alone from then on (team_membership.h).
+  bool left_team = false;
+  int left_team_step = -1;
   double seconds = 0.0;
 };
 

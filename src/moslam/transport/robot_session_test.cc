@@ -627,6 +627,7 @@ TEST(RobotSession, ABatchRobotBackAfterItWasFoundGoneContinuesAlone) {
   ASSERT_TRUE(gone.empty());
   for (int r = 0; r < spec.robots; ++r) {
     const RobotSessionResult& got = results[static_cast<std::size_t>(r)];
+    EXPECT_EQ(got.left_team, r == victim) << "robot " << r;
     if (r == victim) {
       EXPECT_EQ(got.dgs.team, std::vector<int>{victim});
       EXPECT_EQ(got.dgs.estimate.size(), static_cast<std::size_t>(got.poses + got.landmarks));

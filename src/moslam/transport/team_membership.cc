@@ -145,6 +145,7 @@ void TeamMembership::foundGoneBy(int by, int step) {
 
 void TeamMembership::leaveTheTeam(int step) {
   out_ = true;
+  out_step_ = step;
   for (int r = 0; r < num_robots_; ++r) {
     if (r != self_) left_.emplace(r, step);
   }

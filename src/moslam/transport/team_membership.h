@@ -53,6 +53,7 @@ class TeamMembership {
 
   bool hasLeft(int robot, int step) const;
   bool out() const { return out_; }  // the team found this robot gone: it continues alone
+  int outStep() const { return out_step_; }  // the step it left the team at (-1: it did not)
   // While `robot` is waited for at `step`: whether it has left for good, by the rules above.
   // `not_alive_since` keeps, per robot waited for, when it was first seen not alive.
   bool foundLeft(int robot, int step, std::map<int, Clock::time_point>& not_alive_since,
@@ -76,6 +77,7 @@ class TeamMembership {
   std::map<int, StatusPacket> presence_;  // the latest presence status of each robot
   std::set<int> seen_alive_;
   bool out_ = false;
+  int out_step_ = -1;
 };
 
 }  // namespace moslam

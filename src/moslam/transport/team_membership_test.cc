@@ -85,8 +85,10 @@ TEST(TeamMembership, ARobotListedGoneByAnotherLeavesTheTeamAndSaysSo) {
   t1->publish(Presence(1, {0}));
   r0.receive();
   std::map<int, TeamMembership::Clock::time_point> since;
+  EXPECT_EQ(r0.membership->outStep(), -1);
   EXPECT_TRUE(r0.membership->foundLeft(1, 5, since));
   EXPECT_TRUE(r0.membership->out());
+  EXPECT_EQ(r0.membership->outStep(), 5);
   EXPECT_TRUE(r0.membership->hasLeft(2, 5));
   EXPECT_EQ(r0.journal, (std::vector<std::pair<int, int>>{{0, 5}}));
   const std::vector<StatusPacket> got = Presences(*t2);
