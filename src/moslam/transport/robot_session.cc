@@ -685,7 +685,8 @@ class RobotSession::Impl {
     Values solution = solved.estimate;
     solution.insert(solved.neighbours.begin(), solved.neighbours.end());
     // Members that left during the solve (the node's rule) are gone for good for this robot too:
-    // their copies are not taken, their later rendezvous skipped, no later solve includes them.
+    // their later rendezvous skipped, no later solve includes them; of their landmarks it takes
+    // what the solution holds (what they sent before they left), and keeps its copies of the rest.
     std::set<int> left_solve;
     for (int local : solved.left) {
       const int r = robots.at(static_cast<std::size_t>(local));
