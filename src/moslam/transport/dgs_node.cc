@@ -759,7 +759,9 @@ class DgsNode::Impl final : public TeamChannel {
         }
         const auto [it, inserted] = not_alive_since.emplace(r, now);
         if (now - it->second >= options_.leave_timeout) {
-          if (!options_.team.empty() && !stepped_.count(r)) {
+          // Only at the first step: a node restarted later replays the steps without their
+          // statuses, and a robot that died since sent it no history to count as stepped.
+          if (!options_.team.empty() && s == 1 && !stepped_.count(r)) {
             never_stepped.push_back(r);
             continue;
           }

@@ -88,9 +88,10 @@ struct DgsNodeOptions {
   bool retest_left_out = true;
   // The team, when the caller formed it already (a robot session, from the joining statuses of
   // its robots: robot_session.h): the node then does not wait for a status of each robot before
-  // its first step. A robot of it found gone (the leave rule) before any status of a step of it
-  // arrived (it died after it joined) stops the solve: run() throws TeamChangedError naming it,
-  // and the caller forms the team again without it. (Taking it as silent from the first step
+  // its first step. A robot of it found gone (the leave rule) at the first step, before any
+  // status of a step of it arrived (it died after it joined), stops the solve: run() throws
+  // TeamChangedError naming it, and the caller forms the team again without it. (Taking it as
+  // silent from the first step
   // instead leaves its variables at nothing: with the gauge's owner, or a robot that links the
   // others, the rest of the team has no anchor and its estimate collapses.) Every robot of the
   // team waits for it at the same first step, so all stop alike. Increasing ids, this robot,
