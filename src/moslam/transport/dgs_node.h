@@ -91,9 +91,9 @@ struct DgsNodeOptions {
   // its first step. A robot of it found gone (the leave rule) at the first step, before any
   // status of a step of it arrived (it died after it joined), stops the solve: run() throws
   // TeamChangedError naming it, and the caller forms the team again without it. (Taking it as
-  // silent from the first step
-  // instead leaves its variables at nothing: with the gauge's owner, or a robot that links the
-  // others, the rest of the team has no anchor and its estimate collapses.) Every robot of the
+  // silent from the first step instead leaves its variables at nothing: with the gauge's owner,
+  // or a robot that links the others, the rest of the team has no anchor and its estimate
+  // collapses.) Every robot of the
   // team waits for it at the same first step, so all stop alike. Increasing ids, this robot,
   // robot 0 and its neighbours among them. Empty: the node forms the team from the statuses
   // (step 1 of the protocol above).
