@@ -225,6 +225,7 @@ int RunPerceive(const PerceiveArgs& a) {
       const bool has_pose = o.status == PerceptionStatus::kAccepted ||
                             o.status == PerceptionStatus::kTooFewInliers ||
                             o.status == PerceptionStatus::kShapeMismatch ||
+                            o.status == PerceptionStatus::kBoxMismatch ||
                             o.status == PerceptionStatus::kColourMismatch;
       if (has_pose) j["camera_T_object"] = PoseJson(o.registration.camera_T_object);
       if (world && f.world_T_camera && has_pose) {

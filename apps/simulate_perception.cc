@@ -55,6 +55,9 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
     line += fmt::format("\naccepted false detections: {}, {} of them within 10 cm / 10 deg of a "
                         "same-label object seen (nearest:{})",
                         p.false_accepted_errors.size(), near, errors);
+    line += fmt::format("\naccepted true detections more than 10 cm / 10 deg off: {} of {}, {} of "
+                        "them within 10 cm of another same-label object seen",
+                        p.accepted_true_off, all.accepted, p.accepted_true_other_object);
     fmt::print(stderr, "{}\n", line);
     m.perception_rejected_inliers = p.rejected_inliers;
     m.perception_rejected_inliers_false = p.rejected_inliers_false;

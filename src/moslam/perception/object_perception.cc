@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "moslam/common/errors.h"
+#include "moslam/detection/evaluation.h"
 #include "moslam/pose_estimation/feature_index.h"
 #include "moslam/pose_estimation/organized_cloud.h"
 #include "moslam/pose_estimation/template_cache.h"
@@ -64,6 +65,31 @@ std::uint64_t MeshDigest(const Mesh& mesh, double spacing, unsigned seed) {
 
 }  // namespace
 
+cv::Rect2f ProjectedBox(const FeatureCloud& cloud, const SE3& camera_T_object,
+                        const PinholeIntrinsics& k) {
+  const Eigen::Matrix3d r = camera_T_object.rotation().matrix();
+  const Vector3 t = camera_T_object.translation();
+  double u0 = k.width, v0 = k.height, u1 = 0.0, v1 = 0.0;
+  bool any = false;
+  for (const FeaturePoint& p : cloud) {
+    const Vector3 q = r * Vector3(p.x, p.y, p.z) + t;
+    if (q.z() <= 1e-3) continue;
+    const double u = k.fx * q.x() / q.z() + k.cx, v = k.fy * q.y() / q.z() + k.cy;
+    u0 = std::min(u0, u);
+    v0 = std::min(v0, v);
+    u1 = std::max(u1, u);
+    v1 = std::max(v1, v);
+    any = true;
+  }
+  u0 = std::max(u0, 0.0);
+  v0 = std::max(v0, 0.0);
+  u1 = std::min(u1, static_cast<double>(k.width));
+  v1 = std::min(v1, static_cast<double>(k.height));
+  if (!any || u1 <= u0 || v1 <= v0) return {};
+  return cv::Rect2f(static_cast<float>(u0), static_cast<float>(v0), static_cast<float>(u1 - u0),
+                    static_cast<float>(v1 - v0));
+}
+
 void PerceptionConfig::validate() const {
   detector.validate();
   segmentation.validate();
@@ -72,6 +98,9 @@ void PerceptionConfig::validate() const {
     throw InvalidInputError("PerceptionConfig: template_spacing must be positive and finite");
   }
   if (threads < 1) throw InvalidInputError("PerceptionConfig: threads must be >= 1");
+  if (!(min_box_agreement >= 0.0 && min_box_agreement <= 1.0)) {
+    throw InvalidInputError("PerceptionConfig: min_box_agreement must be in [0, 1]");
+  }
   if (!templates_dir.empty() && !std::filesystem::is_directory(templates_dir)) {
     throw InvalidInputError("PerceptionConfig: templates_dir '" + templates_dir +
                             "' is not a directory");
@@ -96,6 +125,8 @@ const char* ToString(PerceptionStatus status) {
       return "colour_mismatch";
     case PerceptionStatus::kShapeMismatch:
       return "shape_mismatch";
+    case PerceptionStatus::kBoxMismatch:
+      return "box_mismatch";
   }
   return "unknown";
 }
@@ -203,6 +234,12 @@ FramePerception ObjectPerception::perceive(const RgbdFrame& frame) {
     register_ms[i] = MsSince(t0);
     o.segmentation.segment.reset();
     o.status = FromRegistration(o.registration.status);
+    if (o.registration.status == RegistrationStatus::kAccepted) {
+      o.box_agreement = BoxIou(
+          o.detection.box,
+          ProjectedBox(*templates[i]->cloud, o.registration.camera_T_object, frame.intrinsics));
+      if (o.box_agreement < config_.min_box_agreement) o.status = PerceptionStatus::kBoxMismatch;
+    }
     if (o.accepted()) o.body_T_object = ObjectMeasurementInBody(o.registration.camera_T_object);
   };
   const std::size_t workers =

@@ -68,6 +68,45 @@ TEST(Perception, RecoversTheChairPoseFromARenderedFrame) {
   EXPECT_EQ(m.front().label, "chair");
   EXPECT_EQ(m.front().object_id, -1);
   EXPECT_GT(seen.times.register_, 0.0);
+  // The template at the registered pose projects onto the box; a check demanding a perfect
+  // overlap turns the same pose away.
+  EXPECT_GE(o.box_agreement, 0.6);
+  PerceptionConfig strict = CommittedModel();
+  strict.min_box_agreement = 1.0;
+  ObjectPerception strict_perception(strict, w.classes);
+  const FramePerception strictly = strict_perception.perceive(frame.rgbd);
+  ASSERT_EQ(strictly.objects.size(), 1u);
+  EXPECT_EQ(strictly.objects.front().status, PerceptionStatus::kBoxMismatch);
+  EXPECT_DOUBLE_EQ(strictly.objects.front().box_agreement, o.box_agreement);
+  EXPECT_TRUE(ToObjectDetections(strictly).empty());
+}
+
+// A unit cube 2 m ahead: its pixel box by the pinhole model; behind the camera, empty; partly
+// outside the image, clipped.
+TEST(Perception, ProjectedBoxIsThePinholeBoxClippedToTheImage) {
+  FeatureCloud cube;
+  for (double x : {-0.5, 0.5}) {
+    for (double y : {-0.5, 0.5}) {
+      for (double z : {-0.5, 0.5}) {
+        FeaturePoint p;
+        p.x = static_cast<float>(x);
+        p.y = static_cast<float>(y);
+        p.z = static_cast<float>(z);
+        cube.push_back(p);
+      }
+    }
+  }
+  const PinholeIntrinsics k;  // 320 x 240, f 160, centre (159.5, 119.5)
+  const cv::Rect2f ahead = ProjectedBox(cube, SE3(SO3(), Vector3(0.0, 0.0, 2.0)), k);
+  // The near face (z 1.5) spans +-0.5 / 1.5 * 160 = +-53.3 pixels about the centre.
+  EXPECT_NEAR(ahead.x, 159.5 - 160.0 / 3.0, 1e-3);
+  EXPECT_NEAR(ahead.y, 119.5 - 160.0 / 3.0, 1e-3);
+  EXPECT_NEAR(ahead.width, 320.0 / 3.0, 1e-3);
+  EXPECT_NEAR(ahead.height, 320.0 / 3.0, 1e-3);
+  EXPECT_TRUE(ProjectedBox(cube, SE3(SO3(), Vector3(0.0, 0.0, -2.0)), k).empty());
+  const cv::Rect2f right = ProjectedBox(cube, SE3(SO3(), Vector3(2.0, 0.0, 2.0)), k);
+  EXPECT_NEAR(right.x + right.width, 320.0, 1e-3);
+  EXPECT_NEAR(right.x, 159.5 + 160.0 * 1.5 / 2.5, 1e-3);
 }
 
 TEST(RenderedSensing, CountsTrueDetectionsOfObjectsSeenEnoughByClass) {
@@ -95,6 +134,8 @@ TEST(RenderedSensing, CountsTrueDetectionsOfObjectsSeenEnoughByClass) {
   // Every accepted detection that is not true has its error to the nearest same-label object.
   EXPECT_EQ(stats.false_accepted_errors.size(),
             static_cast<std::size_t>(stats.accepted - all.accepted));
+  EXPECT_LE(stats.accepted_true_other_object, stats.accepted_true_off);
+  EXPECT_LE(stats.accepted_true_off, all.accepted);
   config.min_visible_fraction = 1.5;  // a share
   EXPECT_THROW(PerceiveSimulation(data, config), InvalidInputError);
 }
@@ -131,6 +172,9 @@ TEST(Perception, ValidatesItsConfig) {
   EXPECT_THROW(c.validate(), InvalidInputError);
   c = CommittedModel();
   c.templates_dir = "/nonexistent/templates";
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = CommittedModel();
+  c.min_box_agreement = 1.5;  // an IoU
   EXPECT_THROW(c.validate(), InvalidInputError);
   c = CommittedModel();
   c.detector.model_path = "/nonexistent/model.onnx";

@@ -13,6 +13,11 @@ namespace {
 
 constexpr double kRadToDeg = 57.29577951308232;
 
+// Angle of truth^-1 est's rotation, degrees.
+double RotationErrorDeg(const SE3& truth, const SE3& est) {
+  return SO3::Log(truth.rotation().inverse() * est.rotation()).norm() * kRadToDeg;
+}
+
 }  // namespace
 
 void RenderedSensingConfig::validate() const {
@@ -108,30 +113,34 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
         d.label = o.detection.label;
         d.measurement = o.body_T_object;
         d.information = o.registration.information;
-        if (!truth) {  // against the nearest same-label object seen
-          std::pair<double, double> nearest{std::numeric_limits<double>::infinity(),
-                                            std::numeric_limits<double>::infinity()};
-          const SE3& est = o.registration.camera_T_object;
-          for (const VisibleObject& v : frame.objects) {
-            if (v.label != o.detection.label) continue;
-            const double t = (est.translation() - v.camera_T_object.translation()).norm();
-            if (t < nearest.first) {
-              nearest = {t, SO3::Log(v.camera_T_object.rotation().inverse() * est.rotation())
-                                    .norm() * kRadToDeg};
-            }
+        // The same-label object seen nearest the pose, and the pose's error against it.
+        const SE3& est = o.registration.camera_T_object;
+        const VisibleObject* nearest = nullptr;
+        double nearest_t = std::numeric_limits<double>::infinity();
+        for (const VisibleObject& v : frame.objects) {
+          if (v.label != o.detection.label) continue;
+          const double t = (est.translation() - v.camera_T_object.translation()).norm();
+          if (t < nearest_t) {
+            nearest_t = t;
+            nearest = &v;
           }
-          stats.false_accepted_errors.push_back(nearest);
         }
-        if (truth) {
+        if (!truth) {
+          stats.false_accepted_errors.emplace_back(
+              nearest_t, nearest ? RotationErrorDeg(nearest->camera_T_object, est)
+                                 : std::numeric_limits<double>::infinity());
+        } else {
           ++of_class->accepted;
           if (visible) ++of_class->accepted_visible;
           d.object_id = truth->id;
-          const SE3& est = o.registration.camera_T_object;
-          stats.translation_errors.push_back(
-              (est.translation() - truth->camera_T_object.translation()).norm());
-          stats.rotation_errors_deg.push_back(
-              SO3::Log(truth->camera_T_object.rotation().inverse() * est.rotation()).norm() *
-              kRadToDeg);
+          const double t_error = (est.translation() - truth->camera_T_object.translation()).norm();
+          const double r_error = RotationErrorDeg(truth->camera_T_object, est);
+          stats.translation_errors.push_back(t_error);
+          stats.rotation_errors_deg.push_back(r_error);
+          if (t_error > 0.1 || r_error > 10.0) {
+            ++stats.accepted_true_off;
+            if (nearest != truth && nearest_t <= 0.1) ++stats.accepted_true_other_object;
+          }
         }
         m.detections[i].push_back(std::move(d));
       }

@@ -55,6 +55,10 @@ struct RenderedSensingStats {
   int segmentation_failed = 0, other_rejected = 0;
   std::vector<double> translation_errors;  // m, accepted true detections
   std::vector<double> rotation_errors_deg;
+  // Accepted true detections more than 10 cm or 10 deg off, and of those the ones within 10 cm
+  // of another same-label object seen (nearer it than the box's object): a measurement of
+  // another object (a segment of a nearer object in front of the boxed one).
+  int accepted_true_off = 0, accepted_true_other_object = 0;
   // Accepted detections that are not true (no same-label object box at IoU >= 0.5): the error of
   // their pose against the nearest same-label object seen in the frame, (m, deg); +inf when the
   // frame shows none. A small error is a real object whose box the detector drew otherwise (an

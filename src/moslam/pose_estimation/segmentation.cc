@@ -308,26 +308,41 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
   std::vector<pcl::PointIndices> component_indices;
   occ.segment(components, component_indices);
 
-  // Select: most candidate points inside the box; ties (within tie_ratio) -> nearest.
+  // Select (header comment, step 5).
   struct Candidate {
     std::size_t component;
     int in_box;
     double mean_z;
+    double box_iou;  // of the component's pixel bounding box with the detection box
+    int count;       // points in the grown box
   };
+  const double box_area = static_cast<double>(box.width) * box.height;
   std::vector<Candidate> candidates;
   for (std::size_t c = 0; c < component_indices.size(); ++c) {
     int in_box = 0;
     double sum_z = 0.0;
     int count = 0;
+    int u0 = width, v0 = height, u1 = -1, v1 = -1;
     for (auto index : component_indices[c].indices) {
       const auto i = static_cast<std::size_t>(index);
       if ((*labels)[i].label != 0) continue;  // singleton runs of excluded points
       const Eigen::Vector2i uv = PixelOfIndex(i, cloud.width);
       if (inner.contains(uv.x(), uv.y())) ++in_box;
+      u0 = std::min(u0, uv.x());
+      v0 = std::min(v0, uv.y());
+      u1 = std::max(u1, uv.x() + 1);
+      v1 = std::max(v1, uv.y() + 1);
       sum_z += static_cast<double>(cloud[i].z);
       ++count;
     }
-    if (in_box > 0) candidates.push_back({c, in_box, sum_z / count});
+    if (in_box == 0) continue;
+    const double iu = std::max(0.0, std::min<double>(u1, box.x + box.width) -
+                                        std::max<double>(u0, box.x));
+    const double iv = std::max(0.0, std::min<double>(v1, box.y + box.height) -
+                                        std::max<double>(v0, box.y));
+    const double inter = iu * iv;
+    const double uni = box_area + static_cast<double>(u1 - u0) * (v1 - v0) - inter;
+    candidates.push_back({c, in_box, sum_z / count, uni > 0.0 ? inter / uni : 0.0, count});
   }
   result.components = static_cast<int>(candidates.size());
   int best_count = 0;
@@ -338,12 +353,23 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
     return result;
   }
   const Candidate* best = nullptr;
-  for (const auto& c : candidates) {
-    if (c.in_box < config.min_segment_points ||
-        static_cast<double>(c.in_box) < config.tie_ratio * best_count) {
-      continue;
+  if (config.selection == ComponentSelection::kBoxFit) {
+    // The fit to the box times the share inside it; ties: more points.
+    auto key = [](const Candidate& c) {
+      return std::make_pair(c.box_iou * c.in_box / c.count, c.in_box);
+    };
+    for (const auto& c : candidates) {
+      if (c.in_box < config.min_segment_points) continue;
+      if (best == nullptr || key(c) > key(*best)) best = &c;
     }
-    if (best == nullptr || c.mean_z < best->mean_z) best = &c;
+  } else {
+    for (const auto& c : candidates) {
+      if (c.in_box < config.min_segment_points ||
+          static_cast<double>(c.in_box) < config.tie_ratio * best_count) {
+        continue;
+      }
+      if (best == nullptr || c.mean_z < best->mean_z) best = &c;
+    }
   }
 
   result.segment = std::make_shared<OrganizedCloud>();

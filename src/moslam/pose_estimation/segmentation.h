@@ -27,8 +27,18 @@
 //        non-structure points inside the grown box; the comparator's label cloud marks these
 //        points 0 and every other point 1, and its "exclude labels" set is {0} (PCL joins only
 //        points whose labels are IN that set).
-//     5. the object is the component with the most points inside the (original) box; components
-//        within `tie_ratio` of the best count are ties, won by the nearest (smallest mean z).
+//     5. the object is chosen among the components with min_segment_points points inside the box
+//        (ComponentSelection::kBoxFit, the default): the detector drew the box around the
+//        object's visible pixels, so the object spans the box and lies inside it. The winner has
+//        the largest FIT x INSIDE: FIT the IoU of the component's pixel bounding box with the box,
+//        INSIDE the share of its points (in the grown box) inside the box itself; ties: the most
+//        points in the box. A nearer object standing in front of part of the box fits it worse
+//        and spills out of it; a surface behind the object filling the grown box fits the box
+//        well but spills out of it; of an object split in two (a plant's foliage and pot) the
+//        part spanning more of the box wins. kMostPoints (the rule before, which took the nearer
+//        object and, on rendered chairs25, far walls over chairs): the component with the most
+//        points inside the (original) box; components within `tie_ratio` of the best count are
+//        ties, won by the nearest (smallest mean z).
 //        The segment keeps the winner's points in the grown box.
 //
 // Units: metres, camera optical frame (z forward, x right, y down); boxes in pixels
@@ -46,6 +56,9 @@
 #include "moslam/render/rgbd.h"
 
 namespace moslam {
+
+// Step 5's rule (header comment).
+enum class ComponentSelection { kMostPoints, kBoxFit };
 
 struct SegmentationConfig {
   // Integral-image normals.
@@ -77,7 +90,8 @@ struct SegmentationConfig {
   // 123 / 131 accepted).
   double cluster_depth_sigmas = 3.0;
   int min_segment_points = 50;     // points of the chosen component inside the box
-  double tie_ratio = 0.9;          // in (0, 1]
+  ComponentSelection selection = ComponentSelection::kBoxFit;
+  double tie_ratio = 0.9;          // in (0, 1], kMostPoints only
 
   // Throws InvalidInputError naming the first bad field.
   void validate() const;

@@ -100,11 +100,17 @@ inline double RayBox(const Vector3& dir, const Box3& b) {
   return t0 <= t1 && t0 > 0.0 ? t0 : -1.0;
 }
 
+// A camera-axis-aligned box and its colour (BGR).
+struct ColouredBox3 {
+  Box3 box;
+  cv::Vec3b bgr;
+};
+
 // An analytic frame: level camera at height `camera_height` above an infinite grey floor
-// (camera y = +camera_height), and a red camera-axis-aligned box `object` (camera frame).
-// A wall facing the camera at depth wall_z is added if wall_z > 0.
-inline RgbdFrame FloorAndBoxFrame(const PinholeIntrinsics& K, double camera_height,
-                                  const Box3& object, double wall_z = 0.0) {
+// (camera y = +camera_height), and camera-axis-aligned boxes (camera frame). A wall facing the
+// camera at depth wall_z is added if wall_z > 0.
+inline RgbdFrame FloorAndBoxesFrame(const PinholeIntrinsics& K, double camera_height,
+                                    const std::vector<ColouredBox3>& boxes, double wall_z = 0.0) {
   RgbdFrame f;
   f.intrinsics = K;
   f.rgb = cv::Mat(K.height, K.width, CV_8UC3, cv::Scalar(0, 0, 0));
@@ -125,10 +131,12 @@ inline RgbdFrame FloorAndBoxFrame(const PinholeIntrinsics& K, double camera_heig
         best = wall_z;
         colour = cv::Vec3b(200, 200, 200);
       }
-      const double tb = RayBox(dir, object);
-      if (tb > 0.0 && tb < best) {
-        best = tb;
-        colour = cv::Vec3b(30, 30, 200);
+      for (const ColouredBox3& b : boxes) {
+        const double tb = RayBox(dir, b.box);
+        if (tb > 0.0 && tb < best) {
+          best = tb;
+          colour = b.bgr;
+        }
       }
       if (best < 1e9) {
         f.depth.at<float>(v, u) = static_cast<float>(best);  // dir.z = 1: t is the depth
@@ -137,6 +145,12 @@ inline RgbdFrame FloorAndBoxFrame(const PinholeIntrinsics& K, double camera_heig
     }
   }
   return f;
+}
+
+// One red box (rgb 200, 30, 30).
+inline RgbdFrame FloorAndBoxFrame(const PinholeIntrinsics& K, double camera_height,
+                                  const Box3& object, double wall_z = 0.0) {
+  return FloorAndBoxesFrame(K, camera_height, {{object, cv::Vec3b(30, 30, 200)}}, wall_z);
 }
 
 }  // namespace moslam::test
