@@ -165,7 +165,7 @@ TEST(Registration, HalfTurnFlipIsCorrectedOrRejected) {
   const SE3 pivot(SO3(), Vector3(centroid.x(), centroid.y(), 0.0));
   ASSERT_GT(pivot.translation().norm(), 0.05);  // a different flip from the first
   for (const SE3& flipped : {truth * half_turn, truth * pivot * half_turn * pivot.inverse()}) {
-    RegistrationConfig config;  // symmetry_turns = 2: the pose and 3 half turns
+    RegistrationConfig config;  // symmetry_turns = 4: the pose and 3 of each of 3 turns
     const RegistrationResult r = RefinePose(*segment, tmpl, flipped, config);
     std::printf("  corrected: hypothesis %d of %d, score %.2f, colour %.2f\n", r.hypothesis,
                 r.hypotheses, r.score, r.colour_agreement);
