@@ -67,25 +67,20 @@ std::uint64_t MeshDigest(const Mesh& mesh, double spacing, unsigned seed) {
 
 cv::Rect2f ProjectedBox(const FeatureCloud& cloud, const SE3& camera_T_object,
                         const PinholeIntrinsics& k) {
-  const Eigen::Matrix3d r = camera_T_object.rotation().matrix();
-  const Vector3 t = camera_T_object.translation();
   double u0 = k.width, v0 = k.height, u1 = 0.0, v1 = 0.0;
-  bool any = false;
   for (const FeaturePoint& p : cloud) {
-    const Vector3 q = r * Vector3(p.x, p.y, p.z) + t;
-    if (q.z() <= 1e-3) continue;
-    const double u = k.fx * q.x() / q.z() + k.cx, v = k.fy * q.y() / q.z() + k.cy;
-    u0 = std::min(u0, u);
-    v0 = std::min(v0, v);
-    u1 = std::max(u1, u);
-    v1 = std::max(v1, v);
-    any = true;
+    const auto uv = Project(k, camera_T_object.transformFrom(Vector3(p.x, p.y, p.z)));
+    if (!uv) continue;
+    u0 = std::min(u0, uv->x());
+    v0 = std::min(v0, uv->y());
+    u1 = std::max(u1, uv->x());
+    v1 = std::max(v1, uv->y());
   }
   u0 = std::max(u0, 0.0);
   v0 = std::max(v0, 0.0);
   u1 = std::min(u1, static_cast<double>(k.width));
   v1 = std::min(v1, static_cast<double>(k.height));
-  if (!any || u1 <= u0 || v1 <= v0) return {};
+  if (u1 <= u0 || v1 <= v0) return {};
   return cv::Rect2f(static_cast<float>(u0), static_cast<float>(v0), static_cast<float>(u1 - u0),
                     static_cast<float>(v1 - v0));
 }

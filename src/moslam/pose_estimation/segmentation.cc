@@ -336,12 +336,10 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
       ++count;
     }
     if (in_box == 0) continue;
-    const double iu = std::max(0.0, std::min<double>(u1, box.x + box.width) -
-                                        std::max<double>(u0, box.x));
-    const double iv = std::max(0.0, std::min<double>(v1, box.y + box.height) -
-                                        std::max<double>(v0, box.y));
-    const double inter = iu * iv;
-    const double uni = box_area + static_cast<double>(u1 - u0) * (v1 - v0) - inter;
+    const cv::Rect2f extent(static_cast<float>(u0), static_cast<float>(v0),
+                            static_cast<float>(u1 - u0), static_cast<float>(v1 - v0));
+    const double inter = (extent & box).area();
+    const double uni = box_area + extent.area() - inter;
     candidates.push_back({c, in_box, sum_z / count, uni > 0.0 ? inter / uni : 0.0, count});
   }
   result.components = static_cast<int>(candidates.size());
