@@ -6,6 +6,7 @@
 //                   [--table accuracy|association|memory|scale|perception|all ...] [--json]
 //                   [--plot FILE.svg] [--perception sampled|rendered [--model M.onnx]
 //                   [--classes classes.txt] [--templates DIR] [--perceive-every K]]
+//                   [--exclusion-radius M]
 //   moslam simulate --online --scenario house --robots 6 --runs 10 [--plot FILE.svg] [--json]
 //
 // --perception rendered: the object measurements come from the front-end (detector, PCL
@@ -23,6 +24,7 @@
 #include <algorithm>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,6 +37,9 @@
 namespace moslam::cli {
 
 namespace {
+// The landmark exclusion radius with rendered perception (m): chosen on chairs25 seeds 11-20 (2
+// robots), where it raised the rendezvous precision from 0.908 to 0.959.
+constexpr double kRenderedExclusionRadius = 0.5;
 struct SimulateArgs {
   std::string scenario = "chairs25";
   std::vector<int> robots{6};
@@ -61,6 +66,7 @@ struct SimulateArgs {
   std::string templates;
   std::string template_cache = DefaultTemplateCacheDir();
   int perceive_every = 1;
+  std::optional<double> exclusion_radius;  // unset: kRenderedExclusionRadius when rendered, else 0
   bool online = false;
 };
 }  // namespace
@@ -140,6 +146,11 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "rendered: perceive every K-th pose (the others have no object measurement)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  sub->add_option("--exclusion-radius", args->exclusion_radius,
+                  "m: a detection matching no landmark within this distance of a landmark of its "
+                  "label is discarded, not mapped again (0: off; default 0.5 with --perception "
+                  "rendered, whose front-end confuses objects with their turns, else 0)")
+      ->check(CLI::NonNegativeNumber);
 
   return [args, make_perception]() -> int {
     const SimulateArgs& a = *args;
@@ -171,6 +182,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
           c.base.sigma_translation = a.sigma_trans[i];
           c.base.poses_per_robot = a.poses;
           c.base.known_initial_poses = a.initial_poses == "known";
+          c.base.exclusion_radius = a.exclusion_radius.value_or(0.0);
           results.push_back(RunOnlineExperiment(c));
         }
       }
@@ -208,6 +220,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         c.retest_left_out = a.retest_left_out;
         c.skip_unlinked = a.skip_unlinked;
         c.perceive = perceive;
+        c.exclusion_radius = a.exclusion_radius.value_or(rendered ? kRenderedExclusionRadius : 0.0);
         results.push_back(RunExperiment(c, results.empty() ? &first : nullptr));
       }
     }

@@ -87,6 +87,7 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"dgs_are_landmarks", &RunMetrics::dgs_are_landmarks},
       {"intra_precision", &RunMetrics::intra_precision},
       {"intra_recall", &RunMetrics::intra_recall},
+      {"intra_discarded", &RunMetrics::intra_discarded},
       {"inter_precision", &RunMetrics::inter_precision},
       {"inter_recall", &RunMetrics::inter_recall},
       {"rendezvous_bytes", &RunMetrics::rendezvous_bytes},
@@ -246,6 +247,9 @@ void ExperimentConfig::validate() const {
   if (!(gnc_threshold >= 0.0) || !std::isfinite(gnc_threshold)) {
     throw InvalidInputError("experiment: gnc_threshold must be finite and >= 0");
   }
+  if (!(exclusion_radius >= 0.0) || !std::isfinite(exclusion_radius)) {
+    throw InvalidInputError("experiment: exclusion_radius must be finite and >= 0");
+  }
   if (poses_per_robot < 2) {
     throw InvalidInputError("experiment: poses_per_robot must be at least 2, got " +
                             std::to_string(poses_per_robot));
@@ -277,6 +281,7 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   if (config.perceive) config.perceive(out.data, metrics);
   out.slam = MultiRobotSlamConfigForNoise(sim.sensing);
   out.slam.known_initial_poses = config.known_initial_poses;
+  out.slam.slam.exclusion_radius = config.exclusion_radius;
   out.slam.outlier_fraction = config.outlier_fraction;
   out.slam.outlier_seed = out.seed;
   return out;
@@ -309,6 +314,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.rendezvous = static_cast<double>(slam.rendezvous.size());
   m.intra_precision = slam.intra.precision();
   m.intra_recall = slam.intra.recall();
+  m.intra_discarded = slam.intra.discarded;
   m.inter_precision = slam.inter.precision();
   m.inter_recall = slam.inter.recall();
   m.rendezvous_bytes = static_cast<double>(slam.bytes);

@@ -96,6 +96,10 @@ struct ExperimentConfig {
   double gnc_threshold = 0.0;
   // RobustDgsOptions::retest_left_out.
   bool retest_left_out = true;
+  // The robots' landmark exclusion radius (ObjectSlamConfig::exclusion_radius; m, 0: off). `moslam
+  // simulate` sets 0.5 m with --perception rendered: the front-end confuses a chair with its
+  // quarter and half turns, which sampled measurements never do.
+  double exclusion_radius = 0.0;
   // A run in which some robot never gets linked to robot 0 (no rendezvous aligned, or, with
   // robust, the separator check refused all its links) is left out of the mean and counted
   // (ExperimentResult::skipped), instead of failing the experiment.
@@ -135,6 +139,8 @@ struct RunMetrics {
   double dgs_ate_poses = 0, dgs_ate_landmarks = 0, dgs_are_poses = 0, dgs_are_landmarks = 0;
   // Association against ground truth.
   double intra_precision = 0, intra_recall = 0, inter_precision = 0, inter_recall = 0;
+  // Detections the robots discarded (ObjectSlamConfig::exclusion_radius).
+  double intra_discarded = 0;
   double rendezvous_bytes = 0;  // all rendezvous messages
   // Unknown initial poses: rendezvous aligned, refused (too few consistent objects, ambiguous),
   // accepted with mostly wrong pairs; the rendezvous where both robots had mapped 4 or more

@@ -136,6 +136,7 @@ AssociationStats& AssociationStats::operator+=(const AssociationStats& o) {
   correct += o.correct;
   new_landmarks += o.new_landmarks;
   duplicate_landmarks += o.duplicate_landmarks;
+  discarded += o.discarded;
   associable += o.associable;
   return *this;
 }
@@ -148,6 +149,9 @@ void ObjectSlamConfig::validate() const {
   }
   if (iterations_per_update < 0) {
     throw InvalidInputError("ObjectSlamConfig: iterations_per_update must be >= 0");
+  }
+  if (!(exclusion_radius >= 0.0 && std::isfinite(exclusion_radius))) {
+    throw InvalidInputError("ObjectSlamConfig: exclusion_radius must be finite and >= 0");
   }
 }
 
@@ -281,6 +285,10 @@ void ObjectSlam::record(const std::vector<ObjectDetection>& detections,
       k = *assigned[d];
       ++stats_.associated;
       if (det.object_id >= 0 && landmarks_[k].true_object == det.object_id) ++stats_.correct;
+    } else if (excluded(det, x)) {
+      ++stats_.discarded;
+      last_associations_[d] = kDiscarded;
+      continue;
     } else {
       k = landmarks_.size();
       Landmark lm;
@@ -306,6 +314,18 @@ void ObjectSlam::record(const std::vector<ObjectDetection>& detections,
         RelativePoseFactor(pose_key, Key::Object(0, k), det.measurement, det.information));
     factor_objects_.push_back(det.object_id);
   }
+}
+
+bool ObjectSlam::excluded(const ObjectDetection& detection, const SE3& x) const {
+  if (config_.exclusion_radius <= 0.0) return false;
+  const Vector3 p = (x * detection.measurement).translation();
+  for (std::size_t k = 0; k < landmarks_.size(); ++k) {
+    if (landmarks_[k].label == detection.label &&
+        (landmarkPose(k).translation() - p).norm() <= config_.exclusion_radius) {
+      return true;
+    }
+  }
+  return false;
 }
 
 void ObjectSlam::maybeUpdate() {

@@ -7,8 +7,10 @@
 //   2. associates each object detection (label, z) of pose i: its predicted object pose is
 //      x_i * z; its candidates are the landmarks with the same label that pass the gate (below);
 //      it joins the nearest candidate, else it creates a new landmark Key::Object(robot, k)
-//      initialised at x_i * z. The detections of one pose are distinct objects: they are matched
-//      jointly, nearest (detection, landmark) pair first, no landmark taking two of them;
+//      initialised at x_i * z (unless it falls within ObjectSlamConfig::exclusion_radius of a
+//      landmark of its label: then it is discarded). The detections of one pose are distinct
+//      objects: they are matched jointly, nearest (detection, landmark) pair first, no landmark
+//      taking two of them;
 //   3. localisation (`localization_iterations` > 0, an addition to the paper): when some
 //      detections matched, x_i is refined by Gauss-Newton on its odometry factor and their
 //      object-pose factors (previous pose and landmarks held), and step 2 is redone from there;
@@ -109,6 +111,7 @@ struct AssociationStats {
   int correct = 0;             // ... whose true object is the detection's
   int new_landmarks = 0;
   int duplicate_landmarks = 0; // new landmarks for an object that already had one
+  int discarded = 0;           // detections discarded (ObjectSlamConfig::exclusion_radius)
   int associable = 0;          // detections whose object already had a landmark
   double precision() const { return associated > 0 ? double(correct) / associated : 1.0; }
   double recall() const { return associable > 0 ? double(correct) / associable : 1.0; }
@@ -122,6 +125,15 @@ struct ObjectSlamConfig {
   // Gauss-Newton iterations localising a new pose on the landmarks first matched, before the
   // detections are matched again from the refined pose; 0: match once from the prediction.
   int localization_iterations = 3;
+  // Exclusion radius (m; 0: off, the paper's rule): a detection that joins no landmark but whose
+  // predicted position lies within this distance of a landmark of its label creates no landmark
+  // and adds no factor: it is discarded (AssociationStats::discarded, lastAssociations() kDiscarded).
+  // Two objects of one label do not stand that close, so it is a view of that landmark's object
+  // that the gate refused for its orientation, the signature of a front-end's symmetric confusion
+  // (a chair registered turned 90 or 180 degrees about its vertical axis, which passes the shape
+  // and colour checks), which would otherwise map the object a second time, turned. Failure
+  // mode: when the landmark itself came from such a view, later right views are discarded too.
+  double exclusion_radius = 0.0;
   // Simulation only, for ablations: a detection joins the landmark created for its true object
   // (ObjectDetection::object_id, required >= 0), else creates it; the gate is not used.
   bool ground_truth_association = false;
@@ -174,11 +186,16 @@ class ObjectSlam {
   static constexpr int kNoObservation = -2;
   const std::vector<int>& factorObjects() const { return factor_objects_; }
   // For each detection of the last pose added: the index of its landmark.
+  // The landmark index each detection of the last pose joined or created, kDiscarded for a
+  // detection discarded (ObjectSlamConfig::exclusion_radius).
+  static constexpr std::size_t kDiscarded = static_cast<std::size_t>(-1);
   const std::vector<std::size_t>& lastAssociations() const { return last_associations_; }
 
  private:
   void addDetections(const std::vector<ObjectDetection>& detections,
                      const RelativePoseFactor* odometry);
+  // Whether the detection, seen from x, falls within exclusion_radius of a landmark of its label.
+  bool excluded(const ObjectDetection& detection, const SE3& x) const;
   void record(const std::vector<ObjectDetection>& detections,
               const std::vector<std::optional<std::size_t>>& assigned, const SE3& x);
   std::vector<std::optional<std::size_t>> associate(

@@ -171,6 +171,41 @@ TEST(ObjectSlam, AssociatesSameLabelNearAndCreatesLandmarksOtherwise) {
   EXPECT_LT(SE3::Log(slam.pose(0)).norm(), 1e-12);  // its first pose stays the identity
 }
 
+TEST(ObjectSlam, ExclusionRadiusDiscardsATurnedViewOfAMappedObjectInsteadOfMappingItAgain) {
+  const OdometryReading ahead{Pose(1, 0, 0), Info(5.0, 0.2)};
+  // Pose 1 sees chair 0 again, 0.1 m off but turned 180 deg (a front-end's half-turn
+  // confusion: the gate refuses it for its orientation), and a chair 0.8 m from it turned 90
+  // deg, and a chair at a new place.
+  const std::vector<ObjectDetection> second = {Det("chair", Pose(2, 0.1, 0, 180.0), 0),
+                                               Det("chair", Pose(2, -0.8, 0, 90.0), 1),
+                                               Det("chair", Pose(2, 3, 0), 2)};
+  ObjectSlamConfig c = TestSlamConfig();
+  ObjectSlam paper(0, c);  // exclusion off: the turned view maps chair 0 a second time
+  paper.addFirstPose({Det("chair", Pose(3, 0, 0), 0)});
+  paper.addPose(ahead, second);
+  EXPECT_EQ(paper.landmarks().size(), 4u);
+  EXPECT_EQ(paper.associationStats().duplicate_landmarks, 1);
+  EXPECT_EQ(paper.associationStats().discarded, 0);
+
+  c.exclusion_radius = 0.5;
+  ObjectSlam slam(0, c);
+  slam.addFirstPose({Det("chair", Pose(3, 0, 0), 0)});
+  slam.addPose(ahead, second);
+  EXPECT_EQ(slam.lastAssociations(),
+            (std::vector<std::size_t>{ObjectSlam::kDiscarded, 1, 2}));
+  ASSERT_EQ(slam.landmarks().size(), 3u);
+  EXPECT_EQ(slam.landmarks()[0].observations, 1);
+  const AssociationStats& s = slam.associationStats();
+  EXPECT_EQ(s.detections, 4);
+  EXPECT_EQ(s.discarded, 1);
+  EXPECT_EQ(s.duplicate_landmarks, 0);
+  EXPECT_EQ(slam.graph().factors().size(), 4u);  // odometry, pose 0's chair and the two kept
+
+  c.exclusion_radius = -0.1;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  EXPECT_THROW(ObjectSlam(0, c), InvalidInputError);
+}
+
 TEST(ObjectSlam, GroundTruthAssociationFollowsTheObjectIds) {
   ObjectSlamConfig c = TestSlamConfig();
   c.ground_truth_association = true;
