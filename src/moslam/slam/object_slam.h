@@ -185,9 +185,8 @@ class ObjectSlam {
   // object-pose factor (ObjectDetection::object_id, -1 unknown), kNoObservation for odometry.
   static constexpr int kNoObservation = -2;
   const std::vector<int>& factorObjects() const { return factor_objects_; }
-  // For each detection of the last pose added: the index of its landmark.
-  // The landmark index each detection of the last pose joined or created, kDiscarded for a
-  // detection discarded (ObjectSlamConfig::exclusion_radius).
+  // For each detection of the last pose added: the index of the landmark it joined or created,
+  // kDiscarded for one discarded (ObjectSlamConfig::exclusion_radius).
   static constexpr std::size_t kDiscarded = static_cast<std::size_t>(-1);
   const std::vector<std::size_t>& lastAssociations() const { return last_associations_; }
 
