@@ -6,7 +6,7 @@
 //                   [--table accuracy|association|memory|scale|perception|all ...] [--json]
 //                   [--plot FILE.svg] [--perception sampled|rendered [--model M.onnx]
 //                   [--classes classes.txt] [--templates DIR] [--perceive-every K]]
-//                   [--exclusion-radius M]
+//                   [--exclusion-radius M] [--leave-one-out-check]
 //   moslam simulate --online --scenario house --robots 6 --runs 10 [--plot FILE.svg] [--json]
 //
 // --perception rendered: the object measurements come from the front-end (detector, PCL
@@ -67,6 +67,7 @@ struct SimulateArgs {
   std::string template_cache = DefaultTemplateCacheDir();
   int perceive_every = 1;
   std::optional<double> exclusion_radius;  // unset: kRenderedExclusionRadius when rendered, else 0
+  bool leave_one_out_check = false;
   bool online = false;
 };
 }  // namespace
@@ -151,6 +152,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "label is discarded, not mapped again (0: off; default 0.5 with --perception "
                   "rendered, whose front-end confuses objects with their turns, else 0)")
       ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--leave-one-out-check", args->leave_one_out_check,
+                "a robot refuses a match that disagrees with its pose localised on the pose's "
+                "other matches, and discards the detection (fewer wrong matches among objects "
+                "of one label standing close, fewer right ones elsewhere; off: the paper's rule)");
 
   return [args, make_perception]() -> int {
     const SimulateArgs& a = *args;
@@ -183,6 +188,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
           c.base.poses_per_robot = a.poses;
           c.base.known_initial_poses = a.initial_poses == "known";
           c.base.exclusion_radius = a.exclusion_radius.value_or(0.0);
+          c.base.leave_one_out_check = a.leave_one_out_check;
           results.push_back(RunOnlineExperiment(c));
         }
       }
@@ -221,6 +227,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         c.skip_unlinked = a.skip_unlinked;
         c.perceive = perceive;
         c.exclusion_radius = a.exclusion_radius.value_or(rendered ? kRenderedExclusionRadius : 0.0);
+        c.leave_one_out_check = a.leave_one_out_check;
         results.push_back(RunExperiment(c, results.empty() ? &first : nullptr));
       }
     }

@@ -88,6 +88,7 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"intra_precision", &RunMetrics::intra_precision},
       {"intra_recall", &RunMetrics::intra_recall},
       {"intra_discarded", &RunMetrics::intra_discarded},
+      {"intra_refused", &RunMetrics::intra_refused},
       {"inter_precision", &RunMetrics::inter_precision},
       {"inter_recall", &RunMetrics::inter_recall},
       {"rendezvous_bytes", &RunMetrics::rendezvous_bytes},
@@ -282,6 +283,7 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   out.slam = MultiRobotSlamConfigForNoise(sim.sensing);
   out.slam.known_initial_poses = config.known_initial_poses;
   out.slam.slam.exclusion_radius = config.exclusion_radius;
+  out.slam.slam.leave_one_out_check = config.leave_one_out_check;
   out.slam.outlier_fraction = config.outlier_fraction;
   out.slam.outlier_seed = out.seed;
   return out;
@@ -315,6 +317,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.intra_precision = slam.intra.precision();
   m.intra_recall = slam.intra.recall();
   m.intra_discarded = slam.intra.discarded;
+  m.intra_refused = slam.intra.refused;
   m.inter_precision = slam.inter.precision();
   m.inter_recall = slam.inter.recall();
   m.rendezvous_bytes = static_cast<double>(slam.bytes);

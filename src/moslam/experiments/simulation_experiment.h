@@ -100,6 +100,9 @@ struct ExperimentConfig {
   // simulate` sets 0.5 m with --perception rendered: the front-end confuses a chair with its
   // quarter and half turns, which sampled measurements never do.
   double exclusion_radius = 0.0;
+  // The robots' leave-one-out check of their matches (ObjectSlamConfig::leave_one_out_check;
+  // `moslam simulate --leave-one-out-check`).
+  bool leave_one_out_check = false;
   // A run in which some robot never gets linked to robot 0 (no rendezvous aligned, or, with
   // robust, the separator check refused all its links) is left out of the mean and counted
   // (ExperimentResult::skipped), instead of failing the experiment.
@@ -139,8 +142,9 @@ struct RunMetrics {
   double dgs_ate_poses = 0, dgs_ate_landmarks = 0, dgs_are_poses = 0, dgs_are_landmarks = 0;
   // Association against ground truth.
   double intra_precision = 0, intra_recall = 0, inter_precision = 0, inter_recall = 0;
-  // Detections the robots discarded (ObjectSlamConfig::exclusion_radius).
-  double intra_discarded = 0;
+  // Detections the robots discarded (ObjectSlamConfig::exclusion_radius) and matches they refused
+  // (ObjectSlamConfig::leave_one_out_check; their detections discarded too).
+  double intra_discarded = 0, intra_refused = 0;
   double rendezvous_bytes = 0;  // all rendezvous messages
   // Unknown initial poses: rendezvous aligned, refused (too few consistent objects, ambiguous),
   // accepted with mostly wrong pairs; the rendezvous where both robots had mapped 4 or more

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <utility>
 
 #include "moslam/common/errors.h"
 #include "moslam/solver/optimizer.h"
@@ -55,18 +56,29 @@ void AssociationGate::validate() const {
   }
 }
 
+namespace {
+
+// The gate's two terms in sigmas: the position discrepancy, the angle (0 when not tested).
+std::pair<double, double> GateTerms(const AssociationGate& gate, const SE3& predicted,
+                                    const SE3& candidate) {
+  const double d = (candidate.translation() - predicted.translation()).norm() / gate.sigma;
+  if (gate.sigma_rotation_deg <= 0.0) return {d, 0.0};
+  const double angle_deg =
+      SO3::Log(predicted.rotation().inverse() * candidate.rotation()).norm() * kRadToDeg;
+  return {d, angle_deg / gate.sigma_rotation_deg};
+}
+
+}  // namespace
+
+double AssociationGate::score(const SE3& predicted, const SE3& candidate) const {
+  const auto [d, a] = GateTerms(*this, predicted, candidate);
+  return d * d + a * a;
+}
+
 bool AssociationGate::accepts(const SE3& predicted, const SE3& candidate, double* score) const {
-  const double d = (candidate.translation() - predicted.translation()).norm() / sigma;
-  if (d > num_sigmas) return false;
-  double s = d * d;
-  if (sigma_rotation_deg > 0.0) {
-    const double angle_deg =
-        SO3::Log(predicted.rotation().inverse() * candidate.rotation()).norm() * kRadToDeg;
-    const double a = angle_deg / sigma_rotation_deg;
-    if (a > num_sigmas) return false;
-    s += a * a;
-  }
-  if (score != nullptr) *score = s;
+  const auto [d, a] = GateTerms(*this, predicted, candidate);
+  if (d > num_sigmas || a > num_sigmas) return false;
+  if (score != nullptr) *score = d * d + a * a;
   return true;
 }
 
@@ -137,6 +149,7 @@ AssociationStats& AssociationStats::operator+=(const AssociationStats& o) {
   new_landmarks += o.new_landmarks;
   duplicate_landmarks += o.duplicate_landmarks;
   discarded += o.discarded;
+  refused += o.refused;
   associable += o.associable;
   return *this;
 }
@@ -152,6 +165,11 @@ void ObjectSlamConfig::validate() const {
   }
   if (!(exclusion_radius >= 0.0 && std::isfinite(exclusion_radius))) {
     throw InvalidInputError("ObjectSlamConfig: exclusion_radius must be finite and >= 0");
+  }
+  if (leave_one_out_check && localization_iterations == 0) {
+    throw InvalidInputError(
+        "ObjectSlamConfig: leave_one_out_check localises the pose on the other matches and needs "
+        "localization_iterations >= 1");
   }
 }
 
@@ -264,11 +282,43 @@ void ObjectSlam::addDetections(const std::vector<ObjectDetection>& detections,
     local_values_[pose_key] = x;
     assigned = associate(x, detections);
   }
-  record(detections, assigned, x);
+  // The pose stays localised on every match: localising it again without the refused ones (or
+  // at the prediction, when none is left) mapped worse (chairs25, 6 robots, seeds 11-20: GT ATE
+  // 0.71 -> 0.97 m).
+  std::vector<bool> refused(detections.size(), false);
+  if (odometry != nullptr && config_.leave_one_out_check) {
+    refused = refuseInconsistent(x, *odometry, detections, assigned);
+  }
+  record(detections, assigned, refused, x);
+}
+
+std::vector<bool> ObjectSlam::refuseInconsistent(
+    const SE3& x, const RelativePoseFactor& odometry,
+    const std::vector<ObjectDetection>& detections,
+    std::vector<std::optional<std::size_t>>& assigned) const {
+  std::vector<bool> refused(detections.size(), false);
+  const auto matches = std::count_if(assigned.begin(), assigned.end(),
+                                     [](const auto& a) { return a.has_value(); });
+  if (matches < 2) return refused;
+  const AssociationGate& gate = config_.association;
+  const double limit = gate.num_sigmas * gate.num_sigmas;
+  for (std::size_t d = 0; d < detections.size(); ++d) {
+    if (!assigned[d]) continue;
+    std::vector<std::optional<std::size_t>> others = assigned;
+    others[d].reset();
+    const SE3 localised = refinePose(x, odometry, detections, others);
+    refused[d] = gate.score(localised * detections[d].measurement, landmarkPose(*assigned[d])) >
+                 limit;
+  }
+  for (std::size_t d = 0; d < detections.size(); ++d) {
+    if (refused[d]) assigned[d].reset();
+  }
+  return refused;
 }
 
 void ObjectSlam::record(const std::vector<ObjectDetection>& detections,
-                        const std::vector<std::optional<std::size_t>>& assigned, const SE3& x) {
+                        const std::vector<std::optional<std::size_t>>& assigned,
+                        const std::vector<bool>& refused, const SE3& x) {
   const auto i = static_cast<std::uint64_t>(num_poses_ - 1);
   const Key pose_key = Key::Pose(0, i);
   const std::vector<int> mapped_before = mapped_objects_;
@@ -285,6 +335,10 @@ void ObjectSlam::record(const std::vector<ObjectDetection>& detections,
       k = *assigned[d];
       ++stats_.associated;
       if (det.object_id >= 0 && landmarks_[k].true_object == det.object_id) ++stats_.correct;
+    } else if (refused[d]) {
+      ++stats_.refused;
+      last_associations_[d] = kDiscarded;
+      continue;
     } else if (excluded(det, x)) {
       ++stats_.discarded;
       last_associations_[d] = kDiscarded;

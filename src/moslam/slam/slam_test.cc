@@ -206,6 +206,57 @@ TEST(ObjectSlam, ExclusionRadiusDiscardsATurnedViewOfAMappedObjectInsteadOfMappi
   EXPECT_THROW(ObjectSlam(0, c), InvalidInputError);
 }
 
+// A drifted robot's wrong match: a detection of an unmapped chair predicted 0.9 m and 25 deg from
+// a neighbour's landmark passes the gate term by term (1.8 and 1.67 sigmas of 2) and the paper's
+// rule joins it; against the pose the four right matches give, its score is 6.0 > 2^2: refused.
+TEST(ObjectSlam, LeaveOneOutCheckRefusesAMatchTheOtherMatchesDisagreeWith) {
+  ObjectSlamConfig c = TestSlamConfig();
+  c.localization_iterations = 3;
+  const std::vector<ObjectDetection> first = {
+      Det("chair", Pose(3, 0, 0), 0), Det("chair", Pose(3, 2, 0, 60), 1),
+      Det("chair", Pose(3, -2, 0, -60), 2), Det("chair", Pose(5, 0, 0, 120), 3),
+      Det("chair", Pose(6, 3, 0, 10), 4)};
+  // Pose 1, 1 m ahead (odometry exact): chairs 0-3 exactly where they are, and chair 5, which is
+  // no landmark, seen 0.9 m and 25 deg from chair 4's.
+  const OdometryReading ahead{Pose(1, 0, 0), Info(5.0, 0.2)};
+  const std::vector<ObjectDetection> second = {
+      Det("chair", Pose(2, 0, 0), 0), Det("chair", Pose(2, 2, 0, 60), 1),
+      Det("chair", Pose(2, -2, 0, -60), 2), Det("chair", Pose(4, 0, 0, 120), 3),
+      Det("chair", Pose(5, 3.9, 0, 35), 5)};
+
+  ObjectSlam paper(0, c);
+  paper.addFirstPose(first);
+  paper.addPose(ahead, second);
+  EXPECT_EQ(paper.lastAssociations(), (std::vector<std::size_t>{0, 1, 2, 3, 4}));
+  EXPECT_EQ(paper.associationStats().correct, 4);
+  EXPECT_GT(PoseDistance(paper.pose(1), Pose(1, 0, 0)), 0.01);  // pulled by the wrong match
+
+  c.leave_one_out_check = true;
+  ObjectSlam slam(0, c);
+  slam.addFirstPose(first);
+  slam.addPose(ahead, second);
+  EXPECT_EQ(slam.lastAssociations(),
+            (std::vector<std::size_t>{0, 1, 2, 3, ObjectSlam::kDiscarded}));
+  const AssociationStats& s = slam.associationStats();
+  EXPECT_EQ(s.refused, 1);
+  EXPECT_EQ(s.associated, 4);
+  EXPECT_EQ(s.correct, 4);
+  EXPECT_EQ(s.new_landmarks, 5);  // chair 5 is not mapped either: it lies at a landmark
+  EXPECT_EQ(slam.landmarks()[4].observations, 1);
+  EXPECT_EQ(slam.graph().factors().size(), 10u);  // odometry, 5 + 4 object-pose factors
+
+  // A pose with one match has nothing to check it against: the paper's rule.
+  ObjectSlam single(0, c);
+  single.addFirstPose(first);
+  single.addPose(ahead, {second[4]});
+  EXPECT_EQ(single.lastAssociations(), (std::vector<std::size_t>{4}));
+  EXPECT_EQ(single.associationStats().refused, 0);
+
+  // The check localises: it needs localisation iterations.
+  c.localization_iterations = 0;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+}
+
 TEST(ObjectSlam, GroundTruthAssociationFollowsTheObjectIds) {
   ObjectSlamConfig c = TestSlamConfig();
   c.ground_truth_association = true;
