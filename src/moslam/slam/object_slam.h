@@ -161,7 +161,8 @@ struct ObjectSlamConfig {
   // localization_iterations >= 1.
   bool leave_one_out_check = false;
   // Simulation only, for ablations: a detection joins the landmark created for its true object
-  // (ObjectDetection::object_id, required >= 0), else creates it; the gate is not used.
+  // (ObjectDetection::object_id, required >= 0), else creates it; neither the gate, the
+  // exclusion radius nor the leave-one-out check is used.
   bool ground_truth_association = false;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;

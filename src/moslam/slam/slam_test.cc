@@ -268,6 +268,26 @@ TEST(ObjectSlam, GroundTruthAssociationFollowsTheObjectIds) {
   slam.addPose(ahead, {Det("chair", Pose(2, 4, 0), 11), Det("chair", Pose(2, 0, 0), 12)});
   EXPECT_EQ(slam.lastAssociations(), (std::vector<std::size_t>{1, 2}));
   EXPECT_EQ(slam.associationStats().precision(), 1.0);
+  // Nothing the robots' own rules would refuse is refused: chair 13, 0.2 m from chair 10's
+  // landmark, is mapped whatever the exclusion radius; the far view of chair 11 (3 m off its
+  // landmark, against a right one of chair 10) is joined whatever the leave-one-out check.
+  ObjectSlamConfig checked = c;
+  checked.exclusion_radius = 0.5;
+  checked.localization_iterations = 3;
+  checked.leave_one_out_check = true;
+  for (const auto& [second, expected] :
+       {std::make_pair(std::vector<ObjectDetection>{Det("chair", Pose(2, 0, 0), 10),
+                                                    Det("chair", Pose(2, 0.2, 0), 13)},
+                       std::vector<std::size_t>{0, 2}),
+        std::make_pair(std::vector<ObjectDetection>{Det("chair", Pose(2, 0, 0), 10),
+                                                    Det("chair", Pose(2, 4, 0), 11)},
+                       std::vector<std::size_t>{0, 1})}) {
+    ObjectSlam truth(0, checked);
+    truth.addFirstPose({Det("chair", Pose(3, 0, 0), 10), Det("chair", Pose(3, 1, 0), 11)});
+    truth.addPose(ahead, second);
+    EXPECT_EQ(truth.lastAssociations(), expected);
+    EXPECT_EQ(truth.associationStats().discarded + truth.associationStats().refused, 0);
+  }
   EXPECT_THROW(slam.addPose(ahead, {Det("chair", Pose(2, 0, 0), -1)}), InvalidInputError);
   EXPECT_THROW(slam.addPose(ahead, {Det("chair", Pose(2, 0, 0), 3), Det("table", Pose(1, 0, 0), 3)}),
                InvalidInputError);
