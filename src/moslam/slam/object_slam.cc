@@ -166,6 +166,9 @@ void ObjectSlamConfig::validate() const {
   if (!(exclusion_radius >= 0.0 && std::isfinite(exclusion_radius))) {
     throw InvalidInputError("ObjectSlamConfig: exclusion_radius must be finite and >= 0");
   }
+  if (!(leave_one_out_rival_radii > 0.0 && std::isfinite(leave_one_out_rival_radii))) {
+    throw InvalidInputError("ObjectSlamConfig: leave_one_out_rival_radii must be finite and > 0");
+  }
   if (leave_one_out_check && localization_iterations == 0) {
     throw InvalidInputError(
         "ObjectSlamConfig: leave_one_out_check localises the pose on the other matches and needs "
@@ -307,8 +310,9 @@ std::vector<bool> ObjectSlam::refuseInconsistent(
     std::vector<std::optional<std::size_t>> others = assigned;
     others[d].reset();
     const SE3 localised = refinePose(x, odometry, detections, others);
-    refused[d] = gate.score(localised * detections[d].measurement, landmarkPose(*assigned[d])) >
-                 limit;
+    const SE3 predicted = localised * detections[d].measurement;
+    refused[d] = gate.score(predicted, landmarkPose(*assigned[d])) > limit &&
+                 hasRival(detections[d].label, predicted.translation(), *assigned[d]);
   }
   for (std::size_t d = 0; d < detections.size(); ++d) {
     if (refused[d]) assigned[d].reset();
@@ -368,6 +372,18 @@ void ObjectSlam::record(const std::vector<ObjectDetection>& detections,
         RelativePoseFactor(pose_key, Key::Object(0, k), det.measurement, det.information));
     factor_objects_.push_back(det.object_id);
   }
+}
+
+bool ObjectSlam::hasRival(const std::string& label, const Vector3& position,
+                          std::size_t matched) const {
+  const double radius = config_.leave_one_out_rival_radii * config_.association.radius();
+  for (std::size_t k = 0; k < landmarks_.size(); ++k) {
+    if (k != matched && landmarks_[k].label == label &&
+        (landmarkPose(k).translation() - position).norm() <= radius) {
+      return true;
+    }
+  }
+  return false;
 }
 
 bool ObjectSlam::excluded(const ObjectDetection& detection, const SE3& x) const {

@@ -208,14 +208,16 @@ TEST(ObjectSlam, ExclusionRadiusDiscardsATurnedViewOfAMappedObjectInsteadOfMappi
 
 // A drifted robot's wrong match: a detection of an unmapped chair predicted 0.9 m and 25 deg from
 // a neighbour's landmark passes the gate term by term (1.8 and 1.67 sigmas of 2) and the paper's
-// rule joins it; against the pose the four right matches give, its score is 6.0 > 2^2: refused.
+// rule joins it; against the pose the four right matches give, its score is 6.0 > 2^2, and
+// another chair stands 1.5 m from it (within 3 gate radii, 3 m): refused. Without that rival
+// chair it is kept.
 TEST(ObjectSlam, LeaveOneOutCheckRefusesAMatchTheOtherMatchesDisagreeWith) {
   ObjectSlamConfig c = TestSlamConfig();
   c.localization_iterations = 3;
   const std::vector<ObjectDetection> first = {
       Det("chair", Pose(3, 0, 0), 0), Det("chair", Pose(3, 2, 0, 60), 1),
       Det("chair", Pose(3, -2, 0, -60), 2), Det("chair", Pose(5, 0, 0, 120), 3),
-      Det("chair", Pose(6, 3, 0, 10), 4)};
+      Det("chair", Pose(6, 3, 0, 10), 4), Det("chair", Pose(7, 5, 0, -80), 6)};
   // Pose 1, 1 m ahead (odometry exact): chairs 0-3 exactly where they are, and chair 5, which is
   // no landmark, seen 0.9 m and 25 deg from chair 4's.
   const OdometryReading ahead{Pose(1, 0, 0), Info(5.0, 0.2)};
@@ -241,9 +243,24 @@ TEST(ObjectSlam, LeaveOneOutCheckRefusesAMatchTheOtherMatchesDisagreeWith) {
   EXPECT_EQ(s.refused, 1);
   EXPECT_EQ(s.associated, 4);
   EXPECT_EQ(s.correct, 4);
-  EXPECT_EQ(s.new_landmarks, 5);  // chair 5 is not mapped either: it lies at a landmark
+  EXPECT_EQ(s.new_landmarks, 6);  // chair 5 is not mapped either: it lies at a landmark
   EXPECT_EQ(slam.landmarks()[4].observations, 1);
-  EXPECT_EQ(slam.graph().factors().size(), 10u);  // odometry, 5 + 4 object-pose factors
+  EXPECT_EQ(slam.graph().factors().size(), 11u);  // odometry, 6 + 4 object-pose factors
+
+  // No rival within 3 gate radii (chair 6 not mapped): the match is kept, as by the paper's rule.
+  ObjectSlam alone(0, c);
+  alone.addFirstPose(std::vector<ObjectDetection>(first.begin(), first.end() - 1));
+  alone.addPose(ahead, second);
+  EXPECT_EQ(alone.lastAssociations(), (std::vector<std::size_t>{0, 1, 2, 3, 4}));
+  EXPECT_EQ(alone.associationStats().refused, 0);
+  c.leave_one_out_rival_radii = 1.4;  // 1.4 m: chair 6, 1.49 m away, is no rival either
+  ObjectSlam near(0, c);
+  near.addFirstPose(first);
+  near.addPose(ahead, second);
+  EXPECT_EQ(near.associationStats().refused, 0);
+  c.leave_one_out_rival_radii = 0.0;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c.leave_one_out_rival_radii = 3.0;
 
   // A pose with one match has nothing to check it against: the paper's rule.
   ObjectSlam single(0, c);
