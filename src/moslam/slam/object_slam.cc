@@ -312,7 +312,8 @@ std::vector<bool> ObjectSlam::refuseInconsistent(
     const SE3 localised = refinePose(x, odometry, detections, others);
     const SE3 predicted = localised * detections[d].measurement;
     refused[d] = gate.score(predicted, landmarkPose(*assigned[d])) > limit &&
-                 hasRival(detections[d].label, predicted.translation(), *assigned[d]);
+                 nearLandmark(detections[d].label, predicted.translation(),
+                              config_.leave_one_out_rival_radii * gate.radius(), *assigned[d]);
   }
   for (std::size_t d = 0; d < detections.size(); ++d) {
     if (refused[d]) assigned[d].reset();
@@ -374,11 +375,10 @@ void ObjectSlam::record(const std::vector<ObjectDetection>& detections,
   }
 }
 
-bool ObjectSlam::hasRival(const std::string& label, const Vector3& position,
-                          std::size_t matched) const {
-  const double radius = config_.leave_one_out_rival_radii * config_.association.radius();
+bool ObjectSlam::nearLandmark(const std::string& label, const Vector3& position, double radius,
+                              std::size_t except) const {
   for (std::size_t k = 0; k < landmarks_.size(); ++k) {
-    if (k != matched && landmarks_[k].label == label &&
+    if (k != except && landmarks_[k].label == label &&
         (landmarkPose(k).translation() - position).norm() <= radius) {
       return true;
     }
@@ -388,14 +388,8 @@ bool ObjectSlam::hasRival(const std::string& label, const Vector3& position,
 
 bool ObjectSlam::excluded(const ObjectDetection& detection, const SE3& x) const {
   if (config_.exclusion_radius <= 0.0 || config_.ground_truth_association) return false;
-  const Vector3 p = (x * detection.measurement).translation();
-  for (std::size_t k = 0; k < landmarks_.size(); ++k) {
-    if (landmarks_[k].label == detection.label &&
-        (landmarkPose(k).translation() - p).norm() <= config_.exclusion_radius) {
-      return true;
-    }
-  }
-  return false;
+  return nearLandmark(detection.label, (x * detection.measurement).translation(),
+                      config_.exclusion_radius);
 }
 
 void ObjectSlam::maybeUpdate() {

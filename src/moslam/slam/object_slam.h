@@ -227,9 +227,9 @@ class ObjectSlam {
  private:
   void addDetections(const std::vector<ObjectDetection>& detections,
                      const RelativePoseFactor* odometry);
-  // Whether a landmark of `label` other than `matched` lies within leave_one_out_rival_radii gate
-  // radii of `position`.
-  bool hasRival(const std::string& label, const Vector3& position, std::size_t matched) const;
+  // Whether a landmark of `label` other than landmark `except` lies within `radius` of `position`.
+  bool nearLandmark(const std::string& label, const Vector3& position, double radius,
+                    std::size_t except = kDiscarded) const;
   // Whether the detection, seen from x, falls within exclusion_radius of a landmark of its label.
   bool excluded(const ObjectDetection& detection, const SE3& x) const;
   // The leave-one-out check of `assigned` at pose x (ObjectSlamConfig::leave_one_out_check):
