@@ -156,14 +156,25 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
                   "rendezvous aligns the two object maps from the objects alone, and no process "
                   "is given the initial poses")
       ->check(CLI::IsMember({"known", "unknown"}));
+  sub->add_option("--exclusion-radius", f.spec.exclusion_radius,
+                  "A robot's landmark exclusion radius (m, 0: off): a detection that joins no "
+                  "landmark but lies this close to one of its label is discarded (as simulate)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--leave-one-out-check", f.spec.leave_one_out_check,
+                "A robot re-tests each match of a pose at the pose localised on its other "
+                "matches, and refuses the ones that disagree (as simulate)");
 }
 
 std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
-  return {"--scenario", f.name, "--robots", std::to_string(f.spec.robots), "--seed",
-          std::to_string(f.spec.seed), "--sigma-rot", fmt::format("{}", f.spec.sigma_rotation_deg),
-          "--sigma-trans", fmt::format("{}", f.spec.sigma_translation), "--poses",
-          std::to_string(f.spec.poses_per_robot), "--rendezvous-timeout",
-          fmt::format("{}", f.rendezvous_timeout), "--initial-poses", f.initial_poses};
+  std::vector<std::string> a = {
+      "--scenario", f.name, "--robots", std::to_string(f.spec.robots), "--seed",
+      std::to_string(f.spec.seed), "--sigma-rot", fmt::format("{}", f.spec.sigma_rotation_deg),
+      "--sigma-trans", fmt::format("{}", f.spec.sigma_translation), "--poses",
+      std::to_string(f.spec.poses_per_robot), "--rendezvous-timeout",
+      fmt::format("{}", f.rendezvous_timeout), "--initial-poses", f.initial_poses,
+      "--exclusion-radius", fmt::format("{}", f.spec.exclusion_radius)};
+  if (f.spec.leave_one_out_check) a.push_back("--leave-one-out-check");
+  return a;
 }
 
 G2oReadOptions WithObjects() {
@@ -292,6 +303,8 @@ void AddSessionSummary(const ScenarioSpec& spec, const RobotSessionResult& r, nl
   j["scenario"] = spec.scenario;
   j["seed"] = spec.seed;
   j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
+  j["exclusion_radius"] = spec.exclusion_radius;
+  j["leave_one_out_check"] = spec.leave_one_out_check;
   j["poses"] = r.poses;
   j["landmarks"] = r.landmarks;
   j["shared"] = SharedJson(r.shared);
@@ -748,6 +761,8 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
   j["robots"] = n;
   j["seed"] = spec.seed;
   j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
+  j["exclusion_radius"] = spec.exclusion_radius;
+  j["leave_one_out_check"] = spec.leave_one_out_check;
   j["poses_per_robot"] = spec.poses_per_robot;
   j["online"] = true;
   j["out"] = out.string();
@@ -888,6 +903,8 @@ int RunScenarioTeam(const TeamArgs& a) {
   j["robots"] = n;
   j["seed"] = spec.seed;
   j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
+  j["exclusion_radius"] = spec.exclusion_radius;
+  j["leave_one_out_check"] = spec.leave_one_out_check;
   j["poses_per_robot"] = spec.poses_per_robot;
   j["domain"] = a.domain;
   j["out"] = out.string();

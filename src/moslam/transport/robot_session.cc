@@ -47,6 +47,9 @@ void ScenarioSpec::validate() const {
   if (poses_per_robot < 2) {
     bad("poses_per_robot must be at least 2, got " + std::to_string(poses_per_robot));
   }
+  if (!(exclusion_radius >= 0.0) || !std::isfinite(exclusion_radius)) {
+    bad("exclusion_radius must be finite and >= 0");
+  }
 }
 
 namespace {
@@ -77,6 +80,8 @@ MultiRobotSlamConfig ScenarioSlamConfig(const ScenarioSpec& spec) {
   MultiRobotSlamConfig config =
       MultiRobotSlamConfigForNoise(ScenarioSimulationConfig(spec).sensing);
   config.known_initial_poses = spec.known_initial_poses;
+  config.slam.exclusion_radius = spec.exclusion_radius;
+  config.slam.leave_one_out_check = spec.leave_one_out_check;
   return config;
 }
 
@@ -185,6 +190,9 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
   f.add(static_cast<std::uint64_t>(c.slam.update_every));
   f.add(static_cast<std::uint64_t>(c.slam.iterations_per_update));
   f.add(static_cast<std::uint64_t>(c.slam.localization_iterations));
+  f.add(c.slam.exclusion_radius);
+  f.add(static_cast<std::uint64_t>(c.slam.leave_one_out_check));
+  f.add(c.slam.leave_one_out_rival_radii);
   f.add(static_cast<std::uint64_t>(c.final_iterations));
   f.add(static_cast<std::uint64_t>(c.rendezvous.refine_alignment));
   f.add(c.rendezvous.max_correction_m);

@@ -114,6 +114,11 @@ struct ScenarioSpec {
   // false: the robots do not know one another's initial poses; beta aligns the two object maps
   // at a rendezvous (slam/rendezvous.h), and the robot processes are not given the poses.
   bool known_initial_poses = true;
+  // The robots' own association (ObjectSlamConfig; both off: the paper's rule, as `moslam
+  // simulate` without --exclusion-radius and --leave-one-out-check): the landmark exclusion
+  // radius (m, 0: off) and the leave-one-out check of a pose's matches.
+  double exclusion_radius = 0.0;
+  bool leave_one_out_check = false;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };

@@ -250,6 +250,33 @@ TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
   }
 }
 
+// The robots' own association options (ScenarioSpec: exclusion radius, leave-one-out check)
+// reach every session's SLAM: the sessions give the in-process pipeline with them, which is not
+// the one without them.
+TEST(RobotSession, TheRobotsAssociationOptionsGiveTheInProcessPipelineWithThem) {
+  ScenarioSpec spec = Small();
+  spec.exclusion_radius = 1.0;
+  spec.leave_one_out_check = true;
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  ASSERT_TRUE(ref.joint.unanchored_robots.empty());
+  EXPECT_GE(ref.slam.intra.refused, 1);
+  EXPECT_GE(ref.slam.intra.discarded, 1);
+  ScenarioSpec paper = spec;
+  paper.exclusion_radius = 0.0;
+  paper.leave_one_out_check = false;
+  EXPECT_GT(MaxPoseDifference(InProcess(paper, data).dgs.values, ref.dgs.values), 1e-6);
+
+  InProcessNetwork net;
+  Log log;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+  const std::vector<RobotSessionResult> results =
+      RunSessions(spec, transports, log, [&](int r) { return SliceForRobot(data, r); });
+  ASSERT_FALSE(HasFailure());
+  ExpectEqualToInProcess(results, ref);
+}
+
 // Unknown initial poses: beta aligns the object maps and drops pairs of earlier rendezvous that
 // the new ones contradict, as in-process; the answers carry the removed pairs. The slices hold
 // random initial poses: the result does not change, so nothing reads them.
@@ -707,6 +734,9 @@ TEST(RobotSession, ValidatesItsInputs) {
   EXPECT_THROW(bad.validate(), InvalidInputError);
   bad = Small();
   bad.poses_per_robot = 1;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  bad = Small();
+  bad.exclusion_radius = -0.1;
   EXPECT_THROW(bad.validate(), InvalidInputError);
   const SimulationData data = SimulateScenario(Small());
   EXPECT_THROW(SliceForRobot(data, 3), InvalidInputError);
