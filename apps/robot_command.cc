@@ -882,7 +882,8 @@ int RunScenarioTeam(const TeamArgs& a) {
   fs::create_directories(out);
   if (a.online && a.solve.robust) {
     throw InvalidInputError("team: --robust runs on the batch solve; the group solves of "
-                            "--online are least squares");
+                            "--online are least squares between processes (robust online group "
+                            "solves run in one process: moslam simulate --online --robust)");
   }
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
   const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);

@@ -8,6 +8,7 @@
 //                   [--classes classes.txt] [--templates DIR] [--perceive-every K]]
 //                   [--exclusion-radius M] [--leave-one-out-check]
 //   moslam simulate --online --scenario house --robots 6 --runs 10 [--plot FILE.svg] [--json]
+//                   [--outliers P] [--robust]
 //
 // --perception rendered: the object measurements come from the front-end (detector, PCL
 // segmentation, PFHRGB + SAC-IA + GICP) run on rendered RGB-D frames of every K-th pose
@@ -18,7 +19,9 @@
 // --online: the online mission (experiments/online_experiment.h): the robots in range solve
 // their joint graph at every rendezvous (two-level DGS, error-bound rule, refinement, Jacobi
 // order as the robot processes), one table row per (robots, noise pair); --plot then draws the
-// team's map error after each rendezvous for every run of the first row.
+// team's map error after each rendezvous for every run of the first row. With --outliers P
+// (wrong pairs injected at every rendezvous) or --robust (robust group solves: online_team.h),
+// the table of wrong pairs instead (FormatOnlineRobustTable).
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -53,6 +56,7 @@ struct SimulateArgs {
   std::string dgs = "two-level";
   std::string initial_poses = "known";
   double outliers = 0.0;
+  const CLI::Option* outliers_option = nullptr;  // --online: its table when given (even 0)
   bool robust = false;
   double gnc_threshold = 0.0;
   bool retest_left_out = true;
@@ -103,11 +107,12 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "poses) or unknown (it aligns the two object maps from the objects alone)")
       ->check(CLI::IsMember({"known", "unknown"}))
       ->capture_default_str();
-  sub->add_option("--outliers", args->outliers,
-                  "fraction of wrong object associations injected at every rendezvous (a "
-                  "label-consistent wrong object), in [0, 1)")
-      ->check(CLI::Range(0.0, 0.999))
-      ->capture_default_str();
+  args->outliers_option =
+      sub->add_option("--outliers", args->outliers,
+                      "fraction of wrong object associations injected at every rendezvous (a "
+                      "label-consistent wrong object), in [0, 1)")
+          ->check(CLI::Range(0.0, 0.999))
+          ->capture_default_str();
   sub->add_flag("--robust", args->robust,
                 "also run the robust distributed solve (separator check, GNC-TLS by the robots) "
                 "and the outlier-free solve; --table robust");
@@ -170,10 +175,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
     if (rendered) perceive = make_perception(
           {a.model, a.classes, a.templates, a.perceive_every, a.template_cache});
     if (a.online) {
-      if (rendered || a.robust || a.outliers > 0.0 || a.information != "noise") {
+      if (rendered || a.information != "noise") {
         throw InvalidInputError(
-            "simulate --online: perception rendered, --robust, --outliers and --information "
-            "fixed are not part of the online mission");
+            "simulate --online: perception rendered and --information fixed are not part of "
+            "the online mission");
       }
       std::vector<OnlineExperimentResult> results;
       for (int robots : a.robots) {
@@ -189,10 +194,16 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
           c.base.known_initial_poses = a.initial_poses == "known";
           c.base.exclusion_radius = a.exclusion_radius.value_or(0.0);
           c.base.leave_one_out_check = a.leave_one_out_check;
+          c.base.outlier_fraction = a.outliers;
+          c.base.robust = a.robust;
+          c.base.gnc_threshold = a.gnc_threshold;
+          c.base.retest_left_out = a.retest_left_out;
           results.push_back(RunOnlineExperiment(c));
         }
       }
-      fmt::print("{}", FormatOnlineTable(results));
+      const bool wrong_pairs_table = a.robust || a.outliers_option->count() > 0;
+      fmt::print("{}", wrong_pairs_table ? FormatOnlineRobustTable(results)
+                                         : FormatOnlineTable(results));
       if (!a.plot.empty()) {
         std::ofstream out(a.plot);
         const ExperimentConfig& c = results.front().config.base;

@@ -254,7 +254,8 @@ RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
 }  // namespace
 
 RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
-                             const std::vector<bool>& robust, const RobustDgsOptions& options) {
+                             const std::vector<bool>& robust, const RobustDgsOptions& options,
+                             const std::vector<bool>& checked) {
   const auto t0 = std::chrono::steady_clock::now();
   options.validate();
   const std::size_t n = graph.factors().size();
@@ -262,9 +263,27 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     throw InvalidInputError("RunRobustDgs: the robust mask has " + std::to_string(robust.size()) +
                             " entries for " + std::to_string(n) + " factors");
   }
+  if (!checked.empty() && checked.size() != n) {
+    throw InvalidInputError("RunRobustDgs: the checked mask has " + std::to_string(checked.size()) +
+                            " entries for " + std::to_string(n) + " factors");
+  }
   SeparatorConsistencyResult check;
   check.kept.assign(n, true);
-  if (options.check_separators) check = CheckSeparators(graph, options, robust);
+  if (options.check_separators && checked.empty()) {
+    check = CheckSeparators(graph, options, robust);
+  } else if (options.check_separators) {
+    // The check on the factors it sees; the others are kept and tested by no loop.
+    std::vector<std::size_t> seen;
+    const PoseGraph sub = SubGraph(graph, checked, &seen);
+    const SeparatorConsistencyResult part = CheckSeparators(sub, options, Select(robust, seen));
+    check = part;
+    check.kept.assign(n, true);
+    check.support.assign(n, -1);
+    for (std::size_t j = 0; j < seen.size(); ++j) {
+      check.kept[seen[j]] = part.kept[j];
+      check.support[seen[j]] = part.support[j];
+    }
+  }
   std::vector<std::size_t> index;
   const PoseGraph kept = SubGraph(graph, check.kept, &index);
   RobustDgsResult r;

@@ -114,9 +114,13 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
                                  const std::vector<bool>& robust, const RobustDgsOptions& options,
                                  const OptimizerOptions& solver = {});
 
-// robust[i]: whether factor i of `graph` is robust (size = number of factors). Throws
-// InvalidInputError (bad options, a mask of the wrong size) and whatever RunDgs throws.
+// robust[i]: whether factor i of `graph` is robust (size = number of factors). checked (empty:
+// every factor): the factors the separator check sees, its robots' maps and separators; the others
+// are kept by it and are in none of its maps (online/online_team.h: a group's held factors, which
+// pin a robot's landmarks to copies of earlier solves, out of the maps the pairs are tested in).
+// Throws InvalidInputError (bad options, a mask of the wrong size) and whatever RunDgs throws.
 RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
-                             const std::vector<bool>& robust, const RobustDgsOptions& options = {});
+                             const std::vector<bool>& robust, const RobustDgsOptions& options = {},
+                             const std::vector<bool>& checked = {});
 
 }  // namespace moslam

@@ -358,6 +358,16 @@ TEST(RobustDgs, ATeamTheCheckUnlinksIsAnUnderdeterminedErrorNamingTheCheck) {
   } catch (const UnderdeterminedError& e) {
     EXPECT_NE(std::string(e.what()).find("separator check"), std::string::npos) << e.what();
   }
+  // The separators out of what the check sees (`checked`): it keeps them, GNC decides.
+  std::vector<bool> checked(two.factors().size(), true);
+  int unchecked = 0;
+  for (std::size_t i = 0; i < checked.size(); ++i) {
+    if (two.factors()[i].a().robot != two.factors()[i].b().robot) checked[i] = false, ++unchecked;
+  }
+  ASSERT_GE(unchecked, 1);
+  RobustDgsResult r;
+  ASSERT_NO_THROW(r = RunRobustDgs(two, initial, DefaultRobustFactors(two), options, checked));
+  EXPECT_EQ(r.consistency_rejected, 0);
   options.check_separators = false;  // without the check, the least-squares links stay
   EXPECT_NO_THROW(RunRobustDgs(two, initial, DefaultRobustFactors(two), options));
 }
@@ -365,6 +375,8 @@ TEST(RobustDgs, ATeamTheCheckUnlinksIsAnUnderdeterminedErrorNamingTheCheck) {
 TEST(RobustDgs, RejectsAMaskOfTheWrongSize) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   EXPECT_THROW(RunRobustDgs(data.graph, data.initial, {true, false}), InvalidInputError);
+  const std::vector<bool> robust = DefaultRobustFactors(data.graph);
+  EXPECT_THROW(RunRobustDgs(data.graph, data.initial, robust, {}, {true}), InvalidInputError);
 }
 
 TEST(WeightMessage, RoundTripsAndRejectsBadBytes) {

@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "moslam/common/errors.h"
 #include "moslam/common/statistics.h"
@@ -67,10 +68,13 @@ std::pair<double, int> TeamMapError(const SimulationData& data,
 void OnlineExperimentConfig::validate() const {
   base.validate();
   online.validate();
-  if (base.perceive || base.outlier_fraction > 0.0 || base.robust) {
-    throw InvalidInputError(
-        "online experiment: perception, injected outliers and the robust solve are not part of "
-        "the online mission yet");
+  if (base.perceive) {
+    throw InvalidInputError("online experiment: perception is not part of the online mission yet");
+  }
+  if (online.robust) {
+    throw InvalidInputError("online experiment: set base.robust (with base.gnc_threshold and "
+                            "base.retest_left_out), not online.robust, which the run builds from "
+                            "them as the batch experiment builds its robust solve");
   }
   if (base.information != InformationMode::kNoise) {
     throw InvalidInputError("online experiment: the robots solve with the information of their "
@@ -90,6 +94,12 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
   m.seed = sim.seed;
   OnlineOptions options = config.online;
   options.lambda = sim.slam.rendezvous.lambda();
+  if (config.base.robust) {
+    RobustDgsOptions robust;  // its dgs: options.solver (OnlineOptions::robust)
+    robust.gnc.threshold = config.base.gnc_threshold;
+    robust.retest_left_out = config.base.retest_left_out;
+    options.robust = robust;
+  }
 
   // Solo first: the team's map error at every step with a rendezvous.
   std::map<int, double> solo_at_step;
@@ -146,26 +156,69 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
   m.rendezvous = static_cast<double>(online.rendezvous.size());
   m.solves = static_cast<double>(team.solves().size());
   m.bytes_objects = static_cast<double>(online.bytes);
-  for (const GroupSolveRecord& s : team.solves()) m.bytes_dgs += static_cast<double>(s.bytes);
-
-  // The batch optimum of the online run's factors.
-  const JointProblem joint =
-      AssembleJointProblem(online.robots, online.shared, options.lambda);
-  if (!joint.unanchored_robots.empty()) {
-    throw UnlinkedRobotError(fmt::format(
-        "online experiment {} with {} robots, seed {}: robot {} never linked to robot 0 through "
-        "rendezvous (try another seed or more poses per robot)",
-        config.base.scenario, config.base.robots, sim.seed, joint.unanchored_robots.front()));
+  for (const GroupSolveRecord& s : team.solves()) {
+    m.bytes_dgs += static_cast<double>(s.bytes);
+    m.unlinked_solves += s.unlinked ? 1.0 : 0.0;
+    m.robust_extra_bytes += static_cast<double>(s.robust_extra_bytes);
   }
-  const Values batch =
-      Optimize(joint.graph, CentralizedTwoStage(joint.graph, joint.initial).values).values;
+
+  // The batch optimum of the online run's factors: the robots' final graphs and the pairs not set
+  // aside (all of them in least squares); and the outlier-free one: the right pairs of all.
+  // Nullopt when a robot is not linked to robot 0 by `pairs`.
+  const auto batch_optimum = [&](const std::vector<SharedObject>& pairs) -> std::optional<Values> {
+    const JointProblem joint = AssembleJointProblem(online.robots, pairs, options.lambda);
+    if (!joint.unanchored_robots.empty()) return std::nullopt;
+    return Optimize(joint.graph, CentralizedTwoStage(joint.graph, joint.initial).values).values;
+  };
+  const std::optional<Values> batch =
+      batch_optimum(AcceptedPairs(online.shared, team.setAside()));
+  if (!batch) {
+    throw UnlinkedRobotError(fmt::format(
+        "online experiment {} with {} robots, seed {}: some robot was never linked to robot 0 "
+        "through the rendezvous' pairs it kept (try another seed or more poses per robot)",
+        config.base.scenario, config.base.robots, sim.seed));
+  }
+  const JointProblem all = AssembleJointProblem(online.robots, online.shared, options.lambda);
+  const std::map<Key, int> objects = LandmarkObjects(all, online.robots);
+  // The object-pose factors: wrong when the detection is of another object than its landmark's
+  // (as the batch experiment counts them); set aside when the robot's weight says so.
+  std::size_t first = 0;  // the joint graph holds each robot's own graph in turn
+  for (const ObjectSlam& r : online.robots) {
+    const std::size_t n = r.graph().factors().size();
+    for (std::size_t j = 0; j < n; ++j) {
+      const int object = all.factor_objects[first + j];
+      if (object == ObjectSlam::kNoObservation) continue;
+      const bool wrong = object < 0 || object != objects.at(all.graph.factors()[first + j].b());
+      const bool aside = j < r.factorWeights().size() && r.factorWeights()[j] < 0.5;
+      m.wrong_observations += wrong ? 1.0 : 0.0;
+      m.observations_set_aside += aside ? 1.0 : 0.0;
+      m.observations_set_aside_wrong += aside && wrong ? 1.0 : 0.0;
+    }
+    first += n;
+  }
+  std::vector<SharedObject> right;
+  for (const SharedObject& s : online.shared) {
+    const bool wrong = WrongPair(objects, s.alpha_object, s.beta_object);
+    m.pairs += 1.0;
+    m.wrong_pairs += wrong ? 1.0 : 0.0;
+    if (!wrong) right.push_back(s);
+  }
+  for (const SharedObject& s : team.setAside()) {
+    m.set_aside += 1.0;
+    m.set_aside_wrong += WrongPair(objects, s.alpha_object, s.beta_object) ? 1.0 : 0.0;
+  }
+  for (const RendezvousRecord& r : online.rendezvous) m.injected += r.injected;
+  // Only wrong pairs linked some robot: no outlier-free reference for this run (NaN).
+  const std::optional<Values> free = batch_optimum(right);
   const Values truth = JointGroundTruth(sim.data, online.robots);
   for (const ObjectSlam& r : online.robots) {
     const auto on = RobotMapError(r.estimate(), truth, r.robot());
-    const auto ba = RobotMapError(batch, truth, r.robot());
+    const auto ba = RobotMapError(*batch, truth, r.robot());
+    const auto fr = free ? RobotMapError(*free, truth, r.robot())
+                         : std::optional<MapError>(MapError{std::nan(""), std::nan("")});
     const auto so = RobotMapError(solo.robots[static_cast<std::size_t>(r.robot())].estimate(),
                                   truth, r.robot());
-    if (!on || !ba || !so) {
+    if (!on || !ba || !fr || !so) {
       throw UnderdeterminedError(fmt::format(
           "online experiment: robot {} of seed {} has no three non-collinear positions",
           r.robot(), sim.seed));
@@ -175,6 +228,7 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
     m.batch_ate.push_back(ba->ate);
     m.batch_are.push_back(ba->are);
     m.solo_ate.push_back(so->ate);
+    m.free_ate.push_back(fr->ate);
     m.worst_ratio = std::max(m.worst_ratio, on->ate / ba->ate);
   }
   m.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -229,6 +283,57 @@ std::string FormatOnlineTable(const std::vector<OnlineExperimentResult>& results
   return s;
 }
 
+std::string FormatOnlineRobustTable(const std::vector<OnlineExperimentResult>& results) {
+  std::string s =
+      "| scenario | robots | P | group solves | runs | pairs / run: wrong (injected) | set aside "
+      "/ run: wrong | outlier precision / recall | wrong observations / run | observations set "
+      "aside / run: wrong | unlinked solves / run | final ATE online (m) | batch of the kept "
+      "pairs (m) | outlier-free batch (m) | solo (m) | online / outlier-free: median robot | "
+      "worst robot | robots within 1.1x | robust extra kB / run |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const OnlineExperimentResult& r : results) {
+    std::vector<double> online, batch, free, solo, ratios;
+    double pairs = 0, wrong = 0, injected = 0, aside = 0, aside_wrong = 0, unlinked = 0, extra = 0;
+    double obs_wrong = 0, obs_aside = 0, obs_aside_wrong = 0;
+    int within = 0, robots = 0;
+    for (const OnlineRunMetrics& m : r.runs) {
+      pairs += m.pairs;
+      wrong += m.wrong_pairs;
+      injected += m.injected;
+      aside += m.set_aside;
+      aside_wrong += m.set_aside_wrong;
+      unlinked += m.unlinked_solves;
+      extra += m.robust_extra_bytes;
+      obs_wrong += m.wrong_observations;
+      obs_aside += m.observations_set_aside;
+      obs_aside_wrong += m.observations_set_aside_wrong;
+      for (std::size_t i = 0; i < m.online_ate.size(); ++i) {
+        online.push_back(m.online_ate[i]);
+        batch.push_back(m.batch_ate[i]);
+        free.push_back(m.free_ate[i]);
+        solo.push_back(m.solo_ate[i]);
+        ratios.push_back(m.online_ate[i] / m.free_ate[i]);  // NaN without a free reference
+        within += ratios.back() <= 1.1 ? 1 : 0;
+        ++robots;
+      }
+    }
+    const double runs = static_cast<double>(r.runs.size());
+    const ExperimentConfig& c = r.config.base;
+    const double worst = ratios.empty() ? 0.0 : *std::max_element(ratios.begin(), ratios.end());
+    s += fmt::format(
+        "| {} | {} | {} | {} | {} | {:.1f}: {:.1f} ({:.1f}) | {:.1f}: {:.1f} | {:.3f} / {:.3f} | "
+        "{:.1f} | {:.1f}: {:.1f} | {:.1f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | "
+        "{} of {} | {:.1f} |\n",
+        c.scenario, c.robots, c.outlier_fraction, c.robust ? "robust" : "least squares",
+        r.runs.size(), pairs / runs, wrong / runs, injected / runs, aside / runs,
+        aside_wrong / runs, aside > 0 ? aside_wrong / aside : 1.0,
+        wrong > 0 ? aside_wrong / wrong : 1.0, obs_wrong / runs, obs_aside / runs,
+        obs_aside_wrong / runs, unlinked / runs, Mean(online), Mean(batch),
+        Mean(free), Mean(solo), Median(ratios), worst, within, robots, extra / runs / 1e3);
+  }
+  return s;
+}
+
 std::string OnlineResultsToJson(const std::vector<OnlineExperimentResult>& results) {
   nlohmann::json rows = nlohmann::json::array();
   for (const OnlineExperimentResult& r : results) {
@@ -247,6 +352,14 @@ std::string OnlineResultsToJson(const std::vector<OnlineExperimentResult>& resul
       runs.push_back({{"seed", m.seed}, {"online_ate", m.online_ate}, {"batch_ate", m.batch_ate},
                       {"solo_ate", m.solo_ate}, {"online_are", m.online_are},
                       {"batch_are", m.batch_are}, {"worst_ratio", m.worst_ratio},
+                      {"free_ate", m.free_ate}, {"pairs", m.pairs}, {"wrong_pairs", m.wrong_pairs},
+                      {"injected", m.injected}, {"set_aside", m.set_aside},
+                      {"set_aside_wrong", m.set_aside_wrong},
+                      {"unlinked_solves", m.unlinked_solves},
+                      {"wrong_observations", m.wrong_observations},
+                      {"observations_set_aside", m.observations_set_aside},
+                      {"observations_set_aside_wrong", m.observations_set_aside_wrong},
+                      {"robust_extra_bytes", m.robust_extra_bytes},
                       {"rendezvous", m.rendezvous}, {"solves", m.solves},
                       {"bytes_objects", m.bytes_objects}, {"bytes_dgs", m.bytes_dgs},
                       {"seconds", m.seconds}, {"points", std::move(points)}});
@@ -259,6 +372,7 @@ std::string OnlineResultsToJson(const std::vector<OnlineExperimentResult>& resul
                       {"sigma_rotation_deg", c.sigma_rotation_deg},
                       {"sigma_translation", c.sigma_translation},
                       {"known_initial_poses", c.known_initial_poses},
+                      {"outlier_fraction", c.outlier_fraction}, {"robust", c.robust},
                       {"order", ToString(o.order)}, {"two_level", o.coarse_correction},
                       {"stop", ToString(o.stopping)}, {"refine", o.refine},
                       {"eta_rotation", o.eta_rotation}, {"eta_pose", o.eta_pose}}},

@@ -27,7 +27,10 @@ namespace moslam {
 
 struct OnlineExperimentConfig {
   // Scenario, robots, runs, seed, noise, poses per robot, initial poses known or not, the
-  // point-cloud model. Perception, outliers and the robust solve are not part of it (must be off).
+  // point-cloud model, the robots' association options, injected wrong pairs
+  // (outlier_fraction), and the robust group solves (robust, gnc_threshold, retest_left_out:
+  // OnlineOptions::robust is built from them and must not be set in `online`). Perception is
+  // not part of it (must be off).
   ExperimentConfig base;
   OnlineOptions online;
   // Throws InvalidInputError naming the first bad field.
@@ -55,7 +58,20 @@ struct OnlineRunMetrics {
   // Per robot at the end: ATE (m) of its map online, of the batch optimum of the same factors,
   // of its solo map; ARE (deg) online and batch.
   std::vector<double> online_ate, batch_ate, solo_ate, online_are, batch_are;
+  // ATE (m) per robot of the outlier-free batch optimum: the robots' final graphs with the right
+  // pairs of all that were found (LandmarkObjects: a pair of two world objects is wrong).
+  std::vector<double> free_ate;
   double worst_ratio = 0.0;  // max over robots of online_ate / batch_ate
+  // Shared pairs at the end (set aside included), the wrong ones among them, the injected ones
+  // (wrong by construction, counted at the rendezvous), the pairs set aside by the robust
+  // solves at the end and the wrong ones among those; group solves the robust check left
+  // unlinked (not solved); the robust solves' weights, GNC control and check bytes.
+  double pairs = 0.0, wrong_pairs = 0.0, injected = 0.0, set_aside = 0.0, set_aside_wrong = 0.0;
+  double unlinked_solves = 0.0, robust_extra_bytes = 0.0;
+  // Object-pose factors at the end: wrong (the detection is of another object than its landmark
+  // stands for: LandmarkObjects), set aside (the robot's weight < 0.5), and both.
+  double wrong_observations = 0.0, observations_set_aside = 0.0;
+  double observations_set_aside_wrong = 0.0;
   double rendezvous = 0.0, solves = 0.0;
   double bytes_objects = 0.0, bytes_dgs = 0.0;
   double seconds = 0.0;
@@ -74,6 +90,13 @@ OnlineExperimentResult RunOnlineExperiment(const OnlineExperimentConfig& config)
 // over robots and runs) online / batch / solo, the worst and the median per-robot ratio online /
 // batch, robots within 1.1x, bytes per rendezvous (objects, DGS, point clouds).
 std::string FormatOnlineTable(const std::vector<OnlineExperimentResult>& results);
+// With wrong pairs (injected, or the matcher's) and the robust group solves: one row per result,
+// pairs and wrong pairs per run, the pairs set aside at the end, outlier precision / recall over
+// the runs (set aside and wrong / set aside, / wrong), the object-pose factors wrong, set aside
+// and both, unlinked solves, final ATE online / batch
+// of the pairs kept / outlier-free batch / solo, the per-robot ratio online / outlier-free
+// (median, worst, within 1.1x), and the robust solves' extra bytes.
+std::string FormatOnlineRobustTable(const std::vector<OnlineExperimentResult>& results);
 // {"rows": [{"config": {...}, "runs": [{..., "points": [...]}, ...]}, ...]} on one line.
 std::string OnlineResultsToJson(const std::vector<OnlineExperimentResult>& results);
 // The team's map error after each rendezvous (x: time step, y: ATE), every run of `result`:

@@ -289,6 +289,32 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   return out;
 }
 
+std::map<Key, int> LandmarkObjects(const JointProblem& joint,
+                                   const std::vector<ObjectSlam>& robots) {
+  std::map<Key, std::map<int, int>> seen;
+  for (std::size_t i = 0; i < joint.graph.factors().size(); ++i) {
+    if (joint.factor_objects[i] != ObjectSlam::kNoObservation) {
+      ++seen[joint.graph.factors()[i].b()][joint.factor_objects[i]];
+    }
+  }
+  std::map<Key, int> truth_of;
+  for (const ObjectSlam& robot : robots) {
+    for (const Landmark& l : robot.landmarks()) {
+      int best = l.true_object, most = seen[l.key][l.true_object];
+      for (const auto& [object, count] : seen[l.key]) {
+        if (count > most) best = object, most = count;
+      }
+      truth_of[l.key] = best;
+    }
+  }
+  return truth_of;
+}
+
+bool WrongPair(const std::map<Key, int>& objects, const Key& a, const Key& b) {
+  const int ta = objects.at(a), tb = objects.at(b);
+  return ta < 0 || ta != tb;
+}
+
 RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimates* estimates) {
   const auto t0 = Clock::now();
   RunMetrics m;
@@ -390,22 +416,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     // A landmark stands for the world object most of its observations are of (ties: the one
     // that created it): a wrong association inside a map can outnumber the right ones.
     const std::size_t nf = joint.graph.factors().size();
-    std::map<Key, std::map<int, int>> seen;
-    for (std::size_t i = 0; i < nf; ++i) {
-      if (joint.factor_objects[i] != ObjectSlam::kNoObservation) {
-        ++seen[joint.graph.factors()[i].b()][joint.factor_objects[i]];
-      }
-    }
-    std::map<Key, int> truth_of;
-    for (const ObjectSlam& robot : slam.robots) {
-      for (const Landmark& l : robot.landmarks()) {
-        int best = l.true_object, most = seen[l.key][l.true_object];
-        for (const auto& [object, count] : seen[l.key]) {
-          if (count > most) best = object, most = count;
-        }
-        truth_of[l.key] = best;
-      }
-    }
+    const std::map<Key, int> truth_of = LandmarkObjects(joint, slam.robots);
     std::vector<bool> robust(nf, false), wrong(nf, false), separator(nf, false);
     std::vector<RelativePoseFactor> right;
     for (std::size_t i = 0; i < nf; ++i) {
@@ -414,8 +425,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
       const bool observation = joint.factor_objects[i] != ObjectSlam::kNoObservation;
       robust[i] = separator[i] || observation;
       if (separator[i]) {
-        const int ta = truth_of.at(f.a()), tb = truth_of.at(f.b());
-        wrong[i] = ta < 0 || ta != tb;
+        wrong[i] = WrongPair(truth_of, f.a(), f.b());
       } else if (observation) {
         wrong[i] = joint.factor_objects[i] < 0 || joint.factor_objects[i] != truth_of.at(f.b());
       }

@@ -166,9 +166,10 @@ GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
   for (std::size_t i = 0; i < p.robots.size(); ++i) label[p.robots[i]] = static_cast<int>(i);
   const std::set<int> in_range(p.robots.begin(), p.robots.end());
   const auto relabel = [&](Key k) { return Relabel(k, label.at(k.robot)); };
-  const auto add = [&](const RelativePoseFactor& f) {
+  const auto add = [&](const RelativePoseFactor& f, bool team_factor = false) {
     p.graph.add(RelativePoseFactor(relabel(f.a()), relabel(f.b()), f.measured(),
                                    f.information()));
+    p.team.push_back(team_factor);
   };
   std::vector<TeamPair> team;
   for (const ObjectSlam* robot : ordered) {
@@ -182,9 +183,10 @@ GroupProblem BuildGroupProblem(const std::vector<const ObjectSlam*>& group,
   std::size_t next = 0;  // sorted by their landmark: robot by robot
   for (const ObjectSlam* robot : ordered) {
     const PoseGraph own = robot->graph();
+    p.own_first.push_back(p.graph.factors().size());
     for (const auto& f : own.factors()) add(f);
     for (; next < team_factors.size() && team_factors[next].b().robot == robot->robot(); ++next) {
-      add(team_factors[next]);
+      add(team_factors[next], true);
       ++p.team_factors;
       if (holders[next] != robot->robot()) ++p.borrowed;
     }

@@ -94,6 +94,10 @@ struct GroupProblem {
   int object_object = 0;    // shared pairs between robots of the group
   int team_factors = 0;     // shared pairs with robots out of range, as held factors
   int borrowed = 0;         // team factors with the copy of another robot of the group
+  std::vector<bool> team;   // per factor of graph: whether it is a team (held) factor
+  // Per robot of the group (in `robots` order): the index in graph of the first factor of its
+  // own graph (ObjectSlam::graph(), whose factors follow in their order).
+  std::vector<std::size_t> own_first;
 };
 
 // The joint graph of `group` (2 or more distinct robots, linked: LinkedGroups) with the pairs of

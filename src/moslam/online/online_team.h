@@ -12,15 +12,33 @@
 // gone; a robot linked to none only refreshes its own graph), solves each part of two or more robots, hands every robot its estimate in its own
 // frame, the landmarks of its partners in range, and its team factors for the shared pairs with
 // every partner (so its own SLAM keeps what the team told it until the next rendezvous).
+//
+// Robust (OnlineOptions::robust): a group solves with RunRobustDgs (distributed/robust_dgs.h:
+// the separator check, then GNC-TLS by the robots), as `simulate --robust` solves the batch: the
+// shared pairs among its robots and the object-pose factors of their own graphs robust, the
+// check testing the pairs in the robots' own maps (without the held factors). Every solve of a
+// group judges all its robots' pairs and object-pose factors again (GNC-TLS from least squares),
+// and its verdicts stand until the next solve that judges them:
+//   - a pair rejected is *set aside*: it stays in the team's list (so its two robots judge it
+//     again when they meet) but gives no factor anywhere else: no held factor in a robot's own
+//     SLAM, no team factor in a group without both its robots, not in the team's final map
+//     (AcceptedPairs);
+//   - an object-pose factor rejected keeps GNC's min_weight in the robot's own SLAM
+//     (ObjectSlam::setFactorWeights) until the robot's next group solve.
+// The held (team) factors are pairs that a group with both of their robots accepted; they stay
+// least squares.
 #pragma once
 
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
+#include <set>
 #include <utility>
 #include <vector>
 
 #include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/robust_dgs.h"
 #include "moslam/online/group_solve.h"
 #include "moslam/sim/sensing.h"
 #include "moslam/slam/multi_robot.h"
@@ -38,6 +56,13 @@ struct OnlineOptions {
   // again without it, its pairs with them held). Give it MultiRobotSlamConfig::leave_after the
   // same step, so that it takes part in nothing later.
   std::map<int, int> dies_in_solve;
+  // Outlier-robust group solves (see the top): RunRobustDgs with these options, their `dgs`
+  // replaced by `solver`. A group in which the separator check leaves some robot with no pair it
+  // accepts (RunRobustDgs throws UnderdeterminedError: a robot pair with too few agreeing pairs
+  // to confirm itself, e.g. two pairs at a first meeting) is not solved: the maps stay as they
+  // are and the pairs wait for the next meeting (GroupSolveRecord::unlinked). Not set: least
+  // squares.
+  std::optional<RobustDgsOptions> robust;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
   static DgsOptions DefaultSolver();
@@ -55,7 +80,20 @@ struct GroupSolveRecord {
   double final_cost = 0.0;
   std::int64_t messages = 0, bytes = 0;  // the solve's traffic (distributed/messages.h)
   double seconds = 0.0;
+  // Robust solves (OnlineOptions::robust; then messages and the per-stage counts above are 0,
+  // bytes are all of the robust solve's: RobustDgsResult::bytes()).
+  bool unlinked = false;   // the check left a robot unlinked: not solved, nothing changed
+  int robust_rounds = 0;   // GNC's weighted solves after the least-squares one
+  int sweeps = 0;          // all stages of all its solves
+  int rejected = 0;        // pairs among the group's robots set aside by this solve
+  int taken_back = 0;      // ... pairs set aside before that this solve accepts
+  int observation_outliers = 0;  // object-pose factors of the robots' own graphs it rejects
+  std::int64_t robust_extra_bytes = 0;  // weights, GNC's control, the check's messages
 };
+
+// The pairs of `shared` that are not set aside (in `set_aside`, either direction), in order.
+std::vector<SharedObject> AcceptedPairs(const std::vector<SharedObject>& shared,
+                                        const std::vector<SharedObject>& set_aside);
 
 class OnlineTeam {
  public:
@@ -73,11 +111,18 @@ class OnlineTeam {
   const std::vector<GroupSolveRecord>& solves() const { return solves_; }
   // The partner landmarks each robot holds (robot id -> held estimates).
   const std::map<int, HeldEstimates>& held() const { return held_; }
+  // Robust: the pairs set aside now (the last solve that judged each rejected it), in the order
+  // they were set aside. Least squares: none.
+  const std::vector<SharedObject>& setAside() const { return set_aside_; }
 
  private:
+  // Solves one linked part of a group (2 or more robots) and updates its robots.
+  void solvePart(const std::vector<int>& part, int step, MultiRobotSlamResult& team);
+
   OnlineOptions options_;
   std::vector<GroupSolveRecord> solves_;
   std::map<int, HeldEstimates> held_;
+  std::vector<SharedObject> set_aside_;
 };
 
 // A whole online run in one process: RunMultiRobotObjectSlam(data, slam) with an OnlineTeam of
@@ -87,6 +132,7 @@ struct OnlineRun {
   MultiRobotSlamResult slam;             // the maps at the end
   std::vector<GroupSolveRecord> solves;  // in order
   std::map<std::pair<int, int>, Values> maps;  // (step, robot) -> its map after that solve
+  std::vector<SharedObject> set_aside;   // robust: the pairs set aside at the end
 };
 OnlineRun RunOnline(const SimulationData& data, MultiRobotSlamConfig slam, OnlineOptions options);
 

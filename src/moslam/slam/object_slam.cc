@@ -396,11 +396,25 @@ void ObjectSlam::maybeUpdate() {
   if ((num_poses_ - 1) % config_.update_every == 0) optimize(config_.iterations_per_update);
 }
 
+PoseGraph ObjectSlam::weightedGraph() const {
+  PoseGraph g;
+  if (factor_weights_.empty()) {
+    g = local_graph_;
+  } else {
+    const auto& factors = local_graph_.factors();
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      const RelativePoseFactor& f = factors[i];
+      const double w = i < factor_weights_.size() ? factor_weights_[i] : 1.0;
+      g.add(w == 1.0 ? f : RelativePoseFactor(f.a(), f.b(), f.measured(), w * f.information()));
+    }
+  }
+  for (const auto& f : local_team_factors_) g.add(f);
+  return g;
+}
+
 double ObjectSlam::refresh(int max_iterations) {
   if (local_graph_.factors().size() == factors_at_last_optimize_ && !stale_) {
-    PoseGraph g = local_graph_;
-    for (const auto& f : local_team_factors_) g.add(f);
-    return g.cost(local_values_);
+    return weightedGraph().cost(local_values_);
   }
   return optimize(max_iterations);
 }
@@ -409,8 +423,7 @@ double ObjectSlam::optimize(int max_iterations) {
   factors_at_last_optimize_ = local_graph_.factors().size();
   stale_ = false;
   if (local_graph_.empty()) return 0.0;
-  PoseGraph g = local_graph_;
-  for (const auto& f : local_team_factors_) g.add(f);
+  const PoseGraph g = weightedGraph();
   if (max_iterations <= 0) return g.cost(local_values_);
   OptimizerOptions options;
   options.max_iterations = max_iterations;
@@ -440,6 +453,23 @@ void ObjectSlam::setTeamFactors(const std::vector<RelativePoseFactor>& factors) 
   }
   team_factors_ = factors;
   local_team_factors_ = std::move(local);
+  stale_ = true;
+}
+
+void ObjectSlam::setFactorWeights(std::vector<double> weights) {
+  if (weights.size() > local_graph_.factors().size()) {
+    throw InvalidInputError("ObjectSlam::setFactorWeights: robot " + std::to_string(robot_) +
+                            " got " + std::to_string(weights.size()) + " weights for " +
+                            std::to_string(local_graph_.factors().size()) + " factors");
+  }
+  for (std::size_t i = 0; i < weights.size(); ++i) {
+    if (!(weights[i] > 0.0 && weights[i] <= 1.0)) {
+      throw InvalidInputError("ObjectSlam::setFactorWeights: robot " + std::to_string(robot_) +
+                              ": the weight of factor " + std::to_string(i) + " is " +
+                              std::to_string(weights[i]) + ", not in (0, 1]");
+    }
+  }
+  factor_weights_ = std::move(weights);
   stale_ = true;
 }
 

@@ -205,6 +205,14 @@ class ObjectSlam {
   // identity to 1e-9: the robot's own frame). Throws InvalidInputError otherwise (nothing
   // changes then). The next pose is predicted from the new estimate of the last one.
   void setEstimate(const Values& estimate);
+  // Online robust mapping (online/online_team.h): weights of the robot's own factors, in the
+  // order of graph() (a group solve's verdicts), each in (0, 1]; optimize() and refresh() scale
+  // each factor's information by its weight, factors added later (or beyond `weights`) weigh 1.
+  // graph() stays unweighted, so a later group solve judges every factor again. Replaces the
+  // previous weights. Throws InvalidInputError on more weights than factors or a weight outside
+  // (0, 1] (nothing changes then).
+  void setFactorWeights(std::vector<double> weights);
+  const std::vector<double>& factorWeights() const { return factor_weights_; }
 
   int robot() const { return robot_; }
   int numPoses() const { return num_poses_; }
@@ -262,6 +270,9 @@ class ObjectSlam {
   bool stale_ = false;  // team factors or estimate replaced since the last optimize()
   std::vector<RelativePoseFactor> team_factors_;        // keys of this robot
   std::vector<RelativePoseFactor> local_team_factors_;  // the same, robot-0 keys
+  std::vector<double> factor_weights_;  // the first factors of local_graph_ (setFactorWeights)
+  // local_graph_ with factor_weights_ applied, and the team factors.
+  PoseGraph weightedGraph() const;
 };
 
 }  // namespace moslam

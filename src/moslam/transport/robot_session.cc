@@ -126,7 +126,8 @@ void RobotSessionOptions::validate() const {
   }
   if (online && dgs.gnc) {
     throw InvalidInputError("robot session: the robust solve (dgs.gnc) runs on the batch solve; "
-                            "online group solves are least squares");
+                            "online group solves are least squares between processes (the "
+                            "robust ones run in one process: online/online_team.h)");
   }
   if (online && !dgs.solver.refine) {
     throw InvalidInputError(
