@@ -27,8 +27,10 @@ for scenario in $SCENARIOS; do
       table="$(echo "$out" | sed '$d')"
       if [[ $header == 1 ]]; then echo "$table" | head -n 2; header=0; fi
       echo "$table" | tail -n +3
+      # Without the per-solve points (docs/online.json has them for the least-squares runs).
       JSON_PARTS+=("$(echo "$out" | tail -n 1 | jq -c --arg s "$scenario" --arg p "$p" \
-        --arg r "${robust:-ls}" '{scenario: $s, outliers: $p, solve: $r} + .')")
+        --arg r "${robust:-ls}" '{scenario: $s, outliers: $p, solve: $r} + . |
+        del(.rows[].runs[].points)')")
     done
   done
   echo
