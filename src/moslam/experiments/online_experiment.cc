@@ -243,6 +243,35 @@ OnlineExperimentResult RunOnlineExperiment(const OnlineExperimentConfig& config)
   return out;
 }
 
+namespace {
+
+// Every robot of every run of a result: its final ATE online, of the batch optimum, of the
+// outlier-free batch and solo, and the ratio online / reference.
+struct RobotsAtTheEnd {
+  std::vector<double> online, batch, free, solo, ratios;
+  int within = 0;  // ratios <= 1.1
+  double worst() const {
+    return ratios.empty() ? 0.0 : *std::max_element(ratios.begin(), ratios.end());
+  }
+};
+RobotsAtTheEnd CollectRobots(const OnlineExperimentResult& r, bool against_free) {
+  RobotsAtTheEnd out;
+  for (const OnlineRunMetrics& m : r.runs) {
+    for (std::size_t i = 0; i < m.online_ate.size(); ++i) {
+      out.online.push_back(m.online_ate[i]);
+      out.batch.push_back(m.batch_ate[i]);
+      out.free.push_back(m.free_ate[i]);
+      out.solo.push_back(m.solo_ate[i]);
+      // NaN without an outlier-free reference: never within.
+      out.ratios.push_back(m.online_ate[i] / (against_free ? m.free_ate[i] : m.batch_ate[i]));
+      out.within += out.ratios.back() <= 1.1 ? 1 : 0;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string FormatOnlineTable(const std::vector<OnlineExperimentResult>& results) {
   std::string s =
       "| scenario | robots | runs | rendezvous / run | solves / run | final ATE online (m) | "
@@ -250,20 +279,11 @@ std::string FormatOnlineTable(const std::vector<OnlineExperimentResult>& results
       "within 1.1x | kB per solve: objects | DGS | point clouds |\n"
       "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const OnlineExperimentResult& r : results) {
-    std::vector<double> online, batch, solo, ratios;
+    const RobotsAtTheEnd e = CollectRobots(r, false);
     double rendezvous = 0, solves = 0, objects = 0, dgs = 0, pcd = 0, points = 0;
-    int within = 0, robots = 0;
     for (const OnlineRunMetrics& m : r.runs) {
       rendezvous += m.rendezvous;
       solves += m.solves;
-      for (std::size_t i = 0; i < m.online_ate.size(); ++i) {
-        online.push_back(m.online_ate[i]);
-        batch.push_back(m.batch_ate[i]);
-        solo.push_back(m.solo_ate[i]);
-        ratios.push_back(m.online_ate[i] / m.batch_ate[i]);
-        within += ratios.back() <= 1.1 ? 1 : 0;
-        ++robots;
-      }
       for (const OnlineRendezvousPoint& p : m.points) {
         objects += p.bytes_objects;
         dgs += p.bytes_dgs;
@@ -276,9 +296,9 @@ std::string FormatOnlineTable(const std::vector<OnlineExperimentResult>& results
         "| {} | {} | {} | {:.1f} | {:.1f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | {} of {} "
         "| {:.2f} | {:.1f} | {:.0f} |\n",
         r.config.base.scenario, r.config.base.robots, r.runs.size(), rendezvous / runs,
-        solves / runs, Mean(online), Mean(batch), Mean(solo), Median(ratios),
-        ratios.empty() ? 0.0 : *std::max_element(ratios.begin(), ratios.end()), within, robots,
-        objects / points / 1e3, dgs / points / 1e3, pcd / points / 1e3);
+        solves / runs, Mean(e.online), Mean(e.batch), Mean(e.solo), Median(e.ratios), e.worst(),
+        e.within, e.ratios.size(), objects / points / 1e3, dgs / points / 1e3,
+        pcd / points / 1e3);
   }
   return s;
 }
@@ -292,10 +312,9 @@ std::string FormatOnlineRobustTable(const std::vector<OnlineExperimentResult>& r
       "worst robot | robots within 1.1x | robust extra kB / run |\n"
       "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const OnlineExperimentResult& r : results) {
-    std::vector<double> online, batch, free, solo, ratios;
+    const RobotsAtTheEnd e = CollectRobots(r, true);
     double pairs = 0, wrong = 0, injected = 0, aside = 0, aside_wrong = 0, unlinked = 0, extra = 0;
     double obs_wrong = 0, obs_aside = 0, obs_aside_wrong = 0;
-    int within = 0, robots = 0;
     for (const OnlineRunMetrics& m : r.runs) {
       pairs += m.pairs;
       wrong += m.wrong_pairs;
@@ -307,19 +326,9 @@ std::string FormatOnlineRobustTable(const std::vector<OnlineExperimentResult>& r
       obs_wrong += m.wrong_observations;
       obs_aside += m.observations_set_aside;
       obs_aside_wrong += m.observations_set_aside_wrong;
-      for (std::size_t i = 0; i < m.online_ate.size(); ++i) {
-        online.push_back(m.online_ate[i]);
-        batch.push_back(m.batch_ate[i]);
-        free.push_back(m.free_ate[i]);
-        solo.push_back(m.solo_ate[i]);
-        ratios.push_back(m.online_ate[i] / m.free_ate[i]);  // NaN without a free reference
-        within += ratios.back() <= 1.1 ? 1 : 0;
-        ++robots;
-      }
     }
     const double runs = static_cast<double>(r.runs.size());
     const ExperimentConfig& c = r.config.base;
-    const double worst = ratios.empty() ? 0.0 : *std::max_element(ratios.begin(), ratios.end());
     s += fmt::format(
         "| {} | {} | {} | {} | {} | {:.1f}: {:.1f} ({:.1f}) | {:.1f}: {:.1f} | {:.3f} / {:.3f} | "
         "{:.1f} | {:.1f}: {:.1f} | {:.1f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | {:.3f} | "
@@ -328,8 +337,9 @@ std::string FormatOnlineRobustTable(const std::vector<OnlineExperimentResult>& r
         r.runs.size(), pairs / runs, wrong / runs, injected / runs, aside / runs,
         aside_wrong / runs, aside > 0 ? aside_wrong / aside : 1.0,
         wrong > 0 ? aside_wrong / wrong : 1.0, obs_wrong / runs, obs_aside / runs,
-        obs_aside_wrong / runs, unlinked / runs, Mean(online), Mean(batch),
-        Mean(free), Mean(solo), Median(ratios), worst, within, robots, extra / runs / 1e3);
+        obs_aside_wrong / runs, unlinked / runs, Mean(e.online), Mean(e.batch), Mean(e.free),
+        Mean(e.solo), Median(e.ratios), e.worst(), e.within, e.ratios.size(),
+        extra / runs / 1e3);
   }
   return s;
 }

@@ -153,6 +153,15 @@ std::vector<RobotSessionResult> RunSessions(const ScenarioSpec& spec,
   return results;
 }
 
+// The whole team of `spec` over one in-process network, robot r with its slice of `data`.
+std::vector<RobotSessionResult> RunTeam(const ScenarioSpec& spec, const SimulationData& data) {
+  InProcessNetwork net;
+  Log log;
+  std::vector<std::unique_ptr<Transport>> transports;
+  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
+  return RunSessions(spec, transports, log, [&](int r) { return SliceForRobot(data, r); });
+}
+
 // What a test's hook throws to kill a robot process.
 struct Crash {};
 
@@ -233,12 +242,7 @@ TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
   ASSERT_GE(ref.slam.rendezvous.size(), 2u);
   ASSERT_GE(ref.slam.shared.size(), 3u);
 
-  InProcessNetwork net;
-  Log log;
-  std::vector<std::unique_ptr<Transport>> transports;
-  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
-  const std::vector<RobotSessionResult> results =
-      RunSessions(spec, transports, log, [&](int r) { return SliceForRobot(data, r); });
+  const std::vector<RobotSessionResult> results = RunTeam(spec, data);
   ASSERT_FALSE(HasFailure());
   ExpectEqualToInProcess(results, ref);
   for (const RobotSessionResult& r : results) {
@@ -267,12 +271,7 @@ TEST(RobotSession, TheRobotsAssociationOptionsGiveTheInProcessPipelineWithThem) 
   paper.leave_one_out_check = false;
   EXPECT_GT(MaxPoseDifference(InProcess(paper, data).dgs.values, ref.dgs.values), 1e-6);
 
-  InProcessNetwork net;
-  Log log;
-  std::vector<std::unique_ptr<Transport>> transports;
-  for (int r = 0; r < spec.robots; ++r) transports.push_back(net.connect(r, {log.sink()}));
-  const std::vector<RobotSessionResult> results =
-      RunSessions(spec, transports, log, [&](int r) { return SliceForRobot(data, r); });
+  const std::vector<RobotSessionResult> results = RunTeam(spec, data);
   ASSERT_FALSE(HasFailure());
   ExpectEqualToInProcess(results, ref);
 }
