@@ -163,8 +163,7 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
   }
 
   // The batch optimum of the online run's factors: the robots' final graphs and the pairs not set
-  // aside (all of them in least squares); and the outlier-free one: the right pairs of all.
-  // Nullopt when a robot is not linked to robot 0 by `pairs`.
+  // aside (all of them in least squares). Nullopt when a robot is not linked to robot 0 by `pairs`.
   const auto batch_optimum = [&](const std::vector<SharedObject>& pairs) -> std::optional<Values> {
     const JointProblem joint = AssembleJointProblem(online.robots, pairs, options.lambda);
     if (!joint.unanchored_robots.empty()) return std::nullopt;
@@ -180,15 +179,21 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
   }
   const JointProblem all = AssembleJointProblem(online.robots, online.shared, options.lambda);
   const std::map<Key, int> objects = LandmarkObjects(all, online.robots);
+  std::vector<RelativePoseFactor> right_factors;  // the outlier-free graph
   // The object-pose factors: wrong when the detection is of another object than its landmark's
   // (as the batch experiment counts them); set aside when the robot's weight says so.
-  std::size_t first = 0;  // the joint graph holds each robot's own graph in turn
+  std::size_t first = 0;  // the joint graph holds each robot's own graph in turn, then the pairs
   for (const ObjectSlam& r : online.robots) {
     const std::size_t n = r.graph().factors().size();
     for (std::size_t j = 0; j < n; ++j) {
       const int object = all.factor_objects[first + j];
-      if (object == ObjectSlam::kNoObservation) continue;
-      const bool wrong = object < 0 || object != objects.at(all.graph.factors()[first + j].b());
+      const RelativePoseFactor& f = all.graph.factors()[first + j];
+      if (object == ObjectSlam::kNoObservation) {
+        right_factors.push_back(f);
+        continue;
+      }
+      const bool wrong = object < 0 || object != objects.at(f.b());
+      if (!wrong) right_factors.push_back(f);
       const bool aside = j < r.factorWeights().size() && r.factorWeights()[j] < 0.5;
       m.wrong_observations += wrong ? 1.0 : 0.0;
       m.observations_set_aside += aside ? 1.0 : 0.0;
@@ -196,20 +201,26 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
     }
     first += n;
   }
-  std::vector<SharedObject> right;
   for (const SharedObject& s : online.shared) {
     const bool wrong = WrongPair(objects, s.alpha_object, s.beta_object);
     m.pairs += 1.0;
     m.wrong_pairs += wrong ? 1.0 : 0.0;
-    if (!wrong) right.push_back(s);
+    if (!wrong) right_factors.push_back(ObjectObjectFactor(s, options.lambda));
   }
   for (const SharedObject& s : team.setAside()) {
     m.set_aside += 1.0;
     m.set_aside_wrong += WrongPair(objects, s.alpha_object, s.beta_object) ? 1.0 : 0.0;
   }
   for (const RendezvousRecord& r : online.rendezvous) m.injected += r.injected;
-  // Only wrong pairs linked some robot: no outlier-free reference for this run (NaN).
-  const std::optional<Values> free = batch_optimum(right);
+  // The outlier-free batch: the robots' final graphs without their wrong object-pose factors, and
+  // the right pairs of all found (as the batch experiment's outlier-free solve). When only wrong
+  // factors linked some robot: no reference for this run (NaN).
+  std::optional<Values> free;
+  try {
+    const PoseGraph free_graph(std::move(right_factors));
+    free = Optimize(free_graph, CentralizedTwoStage(free_graph, all.initial).values).values;
+  } catch (const UnderdeterminedError&) {
+  }
   const Values truth = JointGroundTruth(sim.data, online.robots);
   for (const ObjectSlam& r : online.robots) {
     const auto on = RobotMapError(r.estimate(), truth, r.robot());

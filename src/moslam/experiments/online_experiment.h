@@ -58,8 +58,9 @@ struct OnlineRunMetrics {
   // Per robot at the end: ATE (m) of its map online, of the batch optimum of the same factors,
   // of its solo map; ARE (deg) online and batch.
   std::vector<double> online_ate, batch_ate, solo_ate, online_are, batch_are;
-  // ATE (m) per robot of the outlier-free batch optimum: the robots' final graphs with the right
-  // pairs of all that were found (LandmarkObjects: a pair of two world objects is wrong).
+  // ATE (m) per robot of the outlier-free batch optimum: the robots' final graphs without their
+  // wrong object-pose factors, with the right pairs of all that were found (LandmarkObjects: a
+  // pair of two world objects is wrong); NaN when the right factors leave a robot unlinked.
   std::vector<double> free_ate;
   double worst_ratio = 0.0;  // max over robots of online_ate / batch_ate
   // Shared pairs at the end (set aside included), the wrong ones among them, the injected ones
