@@ -461,6 +461,34 @@ TEST(OnlineTeam, RobustWholeTeamAtTheEndIsTheBatchRobustSolve) {
   }
 }
 
+// Unknown initial poses and wrong pairs: a later rendezvous removes earlier pairs that its
+// alignment contradicts (the messages then remove several pairs of one landmark: a wrong pair
+// beside a right one); a removed pair is no longer set aside, and no set-aside pair is outside the
+// team's list.
+TEST(OnlineTeam, RobustPairsRemovedByARendezvousAreNoLongerSetAside) {
+  const SimulationData data = Simulation(3, 40, 3);
+  MultiRobotSlamConfig config = MultiRobotSlamConfigForNoise(SensingConfig{});
+  config.known_initial_poses = false;
+  config.outlier_fraction = 0.3;
+  OnlineOptions options;
+  options.lambda = config.rendezvous.lambda();
+  options.robust = RobustDgsOptions{};
+  OnlineTeam team(options);
+  config.on_rendezvous = team.hook();
+  const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, config);
+  int removed = 0;
+  for (const RendezvousRecord& r : slam.rendezvous) removed += r.removed;
+  ASSERT_GE(removed, 1);
+  int rejected = 0;
+  for (const GroupSolveRecord& s : team.solves()) rejected += s.rejected;
+  ASSERT_GE(rejected, 1);
+  std::set<std::pair<Key, Key>> listed;
+  for (const SharedObject& s : slam.shared) listed.insert(std::minmax(s.alpha_object, s.beta_object));
+  for (const SharedObject& s : team.setAside()) {
+    EXPECT_EQ(listed.count(std::minmax(s.alpha_object, s.beta_object)), 1u);
+  }
+}
+
 // The pairs set aside are matched in either direction; the others keep their order.
 TEST(AcceptedPairs, LeavesOutThePairsSetAsideInEitherDirection) {
   const SharedObject p{Key::Object(1, 0), Key::Object(0, 2)};

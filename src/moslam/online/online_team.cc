@@ -60,6 +60,17 @@ void OnlineTeam::onRendezvous(const RendezvousGroup& group, MultiRobotSlamResult
                               ", which the team does not have");
     }
   }
+  // Pairs a rendezvous removed from the team's list (unknown initial poses: contradicted by a
+  // later alignment) are no longer set aside either: they are gone.
+  if (!set_aside_.empty()) {
+    std::set<std::pair<Key, Key>> listed;
+    for (const SharedObject& s : team.shared) listed.insert(PairKey(s));
+    set_aside_.erase(std::remove_if(set_aside_.begin(), set_aside_.end(),
+                                    [&](const SharedObject& s) {
+                                      return listed.count(PairKey(s)) == 0;
+                                    }),
+                     set_aside_.end());
+  }
   std::vector<int> present;  // the robots that left take part in no solve
   std::set_difference(group.robots.begin(), group.robots.end(), group.gone.begin(),
                       group.gone.end(), std::back_inserter(present));

@@ -111,8 +111,9 @@ class OnlineTeam {
   const std::vector<GroupSolveRecord>& solves() const { return solves_; }
   // The partner landmarks each robot holds (robot id -> held estimates).
   const std::map<int, HeldEstimates>& held() const { return held_; }
-  // Robust: the pairs set aside now (the last solve that judged each rejected it), in the order
-  // they were set aside. Least squares: none.
+  // Robust: the pairs set aside now (the last solve that judged each rejected it, and still in
+  // the team's list at the last rendezvous), in the order they were set aside. Least squares:
+  // none.
   const std::vector<SharedObject>& setAside() const { return set_aside_; }
 
  private:

@@ -253,11 +253,20 @@ SharedObjectsMessage DecodeSharedObjects(const std::vector<std::uint8_t>& bytes)
     const std::uint32_t count = r.u32(added ? "pair count" : "removed pair count");
     r.plausibleCount(count, 8, "pair");
     std::set<std::uint32_t> alpha_seen, beta_seen;
+    std::set<std::pair<std::uint32_t, std::uint32_t>> pairs_seen;
     for (std::uint32_t i = 0; i < count; ++i) {
       const std::uint32_t a = r.u32("alpha landmark"), b = r.u32("beta landmark");
-      const char* how = added ? " shared twice" : " removed twice";
-      if (!alpha_seen.insert(a).second) r.fail("alpha landmark " + std::to_string(a) + how);
-      if (!beta_seen.insert(b).second) r.fail("beta landmark " + std::to_string(b) + how);
+      if (added) {  // one rendezvous' matching is one-to-one
+        if (!alpha_seen.insert(a).second) {
+          r.fail("alpha landmark " + std::to_string(a) + " shared twice");
+        }
+        if (!beta_seen.insert(b).second) {
+          r.fail("beta landmark " + std::to_string(b) + " shared twice");
+        }
+      } else if (!pairs_seen.insert({a, b}).second) {
+        // Earlier pairs need not be one-to-one (wrong pairs injected beside right ones).
+        r.fail("pair (" + std::to_string(a) + ", " + std::to_string(b) + ") removed twice");
+      }
       list->emplace_back(a, b);
     }
   }

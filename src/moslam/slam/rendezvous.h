@@ -42,8 +42,10 @@
 // Poses travel as float32 (they serve association only). Decoding rejects with
 // InvalidInputError: truncated input, trailing bytes, a wrong magic/version/kind, an empty
 // label, a label index out of range, a repeated landmark index, non-finite numbers, a
-// quaternion whose norm is not 1 within 1e-3, and a pair list (new or removed) that uses a
-// landmark twice.
+// quaternion whose norm is not 1 within 1e-3, a list of new pairs that uses a landmark twice
+// (one rendezvous' matching is one-to-one), and a list of removed pairs that holds a pair twice
+// (the pairs shared before need not be one-to-one: `simulate --outliers` injects wrong pairs
+// beside right ones on the same landmark, and both may be removed at once).
 #pragma once
 
 #include <cstdint>

@@ -426,6 +426,12 @@ TEST(Messages, DecodeRejectsTruncatedAndInconsistentInput) {
   EXPECT_THROW(DecodeSharedObjects(EncodeSharedObjects(s)), InvalidInputError);
   s.pairs = {{1, 2}, {5, 2}};
   EXPECT_THROW(DecodeSharedObjects(EncodeSharedObjects(s)), InvalidInputError);
+  // Removed pairs may share a landmark (a wrong pair beside a right one), not repeat a pair.
+  s.pairs = {};
+  s.removed = {{1, 2}, {5, 2}, {1, 3}};
+  EXPECT_EQ(DecodeSharedObjects(EncodeSharedObjects(s)).removed, s.removed);
+  s.removed = {{1, 2}, {5, 2}, {1, 2}};
+  EXPECT_THROW(DecodeSharedObjects(EncodeSharedObjects(s)), InvalidInputError);
   EXPECT_THROW(DecodeSharedObjects(good), InvalidInputError);  // an object map
   ObjectMapMessage unnamed;
   unnamed.objects = {{0, "", SE3()}};
