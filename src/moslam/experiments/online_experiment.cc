@@ -184,7 +184,7 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
   // (as the batch experiment counts them); set aside when the robot's weight says so.
   std::size_t first = 0;  // the joint graph holds each robot's own graph in turn, then the pairs
   for (const ObjectSlam& r : online.robots) {
-    const std::size_t n = r.graph().factors().size();
+    const std::size_t n = r.numFactors();
     for (std::size_t j = 0; j < n; ++j) {
       const int object = all.factor_objects[first + j];
       const RelativePoseFactor& f = all.graph.factors()[first + j];

@@ -192,7 +192,7 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
     // The verdicts on the robots' own factors, kept in their maps until their next group solve.
     for (std::size_t k = 0; k < part.size(); ++k) {
       ObjectSlam& r = team.robots[static_cast<std::size_t>(part[k])];
-      std::vector<double> w(members[k]->graph().factors().size(), 1.0);
+      std::vector<double> w(members[k]->numFactors(), 1.0);
       for (std::size_t j = 0; j < w.size(); ++j) {
         const double v = solved.weights[problem.own_first[k] + j];
         if (v < 0.5) {

@@ -218,6 +218,7 @@ class ObjectSlam {
   int numPoses() const { return num_poses_; }
   // The robot's graph (odometry and object-pose factors) and estimate, keyed with this robot.
   PoseGraph graph() const;
+  std::size_t numFactors() const { return local_graph_.factors().size(); }  // graph()'s, no copy
   Values estimate() const;
   SE3 pose(int i) const;
   SE3 landmarkPose(std::size_t k) const;
