@@ -56,7 +56,9 @@ void AddSolveFlags(CLI::App* sub, SolveFlags& f) {
                 "GNC-TLS around the solver, run by the robots (weights on the wire), after the "
                 "pairwise check of the separators (map covariances on the wire), as `moslam dgs "
                 "--robust`: the separators robust, and with --scenario the object measurements "
-                "too (the refinement is forced on)");
+                "too (the refinement is forced on); with --online at every group solve, as "
+                "`moslam simulate --online --robust` (pairs rejected set aside until their robots "
+                "meet again)");
   AddRobustSolveFlags(sub, &f.robust_args);
   sub->add_option("--leave-timeout", f.leave_timeout,
                   "Seconds a waited-for robot may be unreachable before it counts as gone (one "
@@ -218,6 +220,9 @@ nlohmann::json SolveJson(const SessionSolve& s) {
           {"dds_coarse_bytes", s.sent.coarse_bytes},
           {"dds_sent_bytes", s.sent.sent_bytes},
           {"replayed", s.replayed},
+          {"unlinked", s.unlinked},  // --robust: the check left the group unlinked: not solved
+          {"set_aside", s.set_aside},  // --robust: its pairs set aside after it
+          {"observation_outliers", s.observation_outliers},  // its own factors rejected
           {"seconds", s.seconds}};
 }
 
@@ -329,6 +334,7 @@ int ReportOnlineRobot(const RobotArgs& a, const ScenarioSpec& spec, const RobotS
   }
   j["solves"] = solves;
   j["solve_dds_bytes"] = dgs_bytes;
+  j["set_aside"] = SharedJson(r.set_aside);  // --robust: its pairs set aside at the end
   j["seconds"] = r.seconds;
   j["out"] = a.out;
   if (!a.out.empty()) std::ofstream(fs::path(a.out) / "summary.json") << j.dump(2) << "\n";
@@ -790,7 +796,9 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
     return 1;
   }
   OnlineOptions twin_options;
-  twin_options.solver = DriverOptions(NodeOptions(OnlineSolveFlags(a.solve)));
+  const DgsNodeOptions node = NodeOptions(OnlineSolveFlags(a.solve));
+  twin_options.solver = DriverOptions(node);
+  if (node.gnc) twin_options.robust = ReferenceRobustOptions(node);  // its dgs: the solver
   const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
   twin_options.lambda = config.rendezvous.lambda();
   const OnlineRun twin = RunOnline(SimulateScenario(spec), config, twin_options);
@@ -800,6 +808,17 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
   int maps = 0, mismatched = 0;
   std::int64_t objects_bytes = 0, solve_bytes = 0;
   int events = 0;
+  // --robust: the pairs set aside at the end, by the robots (each holds its own) and the twin.
+  const auto pair_of = [](const nlohmann::json& p) {
+    return UnorderedPair(Key::Object(p[0].get<int>(), p[1].get<std::uint64_t>()),
+                         Key::Object(p[2].get<int>(), p[3].get<std::uint64_t>()));
+  };
+  std::set<std::pair<Key, Key>> set_aside, twin_set_aside;
+  for (const SharedObject& o : twin.set_aside) {
+    twin_set_aside.insert(UnorderedPair(o.alpha_object, o.beta_object));
+  }
+  int unlinked = 0;
+  for (const GroupSolveRecord& g : twin.solves) unlinked += g.unlinked ? 1 : 0;
   const auto compare = [&](const fs::path& file, const Values& reference) {
     const Dataset saved = ReadRobotG2o(file.string(), WithObjects());
     ++maps;
@@ -830,6 +849,12 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
             twin.slam.robots[static_cast<std::size_t>(r)].estimate());
     objects_bytes += s["rendezvous_dds_bytes"].get<std::int64_t>();
     for (const auto& e : s["rendezvous"]) events += e["alpha"].get<int>() == r ? 1 : 0;
+    for (const auto& p : s["set_aside"]) set_aside.insert(pair_of(p));
+  }
+  if (set_aside != twin_set_aside) {
+    ok = false;
+    fmt::print(stderr, "moslam: the robots set aside {} pairs, the in-process twin {} (or others)\n",
+               set_aside.size(), twin_set_aside.size());
   }
   std::int64_t cloud_bytes = 0;  // the paper's alternative: one 640 x 480 x 32 B frame per robot
   for (const GroupSolveRecord& g : twin.solves) {
@@ -839,6 +864,10 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
   ok = ok && mismatched == 0;
   j["rendezvous_events"] = events;
   j["group_solves"] = twin.solves.size();
+  j["robust"] = twin_options.robust.has_value();
+  j["set_aside"] = set_aside.size();  // pairs set aside at the end (--robust)
+  j["in_process_set_aside"] = twin_set_aside.size();
+  j["unlinked_solves"] = unlinked;  // group solves the check left unlinked (--robust)
   j["maps_compared"] = maps;
   j["max_difference"] = largest;
   j["rendezvous_dds_bytes"] = objects_bytes;
@@ -852,6 +881,11 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
              "difference {:.3g}{}\n",
              events, twin.solves.size(), maps, largest,
              mismatched ? fmt::format(" ({} of other sizes)", mismatched) : "");
+  if (twin_options.robust) {
+    fmt::print("robust: {} pairs set aside at the end (in-process twin {}), {} group solves left "
+               "unlinked by the separator check\n",
+               set_aside.size(), twin_set_aside.size(), unlinked);
+  }
   fmt::print("DDS payload: objects {} B, group solves {} B; {:.1f} kB per group solve (point "
              "clouds, one frame per robot: {:.0f} kB)\n",
              objects_bytes, solve_bytes, j["dds_bytes_per_solve"].get<double>() / 1e3,
@@ -880,11 +914,6 @@ int RunScenarioTeam(const TeamArgs& a) {
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
   fs::create_directories(out);
-  if (a.online && a.solve.robust) {
-    throw InvalidInputError("team: --robust runs on the batch solve; the group solves of "
-                            "--online are least squares between processes (robust online group "
-                            "solves run in one process: moslam simulate --online --robust)");
-  }
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
   const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
   bool ok = t.ok;

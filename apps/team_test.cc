@@ -1,11 +1,12 @@
 // Robots as separate processes over Cyclone DDS on loopback (the real `moslam` binary; each test
-// its own DDS domain, 50..60): the team's result equals the in-process driver's; a robot killed
+// its own DDS domain, 44..60): the team's result equals the in-process driver's; a robot killed
 // (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies for good
 // is noticed through liveliness and the others finish. Simulated scenarios (--scenario): object
 // SLAM and rendezvous in each process give the in-process pipeline's shared objects and
 // estimate; robots killed in the rendezvous phase and in the DGS and restarted lose nothing;
 // online (--online), every map the robots save equals the in-process twin's, with a robot killed
-// in a group solve and restarted too; robust (--robust), the in-process robust solve's estimate.
+// in a group solve and restarted too; robust (--robust), the in-process robust solve's estimate,
+// and online the twin's robust group solves.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -337,11 +338,12 @@ const std::vector<std::string> kScenario = {"--scenario", "chairs25", "--robots"
 // `moslam team` on kScenario in DDS domain `domain` with `extra` flags, writing to `out`: its
 // JSON summary (a failed test when it does not exit with 0 or prints none).
 nlohmann::json RunScenarioTeam(const fs::path& out, int domain,
-                               const std::vector<std::string>& extra) {
+                               const std::vector<std::string>& extra,
+                               const std::vector<std::string>& scenario = kScenario) {
   std::vector<std::string> args = {"team", "--domain", std::to_string(domain), "--out",
                                    out.string(), "--timeout", "120", "--json"};
   args.insert(args.end(), extra.begin(), extra.end());
-  args.insert(args.end(), kScenario.begin(), kScenario.end());
+  args.insert(args.end(), scenario.begin(), scenario.end());
   Child team(args, "", out / "team.log");
   const int code = team.wait(Clock::now() + std::chrono::seconds(150));
   EXPECT_EQ(code, 0) << team.output();
@@ -416,6 +418,24 @@ TEST(Team, RobustScenarioProcessesEqualTheInProcessRobustSolve) {
     EXPECT_EQ(r["rejected_samples"].get<int>(), 0) << r.dump();
     EXPECT_EQ(r["gnc_rounds"], j["in_process_gnc_rounds"]);
   }
+  fs::remove_all(out);
+}
+
+// Robust online group solves between processes: every map and the pairs set aside at the end as
+// the twin's (OnlineOptions::robust). 60 poses, seed 2: pairs set aside and groups left unlinked
+// (transport/online_session_test.cc).
+TEST(Team, OnlineRobustScenarioProcessesEqualTheTwinsRobustGroupSolves) {
+  const fs::path out = FreshDir("online_robust");
+  const nlohmann::json j =
+      RunScenarioTeam(out, 45, {"--online", "--robust"},
+                      {"--scenario", "chairs25", "--robots", "6", "--poses", "60", "--seed", "2"});
+  ASSERT_TRUE(j.is_object());
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_TRUE(j["robust"].get<bool>());
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  EXPECT_GT(j["set_aside"].get<int>(), 0);
+  EXPECT_EQ(j["set_aside"], j["in_process_set_aside"]);
+  EXPECT_GT(j["unlinked_solves"].get<int>(), 0);
   fs::remove_all(out);
 }
 

@@ -76,7 +76,9 @@ class RobustProgram {
                                 " given a factor between " + ToString(factors[i].a()) + " and " +
                                 ToString(factors[i].b()));
       }
-      if (a != b) pairs_[a == p_.robot ? b : a].push_back(i);
+      if (a == b) continue;
+      std::vector<std::size_t>& list = pairs_[a == p_.robot ? b : a];  // every neighbour
+      if (p_.checked.empty() || p_.checked[i]) list.push_back(i);
     }
     full_ = MakeIndex(p_.robot, p_.subgraph, p_.robust);
   }
@@ -87,6 +89,15 @@ class RobustProgram {
     const bool check = options_.check_separators;
     std::vector<bool> kept(n, true);
     if (check) kept = checkSeparators();
+    if (check && check_rejected_by_team_ > 0.0 && !linked(kept)) {
+      out_.unlinked = true;
+      out_.weights.assign(n, 0.0);
+      for (std::size_t i = 0; i < n; ++i) out_.weights[i] = kept[i] ? 1.0 : 0.0;
+      for (const auto& [k, x] : p_.initial) {
+        if (k.robot == p_.robot) out_.estimate[k] = x;
+      }
+      return std::move(out_);
+    }
     // GNC on the graph the check kept (all of it without the check).
     std::vector<std::size_t> index;
     std::vector<bool> kept_robust;
@@ -228,7 +239,15 @@ class RobustProgram {
   // The kept flag of every factor of the subgraph.
   std::vector<bool> checkSeparators() {
     (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
-    const SeparatorCheckMap map(p_.subgraph, p_.robot, p_.robust, options_.gnc,
+    std::vector<std::size_t> seen;
+    const PoseGraph checked_graph =
+        p_.checked.empty() ? p_.subgraph : SubGraph(p_.subgraph, p_.checked, &seen);
+    std::vector<bool> checked_robust = p_.robust;
+    if (!p_.checked.empty()) {
+      checked_robust.clear();
+      for (std::size_t i : seen) checked_robust.push_back(p_.robust[i]);
+    }
+    const SeparatorCheckMap map(checked_graph, p_.robot, checked_robust, options_.gnc,
                                 consistency_.map_uncertainty);
     // C1: the map's estimates and covariances toward lower neighbours.
     std::vector<OutgoingMessage> estimates;
@@ -239,7 +258,8 @@ class RobustProgram {
       c.sender = p_.robot;
       c.receiver = other;
       const std::vector<Key> mine = SeparatorVariables(separatorsWith(other), p_.robot);
-      if (other < p_.robot && map.hasAll(mine)) {
+      // (No checked separator with it: a neighbour only through factors the check does not see.)
+      if (other < p_.robot && !list.empty() && map.hasAll(mine)) {
         o.message = map.estimates(mine);
         c.covariance = map.covariance(mine);
         countCheck(EncodeMessage(o.message).size());
@@ -298,7 +318,7 @@ class RobustProgram {
     };
     std::map<int, bool> confirmed;  // per neighbour: their pair confirms itself
     std::map<int, std::vector<double>> kept_by_other;  // verdicts received from lower neighbours
-    const auto exchangeVerdicts = [&](bool final, double label) {
+    const auto exchangeVerdicts = [&](bool final, double label, double rejected) {
       std::vector<WeightMessage> send;
       for (const auto& [other, list] : pairs_) {
         send.push_back(weightMessage(other, 0, other > p_.robot ? verdictWeights(other, final)
@@ -307,6 +327,7 @@ class RobustProgram {
       TeamReport r;
       r.weights = true;
       r.value[0] = label;
+      r.value[1] = rejected;
       TeamStep got = step(r, send);
       for (const auto& [other, m] : got.weights) {
         if (other > p_.robot || !pairs_.count(other)) continue;
@@ -325,7 +346,7 @@ class RobustProgram {
     };
     for (const auto& [other, v] : verdicts) confirmed[other] = v.confirmed;
     double label = p_.robot;
-    TeamStep got = exchangeVerdicts(false, label);
+    TeamStep got = exchangeVerdicts(false, label, 0.0);
     // C3: the lowest robot id linked through confirmed pairs, flooded until no report changes.
     std::map<int, double> previous = Labels(got);
     while (true) {
@@ -348,7 +369,12 @@ class RobustProgram {
         out_.check_deferred += static_cast<int>(v.best.size());
       }
     }
-    exchangeVerdicts(true, label);
+    // The separators it leaves out (of the pairs it checks), summed over the team in that step.
+    double rejected = 0.0;
+    for (const auto& [other, v] : verdicts) {
+      if (v.checked) rejected += static_cast<double>(pairs_.at(other).size() - v.best.size());
+    }
+    check_rejected_by_team_ = TeamSum(exchangeVerdicts(true, label, rejected), 1);
     // The support of the separators it checked (against their best set when that is kept).
     for (const auto& [other, v] : verdicts) {
       if (!v.checked) continue;
@@ -483,14 +509,14 @@ class RobustProgram {
     return cost;
   }
 
-  // Whether every live robot reaches robot 0 (or a prior) through separators of weight >= 0.5:
+  // Whether every live robot reaches robot 0 (or a prior) through the separators `inliers` marks:
   // each robot reports whether it does, step after step, until no report changes.
   bool linked(const std::vector<bool>& inliers) {
     std::set<int> linked_to;
-    for (const auto& [other, list] : full_.separators) {
-      for (std::size_t i : list) {
-        if (inliers[i]) linked_to.insert(other);
-      }
+    const std::vector<RelativePoseFactor>& factors = p_.subgraph.factors();
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      const int a = factors[i].a().robot, b = factors[i].b().robot;
+      if (a != b && inliers[i]) linked_to.insert(a == p_.robot ? b : a);
     }
     // Robot 0 holds the gauge anchor; a robot with a prior is anchored by it (as UnreachableFrom).
     bool reached = p_.robot == 0 || !p_.subgraph.priors().empty();
@@ -599,7 +625,8 @@ class RobustProgram {
   DgsOptions solver_;
   SeparatorConsistencyOptions consistency_;  // threshold resolved
   RobustIndex full_;                         // the whole subgraph's robust factors
-  std::map<int, std::vector<std::size_t>> pairs_;  // per neighbour: every separator to it
+  std::map<int, std::vector<std::size_t>> pairs_;  // per neighbour: every checked separator
+  double check_rejected_by_team_ = 0.0;  // separators the check left out, over the team
   Values values_;                                  // its estimate and copies
   std::map<std::size_t, int> support_;  // per separator it checked: the check's support
   double inlier_cost_ = 0.0;            // F of the inliers' solve, when kept
@@ -615,6 +642,11 @@ RobustProgramResult RunRobustRobotProgram(const RobustRobotProblem& problem,
   if (problem.robust.size() != problem.subgraph.factors().size()) {
     throw InvalidInputError("robust program: the robust mask has " +
                             std::to_string(problem.robust.size()) + " entries for " +
+                            std::to_string(problem.subgraph.factors().size()) + " factors");
+  }
+  if (!problem.checked.empty() && problem.checked.size() != problem.subgraph.factors().size()) {
+    throw InvalidInputError("robust program: the checked mask has " +
+                            std::to_string(problem.checked.size()) + " entries for " +
                             std::to_string(problem.subgraph.factors().size()) + " factors");
   }
   if (!make_agent) throw InvalidInputError("robust program: no agent factory");

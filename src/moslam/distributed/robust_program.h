@@ -107,6 +107,10 @@ struct RobustRobotProblem {
   PoseGraph subgraph;
   Values initial;
   std::vector<bool> robust;
+  // The factors the separator check sees (RunRobustDgs's `checked`; empty: every factor): its
+  // map is made of the checked factors between two of its variables, and it tests the checked
+  // separators; the others are kept. Both robots of a separator must agree on its flag.
+  std::vector<bool> checked;
 };
 
 struct RobustProgramResult {
@@ -135,6 +139,12 @@ struct RobustProgramResult {
   std::int64_t check_messages = 0;
   std::int64_t check_bytes = 0;
   int channel_steps = 0;  // all of them, the solves' included
+  // The check left some live robot without a kept separator path to robot 0 (or to a robot with
+  // a prior): RunRobustDgs throws UnderdeterminedError there. Every robot of the team finds it
+  // alike (a flood over the team, as for the inliers' solve) and stops before any solve: its
+  // estimate is its initial one, its weights the check's verdicts (1 kept, 0 left out), no
+  // neighbour copies, `solves` empty. Only when the check left some separator out.
+  bool unlinked = false;
 };
 
 // Makes the agent of one solve: `subgraph` (the weighted or the inlier subgraph) from `initial`;
@@ -145,7 +155,7 @@ struct RobustProgramResult {
 using AgentFactory = std::function<RobotAgent&(const PoseGraph& subgraph, const Values& initial)>;
 
 // Throws InvalidInputError (bad options, a mask of the wrong size, a neighbour's weights that do
-// not match the separators shared with it) and what the solves throw.
+// not match the separators shared with it) and what the solves throw. See `unlinked`.
 RobustProgramResult RunRobustRobotProgram(const RobustRobotProblem& problem,
                                           const RobustProgramOptions& options,
                                           const AgentFactory& make_agent, TeamChannel& channel);

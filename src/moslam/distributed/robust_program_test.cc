@@ -33,7 +33,8 @@ struct TeamOutcome {
 
 // Each robot's subgraph in graph order, and the index of each of its factors in the graph.
 std::vector<std::pair<RobustRobotProblem, std::vector<std::size_t>>> Parts(
-    const PoseGraph& graph, const Values& initial, const std::vector<bool>& robust) {
+    const PoseGraph& graph, const Values& initial, const std::vector<bool>& robust,
+    const std::vector<bool>& checked = {}) {
   std::set<int> robots;
   for (const Key& k : graph.keys()) robots.insert(k.robot);
   std::vector<std::pair<RobustRobotProblem, std::vector<std::size_t>>> parts;
@@ -46,6 +47,7 @@ std::vector<std::pair<RobustRobotProblem, std::vector<std::size_t>>> Parts(
       if (f.a().robot != r && f.b().robot != r) continue;
       p.subgraph.add(f);
       p.robust.push_back(robust[i]);
+      if (!checked.empty()) p.checked.push_back(checked[i]);
       index.push_back(i);
     }
     for (const PriorFactor& prior : graph.priors()) {
@@ -60,8 +62,8 @@ std::vector<std::pair<RobustRobotProblem, std::vector<std::size_t>>> Parts(
 }
 
 TeamOutcome RunTeam(const PoseGraph& graph, const Values& initial, const std::vector<bool>& robust,
-                    const RobustProgramOptions& options) {
-  const auto parts = Parts(graph, initial, robust);
+                    const RobustProgramOptions& options, const std::vector<bool>& checked = {}) {
+  const auto parts = Parts(graph, initial, robust, checked);
   const Key anchor = GaugeAnchor(graph);
   test::SharedBoard board(static_cast<int>(parts.size()));
   TeamOutcome outcome;
@@ -121,8 +123,9 @@ RobustProgramOptions BlocksWorldOptions() {
 // separators are the spoiled ones.
 void ExpectSameAsRunRobustDgs(const PoseGraph& graph, const Values& initial,
                               const std::vector<bool>& robust, const RobustProgramOptions& options,
-                              const RobustDgsResult& reference) {
-  const TeamOutcome team = RunTeam(graph, initial, robust, options);
+                              const RobustDgsResult& reference,
+                              const std::vector<bool>& checked = {}) {
+  const TeamOutcome team = RunTeam(graph, initial, robust, options, checked);
   ASSERT_EQ(team.error, "");
   ASSERT_EQ(team.values.size(), reference.values.size());
   EXPECT_LE(MaxPoseDifference(team.values, reference.values), 1e-9);
@@ -376,6 +379,68 @@ TEST(RobustProgram, TheRetestOfTheChecksRejectsIsRunRobustDgs) {
   EXPECT_EQ(team.results.at(1).check_bytes, reference.consistency_bytes);
 }
 
+// The check sees only the factors `checked` marks (online: not the held factors): here robot 1's
+// map without a wrong factor between its first and last poses, which is kept (least squares).
+// The programs with the mask are RunRobustDgs with it.
+TEST(RobustProgram, TheCheckedMaskIsRunRobustDgsWithIt) {
+  std::vector<bool> wrong;
+  PoseGraph graph = test::DriftingPairWithWrongSeparators(&wrong);
+  const RelativePoseFactor end = graph.factors()[58];  // robot 0's last odometry factor
+  graph.add(RelativePoseFactor(Key::Pose(1, 0), Key::Pose(1, 59),
+                               SE3(SO3::Exp(Vector3(0.0, 0.0, 0.3)), Vector3(2.0, 0.0, 0.0)),
+                               end.information()));
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  std::vector<bool> checked(graph.factors().size(), true);
+  checked.back() = false;
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  const RobustDgsResult reference =
+      RunRobustDgs(graph, initial, robust, ReferenceOptions(options), checked);
+  EXPECT_EQ(reference.consistency_rejected, 2);  // the check sees robot 1's map without it
+  // The mask matters: the wrong factor bends the map the check tests robot 1's separators in, so
+  // that without the mask it leaves all 8 out, and robot 1 unlinked.
+  EXPECT_THROW(RunRobustDgs(graph, initial, robust, ReferenceOptions(options)),
+               UnderdeterminedError);
+  ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference, checked);
+}
+
+// A check that leaves a robot with no separator (two agreeing separators, fewer than min_support,
+// and no confirmed pair to link them): RunRobustDgs throws UnderdeterminedError; every program
+// finds it alike, solves nothing and keeps its initial estimate.
+TEST(RobustProgram, ACheckThatUnlinksARobotStopsEveryRobotBeforeAnySolve) {
+  std::vector<bool> wrong;
+  const PoseGraph full = test::DriftingPairWithWrongSeparators(&wrong);
+  PoseGraph graph;
+  int separators = 0;
+  for (const RelativePoseFactor& f : full.factors()) {
+    if (f.a().robot != f.b().robot && ++separators > 2) continue;
+    graph.add(f);
+  }
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  EXPECT_THROW(RunRobustDgs(graph, initial, robust, ReferenceOptions(options)),
+               UnderdeterminedError);
+  const TeamOutcome team = RunTeam(graph, initial, robust, options);
+  ASSERT_EQ(team.error, "");
+  ASSERT_EQ(team.results.size(), 2u);
+  for (const auto& [robot, r] : team.results) {
+    EXPECT_TRUE(r.unlinked) << "robot " << robot;
+    EXPECT_TRUE(r.solves.empty());
+    EXPECT_TRUE(r.neighbours.empty());
+    const std::vector<std::size_t>& index = team.factors.at(robot);
+    for (std::size_t j = 0; j < index.size(); ++j) {
+      const RelativePoseFactor& f = graph.factors()[index[j]];
+      EXPECT_EQ(r.weights[j], f.a().robot != f.b().robot ? 0.0 : 1.0);
+    }
+  }
+  Values own;
+  for (const auto& [k, x] : initial) own[k] = x;
+  EXPECT_EQ(MaxPoseDifference(team.values, own), 0.0);
+}
+
 TEST(RobustProgram, RejectsBadInput) {
   Values gt;
   const PoseGraph graph = test::ChainOfRobots(2, 3, &gt);
@@ -391,6 +456,9 @@ TEST(RobustProgram, RejectsBadInput) {
   };
   RobustProgramOptions options;
   options.solver.order = SweepOrder::kJacobi;
+  EXPECT_THROW(RunRobustRobotProgram(p, options, make, channel), InvalidInputError);
+  p = parts.front().first;
+  p.checked.assign(p.subgraph.factors().size() + 1, true);
   EXPECT_THROW(RunRobustRobotProgram(p, options, make, channel), InvalidInputError);
   p = parts.front().first;
   options.solver.order = SweepOrder::kGaussSeidel;

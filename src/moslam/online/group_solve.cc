@@ -228,9 +228,10 @@ RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<in
   const auto relabel = [&](Key k) {
     return Relabel(k, LocalIndex(robots, k.robot, "BuildRobotGroupPart"));
   };
-  const auto add = [&](const RelativePoseFactor& f) {
+  const auto add = [&](const RelativePoseFactor& f, bool team_factor) {
     part.subgraph.add(RelativePoseFactor(relabel(f.a()), relabel(f.b()), f.measured(),
                                          f.information()));
+    part.team.push_back(team_factor);
   };
   for (const TeamPair& t : team) {
     if (in_range.count(t.mine.robot) == 0 || in_range.count(t.other.robot) > 0) {
@@ -246,11 +247,12 @@ RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<in
   for (int r : robots) {
     if (r == self) {
       const PoseGraph own = robot.graph();
-      for (const auto& f : own.factors()) add(f);
+      part.own_first = part.team.size();
+      for (const auto& f : own.factors()) add(f, false);
     }
     for (; next < team_factors.size() && team_factors[next].b().robot == r; ++next) {
       const RelativePoseFactor& f = team_factors[next];
-      if (r == self || f.a().robot == self) add(f);
+      if (r == self || f.a().robot == self) add(f, true);
       if (r == self) ++part.team_factors;
     }
   }
@@ -260,7 +262,7 @@ RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<in
     if (a == b || (a != self && b != self) || in_range.count(a) == 0 || in_range.count(b) == 0) {
       continue;
     }
-    add(ObjectObjectFactor(s, lambda));
+    add(ObjectObjectFactor(s, lambda), false);
     ++part.object_object;
   }
   return part;

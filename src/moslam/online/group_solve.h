@@ -120,6 +120,9 @@ struct RobotGroupPart {
   Values initial;         // its own estimate (its own frame), re-labelled
   int object_object = 0;  // shared pairs with robots of the group
   int team_factors = 0;   // its team factors (on its landmarks)
+  std::vector<bool> team;      // per factor of subgraph: a team (held) factor, its own or one
+                               // anchored at its first pose (GroupProblem::team alike)
+  std::size_t own_first = 0;   // the index in subgraph of the first factor of its own graph
 };
 RobotGroupPart BuildRobotGroupPart(const ObjectSlam& robot, const std::vector<int>& robots,
                                    const std::vector<SharedObject>& shared,

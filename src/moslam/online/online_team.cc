@@ -26,17 +26,58 @@ void OnlineOptions::validate() const {
   if (robust) robust->validate();
 }
 
-namespace {
-
-// Two landmarks as an unordered pair: either direction of a shared pair.
-std::pair<Key, Key> Unordered(const Key& a, const Key& b) {
+std::pair<Key, Key> UnorderedPair(const Key& a, const Key& b) {
   return b < a ? std::make_pair(b, a) : std::make_pair(a, b);
 }
+
+namespace {
+
 std::pair<Key, Key> PairKey(const SharedObject& s) {
-  return Unordered(s.alpha_object, s.beta_object);
+  return UnorderedPair(s.alpha_object, s.beta_object);
 }
 
 }  // namespace
+
+RobustGroupMasks RobustGroupFactors(const PoseGraph& graph, const std::vector<bool>& team) {
+  const std::vector<RelativePoseFactor>& factors = graph.factors();
+  if (team.size() != factors.size()) {
+    throw InvalidInputError("RobustGroupFactors: " + std::to_string(team.size()) +
+                            " team flags for " + std::to_string(factors.size()) + " factors");
+  }
+  RobustGroupMasks m;
+  for (std::size_t i = 0; i < factors.size(); ++i) {
+    const RelativePoseFactor& f = factors[i];
+    const bool pair = f.a().isObject() && f.b().isObject() && f.a().robot != f.b().robot;
+    const bool observation = f.a().isPose() && f.b().isObject() && !team[i];
+    m.robust.push_back(pair || observation);
+    m.checked.push_back(!team[i]);
+  }
+  return m;
+}
+
+PairVerdicts JudgePairs(const std::vector<SharedObject>& shared,
+                        const std::vector<SharedObject>& set_aside,
+                        const std::set<std::pair<Key, Key>>& judged,
+                        const std::set<std::pair<Key, Key>>& rejected) {
+  PairVerdicts v;
+  std::set<std::pair<Key, Key>> aside;
+  for (const SharedObject& s : set_aside) {
+    const auto key = PairKey(s);
+    if (judged.count(key) == 0 || rejected.count(key) > 0) {
+      v.set_aside.push_back(s);
+      aside.insert(key);
+    } else {
+      ++v.taken_back;
+    }
+  }
+  for (const SharedObject& s : shared) {
+    const auto key = PairKey(s);
+    if (rejected.count(key) == 0 || !aside.insert(key).second) continue;
+    v.set_aside.push_back(s);
+    ++v.rejected;
+  }
+  return v;
+}
 
 std::vector<SharedObject> AcceptedPairs(const std::vector<SharedObject>& shared,
                                         const std::vector<SharedObject>& set_aside) {
@@ -132,14 +173,9 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
     // off: on chairs25, 6 robots, 10 runs, no wrong pair injected, right pairs set aside 10.6
     // -> 6.3 per run; and with the object-pose factors robust, 1.3).
     const std::vector<RelativePoseFactor>& factors = problem.graph.factors();
-    std::vector<bool> robust(factors.size(), false), checked(factors.size(), false);
-    for (std::size_t i = 0; i < factors.size(); ++i) {
-      const RelativePoseFactor& f = factors[i];
-      const bool pair = f.a().isObject() && f.b().isObject() && f.a().robot != f.b().robot;
-      const bool observation = f.a().isPose() && f.b().isObject() && !problem.team[i];
-      robust[i] = pair || observation;
-      checked[i] = !problem.team[i];
-    }
+    const RobustGroupMasks masks = RobustGroupFactors(problem.graph, problem.team);
+    const std::vector<bool>& robust = masks.robust;
+    const std::vector<bool>& checked = masks.checked;
     RobustDgsOptions o = *options_.robust;
     o.dgs = options_.solver;
     RobustDgsResult solved;
@@ -164,31 +200,15 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
     std::set<std::pair<Key, Key>> rejected, judged;
     for (std::size_t i = 0; i < factors.size(); ++i) {
       if (!robust[i] || !factors[i].a().isObject()) continue;  // the pairs
-      const std::pair<Key, Key> key = Unordered(team_key(factors[i].a()), team_key(factors[i].b()));
+      const std::pair<Key, Key> key =
+          UnorderedPair(team_key(factors[i].a()), team_key(factors[i].b()));
       judged.insert(key);
       if (solved.weights[i] < 0.5) rejected.insert(key);
     }
-    std::vector<SharedObject> aside;
-    for (const SharedObject& s : set_aside_) {
-      const auto key = PairKey(s);
-      if (judged.count(key) == 0 || rejected.count(key) > 0) {
-        aside.push_back(s);
-      } else {
-        ++rec.taken_back;
-      }
-    }
-    for (const SharedObject& s : team.shared) {
-      const auto key = PairKey(s);
-      if (rejected.count(key) == 0) continue;
-      const bool known = std::any_of(aside.begin(), aside.end(), [&](const SharedObject& z) {
-        return PairKey(z) == key;
-      });
-      if (!known) {
-        aside.push_back(s);
-        ++rec.rejected;
-      }
-    }
-    set_aside_ = std::move(aside);
+    PairVerdicts verdicts = JudgePairs(team.shared, set_aside_, judged, rejected);
+    rec.rejected = verdicts.rejected;
+    rec.taken_back = verdicts.taken_back;
+    set_aside_ = std::move(verdicts.set_aside);
     // The verdicts on the robots' own factors, kept in their maps until their next group solve.
     for (std::size_t k = 0; k < part.size(); ++k) {
       ObjectSlam& r = team.robots[static_cast<std::size_t>(part[k])];

@@ -95,6 +95,31 @@ struct GroupSolveRecord {
 std::vector<SharedObject> AcceptedPairs(const std::vector<SharedObject>& shared,
                                         const std::vector<SharedObject>& set_aside);
 
+// Two landmarks as an unordered pair: either direction of a shared pair.
+std::pair<Key, Key> UnorderedPair(const Key& a, const Key& b);
+
+// The masks of a robust group solve over a group's graph (GroupProblem::graph with its team
+// flags, or a robot's RobotGroupPart::subgraph with its own): robust, the shared pairs between two
+// robots and the object-pose factors of the robots' own graphs (a team factor is a pose-object
+// factor too, but not robust); checked (the separator check's), every factor but the team ones.
+struct RobustGroupMasks {
+  std::vector<bool> robust, checked;
+};
+RobustGroupMasks RobustGroupFactors(const PoseGraph& graph, const std::vector<bool>& team);
+
+// A robust group solve's verdicts on shared pairs (UnorderedPair, real ids): of `set_aside`, the
+// pairs it did not judge or rejected again stay (the others are taken back), then every pair of
+// `shared` it rejected and that was not set aside is set aside, in the order of `shared`.
+struct PairVerdicts {
+  std::vector<SharedObject> set_aside;
+  int rejected = 0;    // pairs newly set aside
+  int taken_back = 0;  // pairs set aside before that it accepts
+};
+PairVerdicts JudgePairs(const std::vector<SharedObject>& shared,
+                        const std::vector<SharedObject>& set_aside,
+                        const std::set<std::pair<Key, Key>>& judged,
+                        const std::set<std::pair<Key, Key>>& rejected);
+
 class OnlineTeam {
  public:
   // Throws InvalidInputError on bad options.

@@ -47,6 +47,9 @@ void DgsNodeOptions::validate() const {
   if (!gnc && separator_check) {
     throw InvalidInputError("DGS node options: a separator check without gnc options");
   }
+  if (!separator_check && !checked.empty()) {
+    throw InvalidInputError("DGS node options: a checked mask without a separator check");
+  }
   if (separator_check) {
     RobustProgramOptions p;  // validates the check as the program will run it
     p.solver = DriverOptions(*this);
@@ -86,7 +89,8 @@ using transport_detail::StepRecord;
 std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initial,
                              const DgsOptions& o, const std::optional<GncOptions>& gnc,
                              const std::vector<bool>& robust,
-                             const std::optional<SeparatorConsistencyOptions>& check) {
+                             const std::optional<SeparatorConsistencyOptions>& check,
+                             const std::vector<bool>& checked) {
   Fingerprint f;
   f.add(static_cast<std::uint64_t>(robot));
   f.add(static_cast<std::uint64_t>(gnc.has_value()));
@@ -103,6 +107,8 @@ std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initia
                     static_cast<int>(check->map_uncertainty)}) {
         f.add(static_cast<std::uint64_t>(v));
       }
+      f.add(static_cast<std::uint64_t>(checked.size()));
+      for (bool b : checked) f.add(static_cast<std::uint64_t>(b));
     }
   }
   transport_detail::AddSolverOptions(f, o);
@@ -193,6 +199,11 @@ class DgsNode::Impl final : public TeamChannel {
         throw InvalidInputError(fmt::format("DGS node: the robust mask has {} entries for {} "
                                             "factors",
                                             robust_.size(), subgraph_.factors().size()));
+      }
+      if (!options_.checked.empty() && options_.checked.size() != subgraph_.factors().size()) {
+        throw InvalidInputError(fmt::format("DGS node: the checked mask has {} entries for {} "
+                                            "factors",
+                                            options_.checked.size(), subgraph_.factors().size()));
       }
     }
     neighbour_keys_ = agent_->neighbourVariables();
@@ -309,6 +320,7 @@ class DgsNode::Impl final : public TeamChannel {
     problem.subgraph = subgraph_;
     problem.initial = initial_;
     problem.robust = robust_;
+    problem.checked = options_.checked;
     RobustProgramOptions options;
     options.solver = solver_;
     options.gnc = *options_.gnc;
@@ -327,7 +339,7 @@ class DgsNode::Impl final : public TeamChannel {
       return *agent_;
     };
     result_.robust = RunRobustRobotProgram(problem, options, make, *this);
-    result_.program = result_.robust->solves.front();
+    if (!result_.robust->unlinked) result_.program = result_.robust->solves.front();
   }
 
   // The robot's variables now: the agent's, and the others as the last solve that held them.
@@ -358,7 +370,7 @@ class DgsNode::Impl final : public TeamChannel {
   void loadJournal() {
     const std::uint64_t fingerprint =
         RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_,
-                       options_.separator_check) ^
+                       options_.separator_check, options_.checked) ^
         options_.solve;
     if (!journal_) return;
     result_.journal_truncated_bytes = journal_->truncatedBytes();

@@ -81,6 +81,10 @@ struct DgsNodeOptions {
   std::optional<GncOptions> gnc;
   // With gnc: which factors of the subgraph are robust (one flag each); empty: the separators.
   std::vector<bool> robust;
+  // With separator_check: the factors the check sees (RobustRobotProblem::checked; one flag
+  // each); empty: all. A check that leaves a robot unlinked ends the solve with
+  // DgsNodeResult::robust->unlinked and no solve (robust_program.h).
+  std::vector<bool> checked;
   // With gnc: the pairwise check of the separators before GNC (robust_program.h, C1-C4; the map
   // covariances in CovariancePackets); none: GNC alone. Its threshold 0: GNC's c2.
   std::optional<SeparatorConsistencyOptions> separator_check;

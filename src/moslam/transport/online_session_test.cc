@@ -61,7 +61,25 @@ OnlineRun RunTwin(const SimulationData& data, const RobotSessionOptions& session
   options.solver = DriverOptions(session.dgs);
   options.lambda = session.slam.rendezvous.lambda();
   options.dies_in_solve = dies_in_solve;
+  if (session.dgs.gnc) {  // the same robust solve
+    RobustDgsOptions robust;
+    robust.gnc = *session.dgs.gnc;
+    robust.check_separators = session.dgs.separator_check.has_value();
+    if (session.dgs.separator_check) robust.consistency = *session.dgs.separator_check;
+    robust.retest_left_out = session.dgs.retest_left_out;
+    options.robust = robust;
+  }
   return RunOnline(data, session.slam, options);
+}
+
+// Robust group solves (RobotSessionOptions::online with dgs.gnc): the simulation's defaults.
+RobotSessionOptions RobustOnlineSessionOptions(const ScenarioSpec& spec) {
+  RobotSessionOptions o = OnlineSessionOptions(spec);
+  const RobustDgsOptions defaults;
+  o.dgs.gnc = defaults.gnc;
+  o.dgs.separator_check = defaults.consistency;
+  o.dgs.retest_left_out = defaults.retest_left_out;
+  return o;
 }
 
 struct Crash : std::runtime_error {
@@ -138,8 +156,11 @@ double CompareWithTwin(const std::vector<RobotSessionResult>& results, const Onl
       const SessionSolve& s = got.solves[i];
       EXPECT_EQ(s.step, expected[i]->step);
       EXPECT_EQ(s.robots, expected[i]->robots);
-      EXPECT_EQ(s.refine_steps, expected[i]->refine_steps);
-      EXPECT_EQ(s.rotation_rounds, expected[i]->rotation_sweeps);
+      EXPECT_EQ(s.unlinked, expected[i]->unlinked);
+      if (expected[i]->robust_rounds == 0 && expected[i]->sweeps == 0) {  // least squares
+        EXPECT_EQ(s.refine_steps, expected[i]->refine_steps);
+        EXPECT_EQ(s.rotation_rounds, expected[i]->rotation_sweeps);
+      }
       if (!s.replayed) {
         EXPECT_GT(s.sent.estimates_bytes + s.sent.status_bytes, 0);
       }
@@ -183,6 +204,106 @@ TEST(OnlineSession, OverTheInProcessTransportEqualsTheInProcessTwin) {
   std::printf("online twin vs sessions: %zu group solves (largest %zu robots, %d team factors), "
               "largest difference %.2e\n",
               twin.solves.size(), largest, team_factors, largest_difference);
+}
+
+// Robust group solves between sessions: every map after every solve and at the end equal the
+// twin's robust solves (OnlineOptions::robust), and so do the verdicts: the pairs set aside at the
+// end (each robot holds its own) and the factors of its own graph rejected. One robot is killed in
+// a solve and again between two, and takes the verdicts of its finished solves from its journal.
+TEST(OnlineSession, RobustGroupSolvesEqualTheTwinsAndSurviveARestart) {
+  ScenarioSpec spec = SixRobots();
+  spec.poses_per_robot = 60;  // pairs set aside, one taken back, and groups left unlinked
+  const SimulationData data = SimulateScenario(spec);
+  const RobotSessionOptions base = RobustOnlineSessionOptions(spec);
+  const OnlineRun twin = RunTwin(data, base);
+  int rejected = 0, taken_back = 0, observation_outliers = 0, unlinked = 0;
+  std::map<int, int> solves_of;
+  for (const GroupSolveRecord& g : twin.solves) {
+    rejected += g.rejected;
+    taken_back += g.taken_back;
+    observation_outliers += g.observation_outliers;
+    unlinked += g.unlinked ? 1 : 0;
+    for (int r : g.robots) ++solves_of[r];
+  }
+  std::printf("robust twin: %zu group solves, %d pairs set aside (%d taken back), %d observations "
+              "rejected, %d unlinked, %zu set aside at the end\n",
+              twin.solves.size(), rejected, taken_back, observation_outliers, unlinked,
+              twin.set_aside.size());
+  // The schedule exercises pairs set aside and taken back, rejected observations and a group
+  // left unlinked.
+  EXPECT_GT(rejected, 0);
+  EXPECT_GT(taken_back, 0);
+  EXPECT_GT(observation_outliers, 0);
+  EXPECT_GT(unlinked, 0);
+  const int victim = std::max_element(solves_of.begin(), solves_of.end(), [](const auto& a,
+                                      const auto& b) { return a.second < b.second; })->first;
+  ASSERT_GE(solves_of[victim], 4);
+
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("moslam_robust_online_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::atomic<int> crashes{0};
+  std::atomic<int> solves_seen{0};
+  const std::vector<RobotSessionResult> results = RunSessions(data, spec.robots, [&](int r) {
+    RobotSessionOptions o = base;
+    o.dgs.state_dir = (dir / std::to_string(r)).string();
+    if (r != victim) return o;
+    // First death: in round 6 of its second group solve. Second: right after its first solve
+    // (from the third on) after which pairs of it stand aside or factors of it are rejected.
+    o.dgs.on_round = [&](const DgsNodeRound& round) {
+      if (!round.replayed && round.round == 6 && solves_seen == 1 && crashes == 0) {
+        ++crashes;
+        solves_seen = 0;
+        throw Crash();
+      }
+    };
+    o.on_solve = [&](const SessionSolve& s) {
+      ++solves_seen;
+      if (!s.replayed && solves_seen >= 3 && s.set_aside + s.observation_outliers > 0 &&
+          crashes == 1) {
+        ++crashes;
+        solves_seen = 0;
+        throw Crash();
+      }
+    };
+    return o;
+  });
+  EXPECT_EQ(crashes, 2);
+  std::size_t solves = 0;
+  const double largest_difference = CompareWithTwin(results, twin, &solves);
+  EXPECT_LE(largest_difference, 1e-9);
+  // The verdicts: the pairs set aside (each robot's are the twin's that involve it) and the
+  // weights of every robot's own factors.
+  std::set<std::pair<Key, Key>> twin_aside;
+  for (const SharedObject& o : twin.set_aside) {
+    twin_aside.insert(UnorderedPair(o.alpha_object, o.beta_object));
+  }
+  for (int r = 0; r < spec.robots; ++r) {
+    std::set<std::pair<Key, Key>> expected, got;
+    for (const auto& pair : twin_aside) {
+      if (pair.first.robot == r || pair.second.robot == r) expected.insert(pair);
+    }
+    for (const SharedObject& o : results[static_cast<std::size_t>(r)].set_aside) {
+      got.insert(UnorderedPair(o.alpha_object, o.beta_object));
+    }
+    EXPECT_EQ(got, expected) << "robot " << r;
+    int rejected_own = 0;
+    for (double w : twin.slam.robots[static_cast<std::size_t>(r)].factorWeights()) {
+      rejected_own += w != 1.0 ? 1 : 0;
+    }
+    const std::vector<SessionSolve>& mine = results[static_cast<std::size_t>(r)].solves;
+    if (!mine.empty()) {
+      EXPECT_EQ(mine.back().observation_outliers, rejected_own) << "robot " << r;
+    }
+  }
+  // The victim took verdicts from its journal: a replayed solve after which pairs stood aside.
+  const std::vector<SessionSolve>& victims = results[static_cast<std::size_t>(victim)].solves;
+  EXPECT_TRUE(std::any_of(victims.begin(), victims.end(), [](const SessionSolve& s) {
+    return s.replayed && s.set_aside + s.observation_outliers > 0;
+  }));
+  std::printf("robust online twin vs sessions: %zu solves compared, largest difference %.2e\n",
+              solves, largest_difference);
+  std::filesystem::remove_all(dir);
 }
 
 // A robot killed in the DGS of a group solve, and again between two solves, and restarted each

@@ -19,6 +19,7 @@
 #include "moslam/io/g2o.h"
 #include "moslam/io/tum.h"
 #include "moslam/online/group_solve.h"
+#include "moslam/online/online_team.h"
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/event_record.h"
@@ -124,10 +125,9 @@ void RobotSessionOptions::validate() const {
   if (rendezvous_timeout.count() <= 0) {
     throw InvalidInputError("robot session: rendezvous_timeout must be positive");
   }
-  if (online && dgs.gnc) {
-    throw InvalidInputError("robot session: the robust solve (dgs.gnc) runs on the batch solve; "
-                            "online group solves are least squares between processes (the "
-                            "robust ones run in one process: online/online_team.h)");
+  if (online && (!dgs.robust.empty() || !dgs.checked.empty())) {
+    throw InvalidInputError("robot session: online, the robust and checked masks are the group "
+                            "solve's (online_team.h: RobustGroupFactors), not given");
   }
   if (online && !dgs.solver.refine) {
     throw InvalidInputError(
@@ -431,6 +431,7 @@ class RobotSession::Impl {
       result_.shared = shared_;
       result_.initial = slam.estimate();
       result_.final_estimate = slam.estimate();
+      result_.set_aside = set_aside_;
       result_.poses = slam.numPoses();
       result_.landmarks = static_cast<int>(slam.landmarks().size());
       saveMap(slam, "final");
@@ -485,6 +486,18 @@ class RobotSession::Impl {
     }
     DgsNode node(robot_, result_.subgraph, result_.initial, dgs_transport, node_options);
     result_.dgs = node.run();
+    RefuseUnlinked(result_.dgs, robot_);
+  }
+
+  // A batch robust solve whose separator check left a robot unlinked has no estimate of the
+  // team: an error, as RunRobustDgs throws it in one process.
+  static void RefuseUnlinked(const DgsNodeResult& solved, int robot) {
+    if (!solved.robust || !solved.robust->unlinked) return;
+    throw UnderdeterminedError(fmt::format(
+        "robot {}: the separator check left some robot of the team without a pair it accepts "
+        "(a robot pair with fewer than min_support pairwise-consistent shared objects keeps none "
+        "unless its robots are linked through confirmed pairs): no team estimate",
+        robot));
   }
 
   // ---- batch: robots that left for good ---------------------------------------------------
@@ -579,6 +592,7 @@ class RobotSession::Impl {
     };
     DgsNode node(part.local, part.subgraph, std::move(part.initial), group_transport, node_options);
     DgsNodeResult solved = node.run();
+    RefuseUnlinked(solved, robot_);
     for (const RelativePoseFactor& f : part.subgraph.factors()) {
       result_.subgraph.add(
           RelativePoseFactor(real(f.a()), real(f.b()), f.measured(), f.information()));
@@ -620,6 +634,7 @@ class RobotSession::Impl {
             "robot {}: the rendezvous of step {} removes a pair never shared (journal of "
             "another run?)", robot_, e.step));
       }
+      EraseShared(set_aside_, s);  // gone, so no longer set aside either
     }
     const std::vector<SharedObject> added = SharedObjectsOf(answer);
     shared_.insert(shared_.end(), added.begin(), added.end());
@@ -673,6 +688,11 @@ class RobotSession::Impl {
                             (attempt == 0 ? fmt::format("step_{:04d}", t)
                                           : fmt::format("step_{:04d}_attempt_{}", t, attempt));
       node_options.state_dir = solve_dir.string();
+      if (node_options.gnc) {  // OnlineTeam's robust group solve
+        RobustGroupMasks masks = RobustGroupFactors(part->subgraph, part->team);
+        node_options.robust = std::move(masks.robust);
+        if (node_options.separator_check) node_options.checked = std::move(masks.checked);
+      }
       node_options.log = [this, t, robots](const std::string& text) {
         options_.log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t,
                                  fmt::join(robots, ","), robots.size() - 1, text));
@@ -691,6 +711,25 @@ class RobotSession::Impl {
       }
     }
     const DgsNodeResult& solved = *result;
+    SolveRecord done;
+    done.step = static_cast<std::uint32_t>(t);
+    done.object_object = static_cast<std::uint32_t>(part->object_object);
+    done.team_factors = static_cast<std::uint32_t>(part->team_factors);
+    if (solved.robust && solved.robust->unlinked) {
+      // The check left some robot of the group unlinked: nothing changes (OnlineTeam alike).
+      done.unlinked = true;
+      done.estimate = slam.estimate();
+      done.set_aside = setAsideRecord();
+      done.rejected = rejectedFactors(slam);
+      record(kSolveRecord, done, transport_detail::AppendSolveRecord);
+      if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
+      finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
+      return;
+    }
+    if (solved.robust) {  // the verdicts first: the held copies are of the accepted pairs
+      judge(slam, robots, *part, *solved.robust, done);
+      applyVerdicts(slam, done, t);
+    }
     Values solution = solved.estimate;
     solution.insert(solved.neighbours.begin(), solved.neighbours.end());
     // Members that left during the solve (the node's rule) are gone for good for this robot too:
@@ -703,18 +742,13 @@ class RobotSession::Impl {
       if (hasLeft(r, t)) continue;
       markLeft(r, t, fmt::format("left during the group solve of step {}", t));
     }
-    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, shared_, t, left_solve);
-
-    SolveRecord done;
-    done.step = static_cast<std::uint32_t>(t);
+    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, accepted(), t, left_solve);
     done.estimate = update.estimate;
     done.held = update.held;
     done.rotation_rounds = static_cast<std::uint32_t>(solved.rotation_rounds);
     done.pose_rounds = static_cast<std::uint32_t>(solved.pose_rounds);
     done.refine_steps = static_cast<std::uint32_t>(solved.program.refine.iterations);
     done.protocol_steps = static_cast<std::uint32_t>(solved.program.channel_steps);
-    done.object_object = static_cast<std::uint32_t>(part->object_object);
-    done.team_factors = static_cast<std::uint32_t>(part->team_factors);
     done.refine_status = solved.program.refine.status;
     record(kSolveRecord, done, transport_detail::AppendSolveRecord);
     if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
@@ -742,7 +776,7 @@ class RobotSession::Impl {
     // All its pairs with other robots, and its copies of their landmarks: formGroup keeps those
     // with robots outside the group it forms (GroupTeamFactors picks among the members' copies),
     // so the pairs with a partner found gone while the group forms are held ones.
-    for (const TeamPair& p : RobotTeamPairs(robot_, shared_, held_, {robot_})) {
+    for (const TeamPair& p : RobotTeamPairs(robot_, accepted(), held_, {robot_})) {
       TeamPairEntry e;
       e.mine = p.mine.index;
       e.other_robot = p.other.robot;
@@ -787,9 +821,12 @@ class RobotSession::Impl {
 
   void finishSolve(ObjectSlam& slam, int t, const std::vector<int>& robots, const SolveRecord& done,
                    const TransportStats& sent, Clock::time_point t0, bool replayed) {
-    for (const auto& [k, x] : done.held) held_[k] = x;
-    slam.setEstimate(done.estimate);
-    slam.setTeamFactors(TeamFactors(robot_, shared_, held_, options_.slam.rendezvous.lambda()));
+    if (!done.unlinked) {
+      if (options_.dgs.gnc && replayed) applyVerdicts(slam, done, t);
+      for (const auto& [k, x] : done.held) held_[k] = x;
+      slam.setEstimate(done.estimate);
+      slam.setTeamFactors(TeamFactors(robot_, accepted(), held_, options_.slam.rendezvous.lambda()));
+    }
     SessionSolve rec;
     rec.step = t;
     rec.robots = robots;
@@ -801,12 +838,92 @@ class RobotSession::Impl {
     rec.refine_status = done.refine_status;
     rec.protocol_steps = static_cast<int>(done.protocol_steps);
     rec.estimate = slam.estimate();
+    rec.unlinked = done.unlinked;
+    rec.set_aside = static_cast<int>(set_aside_.size());
+    rec.observation_outliers = static_cast<int>(done.rejected.size());
     rec.sent = sent;
     rec.replayed = replayed;
     rec.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     saveMap(slam, fmt::format("step_{:04d}", t));
     result_.solves.push_back(rec);
     if (options_.on_solve) options_.on_solve(result_.solves.back());
+  }
+
+  // ---- robust group solves (dgs.gnc; OnlineTeam's verdicts, each robot on its own pairs) ----
+  // Its shared pairs not set aside.
+  std::vector<SharedObject> accepted() const { return AcceptedPairs(shared_, set_aside_); }
+
+  std::vector<std::pair<Key, Key>> setAsideRecord() const {
+    std::vector<std::pair<Key, Key>> out;
+    for (const SharedObject& s : set_aside_) out.emplace_back(s.alpha_object, s.beta_object);
+    return out;
+  }
+
+  // The factors of its own graph whose weight is not 1 (rejected by its last robust solve).
+  static std::vector<std::uint32_t> rejectedFactors(const ObjectSlam& slam) {
+    std::vector<std::uint32_t> out;
+    const std::vector<double>& w = slam.factorWeights();
+    for (std::size_t j = 0; j < w.size(); ++j) {
+      if (w[j] != 1.0) out.push_back(static_cast<std::uint32_t>(j));
+    }
+    return out;
+  }
+
+  // The solve's verdicts into `done`: its pairs with the group's robots judged (a separator's
+  // weight is its lower robot's, the same on both sides), the pairs set aside after it, and the
+  // factors of its own graph rejected.
+  void judge(const ObjectSlam& slam, const std::vector<int>& robots, const RobotGroupPart& part,
+             const RobustProgramResult& solved, SolveRecord& done) const {
+    const std::vector<RelativePoseFactor>& factors = part.subgraph.factors();
+    const auto real = [&](Key k) {
+      k.robot = robots.at(static_cast<std::size_t>(k.robot));
+      return k;
+    };
+    std::set<std::pair<Key, Key>> judged, rejected;
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      const RelativePoseFactor& f = factors[i];
+      if (!f.a().isObject() || !f.b().isObject() || f.a().robot == f.b().robot) continue;
+      const auto key = UnorderedPair(real(f.a()), real(f.b()));
+      judged.insert(key);
+      if (solved.weights.at(i) < 0.5) rejected.insert(key);
+    }
+    const PairVerdicts verdicts = JudgePairs(shared_, set_aside_, judged, rejected);
+    for (const SharedObject& s : verdicts.set_aside) {
+      done.set_aside.emplace_back(s.alpha_object, s.beta_object);
+    }
+    for (std::size_t j = 0; j < slam.numFactors(); ++j) {
+      if (solved.weights.at(part.own_first + j) < 0.5) {
+        done.rejected.push_back(static_cast<std::uint32_t>(j));
+      }
+    }
+  }
+
+  // The verdicts of a solve record (computed now or journaled) into its state: the pairs set
+  // aside, and its own factors' weights (GNC's min_weight for the rejected ones).
+  void applyVerdicts(ObjectSlam& slam, const SolveRecord& done, int t) {
+    std::vector<SharedObject> aside;
+    for (const auto& [alpha, beta] : done.set_aside) {
+      const auto it = std::find_if(shared_.begin(), shared_.end(), [&](const SharedObject& s) {
+        return s.alpha_object == alpha && s.beta_object == beta;
+      });
+      if (it == shared_.end()) {
+        throw InvalidInputError(fmt::format("robot {}: the solve of step {} sets aside a pair it "
+                                            "does not share (journal of another run?)",
+                                            robot_, t));
+      }
+      aside.push_back(*it);
+    }
+    std::vector<double> w(slam.numFactors(), 1.0);
+    for (std::uint32_t j : done.rejected) {
+      if (j >= w.size()) {
+        throw InvalidInputError(fmt::format("robot {}: the solve of step {} rejects factor {} of "
+                                            "its {} (journal of another run?)",
+                                            robot_, t, j, w.size()));
+      }
+      w[j] = options_.dgs.gnc->min_weight;
+    }
+    set_aside_ = std::move(aside);
+    slam.setFactorWeights(std::move(w));
   }
 
   // Waits for the joining statuses of the closure of `partners` within `range` (after publishing
@@ -1220,6 +1337,7 @@ class RobotSession::Impl {
   std::map<std::pair<int, std::uint32_t>, std::deque<SharedObjectsPacket>> answers_;
   std::vector<Received> pending_;  // DGS packets
   HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
+  std::vector<SharedObject> set_aside_;  // online robust: its pairs set aside (online_team.h)
   std::unique_ptr<TeamMembership> membership_;  // which robots it still counts on
   RobotSessionResult result_;
 };

@@ -162,6 +162,11 @@ struct SessionSolve {
   int rotation_rounds = 0, pose_rounds = 0, refine_steps = 0, protocol_steps = 0;
   StageStatus refine_status = StageStatus::kNotRun;
   Values estimate;                // its map after the solve (its own frame)
+  // Robust (dgs.gnc): the check left the group unlinked (nothing changed: OnlineTeam alike); the
+  // robot's pairs set aside and the factors of its own graph rejected, after the solve.
+  bool unlinked = false;
+  int set_aside = 0;
+  int observation_outliers = 0;
   TransportStats sent;            // what this robot sent for the solve (join included)
   bool replayed = false;          // taken from the journal (restart): nothing sent
   double seconds = 0.0;
@@ -170,7 +175,8 @@ struct SessionSolve {
 struct RobotSessionOptions {
   MultiRobotSlamConfig slam;
   DgsNodeOptions dgs;  // dgs.state_dir also holds rendezvous.bin; with dgs.gnc and no mask, the
-                       // factors touching an object landmark are robust (as in the simulation)
+                       // factors touching an object landmark are robust (as in the simulation);
+                       // online, every group solve is robust (below)
   // Online mapping (online/group_solve.h; the in-process twin: online/online_team.h): after the
   // rendezvous events of a step, the robots connected through them and linked by shared objects
   // solve their joint graph with DgsNode (dgs.solver, which must refine: the partners' landmarks
@@ -178,6 +184,13 @@ struct RobotSessionOptions {
   // no batch solve at the end. dgs.state_dir then receives the map after every solve
   // (maps/step_<t>/map.g2o and robot_<r>.tum) and the journal: a restarted online robot takes
   // the finished solves from it and resumes the one it was in (Restart, above).
+  // With dgs.gnc, every group solve is OnlineTeam's robust one (online_team.h; its twin:
+  // OnlineOptions::robust): DgsNode with the robust and checked masks of RobustGroupFactors on the
+  // robot's part (dgs.robust and dgs.checked must be empty), dgs.separator_check as the check.
+  // Each robot keeps the verdicts on its own pairs (JudgePairs: a pair's weight is its lower
+  // robot's, so both robots of a pair hold the same) and on its own factors, journaled with the
+  // solve; a group the check leaves unlinked (RobustProgramResult::unlinked, which every member
+  // finds alike) changes nothing.
   bool online = false;
   std::function<void(const SessionSolve&)> on_solve;  // after each group solve
   std::chrono::milliseconds rendezvous_timeout{60000};  // per event
@@ -201,6 +214,7 @@ struct RobotSessionResult {
   DgsNodeResult dgs;                          // the batch solve (not online)
   std::vector<SessionSolve> solves;           // online: the group solves, in order
   Values final_estimate;                      // online: its map at the end (own frame)
+  std::vector<SharedObject> set_aside;        // online robust: its pairs set aside at the end
   // The team had found this robot gone (it came back): it left the team at left_team_step and
   // mapped alone from then on (team_membership.h).
   bool left_team = false;

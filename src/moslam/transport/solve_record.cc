@@ -9,7 +9,8 @@
 namespace moslam::transport_detail {
 namespace {
 
-constexpr std::uint8_t kMineIsAlpha = 1, kHeld = 2;
+constexpr std::uint8_t kMineIsAlpha = 1, kHeld = 2;  // team pair flags
+constexpr std::uint8_t kUnlinked = 1;                 // solve record flags
 // Smallest encodings, to bound a count by what is left before reserving anything.
 constexpr std::size_t kKeyBytes = 2 + 1 + 8, kPoseBytes = 12 * 8;
 
@@ -127,6 +128,13 @@ void AppendSolveRecord(const SolveRecord& record, std::vector<std::uint8_t>& out
   b.u32(record.rotation_rounds).u32(record.pose_rounds).u32(record.refine_steps);
   b.u32(record.protocol_steps).u32(record.object_object).u32(record.team_factors);
   b.u8(static_cast<std::uint8_t>(record.refine_status));
+  b.u8(record.unlinked ? kUnlinked : 0).u32(static_cast<std::uint32_t>(record.set_aside.size()));
+  for (const auto& [alpha, beta] : record.set_aside) {
+    WriteKey(b, alpha);
+    WriteKey(b, beta);
+  }
+  b.u32(static_cast<std::uint32_t>(record.rejected.size()));
+  for (std::uint32_t i : record.rejected) b.u32(i);
   out.insert(out.end(), b.data().begin(), b.data().end());
 }
 
@@ -169,6 +177,29 @@ SolveRecord ReadSolveRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
     throw InvalidInputError(what + ": unknown refine status " + std::to_string(status));
   }
   record.refine_status = static_cast<StageStatus>(status);
+  const std::uint8_t flags = p.u8();
+  if (flags & ~kUnlinked) {
+    throw InvalidInputError(what + ": unknown solve record flags " + std::to_string(flags));
+  }
+  record.unlinked = flags & kUnlinked;
+  const std::uint32_t k = Count(p, 2 * kKeyBytes, body.size(), what);
+  for (std::uint32_t i = 0; i < k; ++i) {
+    const Key alpha = ReadKey(p, what);
+    const Key beta = ReadKey(p, what);
+    if (!alpha.isObject() || !beta.isObject() || alpha.robot == beta.robot) {
+      throw InvalidInputError(what + ": a pair set aside is not two landmarks of two robots");
+    }
+    record.set_aside.emplace_back(alpha, beta);
+  }
+  const std::uint32_t f = Count(p, 4, body.size(), what);
+  for (std::uint32_t i = 0; i < f; ++i) {
+    const std::uint32_t index = p.u32();
+    if (!record.rejected.empty() && index <= record.rejected.back()) {
+      throw InvalidInputError(what + ": the rejected factors of a solve record are not "
+                                     "increasing");
+    }
+    record.rejected.push_back(index);
+  }
   if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a solve record");
   return record;
 }

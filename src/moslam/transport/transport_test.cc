@@ -415,6 +415,8 @@ TEST(SolveRecord, RoundTripsBitExactAndRejectsCorruptRecords) {
   s.object_object = 3;
   s.team_factors = 2;
   s.refine_status = StageStatus::kConverged;
+  s.set_aside = {{Key::Object(3, 1), Key::Object(5, 2)}};
+  s.rejected = {2, 7};
   bytes.clear();
   AppendSolveRecord(s, bytes);
   const SolveRecord sb = ReadSolveRecord(bytes, 0, "test");
@@ -427,6 +429,9 @@ TEST(SolveRecord, RoundTripsBitExactAndRejectsCorruptRecords) {
   EXPECT_EQ(sb.rotation_rounds, 14u);
   EXPECT_EQ(sb.protocol_steps, 60u);
   EXPECT_EQ(sb.refine_status, StageStatus::kConverged);
+  EXPECT_FALSE(sb.unlinked);
+  EXPECT_EQ(sb.set_aside, s.set_aside);
+  EXPECT_EQ(sb.rejected, s.rejected);
   std::vector<std::uint8_t> again;
   AppendSolveRecord(sb, again);
   EXPECT_EQ(again, bytes);
@@ -443,8 +448,21 @@ TEST(SolveRecord, RoundTripsBitExactAndRejectsCorruptRecords) {
   const double two = 2.0;
   std::memcpy(&bad[first_pose], &two, sizeof two);
   EXPECT_THROW(ReadSolveRecord(bad, 0, "test"), InvalidInputError);
+  // After the refine status: flags, the pair set aside (two keys), the two rejected indices.
+  const std::size_t flags = bytes.size() - (4 + 2 * 11 + 4 + 2 * 4) - 1;
   bad = bytes;
-  bad.back() = 9;
+  bad[flags - 1] = 9;  // the refine status
+  EXPECT_THROW(ReadSolveRecord(bad, 0, "test"), InvalidInputError);
+  bad = bytes;
+  bad[flags] = 1;  // unlinked: a valid record
+  EXPECT_TRUE(ReadSolveRecord(bad, 0, "test").unlinked);
+  bad[flags] = 2;
+  EXPECT_THROW(ReadSolveRecord(bad, 0, "test"), InvalidInputError);
+  bad = bytes;
+  bad[flags + 1 + 4 + 11] = 3;  // the beta landmark's robot: the alpha's
+  EXPECT_THROW(ReadSolveRecord(bad, 0, "test"), InvalidInputError);
+  bad = bytes;
+  bad[bytes.size() - 4] = 2;  // rejected 2, 2: not increasing
   EXPECT_THROW(ReadSolveRecord(bad, 0, "test"), InvalidInputError);
   std::vector<std::uint8_t> huge = bytes;  // a count far beyond the bytes: an error, no allocation
   huge[4] = huge[5] = huge[6] = huge[7] = 0xFF;
