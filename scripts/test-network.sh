@@ -20,7 +20,8 @@
 #    of alpha up to the rendezvous).
 # 2b. online: the same 3 scenario robots with --online (a group solve at every rendezvous, maps
 #    saved after each) on the same shaped links: every robot completes the mission, each saved map
-#    equals the in-process twin's (1e-9); prints the bytes on the wire per group solve.
+#    equals the in-process twin's (1e-9); prints the bytes on the wire per group solve. Then the
+#    same with --online --robust (robust group solves): also the same pairs set aside as the twin.
 # 3. cut: the same 3 robots at 100 kbit/s without random loss; robot 1's link is cut both ways
 #    for 8 s in the middle of the pose stage (longer than the 5 s participant lease: the peers
 #    see it gone, then back): the team completes, equal to the in-process result.
@@ -255,31 +256,39 @@ print(f"test-network: point clouds instead: {frames} frames x {K} points x {C} B
 EOF
 
 # ---- 2b. online mapping: a group solve at every rendezvous, on the same shaped links ----------
-OUT="$WORK/online"
-SCENARIO=(--scenario chairs25 --robots "$N" --poses "$NET_POSES" --online)
-bytes0=$(tx_bytes); packets0=$(tx_packets); t0=$(date +%s.%N)
-start_scenario_robots 63 "$OUT"
-wait_robots "$OUT"
-t1=$(date +%s.%N); bytes1=$(tx_bytes); packets1=$(tx_packets)
-json=$("$MOSLAM" team "${SCENARIO[@]}" --out "$OUT" --collect --json | tail -1)
-python3 - "$json" "$t0" "$t1" "$((bytes1 - bytes0))" "$((packets1 - packets0))" "$RATE" "$LOSS" <<'EOF'
+online_case() {  # online_case <domain> <label> [extra flags of moslam robot/team]
+  local d=$1 label=$2 json bytes0 packets0 t0 t1 bytes1 packets1
+  shift 2
+  OUT="$WORK/online$d"
+  SCENARIO=(--scenario chairs25 --robots "$N" --poses "$NET_POSES" --online "$@")
+  bytes0=$(tx_bytes); packets0=$(tx_packets); t0=$(date +%s.%N)
+  start_scenario_robots "$d" "$OUT"
+  wait_robots "$OUT"
+  t1=$(date +%s.%N); bytes1=$(tx_bytes); packets1=$(tx_packets)
+  json=$("$MOSLAM" team "${SCENARIO[@]}" --out "$OUT" --collect --json | tail -1)
+  python3 - "$json" "$t0" "$t1" "$((bytes1 - bytes0))" "$((packets1 - packets0))" "$RATE" "$LOSS" \
+    "$label" <<'EOF'
 import json, sys
 j = json.loads(sys.argv[1]); t0, t1 = float(sys.argv[2]), float(sys.argv[3])
 wire, packets, rate, loss = int(sys.argv[4]), int(sys.argv[5]), sys.argv[6], sys.argv[7]
-label = f"online chairs25, {j['robots']} robots x {j['poses_per_robot']} poses, {rate}, loss {loss}"
+label = f"{sys.argv[8]} chairs25, {j['robots']} robots x {j['poses_per_robot']} poses, {rate}, loss {loss}"
 assert j["ok"], f"{label}: a robot failed or its solves differ from the in-process twin"
 assert j["group_solves"] > 0, f"{label}: no group solve"
 assert j["max_difference"] <= 1e-9, f"{label}: differs from the in-process twin by {j['max_difference']}"
+assert j["set_aside"] == j["in_process_set_aside"], f"{label}: pairs set aside differ from the twin's"
 solves = j["group_solves"]
 print(f"test-network: {label}: OK, {j['rendezvous_events']} rendezvous, {solves} group solves, "
       f"{j['maps_compared']} saved maps equal to the in-process twin (largest difference "
-      f"{j['max_difference']:.2g}); mission {t1 - t0:.1f} s")
-print(f"test-network: online on the wire {wire} B in {packets} packets (all traffic, discovery "
+      f"{j['max_difference']:.2g}), {j['set_aside']} pairs set aside; mission {t1 - t0:.1f} s")
+print(f"test-network: {sys.argv[8]} on the wire {wire} B in {packets} packets (all traffic, discovery "
       f"included), {wire / solves:.0f} B per group solve; DDS payload {j['dds_bytes_per_solve']:.0f} B "
       f"per group solve (objects {j['rendezvous_dds_bytes']} B, solves {j['solve_dds_bytes']} B in all); "
       f"point clouds instead, one frame per robot of the group: {j['point_cloud_bytes_per_solve']:.3g} B "
       f"per group solve ({j['point_cloud_bytes_per_solve'] * 8 / 1e5:.0f} s at 100 kbit/s)")
 EOF
+}
+online_case 63 online
+online_case 64 "online robust" --robust
 
 # ---- 3. a cut link ----------------------------------------------------------------------------
 if [[ $CUT_TEST == 0 ]]; then echo "test-network: cut test skipped (MOSLAM_NET_CUT=0)"; exit 0; fi
