@@ -206,6 +206,48 @@ TEST(OnlineSession, OverTheInProcessTransportEqualsTheInProcessTwin) {
               twin.solves.size(), largest, team_factors, largest_difference);
 }
 
+// The robot of the most group solves of the twin (ties: the lowest id) and their number.
+std::pair<int, int> BusiestRobot(const OnlineRun& twin) {
+  std::map<int, int> solves_of;
+  for (const GroupSolveRecord& g : twin.solves) {
+    for (int r : g.robots) ++solves_of[r];
+  }
+  if (solves_of.empty()) return {-1, 0};
+  return *std::max_element(solves_of.begin(), solves_of.end(),
+                           [](const auto& a, const auto& b) { return a.second < b.second; });
+}
+
+// Kills a robot's session twice (throws Crash): in round 6 of its second group solve, then right
+// after the first solve, from its third on, that `second` accepts (solves counted per incarnation,
+// replayed ones included).
+class TwoCrashes {
+ public:
+  explicit TwoCrashes(std::function<bool(const SessionSolve&)> second =
+                          [](const SessionSolve&) { return true; })
+      : second_(std::move(second)) {}
+  void arm(RobotSessionOptions& o) {
+    o.dgs.on_round = [this](const DgsNodeRound& round) {
+      if (round.round == 0) return;
+      if (!round.replayed && round.round == 6 && solves_seen_ == 1 && crashes_ == 0) crash();
+    };
+    o.on_solve = [this](const SessionSolve& s) {
+      ++solves_seen_;
+      if (!s.replayed && solves_seen_ >= 3 && crashes_ == 1 && second_(s)) crash();
+    };
+  }
+  int crashes() const { return crashes_; }
+
+ private:
+  void crash() {
+    ++crashes_;
+    solves_seen_ = 0;
+    throw Crash();
+  }
+  std::function<bool(const SessionSolve&)> second_;
+  std::atomic<int> crashes_{0};
+  std::atomic<int> solves_seen_{0};
+};
+
 // Robust group solves between sessions: every map after every solve and at the end equal the
 // twin's robust solves (OnlineOptions::robust), and so do the verdicts: the pairs set aside at the
 // end (each robot holds its own) and the factors of its own graph rejected. One robot is killed in
@@ -217,13 +259,11 @@ TEST(OnlineSession, RobustGroupSolvesEqualTheTwinsAndSurviveARestart) {
   const RobotSessionOptions base = RobustOnlineSessionOptions(spec);
   const OnlineRun twin = RunTwin(data, base);
   int rejected = 0, taken_back = 0, observation_outliers = 0, unlinked = 0;
-  std::map<int, int> solves_of;
   for (const GroupSolveRecord& g : twin.solves) {
     rejected += g.rejected;
     taken_back += g.taken_back;
     observation_outliers += g.observation_outliers;
     unlinked += g.unlinked ? 1 : 0;
-    for (int r : g.robots) ++solves_of[r];
   }
   std::printf("robust twin: %zu group solves, %d pairs set aside (%d taken back), %d observations "
               "rejected, %d unlinked, %zu set aside at the end\n",
@@ -235,40 +275,24 @@ TEST(OnlineSession, RobustGroupSolvesEqualTheTwinsAndSurviveARestart) {
   EXPECT_GT(taken_back, 0);
   EXPECT_GT(observation_outliers, 0);
   EXPECT_GT(unlinked, 0);
-  const int victim = std::max_element(solves_of.begin(), solves_of.end(), [](const auto& a,
-                                      const auto& b) { return a.second < b.second; })->first;
-  ASSERT_GE(solves_of[victim], 4);
+  const std::pair<int, int> busiest = BusiestRobot(twin);
+  const int victim = busiest.first, victim_solves = busiest.second;
+  ASSERT_GE(victim_solves, 4);
 
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("moslam_robust_online_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
-  std::atomic<int> crashes{0};
-  std::atomic<int> solves_seen{0};
+  // The second death right after a solve after which pairs of it stand aside or factors of it
+  // are rejected.
+  TwoCrashes crashes(
+      [](const SessionSolve& s) { return s.set_aside + s.observation_outliers > 0; });
   const std::vector<RobotSessionResult> results = RunSessions(data, spec.robots, [&](int r) {
     RobotSessionOptions o = base;
     o.dgs.state_dir = (dir / std::to_string(r)).string();
-    if (r != victim) return o;
-    // First death: in round 6 of its second group solve. Second: right after its first solve
-    // (from the third on) after which pairs of it stand aside or factors of it are rejected.
-    o.dgs.on_round = [&](const DgsNodeRound& round) {
-      if (!round.replayed && round.round == 6 && solves_seen == 1 && crashes == 0) {
-        ++crashes;
-        solves_seen = 0;
-        throw Crash();
-      }
-    };
-    o.on_solve = [&](const SessionSolve& s) {
-      ++solves_seen;
-      if (!s.replayed && solves_seen >= 3 && s.set_aside + s.observation_outliers > 0 &&
-          crashes == 1) {
-        ++crashes;
-        solves_seen = 0;
-        throw Crash();
-      }
-    };
+    if (r == victim) crashes.arm(o);
     return o;
   });
-  EXPECT_EQ(crashes, 2);
+  EXPECT_EQ(crashes.crashes(), 2);
   std::size_t solves = 0;
   const double largest_difference = CompareWithTwin(results, twin, &solves);
   EXPECT_LE(largest_difference, 1e-9);
@@ -314,20 +338,14 @@ TEST(OnlineSession, ARobotKilledInAndBetweenGroupSolvesResumesFromItsJournal) {
   const SimulationData data = SimulateScenario(spec);
   const RobotSessionOptions base = OnlineSessionOptions(spec);
   const OnlineRun twin = RunTwin(data, base);
-  std::map<int, int> solves_of;
-  for (const GroupSolveRecord& s : twin.solves) {
-    for (int r : s.robots) ++solves_of[r];
-  }
-  ASSERT_FALSE(solves_of.empty());
-  const int victim = std::max_element(solves_of.begin(), solves_of.end(), [](const auto& a,
-                                      const auto& b) { return a.second < b.second; })->first;
-  ASSERT_GE(solves_of[victim], 4);
+  const std::pair<int, int> busiest = BusiestRobot(twin);
+  const int victim = busiest.first, victim_solves = busiest.second;
+  ASSERT_GE(victim_solves, 4);
 
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("moslam_online_restart_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
-  std::atomic<int> crashes{0};
-  std::atomic<int> solves_seen{0};  // group solves of the running incarnation, replayed included
+  TwoCrashes crashes;  // the second right after its third solve
   std::vector<std::string> log;
   std::mutex log_mutex;
   const std::vector<RobotSessionResult> results = RunSessions(data, spec.robots, [&](int r) {
@@ -338,30 +356,14 @@ TEST(OnlineSession, ARobotKilledInAndBetweenGroupSolvesResumesFromItsJournal) {
       std::lock_guard<std::mutex> lock(log_mutex);
       log.push_back(text);
     };
-    // First death: in round 6 of its second group solve. Second: right after its third.
-    o.dgs.on_round = [&](const DgsNodeRound& round) {
-      if (round.round == 0) return;
-      if (!round.replayed && round.round == 6 && solves_seen == 1 && crashes == 0) {
-        ++crashes;
-        solves_seen = 0;
-        throw Crash();
-      }
-    };
-    o.on_solve = [&](const SessionSolve& s) {
-      ++solves_seen;
-      if (!s.replayed && solves_seen == 3 && crashes == 1) {
-        ++crashes;
-        solves_seen = 0;
-        throw Crash();
-      }
-    };
+    crashes.arm(o);
     return o;
   });
-  EXPECT_EQ(crashes, 2);
+  EXPECT_EQ(crashes.crashes(), 2);
   std::size_t solves = 0;
   EXPECT_LE(CompareWithTwin(results, twin, &solves), 1e-9);
   const std::vector<SessionSolve>& got = results[static_cast<std::size_t>(victim)].solves;
-  ASSERT_EQ(got.size(), static_cast<std::size_t>(solves_of[victim]));
+  ASSERT_EQ(got.size(), static_cast<std::size_t>(victim_solves));
   for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].replayed, i < 3) << "solve " << i;
   const auto said = [&](const std::string& what) {
     return std::any_of(log.begin(), log.end(),
