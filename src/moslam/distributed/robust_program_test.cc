@@ -405,6 +405,44 @@ TEST(RobustProgram, TheCheckedMaskIsRunRobustDgsWithIt) {
   ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference, checked);
 }
 
+// A robot that neighbours another only through separators the check does not see (online: a
+// held factor anchored at another robot's first pose) sends it no map estimate or covariance
+// (a first version sent the covariance of no variable: a Cholesky of nothing, not finite; that
+// robot's program threw and the others waited for it).
+// Robot 2 (a third drifting chain, exact factors): four checked separators to robot 0 and one
+// unchecked to robot 1.
+TEST(RobustProgram, ANeighbourOnlyThroughUncheckedSeparatorsIsNotChecked) {
+  std::vector<bool> wrong;
+  PoseGraph graph = test::DriftingPairWithWrongSeparators(&wrong);
+  const Matrix6 information = graph.factors().front().information();
+  const auto truth = [](int r, int i) {  // as DriftingPairWithWrongSeparators lays the chains
+    SE3 x(SO3(), Vector3(0.0, 3.0 * r, 0.0));
+    for (int k = 0; k < i; ++k) x = x * SE3(SO3::Exp(Vector3(0.0, 0.0, 0.05)), Vector3(0.5, 0.0, 0.0));
+    return x;
+  };
+  const auto pose = [](int r, int i) { return Key::Pose(r, static_cast<std::uint64_t>(i)); };
+  for (int i = 0; i + 1 < 20; ++i) {
+    graph.add(RelativePoseFactor(pose(2, i), pose(2, i + 1), truth(2, i).between(truth(2, i + 1)),
+                                 information));
+  }
+  for (int i : {0, 5, 10, 15}) {
+    graph.add(RelativePoseFactor(pose(0, i), pose(2, i), truth(0, i).between(truth(2, i)),
+                                 information));
+  }
+  graph.add(RelativePoseFactor(pose(1, 12), pose(2, 12), truth(1, 12).between(truth(2, 12)),
+                               information));
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  std::vector<bool> checked(graph.factors().size(), true);
+  checked.back() = false;
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  const RobustDgsResult reference =
+      RunRobustDgs(graph, initial, robust, ReferenceOptions(options), checked);
+  EXPECT_EQ(reference.consistency_rejected, 2);  // the two wrong separators of robots 0 and 1
+  ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference, checked);
+}
+
 // A check that leaves a robot with no separator (two agreeing separators, fewer than min_support,
 // and no confirmed pair to link them): RunRobustDgs throws UnderdeterminedError; every program
 // finds it alike, solves nothing and keeps its initial estimate.
