@@ -48,7 +48,12 @@
 //       its confirmed partners, step after step, until no report changes (the groups of
 //       ConnectedRobots);
 //   C4. the final verdict: a pair below min_support keeps its best set when its two robots share
-//       a label and the set has linked_min_support separators, else none.
+//       a label and the set has linked_min_support separators, else none; the same step sums the
+//       separators left out over the team. If some were, the robots flood whether each still
+//       reaches robot 0 through the kept separators (as for the inliers' solve, step 4); if one
+//       does not, every robot stops there (RobustProgramResult::unlinked).
+// With RobustRobotProblem::checked, the maps of C1 are made of the checked factors only and only
+// checked separators are tested (the others are kept).
 // The separators it leaves out are left out of every solve; after GNC, before the readmission,
 // the higher robot of each pair sends the lower its estimates of their variables in the
 // separators left out, so that those whose residual is within c2 come back as in RunRobustDgs.

@@ -26,7 +26,8 @@
 //   - an object-pose factor rejected keeps GNC's min_weight in the robot's own SLAM
 //     (ObjectSlam::setFactorWeights) until the robot's next group solve.
 // The held (team) factors are pairs that a group with both of their robots accepted; they stay
-// least squares.
+// least squares. The robot processes run the same solves (transport/robot_session.h with
+// dgs.gnc: RobustGroupFactors on each robot's part, JudgePairs on each robot's own pairs).
 #pragma once
 
 #include <cstdint>
