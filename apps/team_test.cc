@@ -1,5 +1,5 @@
 // Robots as separate processes over Cyclone DDS on loopback (the real `moslam` binary; each test
-// its own DDS domain, 44..60): the team's result equals the in-process driver's; a robot killed
+// its own DDS domain, 45..59): the team's result equals the in-process driver's; a robot killed
 // (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies for good
 // is noticed through liveliness and the others finish. Simulated scenarios (--scenario): object
 // SLAM and rendezvous in each process give the in-process pipeline's shared objects and

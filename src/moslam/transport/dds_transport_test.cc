@@ -21,7 +21,7 @@ namespace {
 using std::chrono::milliseconds;
 using Clock = std::chrono::steady_clock;
 
-// Domain ids of this file: 40..43 (apps/team_test.cc: 44..60, scripts/test-network.sh: 60..69).
+// Domain ids of this file: 40..43 (apps/team_test.cc: 45..59, scripts/test-network.sh: 60..69).
 struct Fixture {
   explicit Fixture(int domain_id, int participants = 3)
       : domain(domain_id, LoopbackConfigXml(domain_id, participants)) {}
