@@ -739,17 +739,24 @@ class DgsNode::Impl final : public TeamChannel {
     return st.covariance && neighbourOf(r, st);
   }
 
+  // What of robot r's step s it still lacks ("": nothing): its status, or the packets its
+  // status announces to this robot.
+  std::string missingOf(int r, std::uint32_t s) const {
+    const StatusPacket* st = statusOf(r, s);
+    if (!st) return "status";
+    std::vector<std::string> out;
+    if (expectsEstimates(r, *st) && !inbox_.count({s, r})) out.push_back("estimates");
+    if (st->coarse && !coarse_.count({s, r})) out.push_back("coarse share");
+    if (expectsWeights(r, *st) && !weights_.count({s, r})) out.push_back("weights");
+    if (expectsCovariance(r, *st) && !covariances_.count({s, r})) out.push_back("covariance");
+    return fmt::format("{}", fmt::join(out, ", "));
+  }
+
   // The robots step s still waits for.
   std::vector<int> waitingFor(std::uint32_t s) const {
     std::vector<int> out;
     for (int r : live()) {
-      const StatusPacket* st = statusOf(r, s);
-      if (!st || (expectsEstimates(r, *st) && !inbox_.count({s, r})) ||
-          (st->coarse && !coarse_.count({s, r})) ||
-          (expectsWeights(r, *st) && !weights_.count({s, r})) ||
-          (expectsCovariance(r, *st) && !covariances_.count({s, r}))) {
-        out.push_back(r);
-      }
+      if (!missingOf(r, s).empty()) out.push_back(r);
     }
     return out;
   }
@@ -795,10 +802,12 @@ class DgsNode::Impl final : public TeamChannel {
                         robot_, fmt::join(never_stepped, ", "), options_.leave_timeout.count(), s));
       }
       if (now - start > options_.stall_timeout) {
+        std::vector<std::string> what;
+        for (int r : waiting) what.push_back(fmt::format("{} ({})", r, missingOf(r, s)));
         throw Error(fmt::format("robot {}: no progress for {} ms at step {}, waiting for "
                                 "robot(s) {}",
                                 robot_, options_.stall_timeout.count(), s,
-                                fmt::join(waiting, ", ")));
+                                fmt::join(what, ", ")));
       }
     }
   }
