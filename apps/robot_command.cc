@@ -849,11 +849,14 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
             twin.slam.robots[static_cast<std::size_t>(r)].estimate());
     objects_bytes += s["rendezvous_dds_bytes"].get<std::int64_t>();
     for (const auto& e : s["rendezvous"]) events += e["alpha"].get<int>() == r ? 1 : 0;
-    for (const auto& p : s["set_aside"]) set_aside.insert(pair_of(p));
+    for (const auto& p : s.value("set_aside", nlohmann::json::array())) {
+      set_aside.insert(pair_of(p));
+    }
   }
   if (set_aside != twin_set_aside) {
     ok = false;
-    fmt::print(stderr, "moslam: the robots set aside {} pairs, the in-process twin {} (or others)\n",
+    fmt::print(stderr,
+               "moslam: the robots set aside {} pairs, the in-process twin {} (or others)\n",
                set_aside.size(), twin_set_aside.size());
   }
   std::int64_t cloud_bytes = 0;  // the paper's alternative: one 640 x 480 x 32 B frame per robot

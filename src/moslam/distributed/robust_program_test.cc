@@ -417,7 +417,8 @@ TEST(RobustProgram, ANeighbourOnlyThroughUncheckedSeparatorsIsNotChecked) {
   const Matrix6 information = graph.factors().front().information();
   const auto truth = [](int r, int i) {  // as DriftingPairWithWrongSeparators lays the chains
     SE3 x(SO3(), Vector3(0.0, 3.0 * r, 0.0));
-    for (int k = 0; k < i; ++k) x = x * SE3(SO3::Exp(Vector3(0.0, 0.0, 0.05)), Vector3(0.5, 0.0, 0.0));
+    const SE3 step(SO3::Exp(Vector3(0.0, 0.0, 0.05)), Vector3(0.5, 0.0, 0.0));
+    for (int k = 0; k < i; ++k) x = x * step;
     return x;
   };
   const auto pose = [](int r, int i) { return Key::Pose(r, static_cast<std::uint64_t>(i)); };

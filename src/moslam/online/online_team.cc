@@ -55,6 +55,31 @@ RobustGroupMasks RobustGroupFactors(const PoseGraph& graph, const std::vector<bo
   return m;
 }
 
+JudgedPairs PairsJudged(const PoseGraph& graph, const std::vector<double>& weights,
+                        const std::vector<int>& robots) {
+  const std::vector<RelativePoseFactor>& factors = graph.factors();
+  if (weights.size() != factors.size()) {
+    throw InvalidInputError("PairsJudged: " + std::to_string(weights.size()) + " weights for " +
+                            std::to_string(factors.size()) + " factors");
+  }
+  const auto real = [&](Key k) {
+    if (k.robot < 0 || k.robot >= static_cast<int>(robots.size())) {
+      throw InvalidInputError("PairsJudged: " + ToString(k) + " is of no robot of the group");
+    }
+    k.robot = robots[static_cast<std::size_t>(k.robot)];
+    return k;
+  };
+  JudgedPairs out;
+  for (std::size_t i = 0; i < factors.size(); ++i) {
+    const RelativePoseFactor& f = factors[i];
+    if (!f.a().isObject() || !f.b().isObject() || f.a().robot == f.b().robot) continue;
+    const auto key = UnorderedPair(real(f.a()), real(f.b()));
+    out.judged.insert(key);
+    if (weights[i] < 0.5) out.rejected.insert(key);
+  }
+  return out;
+}
+
 PairVerdicts JudgePairs(const std::vector<SharedObject>& shared,
                         const std::vector<SharedObject>& set_aside,
                         const std::set<std::pair<Key, Key>>& judged,
@@ -172,7 +197,6 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
     // copies of earlier solves, so that its map's covariances no longer say how far they may be
     // off: on chairs25, 6 robots, 10 runs, no wrong pair injected, right pairs set aside 10.6
     // -> 6.3 per run; and with the object-pose factors robust, 1.3).
-    const std::vector<RelativePoseFactor>& factors = problem.graph.factors();
     const RobustGroupMasks masks = RobustGroupFactors(problem.graph, problem.team);
     const std::vector<bool>& robust = masks.robust;
     const std::vector<bool>& checked = masks.checked;
@@ -192,20 +216,8 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
     rec.sweeps = solved.sweeps;
     rec.bytes = solved.bytes();
     rec.robust_extra_bytes = solved.weight_bytes + solved.control_bytes + solved.consistency_bytes;
-    const auto team_key = [&](const Key& k) {
-      Key t = k;
-      t.robot = part[static_cast<std::size_t>(k.robot)];
-      return t;
-    };
-    std::set<std::pair<Key, Key>> rejected, judged;
-    for (std::size_t i = 0; i < factors.size(); ++i) {
-      if (!robust[i] || !factors[i].a().isObject()) continue;  // the pairs
-      const std::pair<Key, Key> key =
-          UnorderedPair(team_key(factors[i].a()), team_key(factors[i].b()));
-      judged.insert(key);
-      if (solved.weights[i] < 0.5) rejected.insert(key);
-    }
-    PairVerdicts verdicts = JudgePairs(team.shared, set_aside_, judged, rejected);
+    const JudgedPairs judged = PairsJudged(problem.graph, solved.weights, part);
+    PairVerdicts verdicts = JudgePairs(team.shared, set_aside_, judged.judged, judged.rejected);
     rec.rejected = verdicts.rejected;
     rec.taken_back = verdicts.taken_back;
     set_aside_ = std::move(verdicts.set_aside);

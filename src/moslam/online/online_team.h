@@ -108,6 +108,15 @@ struct RobustGroupMasks {
 };
 RobustGroupMasks RobustGroupFactors(const PoseGraph& graph, const std::vector<bool>& team);
 
+// The shared pairs a robust group solve judged: the object-object factors between two robots of
+// `graph` (robot i of the solve is robots[i]), as UnorderedPair of the robots' own keys, and of
+// them those whose weight (one per factor) is below 0.5.
+struct JudgedPairs {
+  std::set<std::pair<Key, Key>> judged, rejected;
+};
+JudgedPairs PairsJudged(const PoseGraph& graph, const std::vector<double>& weights,
+                        const std::vector<int>& robots);
+
 // A robust group solve's verdicts on shared pairs (UnorderedPair, real ids): of `set_aside`, the
 // pairs it did not judge or rejected again stay (the others are taken back), then every pair of
 // `shared` it rejected and that was not set aside is set aside, in the order of `shared`.

@@ -280,7 +280,8 @@ TEST(OnlineSession, RobustGroupSolvesEqualTheTwinsAndSurviveARestart) {
   ASSERT_GE(victim_solves, 4);
 
   const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("moslam_robust_online_" + std::to_string(::getpid()));
+      std::filesystem::temp_directory_path() /
+      ("moslam_robust_online_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   // The second death right after a solve after which pairs of it stand aside or factors of it
   // are rejected.

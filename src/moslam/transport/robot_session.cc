@@ -874,20 +874,8 @@ class RobotSession::Impl {
   // factors of its own graph rejected.
   void judge(const ObjectSlam& slam, const std::vector<int>& robots, const RobotGroupPart& part,
              const RobustProgramResult& solved, SolveRecord& done) const {
-    const std::vector<RelativePoseFactor>& factors = part.subgraph.factors();
-    const auto real = [&](Key k) {
-      k.robot = robots.at(static_cast<std::size_t>(k.robot));
-      return k;
-    };
-    std::set<std::pair<Key, Key>> judged, rejected;
-    for (std::size_t i = 0; i < factors.size(); ++i) {
-      const RelativePoseFactor& f = factors[i];
-      if (!f.a().isObject() || !f.b().isObject() || f.a().robot == f.b().robot) continue;
-      const auto key = UnorderedPair(real(f.a()), real(f.b()));
-      judged.insert(key);
-      if (solved.weights.at(i) < 0.5) rejected.insert(key);
-    }
-    const PairVerdicts verdicts = JudgePairs(shared_, set_aside_, judged, rejected);
+    const JudgedPairs pairs = PairsJudged(part.subgraph, solved.weights, robots);
+    const PairVerdicts verdicts = JudgePairs(shared_, set_aside_, pairs.judged, pairs.rejected);
     for (const SharedObject& s : verdicts.set_aside) {
       done.set_aside.emplace_back(s.alpha_object, s.beta_object);
     }
