@@ -379,6 +379,21 @@ TEST(RobustProgram, TheRetestOfTheChecksRejectsIsRunRobustDgs) {
   EXPECT_EQ(team.results.at(1).check_bytes, reference.consistency_bytes);
 }
 
+// The graph's last factor unseen by the check (the `checked` mask; Jacobi options, chordal start):
+// RunRobustDgs with that mask, and the programs with it against it. Returns the reference.
+RobustDgsResult ExpectLastFactorUncheckedAsRunRobustDgs(const PoseGraph& graph) {
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  std::vector<bool> checked(graph.factors().size(), true);
+  checked.back() = false;
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  const RobustDgsResult reference =
+      RunRobustDgs(graph, initial, robust, ReferenceOptions(options), checked);
+  ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference, checked);
+  return reference;
+}
+
 // The check sees only the factors `checked` marks (online: not the held factors): here robot 1's
 // map without a wrong factor between its first and last poses, which is kept (least squares).
 // The programs with the mask are RunRobustDgs with it.
@@ -389,20 +404,15 @@ TEST(RobustProgram, TheCheckedMaskIsRunRobustDgsWithIt) {
   graph.add(RelativePoseFactor(Key::Pose(1, 0), Key::Pose(1, 59),
                                SE3(SO3::Exp(Vector3(0.0, 0.0, 0.3)), Vector3(2.0, 0.0, 0.0)),
                                end.information()));
-  const std::vector<bool> robust = DefaultRobustFactors(graph);
-  std::vector<bool> checked(graph.factors().size(), true);
-  checked.back() = false;
-  const Values initial = ChordalInitialization(graph, SE3());
-  RobustProgramOptions options;
-  options.solver.order = SweepOrder::kJacobi;
-  const RobustDgsResult reference =
-      RunRobustDgs(graph, initial, robust, ReferenceOptions(options), checked);
+  const RobustDgsResult reference = ExpectLastFactorUncheckedAsRunRobustDgs(graph);
   EXPECT_EQ(reference.consistency_rejected, 2);  // the check sees robot 1's map without it
   // The mask matters: the wrong factor bends the map the check tests robot 1's separators in, so
   // that without the mask it leaves all 8 out, and robot 1 unlinked.
-  EXPECT_THROW(RunRobustDgs(graph, initial, robust, ReferenceOptions(options)),
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  EXPECT_THROW(RunRobustDgs(graph, ChordalInitialization(graph, SE3()),
+                            DefaultRobustFactors(graph), ReferenceOptions(options)),
                UnderdeterminedError);
-  ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference, checked);
 }
 
 // A robot that neighbours another only through separators the check does not see (online: a
@@ -432,16 +442,8 @@ TEST(RobustProgram, ANeighbourOnlyThroughUncheckedSeparatorsIsNotChecked) {
   }
   graph.add(RelativePoseFactor(pose(1, 12), pose(2, 12), truth(1, 12).between(truth(2, 12)),
                                information));
-  const std::vector<bool> robust = DefaultRobustFactors(graph);
-  std::vector<bool> checked(graph.factors().size(), true);
-  checked.back() = false;
-  const Values initial = ChordalInitialization(graph, SE3());
-  RobustProgramOptions options;
-  options.solver.order = SweepOrder::kJacobi;
-  const RobustDgsResult reference =
-      RunRobustDgs(graph, initial, robust, ReferenceOptions(options), checked);
-  EXPECT_EQ(reference.consistency_rejected, 2);  // the two wrong separators of robots 0 and 1
-  ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference, checked);
+  // The two wrong separators of robots 0 and 1.
+  EXPECT_EQ(ExpectLastFactorUncheckedAsRunRobustDgs(graph).consistency_rejected, 2);
 }
 
 // A check that leaves a robot with no separator (two agreeing separators, fewer than min_support,
