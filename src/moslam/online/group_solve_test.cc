@@ -378,6 +378,15 @@ TEST(OnlineTeam, OneRendezvousOfTheWholeTeamAtTheEndGivesTheBatchOptimum) {
   }
 }
 
+// The robust online team's options for `config`: its object-object information, the robust
+// solve's defaults.
+OnlineOptions RobustOnlineOptions(const MultiRobotSlamConfig& config) {
+  OnlineOptions options;
+  options.lambda = config.rendezvous.lambda();
+  options.robust = RobustDgsOptions{};
+  return options;
+}
+
 // Robust: with the only rendezvous joining the whole team at the last step and wrong pairs
 // injected there, the group solve is the batch robust solve (RunRobustDgs of the joint graph, the
 // object-object and object-pose factors robust, the same solver): the pairs it sets aside are the
@@ -390,9 +399,7 @@ TEST(OnlineTeam, RobustWholeTeamAtTheEndIsTheBatchRobustSolve) {
   data.rendezvous = {{last, 0, 1}, {last, 1, 2}, {last, 0, 2}};
   MultiRobotSlamConfig config = MultiRobotSlamConfigForNoise(SensingConfig{});
   config.outlier_fraction = 0.3;
-  OnlineOptions options;
-  options.lambda = config.rendezvous.lambda();
-  options.robust = RobustDgsOptions{};
+  const OnlineOptions options = RobustOnlineOptions(config);
   OnlineTeam team(options);
   config.on_rendezvous = team.hook();
   const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, config);
@@ -470,9 +477,7 @@ TEST(OnlineTeam, RobustPairsRemovedByARendezvousAreNoLongerSetAside) {
   MultiRobotSlamConfig config = MultiRobotSlamConfigForNoise(SensingConfig{});
   config.known_initial_poses = false;
   config.outlier_fraction = 0.3;
-  OnlineOptions options;
-  options.lambda = config.rendezvous.lambda();
-  options.robust = RobustDgsOptions{};
+  const OnlineOptions options = RobustOnlineOptions(config);
   OnlineTeam team(options);
   config.on_rendezvous = team.hook();
   const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, config);
