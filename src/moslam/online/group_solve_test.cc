@@ -507,6 +507,17 @@ TEST(AcceptedPairs, LeavesOutThePairsSetAsideInEitherDirection) {
   EXPECT_EQ(AcceptedPairs({p, q, r}, {}).size(), 3u);
 }
 
+// A robot's own factors rejected: indices from its first factor in the solve, weights below 0.5
+// only; a range beyond the weights is refused.
+TEST(RejectedOwnFactors, ListsTheRobotsFactorsBelowHalfWeight) {
+  const std::vector<double> w = {0.1, 1.0, 0.49, 0.5, 1e-6, 0.9};
+  EXPECT_EQ(RejectedOwnFactors(w, 1, 4), (std::vector<std::uint32_t>{1, 3}));
+  EXPECT_EQ(RejectedOwnFactors(w, 0, 6), (std::vector<std::uint32_t>{0, 2, 4}));
+  EXPECT_TRUE(RejectedOwnFactors(w, 6, 0).empty());
+  EXPECT_THROW(RejectedOwnFactors(w, 3, 4), InvalidInputError);
+  EXPECT_THROW(RejectedOwnFactors(w, 7, 0), InvalidInputError);
+}
+
 // A robot that leaves the team (MultiRobotSlamConfig::leave_after): its later rendezvous are
 // skipped with nothing exchanged, the groups in range still list it (as gone), and no solve
 // includes it; before it leaves, everything is as without the departure.

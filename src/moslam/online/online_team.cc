@@ -80,6 +80,20 @@ JudgedPairs PairsJudged(const PoseGraph& graph, const std::vector<double>& weigh
   return out;
 }
 
+std::vector<std::uint32_t> RejectedOwnFactors(const std::vector<double>& weights,
+                                              std::size_t first, std::size_t count) {
+  if (first > weights.size() || count > weights.size() - first) {
+    throw InvalidInputError("RejectedOwnFactors: factors " + std::to_string(first) + ".." +
+                            std::to_string(first + count) + " of " +
+                            std::to_string(weights.size()) + " weights");
+  }
+  std::vector<std::uint32_t> out;
+  for (std::size_t j = 0; j < count; ++j) {
+    if (weights[first + j] < 0.5) out.push_back(static_cast<std::uint32_t>(j));
+  }
+  return out;
+}
+
 PairVerdicts JudgePairs(const std::vector<SharedObject>& shared,
                         const std::vector<SharedObject>& set_aside,
                         const std::set<std::pair<Key, Key>>& judged,
@@ -225,12 +239,9 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
     for (std::size_t k = 0; k < part.size(); ++k) {
       ObjectSlam& r = team.robots[static_cast<std::size_t>(part[k])];
       std::vector<double> w(members[k]->numFactors(), 1.0);
-      for (std::size_t j = 0; j < w.size(); ++j) {
-        const double v = solved.weights[problem.own_first[k] + j];
-        if (v < 0.5) {
-          w[j] = o.gnc.min_weight;
-          ++rec.observation_outliers;
-        }
+      for (std::uint32_t j : RejectedOwnFactors(solved.weights, problem.own_first[k], w.size())) {
+        w[j] = o.gnc.min_weight;
+        ++rec.observation_outliers;
       }
       r.setFactorWeights(std::move(w));
     }

@@ -117,6 +117,12 @@ struct JudgedPairs {
 JudgedPairs PairsJudged(const PoseGraph& graph, const std::vector<double>& weights,
                         const std::vector<int>& robots);
 
+// A robust group solve's verdicts on a robot's own factors: the indices j in [0, count) whose
+// factor, at `first + j` of the solve's graph, has a weight below 0.5 (as PairsJudged). Throws
+// InvalidInputError when `weights` ends before first + count.
+std::vector<std::uint32_t> RejectedOwnFactors(const std::vector<double>& weights,
+                                              std::size_t first, std::size_t count);
+
 // A robust group solve's verdicts on shared pairs (UnorderedPair, real ids): of `set_aside`, the
 // pairs it did not judge or rejected again stay (the others are taken back), then every pair of
 // `shared` it rejected and that was not set aside is set aside, in the order of `shared`.

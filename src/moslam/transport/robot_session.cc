@@ -879,11 +879,7 @@ class RobotSession::Impl {
     for (const SharedObject& s : verdicts.set_aside) {
       done.set_aside.emplace_back(s.alpha_object, s.beta_object);
     }
-    for (std::size_t j = 0; j < slam.numFactors(); ++j) {
-      if (solved.weights.at(part.own_first + j) < 0.5) {
-        done.rejected.push_back(static_cast<std::uint32_t>(j));
-      }
-    }
+    done.rejected = RejectedOwnFactors(solved.weights, part.own_first, slam.numFactors());
   }
 
   // The verdicts of a solve record (computed now or journaled) into its state: the pairs set
