@@ -2,7 +2,7 @@
 # Renders the detector's training set (TRAIN), held-out set (HELD) and model-selection set (VAL)
 # in the YOLO layout (`moslam render --format yolo`: images/, labels/, ignore/, classes.txt).
 # Usage: training/render_detector_data.sh [TRAIN_DIR] [HELD_DIR] [VAL_DIR]   (MOSLAM=path/to/moslam)
-# (~10 min on the loaded 2-core machine; 7001 + 730 + 822 frames)
+# (~3 min on the 2-core machine; 7001 + 730 + 822 frames before the third training block)
 set -e
 M=${MOSLAM:-build/apps/moslam}
 TRAIN=${1:-data/detector/train}
@@ -30,6 +30,11 @@ render "$TRAIN" chairs25   6 40 20 20000 1 2 3 4 5
 render "$TRAIN" generated 12 80 40 30000 9 10 11 12 13 14 15 16
 render "$TRAIN" house      6 60 30 40000 7 8 9 10 11 12
 render "$TRAIN" chairs25   6 40 20 50000 6 7 8 9 10
+# Third block (the fine-tuning of the 0.75-width model, models/detector/README.md): generated
+# 17-22, house 23-26, chairs25 11-14, at 60000+.
+render "$TRAIN" generated 12 80 40 60000 17 18 19 20 21 22
+render "$TRAIN" house      6 60 30 70000 23 24 25 26
+render "$TRAIN" chairs25   6 40 20 80000 11 12 13 14
 # Held-out (the reported numbers): seeds 101-102 (new generated worlds, new chairs25 yaws; house =
 # same layout, new trajectories, colours and noise).
 render "$HELD" generated 12 80 40     0 101 102

@@ -320,6 +320,56 @@ def export(model, num_classes, width, height, path, opset):
     return removed
 
 
+def init_from_onnx(model, path):
+    """Loads an exported model (this script's ONNX, the same --width) into `model`. The export
+    folds each conv + batch norm into one conv with a bias: the conv takes the folded weight, its
+    batch norm becomes the bias alone (weight 1, running mean 0, running variance 1 - eps), so the
+    network computes the exported function as long as its batch norms stay in eval mode (the
+    caller freezes them: the batch statistics they were trained with are not in the file)."""
+    import onnx
+    from onnx import numpy_helper
+    graph = onnx.load(path).graph
+    tensors = {t.name: torch.from_numpy(numpy_helper.to_array(t).copy()) for t in graph.initializer}
+    state = model.state_dict()
+    named = 0
+    for name, t in tensors.items():
+        key = name[len("net."):] if name.startswith("net.") else None
+        if key in state:
+            if state[key].shape != t.shape:
+                raise SystemExit(f"--init-onnx: {name} has shape {list(t.shape)}, the model "
+                                 f"{list(state[key].shape)} (another --width?)")
+            state[key] = t
+            named += 1
+    folded = [(n.input[1], n.input[2]) for n in graph.node
+              if n.op_type == "Conv" and len(n.input) == 3 and n.input[1] not in
+              [f"net.{k}" for k in state]]
+    pairs = [m for m in model.modules() if isinstance(m, nn.Sequential) and len(m) == 3 and
+             isinstance(m[0], nn.Conv2d) and isinstance(m[1], nn.BatchNorm2d)]
+    if len(folded) != len(pairs):
+        raise SystemExit(f"--init-onnx: {len(folded)} folded convolutions in {path}, the model "
+                         f"has {len(pairs)} conv + batch norm blocks")
+    prefix = {id(m): k for k, m in model.named_modules()}
+    for (w, b), block in zip(folded, pairs):
+        k = prefix[id(block)]
+        if state[f"{k}.0.weight"].shape != tensors[w].shape:
+            raise SystemExit(f"--init-onnx: {w} has shape {list(tensors[w].shape)}, {k}.0 "
+                             f"{list(state[k + '.0.weight'].shape)}")
+        bn = block[1]
+        state[f"{k}.0.weight"] = tensors[w]
+        state[f"{k}.1.weight"] = torch.ones_like(state[f"{k}.1.weight"])
+        state[f"{k}.1.bias"] = tensors[b]
+        state[f"{k}.1.running_mean"] = torch.zeros_like(state[f"{k}.1.running_mean"])
+        state[f"{k}.1.running_var"] = torch.full_like(state[f"{k}.1.running_var"], 1.0 - bn.eps)
+    model.load_state_dict(state)
+    return named, len(folded)
+
+
+def freeze_batch_norms(model):
+    for m in model.modules():
+        if isinstance(m, nn.BatchNorm2d):
+            m.eval()
+
+
 def check_with_opencv(moslam, model_path, classes_path, image_path, model, width, height):
     """Runs `moslam detect --image` (OpenCV DNN) and compares with torch's detections."""
     cmd = [moslam, "detect", "--model", model_path, "--classes", classes_path, "--image",
@@ -372,6 +422,8 @@ def main():
     ap.add_argument("--save-weights", help="also save the torch state_dict here")
     ap.add_argument("--init-weights", help="start from this state_dict (--save-weights of an "
                     "earlier run with the same --width): a warm restart of the schedule")
+    ap.add_argument("--init-onnx", help="start from this exported model (this script's ONNX, the "
+                    "same --width), batch norms frozen (their statistics are folded in the file)")
     args = ap.parse_args()
 
     torch.set_num_threads(1)
@@ -397,6 +449,21 @@ def main():
     if args.init_weights:
         model.load_state_dict(torch.load(args.init_weights))
         print(f"initialised from {args.init_weights}", flush=True)
+    if args.init_onnx:
+        if args.init_weights:
+            raise SystemExit("--init-weights and --init-onnx exclude each other")
+        named, folded = init_from_onnx(model, args.init_onnx)
+        print(f"initialised from {args.init_onnx}: {named} tensors by name, {folded} folded "
+              "convolutions; batch norms frozen", flush=True)
+        if args.moslam and val is not None:
+            image = os.path.join(args.val, "images", val[0][0])
+            classes_path = os.path.join(os.path.dirname(os.path.abspath(args.init_onnx)),
+                                        "classes.txt")
+            same = check_with_opencv(args.moslam, args.init_onnx, classes_path, image, model,
+                                     width, height)
+            print("initial model against the file (OpenCV DNN):", same, flush=True)
+            if not same.get("ok"):
+                raise SystemExit("--init-onnx: the initialised model differs from the file")
     params = sum(p.numel() for p in model.parameters())
     print(f"model: {params} parameters, grid {width // STRIDE}x{height // STRIDE}", flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=5e-4)
@@ -407,6 +474,8 @@ def main():
     step = 0
     ema = None
     model.train()
+    if args.init_onnx:
+        freeze_batch_norms(model)
     while True:
         elapsed = time.time() - t_start
         if (args.max_steps and step >= args.max_steps) or (not args.max_steps and elapsed >= budget):
@@ -440,6 +509,7 @@ def main():
     with open(classes_path, "w") as f:
         f.write("\n".join(classes) + "\n")
     summary = dict(train=args.train, val=args.val, init_weights=args.init_weights,
+                   init_onnx=args.init_onnx, lr=args.lr,
                    images=len(images), classes=classes,
                    input_size=[width, height], parameters=params, steps=step, batch=args.batch,
                    seed=args.seed, train_seconds=round(train_seconds, 1),
