@@ -340,9 +340,9 @@ def init_from_onnx(model, path):
                                  f"{list(state[key].shape)} (another --width?)")
             state[key] = t
             named += 1
+    by_name = {f"net.{k}" for k in state}
     folded = [(n.input[1], n.input[2]) for n in graph.node
-              if n.op_type == "Conv" and len(n.input) == 3 and n.input[1] not in
-              [f"net.{k}" for k in state]]
+              if n.op_type == "Conv" and len(n.input) == 3 and n.input[1] not in by_name]
     pairs = [m for m in model.modules() if isinstance(m, nn.Sequential) and len(m) == 3 and
              isinstance(m[0], nn.Conv2d) and isinstance(m[1], nn.BatchNorm2d)]
     if len(folded) != len(pairs):
@@ -354,12 +354,12 @@ def init_from_onnx(model, path):
         if state[f"{k}.0.weight"].shape != tensors[w].shape:
             raise SystemExit(f"--init-onnx: {w} has shape {list(tensors[w].shape)}, {k}.0 "
                              f"{list(state[k + '.0.weight'].shape)}")
-        bn = block[1]
+        eps = block[1].eps
         state[f"{k}.0.weight"] = tensors[w]
         state[f"{k}.1.weight"] = torch.ones_like(state[f"{k}.1.weight"])
         state[f"{k}.1.bias"] = tensors[b]
         state[f"{k}.1.running_mean"] = torch.zeros_like(state[f"{k}.1.running_mean"])
-        state[f"{k}.1.running_var"] = torch.full_like(state[f"{k}.1.running_var"], 1.0 - bn.eps)
+        state[f"{k}.1.running_var"] = torch.full_like(state[f"{k}.1.running_var"], 1.0 - eps)
     model.load_state_dict(state)
     return named, len(folded)
 
