@@ -542,11 +542,12 @@ TEST(Team, ScenarioRobotsKilledInTheRendezvousAndInTheDgsAndRestartedLoseNothing
 
 // Online: robot 1 killed (SIGKILL) in the DGS of its second group solve and restarted with its
 // --out takes its first solve from the journal, resumes the second from the solve's node journal,
-// and every map the team saves is still the in-process twin's (`flags`: --online and more). The
-// team's JSON from `team --collect`, or a null one after a failed assertion.
-nlohmann::json KillOnlineRobotInItsSecondSolve(int domain, const std::string& name,
-                                               const std::vector<std::string>& flags,
-                                               const std::vector<std::string>& scenario) {
+// and every map the team saves is still the in-process twin's (`flags`: --online and more). `team_json`:
+// the JSON of `team --collect`. Call it inside ASSERT_NO_FATAL_FAILURE.
+void KillOnlineRobotInItsSecondSolve(int domain, const std::string& name,
+                                     const std::vector<std::string>& flags,
+                                     const std::vector<std::string>& scenario,
+                                     nlohmann::json* team_json) {
   const int n = 6;
   const std::string uri = LoopbackConfigXml(domain, n);
   const fs::path out = FreshDir(name);
@@ -566,29 +567,22 @@ nlohmann::json KillOnlineRobotInItsSecondSolve(int domain, const std::string& na
   for (int r = 0; r < n; ++r) robots.push_back(std::make_unique<Child>(args(r), uri, stderr_file(r)));
   const int victim = 1;
   bool first_done = false;
-  const bool reached = robots[victim]->waitForLine(
+  ASSERT_TRUE(robots[victim]->waitForLine(
       [&](const std::string& l) {
         if (l.rfind("group solve: ", 0) == 0) first_done = true;
         return first_done && l.rfind("progress: rotation 3 ", 0) == 0;
       },
-      deadline);
-  EXPECT_TRUE(reached) << robots[victim]->output();
-  if (!reached) return {};
+      deadline))
+      << robots[victim]->output();
   robots[victim]->kill9();
   EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
   robots[victim] = std::make_unique<Child>(args(victim), uri, stderr_file(victim));
-  bool all_done = true;
   for (int r = 0; r < n; ++r) {
-    const int code = robots[r]->wait(deadline);
-    EXPECT_EQ(code, 0) << "robot " << r << ":\n" << robots[r]->output();
-    all_done = all_done && code == 0;
+    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
   }
-  if (!all_done) return {};
   const nlohmann::json v = LastJson(robots[victim]->output());
-  EXPECT_TRUE(v.is_object()) << robots[victim]->output();
-  if (!v.is_object()) return {};
-  EXPECT_GE(v["solves"].size(), 2u) << v.dump();
-  if (v["solves"].size() < 2) return {};
+  ASSERT_TRUE(v.is_object()) << robots[victim]->output();
+  ASSERT_GE(v["solves"].size(), 2u) << v.dump();
   EXPECT_TRUE(v["solves"][0]["replayed"].get<bool>());
   EXPECT_FALSE(v["solves"][1]["replayed"].get<bool>());
   // The second solve's rounds before the kill come from its node journal.
@@ -606,27 +600,27 @@ nlohmann::json KillOnlineRobotInItsSecondSolve(int domain, const std::string& na
   collect.insert(collect.end(), flags.begin(), flags.end());
   collect.insert(collect.end(), scenario.begin(), scenario.end());
   Child team(collect, "", out / "team.log");
-  EXPECT_EQ(team.wait(deadline), 0) << team.output();
+  ASSERT_EQ(team.wait(deadline), 0) << team.output();
   const nlohmann::json j = LastJson(team.output());
-  EXPECT_TRUE(j.is_object()) << team.output();
-  if (!j.is_object()) return {};
+  ASSERT_TRUE(j.is_object()) << team.output();
   EXPECT_TRUE(j["ok"].get<bool>());
   EXPECT_GT(j["maps_compared"].get<int>(), 2 * j["group_solves"].get<int>());
   EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
   fs::remove_all(out);
-  return j;
+  *team_json = j;
 }
 
 TEST(Team, AnOnlineRobotKilledInAGroupSolveAndRestartedLosesNothing) {
-  KillOnlineRobotInItsSecondSolve(59, "online_restart", {"--online"}, kScenario);
+  nlohmann::json j;
+  KillOnlineRobotInItsSecondSolve(59, "online_restart", {"--online"}, kScenario, &j);
 }
 
 // The same with robust group solves (60 poses, seed 2: pairs set aside, as the twin).
 TEST(Team, AnOnlineRobustRobotKilledInAGroupSolveAndRestartedLosesNothing) {
-  const nlohmann::json j = KillOnlineRobotInItsSecondSolve(
+  nlohmann::json j;
+  ASSERT_NO_FATAL_FAILURE(KillOnlineRobotInItsSecondSolve(
       44, "online_robust_restart", {"--online", "--robust"},
-      {"--scenario", "chairs25", "--robots", "6", "--poses", "60", "--seed", "2"});
-  ASSERT_TRUE(j.is_object());
+      {"--scenario", "chairs25", "--robots", "6", "--poses", "60", "--seed", "2"}, &j));
   EXPECT_GT(j["set_aside"].get<int>(), 0);
   EXPECT_EQ(j["set_aside"], j["in_process_set_aside"]);
 }
@@ -773,5 +767,4 @@ TEST(Team, AnOnlineRobotBackAfterItWasFoundGoneContinuesAlone) {
 }
 
 }  // namespace
-
 }  // namespace moslam
