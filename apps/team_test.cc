@@ -542,8 +542,8 @@ TEST(Team, ScenarioRobotsKilledInTheRendezvousAndInTheDgsAndRestartedLoseNothing
 
 // Online: robot 1 killed (SIGKILL) in the DGS of its second group solve and restarted with its
 // --out takes its first solve from the journal, resumes the second from the solve's node journal,
-// and every map the team saves is still the in-process twin's (`flags`: --online and more). `team_json`:
-// the JSON of `team --collect`. Call it inside ASSERT_NO_FATAL_FAILURE.
+// and every map the team saves is still the in-process twin's (`flags`: --online and more).
+// `team_json`: the JSON of `team --collect`. Call it inside ASSERT_NO_FATAL_FAILURE.
 void KillOnlineRobotInItsSecondSolve(int domain, const std::string& name,
                                      const std::vector<std::string>& flags,
                                      const std::vector<std::string>& scenario,
