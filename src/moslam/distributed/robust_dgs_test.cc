@@ -165,6 +165,73 @@ TEST(SeparatorConsistency, TwoAgreeingSeparatorsOfLinkedRobotsAreLeftToGnc) {
   EXPECT_THROW(CheckSeparatorConsistency(right, bad), InvalidInputError);
 }
 
+// The same three robots with four 0-2 separators: two right ones that agree, and two wrong ones
+// that agree with each other (one wrong transform). Two largest sets of two, tied: the check
+// cannot tell which is right and leaves all four to GNC, whose loop through robot 1 keeps the
+// right two and rejects the wrong two, in either order of the separators. (Keeping one largest
+// set, the check kept the wrong two in one of the orders: generated, 4 robots, 70 % injected
+// wrong pairs, seed 17, ended 3.3 m from the outlier-free estimate that way.)
+TEST(SeparatorConsistency, TiedLargestSetsOfLinkedRobotsAreAllLeftToGnc) {
+  const int n = 6;
+  Values truth;
+  for (int r = 0; r < 3; ++r) {
+    for (int i = 0; i < n; ++i) {
+      truth[Key::Pose(r, static_cast<std::uint64_t>(i))] =
+          SE3(SO3::Exp(Vector3(0.0, 0.0, 0.2 * i + r)), Vector3(i + 0.5 * r, 0.4 * r * i, 0.0));
+    }
+  }
+  const SE3 wrong(SO3::Exp(Vector3(0.3, -1.2, 2.0)), Vector3(4.0, -3.0, 1.0));
+  struct Separator {
+    int a, b;  // robot 0's pose, robot 2's pose
+    bool right;
+  };
+  const auto build = [&](const std::vector<Separator>& zero_two) {
+    PoseGraph g;
+    const auto edge = [&](int ra, int ia, int rb, int ib, const SE3& m) {
+      const Key a = Key::Pose(ra, static_cast<std::uint64_t>(ia));
+      const Key b = Key::Pose(rb, static_cast<std::uint64_t>(ib));
+      g.add(RelativePoseFactor(a, b, truth.at(a).between(m * truth.at(b)),
+                               1e4 * Matrix6::Identity()));  // 1 cm / 0.01 rad
+    };
+    for (int r = 0; r < 3; ++r) {
+      for (int i = 0; i + 1 < n; ++i) edge(r, i, r, i + 1, SE3());
+    }
+    for (int i : {0, 2, 4}) {
+      edge(0, i, 1, i + 1, SE3());
+      edge(1, i, 2, i, SE3());
+    }
+    for (const Separator& s : zero_two) edge(0, s.a, 2, s.b, s.right ? SE3() : wrong);
+    return g;
+  };
+  const std::vector<Separator> right_first = {{3, 5, true}, {4, 3, true}, {5, 1, false},
+                                              {2, 4, false}};
+  const std::vector<Separator> wrong_first = {{5, 1, false}, {2, 4, false}, {3, 5, true},
+                                              {4, 3, true}};
+  for (const std::vector<Separator>& order : {right_first, wrong_first}) {
+    const PoseGraph graph = build(order);
+    RobustDgsOptions options;
+    options.consistency.map_uncertainty = false;
+    options.dgs.coarse_correction = true;
+    SeparatorConsistencyOptions check = options.consistency;
+    check.threshold = options.gnc.threshold2();
+    const SeparatorConsistencyResult checked = CheckSeparatorConsistency(graph, check);
+    EXPECT_EQ(checked.rejected, 0);
+    EXPECT_EQ(checked.deferred, 4);
+    EXPECT_EQ(checked.robot_pairs_deferred, 1);
+    const RobustDgsResult r = RunRobustDgs(graph, truth, DefaultRobustFactors(graph), options);
+    EXPECT_EQ(r.consistency_deferred, 4);
+    const std::size_t first = graph.factors().size() - order.size();
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      if (order[k].right) {
+        EXPECT_GT(r.weights[first + k], 0.5) << "right separator " << k;
+      } else {
+        EXPECT_LT(r.weights[first + k], 0.5) << "wrong separator " << k;
+      }
+    }
+    EXPECT_LT(MaxDistance(r.values, truth), 1e-6);
+  }
+}
+
 // Object separators are associations, one to one: robot 1's landmark of one object wrongly paired
 // with four landmarks of robot 0 that stand within 15 cm of one another (four objects side by
 // side) agree with one another by their loops (each says the four are where robot 1's one is),

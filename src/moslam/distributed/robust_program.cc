@@ -275,7 +275,8 @@ class RobustProgram {
     // C2: the largest consistent set of each pair it checks (toward higher neighbours).
     struct Verdict {
       bool checked = false, confirmed = false;
-      std::vector<std::size_t> best;  // positions in pairs_[other]
+      int largest = 0;                // its largest consistent set
+      std::vector<std::size_t> best;  // PairConsistency::kept: positions in pairs_[other]
       std::vector<int> support;       // per position: the members of best it agrees with
     };
     std::map<int, Verdict> verdicts;
@@ -302,9 +303,12 @@ class RobustProgram {
         covariance = it->second.covariance;
       }
       v.checked = true;
-      v.best = ConsistentSeparators(separators, map, *theirs, covariance, consistency_,
-                                    &v.support);
-      v.confirmed = static_cast<int>(v.best.size()) >= consistency_.min_support;
+      PairConsistency check =
+          ConsistentSeparators(separators, map, *theirs, covariance, consistency_);
+      v.largest = check.largest;
+      v.best = std::move(check.kept);
+      v.support = std::move(check.support);
+      v.confirmed = v.largest >= consistency_.min_support;
     }
     const auto verdictWeights = [&](int other, bool final) {
       std::vector<double> out;
@@ -363,7 +367,7 @@ class RobustProgram {
       if (!v.checked || v.confirmed) continue;
       const auto it = previous.find(other);
       const bool linked = it != previous.end() && it->second == label;
-      if (!linked || static_cast<int>(v.best.size()) < consistency_.linked_min_support) {
+      if (!linked || v.largest < consistency_.linked_min_support) {
         v.best.clear();
       } else {
         out_.check_deferred += static_cast<int>(v.best.size());

@@ -47,8 +47,9 @@
 //   C3. the robots linked through confirmed pairs: each takes the lowest label among itself and
 //       its confirmed partners, step after step, until no report changes (the groups of
 //       ConnectedRobots);
-//   C4. the final verdict: a pair below min_support keeps its best set when its two robots share
-//       a label and the set has linked_min_support separators, else none; the same step sums the
+//   C4. the final verdict: a pair below min_support keeps the separators of its largest sets
+//       (PairConsistency::kept) when its two robots share a label and those sets have
+//       linked_min_support separators, else none; the same step sums the
 //       separators left out over the team. If some were, the robots flood whether each still
 //       reaches robot 0 through the kept separators (as for the inliers' solve, step 4); if one
 //       does not, every robot stops there (RobustProgramResult::unlinked).
@@ -137,8 +138,9 @@ struct RobustProgramResult {
   std::int64_t weight_messages = 0;  // WeightMessages sent (the check's verdicts included), and
   std::int64_t weight_bytes = 0;     // their binary size
   // The separator check: the separators to robots of higher id it left out, and of those, the
-  // ones of pairs too small to confirm themselves kept for GNC (their best sets); the messages it
-  // sent for it (map estimates, covariances, the estimates for the readmission) and their bytes.
+  // ones of pairs too small to confirm themselves kept for GNC (their largest sets); the messages
+  // it sent for it (map estimates, covariances, the estimates for the readmission) and their
+  // bytes.
   int check_rejected = 0;
   int check_deferred = 0;
   std::int64_t check_messages = 0;

@@ -171,12 +171,10 @@ Matrix12 PairBlock(const Eigen::MatrixXd& S, int p, int q) {
 
 }  // namespace
 
-std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
-                                              const SeparatorCheckMap& a_map,
-                                              const Message& b_estimates,
-                                              const Eigen::MatrixXd& b_covariance,
-                                              const SeparatorConsistencyOptions& options,
-                                              std::vector<int>* support) {
+PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
+                                     const SeparatorCheckMap& a_map, const Message& b_estimates,
+                                     const Eigen::MatrixXd& b_covariance,
+                                     const SeparatorConsistencyOptions& options) {
   const int ra = a_map.robot(), rb = b_estimates.sender;
   const std::vector<Key> ka = SeparatorVariables(separators, ra);
   const std::vector<Key> kb = SeparatorVariables(separators, rb);
@@ -243,18 +241,31 @@ std::vector<std::size_t> ConsistentSeparators(const std::vector<RelativePoseFact
       if (stat <= options.threshold) g.connect(static_cast<int>(i), static_cast<int>(j));
     }
   }
-  std::vector<std::size_t> best;
-  for (int p : MaximumClique(g).nodes) best.push_back(static_cast<std::size_t>(p));
-  std::sort(best.begin(), best.end());
-  if (support) {
-    support->assign(separators.size(), 0);
-    for (std::size_t i = 0; i < separators.size(); ++i) {
-      for (std::size_t m : best) {
-        if (m != i && g.adjacent(static_cast<int>(i), static_cast<int>(m))) ++(*support)[i];
+  PairConsistency out;
+  const std::vector<int> best = MaximumClique(g).nodes;
+  out.largest = static_cast<int>(best.size());
+  if (out.largest >= options.min_support || out.largest < options.linked_min_support) {
+    out.kept.assign(best.begin(), best.end());
+  } else {
+    // Every separator of some largest set: one with largest - 1 neighbours that agree pairwise.
+    const int n = static_cast<int>(separators.size());
+    for (int v = 0; v < n; ++v) {
+      if (g.degree(v) < out.largest - 1) continue;
+      std::vector<bool> neighbours(static_cast<std::size_t>(n), false);
+      for (int u = 0; u < n; ++u) neighbours[static_cast<std::size_t>(u)] = g.adjacent(u, v);
+      if (out.largest == 1 ||
+          static_cast<int>(MaximumClique(g, neighbours).nodes.size()) >= out.largest - 1) {
+        out.kept.push_back(static_cast<std::size_t>(v));
       }
     }
   }
-  return best;
+  out.support.assign(separators.size(), 0);
+  for (std::size_t i = 0; i < separators.size(); ++i) {
+    for (std::size_t m : out.kept) {
+      if (m != i && g.adjacent(static_cast<int>(i), static_cast<int>(m))) ++out.support[i];
+    }
+  }
+  return out;
 }
 
 SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
@@ -293,8 +304,9 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
   std::vector<std::pair<int, int>> confirmed;
   struct Unconfirmed {
     std::pair<int, int> pair;
-    std::vector<std::size_t> list, best;  // its separators; its largest consistent set
-    std::vector<int> support;             // per separator: the members of best it agrees with
+    std::vector<std::size_t> list, kept;  // its separators; what it keeps if left to GNC
+    std::vector<int> support;             // per separator: the members of kept it agrees with
+    int largest = 0;                      // its largest consistent set
   };
   // The support of a pair's separators: against its best set if that is kept, else none.
   const auto set_support = [&](const std::vector<std::size_t>& list,
@@ -336,18 +348,16 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
       ++out.messages;
       SB = DecodeCovarianceMessage(wire_cov).covariance;
     }
-    std::vector<std::size_t> best;
-    std::vector<int> support;
-    for (std::size_t p :
-         ConsistentSeparators(separators, A, DecodeMessage(wire), SB, options, &support)) {
-      best.push_back(list[p]);
-    }
-    if (static_cast<int>(best.size()) >= options.min_support) {
-      reject_except(list, best);
-      set_support(list, support, true);
+    const PairConsistency check = ConsistentSeparators(separators, A, DecodeMessage(wire), SB,
+                                                       options);
+    std::vector<std::size_t> kept;
+    for (std::size_t p : check.kept) kept.push_back(list[p]);
+    if (check.largest >= options.min_support) {
+      reject_except(list, kept);
+      set_support(list, check.support, true);
       confirmed.push_back(pair);
-    } else {
-      unconfirmed.push_back({pair, list, best, support});  // judged below, once every pair is known
+    } else {  // judged below, once every pair is known
+      unconfirmed.push_back({pair, list, kept, check.support, check.largest});
     }
   }
   // The robots linked through confirmed pairs: the same group.
@@ -360,10 +370,10 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
   }
   for (const Unconfirmed& u : unconfirmed) {
     if (group_of.at(u.pair.first) == group_of.at(u.pair.second) &&
-        static_cast<int>(u.best.size()) >= options.linked_min_support) {
+        u.largest >= options.linked_min_support) {
       ++out.robot_pairs_deferred;
-      out.deferred += static_cast<int>(u.best.size());
-      reject_except(u.list, u.best);
+      out.deferred += static_cast<int>(u.kept.size());
+      reject_except(u.list, u.kept);
       set_support(u.list, u.support, true);
     } else {
       ++out.robot_pairs_rejected;
