@@ -276,8 +276,8 @@ class RobustProgram {
     struct Verdict {
       bool checked = false, confirmed = false;
       int largest = 0;                // its largest consistent set
-      std::vector<std::size_t> best;  // PairConsistency::kept: positions in pairs_[other]
-      std::vector<int> support;       // per position: the members of best it agrees with
+      std::vector<std::size_t> kept;  // PairConsistency::kept: positions in pairs_[other]
+      std::vector<int> support;       // per position: the members of kept it agrees with
     };
     std::map<int, Verdict> verdicts;
     for (const auto& [other, list] : pairs_) {
@@ -306,7 +306,7 @@ class RobustProgram {
       PairConsistency check =
           ConsistentSeparators(separators, map, *theirs, covariance, consistency_);
       v.largest = check.largest;
-      v.best = std::move(check.kept);
+      v.kept = std::move(check.kept);
       v.support = std::move(check.support);
       v.confirmed = v.largest >= consistency_.min_support;
     }
@@ -314,8 +314,8 @@ class RobustProgram {
       std::vector<double> out;
       const Verdict& v = verdicts.at(other);
       for (std::size_t j = 0; j < pairs_.at(other).size(); ++j) {
-        const bool in_best = std::binary_search(v.best.begin(), v.best.end(), j);
-        out.push_back(!v.checked || ((v.confirmed || final) && in_best) ? 1.0 : 0.0);
+        const bool in_kept = std::binary_search(v.kept.begin(), v.kept.end(), j);
+        out.push_back(!v.checked || ((v.confirmed || final) && in_kept) ? 1.0 : 0.0);
       }
       out.push_back(v.confirmed ? 1.0 : 0.0);
       return out;
@@ -362,29 +362,29 @@ class RobustProgram {
       if (labels == previous) break;
       previous = labels;
     }
-    // C4: pairs below min_support keep their best set when linked through confirmed pairs.
+    // C4: pairs below min_support keep their largest sets when linked through confirmed pairs.
     for (auto& [other, v] : verdicts) {
       if (!v.checked || v.confirmed) continue;
       const auto it = previous.find(other);
       const bool linked = it != previous.end() && it->second == label;
       if (!linked || v.largest < consistency_.linked_min_support) {
-        v.best.clear();
+        v.kept.clear();
       } else {
-        out_.check_deferred += static_cast<int>(v.best.size());
+        out_.check_deferred += static_cast<int>(v.kept.size());
       }
     }
     // The separators it leaves out (of the pairs it checks), summed over the team in that step.
     double rejected = 0.0;
     for (const auto& [other, v] : verdicts) {
-      if (v.checked) rejected += static_cast<double>(pairs_.at(other).size() - v.best.size());
+      if (v.checked) rejected += static_cast<double>(pairs_.at(other).size() - v.kept.size());
     }
     check_rejected_by_team_ = TeamSum(exchangeVerdicts(true, label, rejected), 1);
-    // The support of the separators it checked (against their best set when that is kept).
+    // The support of the separators it checked (against what the pair keeps, when it is kept).
     for (const auto& [other, v] : verdicts) {
       if (!v.checked) continue;
       const std::vector<std::size_t>& list = pairs_.at(other);
       for (std::size_t j = 0; j < list.size(); ++j) {
-        support_[list[j]] = v.best.empty() ? 0 : v.support[j];
+        support_[list[j]] = v.kept.empty() ? 0 : v.support[j];
       }
     }
     std::vector<bool> kept(p_.subgraph.factors().size(), true);

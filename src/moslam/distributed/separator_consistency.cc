@@ -308,7 +308,7 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     std::vector<int> support;             // per separator: the members of kept it agrees with
     int largest = 0;                      // its largest consistent set
   };
-  // The support of a pair's separators: against its best set if that is kept, else none.
+  // The support of a pair's separators: against what it keeps if it is kept, else none.
   const auto set_support = [&](const std::vector<std::size_t>& list,
                                const std::vector<int>& support, bool kept) {
     for (std::size_t p = 0; p < list.size(); ++p) out.support[list[p]] = kept ? support[p] : 0;
