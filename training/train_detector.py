@@ -432,6 +432,10 @@ def main():
     ap.add_argument("--init-onnx", help="start from this exported model (this script's ONNX, the "
                     "same --width), batch norms frozen (their statistics are folded in the file)")
     args = ap.parse_args()
+    if args.init_weights and args.init_onnx:
+        raise SystemExit("--init-weights and --init-onnx exclude each other")
+    if not 0.0 <= args.crop_keep < 1.0:
+        raise SystemExit("--crop-keep must be in [0, 1)")
 
     torch.set_num_threads(1)
     torch.manual_seed(args.seed)
@@ -457,8 +461,6 @@ def main():
         model.load_state_dict(torch.load(args.init_weights))
         print(f"initialised from {args.init_weights}", flush=True)
     if args.init_onnx:
-        if args.init_weights:
-            raise SystemExit("--init-weights and --init-onnx exclude each other")
         named, folded = init_from_onnx(model, args.init_onnx)
         print(f"initialised from {args.init_onnx}: {named} tensors by name, {folded} folded "
               "convolutions; batch norms frozen", flush=True)
