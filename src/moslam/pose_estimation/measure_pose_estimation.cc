@@ -48,6 +48,8 @@ int main(int argc, char** argv) {
   app.add_option("--keypoint-voxel", config.features.keypoint_voxel, "keypoint voxel (m)");
   app.add_option("--normal-radius", config.features.normal_radius, "normal radius (m)");
   app.add_option("--feature-radius", config.features.feature_radius, "PFHRGB radius (m)");
+  app.add_option("--feature-surface-voxel", config.features.feature_surface_voxel,
+                 "PFHRGB search surface voxel (m)");
   app.add_option("--sac-iterations", config.sac_iterations, "SAC-IA iterations");
   app.add_option("--consensus", config.consensus, "0 = prerejective, 1 = SAC-IA");
   app.add_option("--pre-iterations", config.prerejective_iterations, "prerejective iterations");

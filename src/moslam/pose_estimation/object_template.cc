@@ -49,7 +49,7 @@ ObjectTemplate MakeObjectTemplate(const std::string& label, const FeatureCloud& 
                             " points after voxelling; need at least 10");
   }
   t.keypoints = pose_detail::Keypoints(*t.cloud, config.keypoint_voxel);
-  t.features = pose_detail::ComputePfhrgb(t.cloud, t.keypoints, config.feature_radius);
+  t.features = pose_detail::ComputePfhrgb(t.cloud, t.keypoints, config);
   if (t.keypoints->size() < kMinTemplatePoints) {
     throw InvalidInputError("MakeObjectTemplate(" + label +
                             "): fewer than 10 keypoints have finite PFHRGB features");

@@ -295,6 +295,9 @@ void FeatureConfig::validate() const {
           "FeatureConfig.normal_radius", "must be larger than voxel_size");
   Require(PositiveFinite(feature_radius) && feature_radius > voxel_size,
           "FeatureConfig.feature_radius", "must be larger than voxel_size");
+  Require(std::isfinite(feature_surface_voxel) && feature_surface_voxel >= 0.0 &&
+              feature_surface_voxel < feature_radius,
+          "FeatureConfig.feature_surface_voxel", "must be >= 0 and smaller than feature_radius");
   Require(std::isfinite(keypoint_voxel) && keypoint_voxel >= 0.0, "FeatureConfig.keypoint_voxel",
           "must be >= 0");
 }
@@ -429,14 +432,18 @@ FeatureCloud::Ptr Keypoints(const FeatureCloud& surface, double keypoint_voxel) 
 }
 
 PfhrgbCloud::Ptr ComputePfhrgb(const FeatureCloud::Ptr& surface, FeatureCloud::Ptr& keypoints,
-                               double radius) {
+                               const FeatureConfig& config) {
   auto features = std::make_shared<PfhrgbCloud>();
+  const FeatureCloud::Ptr search_surface =
+      config.feature_surface_voxel > config.voxel_size
+          ? VoxelDownsample(*surface, config.feature_surface_voxel, true)
+          : surface;
   pcl::PFHRGBEstimation<FeaturePoint, FeaturePoint, pcl::PFHRGBSignature250> est;
   est.setInputCloud(keypoints);
-  est.setSearchSurface(surface);
-  est.setInputNormals(surface);
+  est.setSearchSurface(search_surface);
+  est.setInputNormals(search_surface);
   est.setSearchMethod(std::make_shared<pcl::search::KdTree<FeaturePoint>>());
-  est.setRadiusSearch(radius);
+  est.setRadiusSearch(config.feature_radius);
   est.compute(*features);
   auto kept = std::make_shared<FeatureCloud>();
   auto kept_features = std::make_shared<PfhrgbCloud>();
@@ -849,7 +856,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
       pose_detail::Keypoints(*source, config.features.keypoint_voxel);
   source_keypoints = Subsample(source_keypoints, config.max_segment_keypoints);
   PfhrgbCloud::Ptr source_features = pose_detail::ComputePfhrgb(
-      source, source_keypoints, config.features.feature_radius);
+      source, source_keypoints, config.features);
   result.segment_points = static_cast<int>(source->size());
   result.segment_keypoints = static_cast<int>(source_keypoints->size());
   result.times.prepare = MsSince(t0);

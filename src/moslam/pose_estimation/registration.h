@@ -9,7 +9,8 @@
 // Stages (times in RegistrationResult::times):
 //   prepare : voxel the segment (FeatureConfig::voxel_size), normals (normal_radius, flipped
 //             towards the camera), keypoints (keypoint_voxel, at most max_segment_keypoints),
-//             PFHRGB at the keypoints (feature_radius); fewer than min_segment_points points or
+//             PFHRGB at the keypoints (feature_radius, over a feature_surface_voxel copy of the
+//             voxelled segment); fewer than min_segment_points points or
 //             min_inliers keypoints -> kTooFewPoints;
 //   consensus: the initial alignment, segment keypoints -> template keypoints (Consensus below):
 //             by default PCL's prerejective sampler with RANSAC's most-inliers criterion

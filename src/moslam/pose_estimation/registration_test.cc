@@ -310,13 +310,18 @@ TEST(Registration, InlierDistanceWidensWithTheDepthNoise) {
   EXPECT_FALSE(ws.accepted()) << ToString(ws.status);
 }
 
-TEST(Registration, RejectsASegmentOfAnotherShapeWithTooFewInliers) {
+// A sphere is not a chair. With 7 cm features (FeatureConfig::feature_radius) 17 of its 682
+// feature correspondences agree with the consensus pose by chance, past the 12-inlier gate (with 5
+// cm features it failed the gate); the shape check turns it away: few of its points lie on the
+// chair at any pose.
+TEST(Registration, RejectsASegmentOfAnotherShape) {
   const RegistrationConfig config;
   const RegistrationResult r =
       RegisterTemplate(*ColouredSphere(Vector3(0.1, 0.0, 1.6)), TestTemplate(), config);
   PrintTimes(r);
-  EXPECT_EQ(r.status, RegistrationStatus::kTooFewInliers) << ToString(r.status);
-  EXPECT_LT(r.inliers, config.min_inliers);
+  std::printf("  geometric agreement %.2f\n", r.geometric_agreement);
+  EXPECT_EQ(r.status, RegistrationStatus::kShapeMismatch) << ToString(r.status);
+  EXPECT_LT(r.geometric_agreement, config.min_geometric_agreement);
   EXPECT_GT(r.correspondences, 100);
 }
 
@@ -355,6 +360,11 @@ TEST(Registration, ConfigValidationNamesTheField) {
   c = {};
   c.features.feature_radius = 0.01;
   expect_bad(c, "feature_radius");
+  c = {};
+  c.features.feature_surface_voxel = c.features.feature_radius;
+  expect_bad(c, "feature_surface_voxel");
+  c.features.feature_surface_voxel = -0.01;
+  expect_bad(c, "feature_surface_voxel");
   c = {};
   c.max_segment_keypoints = 5;
   expect_bad(c, "max_segment_keypoints");
@@ -397,6 +407,9 @@ TEST(Registration, ConfigValidationNamesTheField) {
   // A template built with other feature parameters is refused.
   c = {};
   c.features.feature_radius = 0.06;
+  EXPECT_THROW(RegisterTemplate(OrganizedCloud{}, TestTemplate(), c), InvalidInputError);
+  c = {};
+  c.features.feature_surface_voxel = 0.0;
   EXPECT_THROW(RegisterTemplate(OrganizedCloud{}, TestTemplate(), c), InvalidInputError);
   // So is a template without keypoints (nothing to match; the inlier grid would be empty).
   ObjectTemplate hollow = TestTemplate();

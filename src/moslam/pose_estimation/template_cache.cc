@@ -14,7 +14,8 @@
 namespace moslam {
 namespace {
 
-constexpr char kMagic[8] = {'M', 'O', 'S', 'L', 'T', 'P', 'L', '1'};
+// The last byte is the format's version: '2' added FeatureConfig::feature_surface_voxel.
+constexpr char kMagic[8] = {'M', 'O', 'S', 'L', 'T', 'P', 'L', '2'};
 constexpr std::size_t kHistogram = 250;  // pcl::PFHRGBSignature250
 constexpr std::size_t kPointBytes = 6 * sizeof(float) + sizeof(std::uint32_t);
 
@@ -130,6 +131,7 @@ std::uint64_t TemplateFingerprint(const std::string& label, std::uint64_t source
   w.put(config.voxel_size);
   w.put(config.normal_radius);
   w.put(config.feature_radius);
+  w.put(config.feature_surface_voxel);
   w.put(config.keypoint_voxel);
   return Fnv1a64(w.str().data(), w.str().size());
 }
@@ -145,7 +147,7 @@ std::string EncodeTemplate(const ObjectTemplate& tmpl, std::uint64_t fingerprint
   w.put(static_cast<std::uint32_t>(tmpl.label.size()));
   w.bytes(tmpl.label.data(), tmpl.label.size());
   for (double v : {tmpl.config.voxel_size, tmpl.config.normal_radius, tmpl.config.feature_radius,
-                   tmpl.config.keypoint_voxel}) {
+                   tmpl.config.feature_surface_voxel, tmpl.config.keypoint_voxel}) {
     w.put(v);
   }
   w.put(static_cast<std::uint32_t>(tmpl.cloud->size()));
@@ -170,7 +172,13 @@ ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
     throw InvalidInputError("template cache: checksum mismatch (damaged or partly written)");
   }
   Reader r(bytes.substr(0, body));
-  if (r.take(sizeof(kMagic), "magic") != std::string_view(kMagic, sizeof(kMagic))) {
+  const std::string_view magic = r.take(sizeof(kMagic), "magic");
+  if (magic.substr(0, sizeof(kMagic) - 1) == std::string_view(kMagic, sizeof(kMagic) - 1) &&
+      magic != std::string_view(kMagic, sizeof(kMagic))) {
+    throw InvalidInputError("template cache: written in another format version (by another "
+                            "version of moslam)");
+  }
+  if (magic != std::string_view(kMagic, sizeof(kMagic))) {
     throw InvalidInputError("template cache: not a moslam template (bad magic)");
   }
   if (r.get<std::uint64_t>("fingerprint") != fingerprint) {
@@ -184,6 +192,7 @@ ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
   stored_config.voxel_size = r.get<double>("config");
   stored_config.normal_radius = r.get<double>("config");
   stored_config.feature_radius = r.get<double>("config");
+  stored_config.feature_surface_voxel = r.get<double>("config");
   stored_config.keypoint_voxel = r.get<double>("config");
   if (!(stored_config == config)) {
     throw InvalidInputError("template cache: built with another FeatureConfig");

@@ -9,8 +9,9 @@
 // another fingerprint and therefore another file: a stale entry is never used.
 //
 // File format (little-endian; one file <dir>/<label>-<fingerprint hex>.tpl):
-//   magic "MOSLTPL1" | u64 fingerprint | u32 label length | label bytes
-//   | 4 x f64 FeatureConfig (voxel_size, normal_radius, feature_radius, keypoint_voxel)
+//   magic "MOSLTPL2" | u64 fingerprint | u32 label length | label bytes
+//   | 5 x f64 FeatureConfig (voxel_size, normal_radius, feature_radius, feature_surface_voxel,
+//     keypoint_voxel)
 //   | u32 cloud points     | points: 6 x f32 (x y z nx ny nz) + u32 rgba each
 //   | u32 keypoints        | keypoints: as points
 //   | features: keypoints x 250 x f32 (PFHRGB)

@@ -63,6 +63,9 @@ TEST(TemplateCache, FingerprintFollowsTheModelAndTheConfig) {
   FeatureConfig other;
   other.feature_radius += 0.01;
   EXPECT_NE(TemplateFingerprint("test_chair", digest, other), b.key);
+  other = FeatureConfig{};
+  other.feature_surface_voxel = 0.0;
+  EXPECT_NE(TemplateFingerprint("test_chair", digest, other), b.key);
   EXPECT_NE(TemplateFingerprint("sofa", digest, FeatureConfig{}), b.key);
   EXPECT_EQ(TemplateFingerprint("test_chair", digest, FeatureConfig{}), b.key);
 }
@@ -92,6 +95,12 @@ TEST(TemplateCache, DamagedOrForeignBytesAreRejectedWithAReason) {
   ObjectTemplate renamed = b.tmpl;
   renamed.label = "sofa";
   expect_error(EncodeTemplate(renamed, b.key), "test_chair", b.key, {}, "another label");
+  // A file of an earlier format version (its checksum recomputed: only the version differs).
+  std::string older = good.substr(0, good.size() - sizeof(std::uint64_t));
+  older[7] = '1';
+  const std::uint64_t sum = Fnv1a64(older.data(), older.size());
+  older.append(reinterpret_cast<const char*>(&sum), sizeof(sum));
+  expect_error(older, "test_chair", b.key, {}, "another format version");
 }
 
 TEST(TemplateCache, StoresLoadsAndReportsUnusableEntries) {
@@ -111,7 +120,7 @@ TEST(TemplateCache, StoresLoadsAndReportsUnusableEntries) {
   // A damaged file is a miss with its reason, never an exception or a wrong template.
   {
     std::ofstream out(cache.path("test_chair", b.key), std::ios::binary | std::ios::trunc);
-    out << "MOSLTPL1 but nothing else";
+    out << "MOSLTPL2 but nothing else";
   }
   EXPECT_FALSE(cache.load("test_chair", b.key, {}, &why));
   EXPECT_NE(why.find("checksum"), std::string::npos) << why;
