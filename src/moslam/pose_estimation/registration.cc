@@ -458,6 +458,12 @@ PfhrgbCloud::Ptr ComputePfhrgb(const FeatureCloud::Ptr& surface, FeatureCloud::P
 
 }  // namespace pose_detail
 
+bool PassesInlierGate(int consensus_inliers, int hypothesis, int refined_inliers,
+                      int min_inliers) {
+  if (refined_inliers >= min_inliers) return true;
+  return hypothesis == 0 && consensus_inliers >= min_inliers;
+}
+
 SE3 ObjectMeasurementInBody(const SE3& camera_T_object) {
   return BodyFromCamera() * camera_T_object;
 }
@@ -981,7 +987,12 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   refined.refined_inliers =
       count_inliers(refined.camera_T_object.inverse().matrix().cast<float>());
   refined.times.gate += MsSince(t0);
-  if (sac_gate || refined.refined_inliers >= config.min_inliers) return refined;
+  // Without gate_refined_pose the consensus' count alone decides (checked above).
+  if (!config.gate_refined_pose ||
+      PassesInlierGate(consensus_failed ? -1 : result.inliers, refined.hypothesis,
+                       refined.refined_inliers, config.min_inliers)) {
+    return refined;
+  }
   result.refined_inliers = refined.refined_inliers;
   result.hypotheses = refined.hypotheses;
   result.hypothesis = refined.hypothesis;
