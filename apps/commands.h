@@ -62,6 +62,7 @@ struct RenderedPerceptionArgs {
   std::string model, classes, templates;
   int every = 1;
   std::string template_cache;  // "" = none
+  int template_views = 8;  // TemplateViews::views (perception/view_template.h); 0: whole model
 };
 
 // Where built templates are cached unless --template-cache says otherwise:

@@ -4,6 +4,7 @@
 //   moslam perceive DIR [--model M.onnx --classes classes.txt] [--templates DIR] [--every K]
 //                   [--max-frames N] [--out detections.json] [--annotate DIR] [--world world.json]
 //                   [--template-cache DIR|none] [--consensus prerejective|sac-ia] [--threads N]
+//                   [--template-views N]
 //                   [--json]
 //
 // Every K-th frame runs detect -> segment -> register (perception/object_perception.h). --out
@@ -51,6 +52,7 @@ struct PerceiveArgs {
   std::string world;
   std::string template_cache = DefaultTemplateCacheDir();
   std::string consensus = "prerejective";
+  int template_views = TemplateViews{}.views;
   int threads = 2;
   bool json = false;
 };
@@ -154,6 +156,7 @@ int RunPerceive(const PerceiveArgs& a) {
   config.detector.class_names_file = a.classes;
   config.templates_dir = a.templates;
   config.template_cache_dir = TemplateCacheDir(a.template_cache);
+  config.template_views.views = a.template_views;
   config.threads = a.threads;
   config.registration.consensus =
       a.consensus == "sac-ia" ? Consensus::kSacIa : Consensus::kPrerejective;
@@ -363,6 +366,11 @@ Runner RegisterPerceive(CLI::App& app) {
   sub->add_option("--consensus", args->consensus,
                   "initial alignment: prerejective (fast) or sac-ia (the paper's)")
       ->check(CLI::IsMember({"prerejective", "sac-ia"}))
+      ->capture_default_str();
+  sub->add_option("--template-views", args->template_views,
+                  "template features from this many rendered views of each built-in model (0: "
+                  "from the whole model)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   sub->add_option("--threads", args->threads, "detections of a frame registered in parallel")
       ->check(CLI::PositiveNumber)

@@ -70,6 +70,7 @@ struct SimulateArgs {
   std::string templates;
   std::string template_cache = DefaultTemplateCacheDir();
   int perceive_every = 1;
+  int template_views = 8;  // TemplateViews::views (perception/view_template.h)
   std::optional<double> exclusion_radius;  // unset: kRenderedExclusionRadius when rendered, else 0
   bool leave_one_out_check = false;
   bool online = false;
@@ -148,6 +149,11 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
   sub->add_option("--template-cache", args->template_cache,
                   "rendered: folder caching the built templates (none: no cache)")
       ->capture_default_str();
+  sub->add_option("--template-views", args->template_views,
+                  "rendered: template features from this many rendered views of each model "
+                  "(0: from the whole model)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   sub->add_option("--perceive-every", args->perceive_every,
                   "rendered: perceive every K-th pose (the others have no object measurement)")
       ->check(CLI::PositiveNumber)
@@ -173,7 +179,8 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
     ExperimentConfig::Perceive perceive;
     const bool rendered = a.perception == "rendered";
     if (rendered) perceive = make_perception(
-          {a.model, a.classes, a.templates, a.perceive_every, a.template_cache});
+          {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
+           a.template_views});
     if (a.online) {
       if (rendered || a.information != "noise") {
         throw InvalidInputError(

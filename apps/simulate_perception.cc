@@ -22,6 +22,7 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
   config->perception.detector.class_names_file = args.classes;
   config->perception.templates_dir = args.templates;
   config->perception.template_cache_dir = TemplateCacheDir(args.template_cache);
+  config->perception.template_views.views = args.template_views;
   config->every = args.every;
   config->validate();
   const PointCloudModel point_cloud;

@@ -92,6 +92,7 @@ void PerceptionConfig::validate() const {
   if (!(template_spacing > 0.0) || !std::isfinite(template_spacing)) {
     throw InvalidInputError("PerceptionConfig: template_spacing must be positive and finite");
   }
+  template_views.validate();
   if (threads < 1) throw InvalidInputError("PerceptionConfig: threads must be >= 1");
   if (!(min_box_agreement >= 0.0 && min_box_agreement <= 1.0)) {
     throw InvalidInputError("PerceptionConfig: min_box_agreement must be in [0, 1]");
@@ -138,6 +139,7 @@ const ObjectTemplate* ObjectPerception::findTemplate(const std::string& label) {
   // sampling with visibility costs as much as the features). `digest` identifies it for the cache.
   std::optional<FeatureCloud> cloud;
   std::function<FeatureCloud()> sample;
+  const ObjectClass* model_class = nullptr;  // its views give the features (template_views)
   std::uint64_t digest = 0;
   const std::filesystem::path pcd =
       config_.templates_dir.empty()
@@ -151,6 +153,10 @@ const ObjectTemplate* ObjectPerception::findTemplate(const std::string& label) {
       if (c.label != label) continue;
       const Mesh mesh = MakeObjectMesh(c);
       digest = MeshDigest(mesh, config_.template_spacing, config_.template_seed);
+      if (UsesViews(c, config_.template_views)) {
+        model_class = &c;
+        digest = ViewDigest(digest, config_.template_views, config_.segmentation.camera_height);
+      }
       sample = [this, mesh, label] {
         return ModelCloud(
             SampleVisibleSurface(mesh, config_.template_spacing, config_.template_seed), label);
@@ -161,7 +167,13 @@ const ObjectTemplate* ObjectPerception::findTemplate(const std::string& label) {
   std::optional<ObjectTemplate> made;
   if (cloud || sample) {
     const FeatureConfig& features = config_.registration.features;
-    auto build = [&] { return MakeObjectTemplate(label, cloud ? *cloud : sample(), features); };
+    auto build = [&] {
+      if (model_class != nullptr) {
+        return MakeViewTemplate(*model_class, sample(), features, config_.template_views,
+                                config_.segmentation.camera_height);
+      }
+      return MakeObjectTemplate(label, cloud ? *cloud : sample(), features);
+    };
     if (config_.template_cache_dir.empty()) {
       made = build();
     } else {

@@ -13,7 +13,8 @@
 //
 // Templates: one per class the detector knows and `classes` describes, built once, when the
 // class is first detected, from the class's procedural model (render/object_models.h,
-// SampleVisibleSurface at template_spacing), or read from `templates_dir`/<label>.pcd when that
+// SampleVisibleSurface at template_spacing; the features from rendered views of it,
+// template_views), or read from `templates_dir`/<label>.pcd when that
 // file exists (your own scanned models; format in pose_estimation/object_template.h). With
 // `template_cache_dir`, the built template (its PFHRGB features: 0.3-2.5 s per class) is stored
 // there and read back at the next start (pose_estimation/template_cache.h: keyed by the model's
@@ -33,6 +34,7 @@
 #include <vector>
 
 #include "moslam/detection/detector.h"
+#include "moslam/perception/view_template.h"
 #include "moslam/pose_estimation/object_template.h"
 #include "moslam/pose_estimation/registration.h"
 #include "moslam/pose_estimation/segmentation.h"
@@ -48,6 +50,10 @@ struct PerceptionConfig {
   RegistrationConfig registration;  // registration.features: the templates' feature parameters
   double template_spacing = 0.01;   // m between samples of a class model
   unsigned template_seed = 1;
+  // The built-in models' features come from rendered views of the model, at the robots' camera
+  // height (segmentation.camera_height; perception/view_template.h); 0 views: from the whole
+  // model. A templates_dir PCD has no views: its features are the whole cloud's.
+  TemplateViews template_views;
   std::string templates_dir;        // optional <label>.pcd overrides
   std::string template_cache_dir;   // optional on-disk cache of built templates ("" = none)
   int threads = 2;                  // detections of a frame registered in parallel (>= 1)

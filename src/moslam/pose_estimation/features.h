@@ -7,6 +7,7 @@
 #include <pcl/point_types.h>
 
 #include "moslam/geometry/se3.h"
+#include "moslam/pose_estimation/organized_cloud.h"
 
 namespace moslam {
 
@@ -56,6 +57,15 @@ FeatureCloud::Ptr VoxelDownsample(const FeatureCloud& cloud, double leaf,
 
 // pcl::NormalEstimation within `radius`, normals flipped towards `viewpoint`.
 void EstimateNormals(FeatureCloud& cloud, double radius, const Vector3& viewpoint);
+
+// A segment's surface as registration prepares it: the finite points of `segment` (camera
+// frame) voxelled at config.voxel_size; with at least `min_points` of them, normals within
+// config.normal_radius flipped towards the camera (the origin), points without a normal dropped
+// (fewer than `min_points`: returned voxelled, without normals). Segments and the rendered views
+// of a view template (perception/view_template.h) go through the same steps, so that their
+// features describe the same kind of surface.
+FeatureCloud::Ptr PrepareSurface(const OrganizedCloud& segment, const FeatureConfig& config,
+                                 std::size_t min_points);
 
 // The keypoints of `surface` (a copy of it if keypoint_voxel == 0).
 FeatureCloud::Ptr Keypoints(const FeatureCloud& surface, double keypoint_voxel);

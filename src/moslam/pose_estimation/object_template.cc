@@ -24,8 +24,11 @@ bool FinitePoint(const FeaturePoint& p) {
 
 }  // namespace
 
-ObjectTemplate MakeObjectTemplate(const std::string& label, const FeatureCloud& cloud,
-                                  const FeatureConfig& config) {
+namespace {
+
+// The validated, voxelled template cloud (MakeObjectTemplate, AssembleObjectTemplate).
+FeatureCloud::Ptr TemplateCloud(const std::string& label, const FeatureCloud& cloud,
+                                const FeatureConfig& config) {
   config.validate();
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const FeaturePoint& p = cloud[i];
@@ -39,21 +42,57 @@ ObjectTemplate MakeObjectTemplate(const std::string& label, const FeatureCloud& 
                               " is not a unit vector (norm " + std::to_string(n) + ")");
     }
   }
+  FeatureCloud::Ptr voxelled = pose_detail::VoxelDownsample(cloud, config.voxel_size, true);
+  if (voxelled->size() < kMinTemplatePoints) {
+    throw InvalidInputError("MakeObjectTemplate(" + label + "): only " +
+                            std::to_string(voxelled->size()) +
+                            " points after voxelling; need at least 10");
+  }
+  return voxelled;
+}
+
+}  // namespace
+
+ObjectTemplate MakeObjectTemplate(const std::string& label, const FeatureCloud& cloud,
+                                  const FeatureConfig& config) {
   ObjectTemplate t;
   t.label = label;
   t.config = config;
-  t.cloud = pose_detail::VoxelDownsample(cloud, config.voxel_size, true);
-  if (t.cloud->size() < kMinTemplatePoints) {
-    throw InvalidInputError("MakeObjectTemplate(" + label + "): only " +
-                            std::to_string(t.cloud->size()) +
-                            " points after voxelling; need at least 10");
-  }
+  t.cloud = TemplateCloud(label, cloud, config);
   t.keypoints = pose_detail::Keypoints(*t.cloud, config.keypoint_voxel);
   t.features = pose_detail::ComputePfhrgb(t.cloud, t.keypoints, config);
   if (t.keypoints->size() < kMinTemplatePoints) {
     throw InvalidInputError("MakeObjectTemplate(" + label +
                             "): fewer than 10 keypoints have finite PFHRGB features");
   }
+  t.feature_index = std::make_shared<const TemplateFeatureIndex>(t.features);
+  return t;
+}
+
+ObjectTemplate AssembleObjectTemplate(const std::string& label, const FeatureCloud& cloud,
+                                      FeatureCloud::Ptr keypoints, PfhrgbCloud::Ptr features,
+                                      const FeatureConfig& config) {
+  if (!keypoints || !features || keypoints->size() != features->size()) {
+    throw InvalidInputError("AssembleObjectTemplate(" + label +
+                            "): keypoints and features missing or of different sizes");
+  }
+  if (keypoints->size() < kMinTemplatePoints) {
+    throw InvalidInputError("AssembleObjectTemplate(" + label + "): " +
+                            std::to_string(keypoints->size()) +
+                            " keypoints with features; need at least 10");
+  }
+  for (std::size_t i = 0; i < keypoints->size(); ++i) {
+    if (!FinitePoint(keypoints->points[i])) {
+      throw InvalidInputError("AssembleObjectTemplate(" + label + "): keypoint " +
+                              std::to_string(i) + " has a non-finite coordinate or normal");
+    }
+  }
+  ObjectTemplate t;
+  t.label = label;
+  t.config = config;
+  t.cloud = TemplateCloud(label, cloud, config);
+  t.keypoints = std::move(keypoints);
+  t.features = std::move(features);
   t.feature_index = std::make_shared<const TemplateFeatureIndex>(t.features);
   return t;
 }

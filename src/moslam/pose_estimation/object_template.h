@@ -45,6 +45,15 @@ ObjectTemplate MakeObjectTemplate(const std::string& label, const ColoredPointSe
 ObjectTemplate MakeObjectTemplate(const std::string& label, const FeatureCloud& cloud,
                                   const FeatureConfig& config = {});
 
+// A template whose features were computed elsewhere, e.g. on rendered views of the model
+// (perception/view_template.h): `cloud` validated and voxelled as by MakeObjectTemplate (GICP and
+// the agreement score use it), `keypoints` (object frame) and `features` taken as they are,
+// keypoints[i] <-> features[i]. Throws InvalidInputError on missing or mismatched keypoints and
+// features, fewer than 10 keypoints, a non-finite keypoint, or as MakeObjectTemplate.
+ObjectTemplate AssembleObjectTemplate(const std::string& label, const FeatureCloud& cloud,
+                                      FeatureCloud::Ptr keypoints, PfhrgbCloud::Ptr features,
+                                      const FeatureConfig& config);
+
 // Writes tmpl.cloud as a binary PCD. Throws InvalidInputError naming the file if it cannot.
 void SaveObjectTemplate(const ObjectTemplate& tmpl, const std::string& path);
 

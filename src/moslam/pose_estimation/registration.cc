@@ -426,6 +426,33 @@ void EstimateNormals(FeatureCloud& cloud, double radius, const Vector3& viewpoin
   ne.compute(cloud);  // writes normal_x/y/z and curvature, keeps xyz and rgb
 }
 
+FeatureCloud::Ptr PrepareSurface(const OrganizedCloud& segment, const FeatureConfig& config,
+                                 std::size_t min_points) {
+  FeatureCloud finite;
+  finite.reserve(segment.size());
+  for (const auto& q : segment.points) {
+    if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z)) continue;
+    FeaturePoint p;
+    p.x = q.x;
+    p.y = q.y;
+    p.z = q.z;
+    p.rgba = q.rgba;
+    p.normal_x = p.normal_y = p.normal_z = 0.0f;
+    p.curvature = 0.0f;
+    finite.push_back(p);
+  }
+  FeatureCloud::Ptr source = VoxelDownsample(finite, config.voxel_size);
+  if (source->size() < min_points) return source;
+  EstimateNormals(*source, config.normal_radius, Vector3::Zero());
+  auto with_normals = std::make_shared<FeatureCloud>();
+  for (const auto& p : source->points) {
+    if (std::isfinite(p.normal_x) && std::isfinite(p.normal_y) && std::isfinite(p.normal_z)) {
+      with_normals->push_back(p);
+    }
+  }
+  return with_normals;
+}
+
 FeatureCloud::Ptr Keypoints(const FeatureCloud& surface, double keypoint_voxel) {
   if (keypoint_voxel <= 0.0) return std::make_shared<FeatureCloud>(surface);
   return VoxelDownsample(surface, keypoint_voxel);
@@ -497,29 +524,8 @@ void CheckInputs(const ObjectTemplate& tmpl, const RegistrationConfig& config) {
 // Finite points of the segment, voxelled, with normals (points without a normal dropped).
 FeatureCloud::Ptr PrepareSegmentCloud(const OrganizedCloud& segment,
                                       const RegistrationConfig& config) {
-  FeatureCloud raw;
-  raw.reserve(segment.size());
-  for (const auto& q : segment.points) {
-    if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z)) continue;
-    FeaturePoint p;
-    p.x = q.x;
-    p.y = q.y;
-    p.z = q.z;
-    p.rgba = q.rgba;
-    p.normal_x = p.normal_y = p.normal_z = 0.0f;
-    p.curvature = 0.0f;
-    raw.push_back(p);
-  }
-  FeatureCloud::Ptr source = pose_detail::VoxelDownsample(raw, config.features.voxel_size);
-  if (static_cast<int>(source->size()) < config.min_segment_points) return source;
-  pose_detail::EstimateNormals(*source, config.features.normal_radius, Vector3::Zero());
-  auto with_normals = std::make_shared<FeatureCloud>();
-  for (const auto& p : source->points) {
-    if (std::isfinite(p.normal_x) && std::isfinite(p.normal_y) && std::isfinite(p.normal_z)) {
-      with_normals->push_back(p);
-    }
-  }
-  return with_normals;
+  return pose_detail::PrepareSurface(segment, config.features,
+                                     static_cast<std::size_t>(config.min_segment_points));
 }
 
 struct GicpOutcome {

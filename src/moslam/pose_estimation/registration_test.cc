@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <random>
@@ -469,6 +470,26 @@ TEST(ObjectTemplate, SavesAndLoadsPcd) {
   }
   std::remove(bad.c_str());
   EXPECT_THROW(LoadObjectTemplate(bad, "missing"), InvalidInputError);
+}
+
+TEST(ObjectTemplate, AssemblesFeaturesComputedElsewhereAndRefusesMismatches) {
+  const ObjectTemplate& t = TestTemplate();
+  const ObjectTemplate a =
+      AssembleObjectTemplate("assembled", *t.cloud, t.keypoints, t.features, t.config);
+  EXPECT_EQ(a.keypoints->size(), t.keypoints->size());
+  ASSERT_TRUE(a.feature_index);
+  EXPECT_EQ(a.feature_index->features(), a.features.get());
+  auto fewer = std::make_shared<PfhrgbCloud>(*t.features);
+  fewer->points.pop_back();
+  fewer->width = static_cast<std::uint32_t>(fewer->size());
+  EXPECT_THROW(AssembleObjectTemplate("x", *t.cloud, t.keypoints, fewer, t.config),
+               InvalidInputError);
+  EXPECT_THROW(AssembleObjectTemplate("x", *t.cloud, nullptr, t.features, t.config),
+               InvalidInputError);
+  auto bad = std::make_shared<FeatureCloud>(*t.keypoints);
+  bad->points[0].x = std::nanf("");
+  EXPECT_THROW(AssembleObjectTemplate("x", *t.cloud, bad, t.features, t.config),
+               InvalidInputError);
 }
 
 }  // namespace
