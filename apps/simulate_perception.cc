@@ -46,6 +46,12 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
       line += fmt::format(" {} {}/{} (all {}/{})", label, c.accepted_visible, c.true_visible,
                           c.accepted, c.true_detections);
     }
+    line += "\nby the object's depth (m):";
+    for (const auto& [bin, c] : p.by_depth) {
+      line += fmt::format(" {}{} {}/{} (all {}/{})", bin,
+                          bin == RenderedSensingStats::kDepthBins - 1 ? "+" : "",
+                          c.accepted_visible, c.true_visible, c.accepted, c.true_detections);
+    }
     // The accepted detections that are not true, against the nearest same-label object seen.
     int near = 0;
     std::string errors;

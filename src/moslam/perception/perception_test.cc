@@ -109,7 +109,7 @@ TEST(Perception, ProjectedBoxIsThePinholeBoxClippedToTheImage) {
   EXPECT_NEAR(right.x, 159.5 + 160.0 * 1.5 / 2.5, 1e-3);
 }
 
-TEST(RenderedSensing, CountsTrueDetectionsOfObjectsSeenEnoughByClass) {
+TEST(RenderedSensing, CountsTrueDetectionsOfObjectsSeenEnoughByClassAndDepth) {
   // One robot, two poses: the chair in full view, then the robot turned away from it.
   SimulationData data;
   data.world = OneObject("chair", 2.0, 0.6);
@@ -131,6 +131,13 @@ TEST(RenderedSensing, CountsTrueDetectionsOfObjectsSeenEnoughByClass) {
   EXPECT_EQ(chair.accepted_visible, all.accepted_visible);
   EXPECT_EQ(all.accepted_visible, all.accepted);
   EXPECT_LE(all.accepted, stats.accepted);
+  // The same counts by depth: the chair's centre 2 m ahead, bin [2, 3) m.
+  ASSERT_EQ(stats.by_depth.size(), 1u);
+  ASSERT_EQ(stats.by_depth.count(2), 1u);
+  EXPECT_EQ(stats.by_depth.at(2).true_detections, chair.true_detections);
+  EXPECT_EQ(stats.by_depth.at(2).accepted, chair.accepted);
+  EXPECT_EQ(stats.by_depth.at(2).true_visible, chair.true_visible);
+  EXPECT_EQ(stats.by_depth.at(2).accepted_visible, chair.accepted_visible);
   // Every accepted detection that is not true has its error to the nearest same-label object.
   EXPECT_EQ(stats.false_accepted_errors.size(),
             static_cast<std::size_t>(stats.accepted - all.accepted));

@@ -87,12 +87,18 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
           }
         }
         AcceptanceCounts* of_class = nullptr;  // the true detection's class
+        AcceptanceCounts* of_depth = nullptr;  // and its depth bin
         const bool visible =
             truth != nullptr && truth->visibleFraction() >= config.min_visible_fraction;
         if (truth) {
           of_class = &stats.by_class[o.detection.label];
-          ++of_class->true_detections;
-          if (visible) ++of_class->true_visible;
+          const double z = truth->camera_T_object.translation().z();
+          of_depth = &stats.by_depth[std::clamp(static_cast<int>(std::floor(z)), 0,
+                                                RenderedSensingStats::kDepthBins - 1)];
+          for (AcceptanceCounts* c : {of_class, of_depth}) {
+            ++c->true_detections;
+            if (visible) ++c->true_visible;
+          }
         }
         switch (o.status) {
           case PerceptionStatus::kAccepted:
@@ -130,8 +136,10 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
               nearest_t, nearest ? RotationErrorDeg(nearest->camera_T_object, est)
                                  : std::numeric_limits<double>::infinity());
         } else {
-          ++of_class->accepted;
-          if (visible) ++of_class->accepted_visible;
+          for (AcceptanceCounts* c : {of_class, of_depth}) {
+            ++c->accepted;
+            if (visible) ++c->accepted_visible;
+          }
           d.object_id = truth->id;
           const double t_error = (est.translation() - truth->camera_T_object.translation()).norm();
           const double r_error = RotationErrorDeg(truth->camera_T_object, est);
