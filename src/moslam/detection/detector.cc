@@ -56,6 +56,9 @@ void Push(std::vector<Candidate>& out, double cx, double cy, double w, double h,
   out.push_back({cv::Rect2d(cx - 0.5 * w, cy - 0.5 * h, w, h), score, class_id});
 }
 
+// The flip test's per-pass score floor: a box below it in one pass counts as unseen there.
+constexpr float kFlipCandidateThreshold = 0.05f;
+
 // How the image was mapped onto the network input: net = image * scale + pad.
 struct InputMapping {
   double scale_x = 1.0, scale_y = 1.0;
@@ -112,6 +115,9 @@ void DetectorConfig::validate() const {
   }
   if (!(nms_iou_threshold >= 0.0f && nms_iou_threshold <= 1.0f)) {
     throw InvalidInputError("DetectorConfig.nms_iou_threshold must be in [0, 1]");
+  }
+  if (!(flip_match_iou > 0.0f && flip_match_iou <= 1.0f)) {
+    throw InvalidInputError("DetectorConfig.flip_match_iou must be in (0, 1]");
   }
 }
 
@@ -199,7 +205,8 @@ struct Detector::Impl {
                             " classes expects " + expected);
   }
 
-  void decodeMoslam(std::size_t i, const cv::Mat& out, std::vector<Candidate>& cands) const {
+  void decodeMoslam(std::size_t i, const cv::Mat& out, float threshold,
+                    std::vector<Candidate>& cands) const {
     const int C = numClasses();
     if (out.dims != 4 || out.size[0] != 1 || out.size[1] != 5 + C || out.type() != CV_32F) {
       badShape(i, out, "[1, " + std::to_string(5 + C) + ", Gh, Gw] float");
@@ -217,12 +224,13 @@ struct Detector::Impl {
         const double cx = (gx + static_cast<double>(p[0])) * W / gw;
         const double cy = (gy + static_cast<double>(p[plane])) * H / gh;
         Push(cands, cx, cy, p[2 * plane] * W, p[3 * plane] * H, objectness * prob, cls,
-             config.confidence_threshold);
+             threshold);
       }
     }
   }
 
-  void decodeRows(std::size_t i, const cv::Mat& out, std::vector<Candidate>& cands) const {
+  void decodeRows(std::size_t i, const cv::Mat& out, float threshold,
+                  std::vector<Candidate>& cands) const {
     const int C = numClasses();
     int rows = 0;
     if (config.format == DetectorOutputFormat::kYolov5 && out.dims == 3 && out.size[0] == 1 &&
@@ -246,12 +254,13 @@ struct Detector::Impl {
       const auto [cls, prob] = BestClass(p + 5, C, 1);
       const float score = darknet ? prob : p[4] * prob;
       Push(cands, p[0] * sx, p[1] * sy, p[2] * sx, p[3] * sy, score, cls,
-           config.confidence_threshold);
+           threshold);
     }
   }
 
   // YOLOv8 / YOLO11: [1, 4 + C, N] (or [4 + C, N]), one column per box, no objectness.
-  void decodeColumns(std::size_t i, const cv::Mat& out, std::vector<Candidate>& cands) const {
+  void decodeColumns(std::size_t i, const cv::Mat& out, float threshold,
+                     std::vector<Candidate>& cands) const {
     const int C = numClasses();
     int n = 0;
     if (out.dims == 3 && out.size[0] == 1 && out.size[1] == 4 + C) {
@@ -272,20 +281,13 @@ struct Detector::Impl {
     for (int c = 0; c < n; ++c) {
       const auto [cls, prob] =
           BestClass(data + 4 * stride + static_cast<std::size_t>(c), C, stride);
-      Push(cands, at(0, c), at(1, c), at(2, c), at(3, c), prob, cls, config.confidence_threshold);
+      Push(cands, at(0, c), at(1, c), at(2, c), at(3, c), prob, cls, threshold);
     }
   }
 
-  std::vector<Detection> detect(const cv::Mat& image) {
-    if (image.empty()) throw InvalidInputError("Detector::detect: the image is empty");
-    cv::Mat bgr;
-    if (image.type() == CV_8UC3) {
-      bgr = image;
-    } else if (image.type() == CV_8UC1) {
-      cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
-    } else {
-      throw InvalidInputError("Detector::detect: the image must be CV_8UC3 (BGR) or CV_8UC1");
-    }
+  // The network's boxes on `bgr` scoring >= threshold, in image pixels, clipped to the image
+  // (empty boxes dropped).
+  std::vector<Candidate> candidates(const cv::Mat& bgr, float threshold) {
     InputMapping mapping;
     const cv::Mat blob = preprocess(bgr, mapping);
     std::vector<cv::Mat> outs;
@@ -300,55 +302,116 @@ struct Detector::Impl {
     std::vector<Candidate> cands;
     for (std::size_t i = 0; i < outs.size(); ++i) {
       if (config.format == DetectorOutputFormat::kMoslam) {
-        decodeMoslam(i, outs[i], cands);
+        decodeMoslam(i, outs[i], threshold, cands);
       } else if (config.format == DetectorOutputFormat::kYolov8) {
-        decodeColumns(i, outs[i], cands);
+        decodeColumns(i, outs[i], threshold, cands);
       } else {
-        decodeRows(i, outs[i], cands);
+        decodeRows(i, outs[i], threshold, cands);
       }
     }
-
-    // NMS per class (or over all boxes: one group) on boxes in image pixels, clipped to the image.
     const cv::Rect2d frame(0.0, 0.0, bgr.cols, bgr.rows);
-    std::map<int, std::vector<std::size_t>> by_class;
-    std::vector<cv::Rect2d> boxes(cands.size());
-    for (std::size_t k = 0; k < cands.size(); ++k) {
-      const cv::Rect2d& b = cands[k].box;
-      boxes[k] = cv::Rect2d((b.x - mapping.pad_x) / mapping.scale_x,
-                            (b.y - mapping.pad_y) / mapping.scale_y, b.width / mapping.scale_x,
-                            b.height / mapping.scale_y) &
-                 frame;
-      if (boxes[k].width > 0.0 && boxes[k].height > 0.0) {
-        by_class[config.class_agnostic_nms ? 0 : cands[k].class_id].push_back(k);
-      }
+    std::vector<Candidate> in_image;
+    for (const Candidate& c : cands) {
+      const cv::Rect2d& b = c.box;
+      const cv::Rect2d box = cv::Rect2d((b.x - mapping.pad_x) / mapping.scale_x,
+                                        (b.y - mapping.pad_y) / mapping.scale_y,
+                                        b.width / mapping.scale_x, b.height / mapping.scale_y) &
+                             frame;
+      if (box.width > 0.0 && box.height > 0.0) in_image.push_back({box, c.score, c.class_id});
     }
-    std::vector<Detection> detections;
+    return in_image;
+  }
+
+  // NMS per class (or over all boxes: one group), boxes scoring below `threshold` dropped;
+  // sorted by decreasing score.
+  std::vector<Candidate> suppress(const std::vector<Candidate>& cands, float threshold) const {
+    std::map<int, std::vector<std::size_t>> by_class;
+    for (std::size_t k = 0; k < cands.size(); ++k) {
+      by_class[config.class_agnostic_nms ? 0 : cands[k].class_id].push_back(k);
+    }
+    std::vector<Candidate> kept;
     for (const auto& [group, members] : by_class) {
       std::vector<cv::Rect2d> class_boxes;
       std::vector<float> class_scores;
       for (std::size_t k : members) {
-        class_boxes.push_back(boxes[k]);
+        class_boxes.push_back(cands[k].box);
         class_scores.push_back(cands[k].score);
       }
       std::vector<int> keep;
-      cv::dnn::NMSBoxes(class_boxes, class_scores, config.confidence_threshold,
-                        config.nms_iou_threshold, keep);
-      for (int j : keep) {
-        const std::size_t k = members[static_cast<std::size_t>(j)];
-        Detection d;
-        d.class_id = cands[k].class_id;
-        d.label = names[static_cast<std::size_t>(d.class_id)];
-        d.confidence = cands[k].score;
-        d.box = cv::Rect2f(static_cast<float>(boxes[k].x), static_cast<float>(boxes[k].y),
-                           static_cast<float>(boxes[k].width),
-                           static_cast<float>(boxes[k].height));
-        detections.push_back(std::move(d));
-      }
+      cv::dnn::NMSBoxes(class_boxes, class_scores, threshold, config.nms_iou_threshold, keep);
+      for (int j : keep) kept.push_back(cands[members[static_cast<std::size_t>(j)]]);
     }
-    std::stable_sort(detections.begin(), detections.end(),
-                     [](const Detection& a, const Detection& b) {
-                       return a.confidence > b.confidence;
-                     });
+    std::stable_sort(kept.begin(), kept.end(),
+                     [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+    return kept;
+  }
+
+  // Flip test (DetectorConfig::flip_test): the boxes of the image and of its mirror image, each
+  // suppressed on its own, paired one to one (same class, IoU >= flip_match_iou, greedily by
+  // score); a pair's score is the mean of its two, its box their score-weighted mean; a box
+  // without a partner scores half its own (its partner 0).
+  std::vector<Candidate> flipTest(const cv::Mat& bgr) {
+    const float low = kFlipCandidateThreshold;
+    const std::vector<Candidate> a = suppress(candidates(bgr, low), low);
+    cv::Mat mirrored;
+    cv::flip(bgr, mirrored, 1);
+    std::vector<Candidate> b = suppress(candidates(mirrored, low), low);
+    for (Candidate& c : b) c.box.x = bgr.cols - c.box.x - c.box.width;
+    std::vector<bool> b_used(b.size(), false);
+    std::vector<Candidate> fused;
+    for (const Candidate& x : a) {  // a is sorted by decreasing score
+      int best = -1;
+      double best_iou = config.flip_match_iou;
+      for (std::size_t k = 0; k < b.size(); ++k) {
+        if (b_used[k] || b[k].class_id != x.class_id) continue;
+        const double inter = (x.box & b[k].box).area();
+        const double iou = inter / (x.box.area() + b[k].box.area() - inter);
+        if (iou >= best_iou) {
+          best_iou = iou;
+          best = static_cast<int>(k);
+        }
+      }
+      if (best < 0) {
+        fused.push_back({x.box, 0.5f * x.score, x.class_id});
+        continue;
+      }
+      const Candidate& y = b[static_cast<std::size_t>(best)];
+      b_used[static_cast<std::size_t>(best)] = true;
+      const double wx = x.score / (x.score + y.score), wy = 1.0 - wx;
+      const cv::Rect2d box(wx * x.box.x + wy * y.box.x, wx * x.box.y + wy * y.box.y,
+                           wx * x.box.width + wy * y.box.width,
+                           wx * x.box.height + wy * y.box.height);
+      fused.push_back({box, 0.5f * (x.score + y.score), x.class_id});
+    }
+    for (std::size_t k = 0; k < b.size(); ++k) {
+      if (!b_used[k]) fused.push_back({b[k].box, 0.5f * b[k].score, b[k].class_id});
+    }
+    return fused;
+  }
+
+  std::vector<Detection> detect(const cv::Mat& image) {
+    if (image.empty()) throw InvalidInputError("Detector::detect: the image is empty");
+    cv::Mat bgr;
+    if (image.type() == CV_8UC3) {
+      bgr = image;
+    } else if (image.type() == CV_8UC1) {
+      cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+    } else {
+      throw InvalidInputError("Detector::detect: the image must be CV_8UC3 (BGR) or CV_8UC1");
+    }
+    const std::vector<Candidate> kept =
+        suppress(config.flip_test ? flipTest(bgr) : candidates(bgr, config.confidence_threshold),
+                 config.confidence_threshold);
+    std::vector<Detection> detections;
+    for (const Candidate& c : kept) {
+      Detection d;
+      d.class_id = c.class_id;
+      d.label = names[static_cast<std::size_t>(c.class_id)];
+      d.confidence = c.score;
+      d.box = cv::Rect2f(static_cast<float>(c.box.x), static_cast<float>(c.box.y),
+                         static_cast<float>(c.box.width), static_cast<float>(c.box.height));
+      detections.push_back(std::move(d));
+    }
     return detections;
   }
 };

@@ -78,6 +78,14 @@ struct DetectorConfig {
   // score survives even when their classes differ (one object seen as two classes by
   // neighbouring cells gives one detection, not a true and a false one).
   bool class_agnostic_nms = false;
+  // Flip test (test-time augmentation, an ensemble of the image and its mirror image): the
+  // network runs on both, the boxes of each pass suppressed on their own (scores >= 0.05), paired
+  // one to one across the passes (same class, IoU >= flip_match_iou); a pair scores the mean of
+  // its two scores (box: their score-weighted mean), a box seen in one pass half its score; then
+  // confidence_threshold and NMS as above. A box must score on average >= the threshold over
+  // both passes. Twice the network's time.
+  bool flip_test = false;
+  float flip_match_iou = 0.5f;
 
   // Throws InvalidInputError naming the first bad field: empty model_path, missing cfg for
   // kDarknet, no class names or both sources, non-positive input size, thresholds outside

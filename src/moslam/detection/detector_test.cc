@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <opencv2/imgproc.hpp>
 #include <string>
@@ -129,6 +130,61 @@ TEST(DetectorYolov8, DecodesColumnsWithoutObjectness) {
   DetectorConfig three = TinyConfig(DetectorOutputFormat::kYolov8);
   three.class_names = {"chair", "table", "sofa"};
   EXPECT_THROW(Detector{three}, InvalidInputError);
+}
+
+// Flip test on the yolov5 fixture, whose output does not depend on the image: its boxes in the
+// mirror image's pass, mirrored back, land where the image itself shows none, unless centred.
+TEST(DetectorFlipTest, PairsTheTwoPassesAndHalvesABoxSeenInOne) {
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kYolov5);
+  c.flip_test = true;
+  // The chair box [2, 2, 4, 4] is centred: its mirror is itself, a pair, mean score 0.81. The
+  // table box [1, 5, 2, 2] (0.4) mirrors to [5, 5, 2, 2]: no partner in either pass, 0.2 each,
+  // below 0.3.
+  const auto d = Detector(c).detect(Quadrants(1));
+  ASSERT_EQ(d.size(), 1u);
+  ExpectDetection(d[0], 0, "chair", 0.81f, {2, 2, 4, 4});
+  c.confidence_threshold = 0.15f;
+  const auto low = Detector(c).detect(Quadrants(1));
+  // Now both halves of the table show, one per pass; box 3 (table 0.25 at [5, 1, 2, 2]) halves to
+  // 0.125, still below.
+  ASSERT_EQ(low.size(), 3u);
+  ExpectDetection(low[0], 0, "chair", 0.81f, {2, 2, 4, 4});
+  const bool left_first = low[1].box.x < low[2].box.x;
+  ExpectDetection(low[left_first ? 1 : 2], 1, "table", 0.2f, {1, 5, 2, 2});
+  ExpectDetection(low[left_first ? 2 : 1], 1, "table", 0.2f, {5, 5, 2, 2});
+}
+
+// The two passes of an image and of its mirror image are the same two images: the flip test's
+// detections of the mirror image are those of the image mirrored, whatever the network (the tiny
+// moslam model's boxes are not mirror-symmetric).
+TEST(DetectorFlipTest, TheMirrorImageGivesTheMirroredDetections) {
+  DetectorConfig c = TinyConfig(DetectorOutputFormat::kMoslam);
+  c.flip_test = true;
+  c.confidence_threshold = 0.1f;
+  Detector detector(c);
+  const cv::Mat image = Quadrants(2);
+  cv::Mat mirrored;
+  cv::flip(image, mirrored, 1);
+  const auto d = detector.detect(image);
+  const auto m = detector.detect(mirrored);
+  ASSERT_FALSE(d.empty());
+  ASSERT_EQ(d.size(), m.size());
+  for (const Detection& x : d) {
+    const cv::Rect2f expected(image.cols - x.box.x - x.box.width, x.box.y, x.box.width,
+                              x.box.height);
+    int found = 0;
+    for (const Detection& y : m) {
+      found += y.class_id == x.class_id && std::abs(y.confidence - x.confidence) < 1e-5f &&
+               std::abs(y.box.x - expected.x) < 1e-3f && std::abs(y.box.y - expected.y) < 1e-3f &&
+               std::abs(y.box.width - expected.width) < 1e-3f &&
+               std::abs(y.box.height - expected.height) < 1e-3f;
+    }
+    EXPECT_EQ(found, 1) << x.label << " " << x.confidence << " at " << x.box;
+  }
+  c.flip_match_iou = 0.0f;
+  EXPECT_THROW(Detector{c}, InvalidInputError);
+  c.flip_match_iou = 1.5f;
+  EXPECT_THROW(Detector{c}, InvalidInputError);
 }
 
 TEST(DetectorYolov5, StretchAndLetterboxMapBackToTheImage) {
