@@ -32,7 +32,7 @@ struct DetectArgs {
   float threshold = 0.3f;
   float nms = 0.45f;
   bool agnostic_nms = false;
-  bool flip_test = false;
+  bool no_flip_test = false;
   float iou = 0.5f;
   std::string data;
   std::string image;
@@ -73,7 +73,7 @@ DetectorConfig MakeConfig(const DetectArgs& a, float threshold) {
   c.confidence_threshold = threshold;
   c.nms_iou_threshold = a.nms;
   c.class_agnostic_nms = a.agnostic_nms;
-  c.flip_test = a.flip_test;
+  c.flip_test = !a.no_flip_test;
   return c;
 }
 
@@ -258,8 +258,9 @@ Runner RegisterDetect(CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--agnostic-nms", args->agnostic_nms,
                 "NMS over all boxes whatever their class (default: per class)");
-  sub->add_flag("--flip-test", args->flip_test,
-                "also run the network on the mirror image and average the two passes' scores");
+  sub->add_flag("--no-flip-test", args->no_flip_test,
+                "run the network on the image only (default: on the image and its mirror image, "
+                "the two passes' scores averaged)");
   sub->add_option("--iou", args->iou, "IoU for a detection to match a ground-truth box")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();

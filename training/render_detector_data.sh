@@ -2,7 +2,7 @@
 # Renders the detector's training set (TRAIN), held-out set (HELD) and model-selection set (VAL)
 # in the YOLO layout (`moslam render --format yolo`: images/, labels/, ignore/, classes.txt).
 # Usage: training/render_detector_data.sh [TRAIN_DIR] [HELD_DIR] [VAL_DIR]   (MOSLAM=path/to/moslam)
-# (~3 min on the 2-core machine; 7001 + 730 + 822 frames before the third training block)
+# (~4 min on the 2-core machine; 13114 training frames, 730 held-out, 822 for model selection)
 set -e
 M=${MOSLAM:-build/apps/moslam}
 TRAIN=${1:-data/detector/train}
@@ -35,6 +35,11 @@ render "$TRAIN" chairs25   6 40 20 50000 6 7 8 9 10
 render "$TRAIN" generated 12 80 40 60000 17 18 19 20 21 22
 render "$TRAIN" house      6 60 30 70000 23 24 25 26
 render "$TRAIN" chairs25   6 40 20 80000 11 12 13 14
+# Fourth block (the second fine-tuning, models/detector/README.md): generated 23-30, house 27-32,
+# chairs25 15-20, at 90000+.
+render "$TRAIN" generated 12 80 40 90000 23 24 25 26 27 28 29 30
+render "$TRAIN" house      6 60 30 100000 27 28 29 30 31 32
+render "$TRAIN" chairs25   6 40 20 110000 15 16 17 18 19 20
 # Held-out (the reported numbers): seeds 101-102 (new generated worlds, new chairs25 yaws; house =
 # same layout, new trajectories, colours and noise).
 render "$HELD" generated 12 80 40     0 101 102
