@@ -56,7 +56,9 @@ void Push(std::vector<Candidate>& out, double cx, double cy, double w, double h,
   out.push_back({cv::Rect2d(cx - 0.5 * w, cy - 0.5 * h, w, h), score, class_id});
 }
 
-// The flip test's per-pass score floor: a box below it in one pass counts as unseen there.
+// The flip test's per-pass score floor, whatever the confidence threshold: a box below it in one
+// pass counts as unseen there (so that detections at the threshold are the same whether the
+// detector runs at it or lower, as `moslam detect --data` does for the AP).
 constexpr float kFlipCandidateThreshold = 0.05f;
 
 // How the image was mapped onto the network input: net = image * scale + pad.
@@ -377,7 +379,8 @@ struct Detector::Impl {
       }
       const Candidate& y = b[static_cast<std::size_t>(best)];
       b_used[static_cast<std::size_t>(best)] = true;
-      const double wx = x.score / (x.score + y.score), wy = 1.0 - wx;
+      const double sum = static_cast<double>(x.score) + y.score;
+      const double wx = sum > 0.0 ? x.score / sum : 0.5, wy = 1.0 - wx;
       const cv::Rect2d box(wx * x.box.x + wy * y.box.x, wx * x.box.y + wy * y.box.y,
                            wx * x.box.width + wy * y.box.width,
                            wx * x.box.height + wy * y.box.height);

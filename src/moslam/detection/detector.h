@@ -80,11 +80,11 @@ struct DetectorConfig {
   // neighbouring cells gives one detection, not a true and a false one).
   bool class_agnostic_nms = false;
   // Flip test (test-time augmentation, an ensemble of the image and its mirror image): the
-  // network runs on both, the boxes of each pass suppressed on their own (scores >= 0.05), paired
-  // one to one across the passes (same class, IoU >= flip_match_iou); a pair scores the mean of
-  // its two scores (box: their score-weighted mean), a box seen in one pass half its score; then
-  // confidence_threshold and NMS as above. A box must score on average >= the threshold over
-  // both passes. Twice the network's time. On by default: on the project's model-selection
+  // network runs on both, the boxes of each pass suppressed on their own (scores >= 0.05 whatever
+  // the confidence threshold), paired one to one across the passes (same class, IoU >=
+  // flip_match_iou); a pair scores the mean of its two scores (box: their score-weighted mean), a
+  // box seen in one pass half its score; then confidence_threshold and NMS as above. A box must
+  // score on average >= the threshold over both passes. Twice the network's time. On by default: on the project's model-selection
   // frames precision / recall 0.870 / 0.923 -> 0.891 / 0.932 (models/detector/README.md).
   bool flip_test = true;
   float flip_match_iou = 0.5f;

@@ -182,6 +182,20 @@ TEST(DetectorFlipTest, TheMirrorImageGivesTheMirroredDetections) {
     }
     EXPECT_EQ(found, 1) << x.label << " " << x.confidence << " at " << x.box;
   }
+  // The detections above a threshold do not depend on the threshold the detector ran at (the
+  // evaluation runs it at 0.01 for the AP and counts precision and recall at 0.3).
+  DetectorConfig at = c;
+  at.confidence_threshold = 0.3f;
+  const auto high = Detector(at).detect(image);
+  std::vector<Detection> filtered;
+  for (const Detection& x : d) {
+    if (x.confidence >= 0.3f) filtered.push_back(x);
+  }
+  ASSERT_EQ(high.size(), filtered.size());
+  for (std::size_t i = 0; i < high.size(); ++i) {
+    ExpectDetection(high[i], filtered[i].class_id, filtered[i].label, filtered[i].confidence,
+                    filtered[i].box);
+  }
   c.flip_match_iou = 0.0f;
   EXPECT_THROW(Detector{c}, InvalidInputError);
   c.flip_match_iou = 1.5f;
