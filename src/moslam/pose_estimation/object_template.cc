@@ -22,10 +22,6 @@ bool FinitePoint(const FeaturePoint& p) {
          std::isfinite(p.normal_x) && std::isfinite(p.normal_y) && std::isfinite(p.normal_z);
 }
 
-}  // namespace
-
-namespace {
-
 // The validated, voxelled template cloud (MakeObjectTemplate, AssembleObjectTemplate).
 FeatureCloud::Ptr TemplateCloud(const std::string& label, const FeatureCloud& cloud,
                                 const FeatureConfig& config) {
