@@ -141,6 +141,8 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"perception_ms_segment", &RunMetrics::perception_ms_segment},
       {"perception_ms_register", &RunMetrics::perception_ms_register},
       {"perception_pcd_bytes", &RunMetrics::perception_pcd_bytes},
+      {"measurements_per_pose", &RunMetrics::measurements_per_pose},
+      {"poses_without_measurement", &RunMetrics::poses_without_measurement},
       {"seconds_slam", &RunMetrics::seconds_slam},
       {"seconds_gn", &RunMetrics::seconds_gn},
       {"seconds_dgs_eta1", &RunMetrics::seconds_dgs_eta1},
@@ -336,6 +338,9 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     joint.graph = WithInformation(joint.graph, paper.information(SensingConfig().information_sigma_floor));
   }
   m.seconds_slam = slam.seconds;
+  const MeasurementCoverage coverage = CoverageOf(data.measurements);
+  m.measurements_per_pose = coverage.perPose();
+  m.poses_without_measurement = coverage.fractionWithout();
   m.poses = joint.num_poses;
   m.landmarks = joint.num_landmarks;
   m.shared_objects = joint.num_object_object;

@@ -121,4 +121,19 @@ SimulationData Simulate(const World& world, const SimulationConfig& config) {
   return d;
 }
 
+MeasurementCoverage CoverageOf(const std::vector<RobotMeasurements>& measurements) {
+  MeasurementCoverage c;
+  for (const RobotMeasurements& robot : measurements) {
+    int run = 0;
+    for (const auto& pose : robot.detections) {
+      ++c.poses;
+      c.measurements += static_cast<int>(pose.size());
+      run = pose.empty() ? run + 1 : 0;
+      c.poses_without += pose.empty() ? 1 : 0;
+      c.longest_without = std::max(c.longest_without, run);
+    }
+  }
+  return c;
+}
+
 }  // namespace moslam

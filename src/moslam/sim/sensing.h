@@ -81,6 +81,19 @@ std::vector<RobotMeasurements> SimulateSensing(const World& world,
                                                const std::vector<Trajectory>& trajectories,
                                                const SensingConfig& config);
 
+// How densely the poses are measured: object measurements per pose and the poses with none.
+// A pose without one is placed by odometry alone; with the paper's odometry noise (5 deg / 0.2 m a
+// step) that is what a front-end accepting few views costs the map (README, Perception).
+struct MeasurementCoverage {
+  int poses = 0;
+  int measurements = 0;        // object measurements (detections) over all poses
+  int poses_without = 0;       // poses with no object measurement
+  int longest_without = 0;     // most consecutive poses of one robot with none
+  double perPose() const { return poses > 0 ? double(measurements) / poses : 0.0; }
+  double fractionWithout() const { return poses > 0 ? double(poses_without) / poses : 0.0; }
+};
+MeasurementCoverage CoverageOf(const std::vector<RobotMeasurements>& measurements);
+
 // Everything a multi-robot run needs: the world, ground-truth trajectories, measurements, and
 // rendezvous events.
 struct SimulationConfig {

@@ -421,5 +421,23 @@ TEST(Sensing, SimulationIsSeededPerRobot) {
   EXPECT_THROW(SimulateSensing(w, a.trajectories, s), InvalidInputError);
 }
 
+TEST(Sensing, CoverageCountsThePosesWithoutMeasurementAndTheLongestStretchPerRobot) {
+  const ObjectDetection d{"chair", SE3(), Matrix6::Identity(), 0};
+  RobotMeasurements a, b;
+  a.detections = {{d, d}, {}, {}, {d}, {}};  // stretches of 2 and 1
+  b.detections = {{}, {}, {d, d, d}};        // 2; robot a's last stretch does not run into b
+  const MeasurementCoverage c = CoverageOf({a, b});
+  EXPECT_EQ(c.poses, 8);
+  EXPECT_EQ(c.measurements, 6);
+  EXPECT_EQ(c.poses_without, 5);
+  EXPECT_EQ(c.longest_without, 2);
+  EXPECT_DOUBLE_EQ(c.perPose(), 0.75);
+  EXPECT_DOUBLE_EQ(c.fractionWithout(), 5.0 / 8.0);
+  const MeasurementCoverage none = CoverageOf({});
+  EXPECT_EQ(none.poses, 0);
+  EXPECT_EQ(none.perPose(), 0.0);
+  EXPECT_EQ(none.fractionWithout(), 0.0);
+}
+
 }  // namespace
 }  // namespace moslam
