@@ -84,8 +84,9 @@ struct DetectorConfig {
   // the confidence threshold), paired one to one across the passes (same class, IoU >=
   // flip_match_iou); a pair scores the mean of its two scores (box: their score-weighted mean), a
   // box seen in one pass half its score; then confidence_threshold and NMS as above. A box must
-  // score on average >= the threshold over both passes. Twice the network's time. On by default: on the project's model-selection
-  // frames precision / recall 0.870 / 0.923 -> 0.891 / 0.932 (models/detector/README.md).
+  // score on average >= the threshold over both passes. Twice the network's time. On by default:
+  // on the project's model-selection frames precision / recall 0.870 / 0.923 -> 0.891 / 0.932
+  // (models/detector/README.md).
   bool flip_test = true;
   float flip_match_iou = 0.5f;
 

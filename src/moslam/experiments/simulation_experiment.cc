@@ -143,6 +143,7 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"perception_pcd_bytes", &RunMetrics::perception_pcd_bytes},
       {"measurements_per_pose", &RunMetrics::measurements_per_pose},
       {"poses_without_measurement", &RunMetrics::poses_without_measurement},
+      {"longest_without_measurement", &RunMetrics::longest_without_measurement},
       {"seconds_slam", &RunMetrics::seconds_slam},
       {"seconds_gn", &RunMetrics::seconds_gn},
       {"seconds_dgs_eta1", &RunMetrics::seconds_dgs_eta1},
@@ -341,6 +342,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   const MeasurementCoverage coverage = CoverageOf(data.measurements);
   m.measurements_per_pose = coverage.perPose();
   m.poses_without_measurement = coverage.fractionWithout();
+  m.longest_without_measurement = coverage.longest_without;
   m.poses = joint.num_poses;
   m.landmarks = joint.num_landmarks;
   m.shared_objects = joint.num_object_object;

@@ -185,9 +185,11 @@ struct RunMetrics {
   // Per robot: the point clouds of the perceived frames (valid depth points x
   // PointCloudModel::bytes_per_point), against memory_obj_measured (the object map).
   double perception_pcd_bytes = kNotRun;
-  // The poses' object measurements (sampled or perceived): per pose, and the share of poses
-  // with none (MeasurementCoverage, sim/sensing.h).
-  double measurements_per_pose = 0, poses_without_measurement = 0;
+  // The poses' object measurements (sampled or perceived): per pose, the share of poses with
+  // none, and the most consecutive poses of one robot with none (MeasurementCoverage,
+  // sim/sensing.h).
+  double measurements_per_pose = 0, poses_without_measurement = 0,
+         longest_without_measurement = 0;
   // Wall time (s).
   double seconds_slam = 0, seconds_gn = 0, seconds_dgs_eta1 = 0, seconds_refine = 0, seconds = 0;
 };
