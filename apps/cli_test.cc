@@ -380,6 +380,13 @@ TEST(CliExecutables, PerceptionAndRobotCommandsRunThroughMoslam) {
   EXPECT_NE(detect.out.find("moslam: error: cannot read class names file '/nonexistent/"),
             std::string::npos)
       << detect.out;
+  // Without --model, the committed detector (as perceive and simulate use it): the model loads
+  // and the missing image is the error.
+  const CommandResult committed = RunMoslam("detect --image /nonexistent/x.png");
+  EXPECT_EQ(committed.exit_code, 1) << committed.out;
+  EXPECT_NE(committed.out.find("moslam: error: cannot read image '/nonexistent/x.png'"),
+            std::string::npos)
+      << committed.out;
 }
 
 TEST(CliExecutables, AMissingSiblingExecutableIsAClearError) {

@@ -88,7 +88,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception);
 ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& args);
 // `moslam render --scenario chairs25 --out DIR --format yolo|tum`: rendered RGB-D frames.
 Runner RegisterRender(CLI::App& app);
-// `moslam detect --model M (--image F | --data DIR)`: the object detector (src/moslam/detection)
+// `moslam detect [--model M] (--image F | --data DIR)`: the object detector (src/moslam/detection)
 // on one image, or evaluated on a YOLO-layout dataset.
 Runner RegisterDetect(CLI::App& app);
 // `moslam perceive <sequence dir>`: the front-end on a TUM RGB-D layout sequence.

@@ -23,7 +23,7 @@ namespace moslam::cli {
 namespace {
 
 struct DetectArgs {
-  std::string model;
+  std::string model = std::string(MOSLAM_MODELS_DIR) + "/detector/moslam_yolo.onnx";
   std::string format = "moslam";
   std::string cfg;
   std::string classes;  // default: classes.txt beside the model
@@ -239,7 +239,7 @@ Runner RegisterDetect(CLI::App& app) {
   auto args = std::make_shared<DetectArgs>();
   CLI::App* sub = app.add_subcommand("detect", kDetectDescription);
   sub->add_option("--model", args->model, "ONNX model (or Darknet .weights with --format darknet)")
-      ->required();
+      ->capture_default_str();
   sub->add_option("--format", args->format, "network output format")
       ->check(CLI::IsMember({"moslam", "yolov5", "yolov8", "yolo11", "darknet"}))
       ->capture_default_str();
