@@ -75,4 +75,12 @@ Runner AddForwardedCommand(CLI::App& app, const std::string& name, const std::st
   return [executable, argv]() -> int { ExecSibling(executable, argv); };
 }
 
+std::string CommittedDetectorModel() {
+  return std::string(MOSLAM_MODELS_DIR) + "/detector/moslam_yolo.onnx";
+}
+
+std::string CommittedDetectorClasses() {
+  return std::string(MOSLAM_MODELS_DIR) + "/detector/classes.txt";
+}
+
 }  // namespace moslam::cli

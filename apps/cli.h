@@ -48,6 +48,11 @@ class Commands {
 //   two shared cores.
 void TuneProcessForSolving();
 
+// The committed detector (models/detector of the source tree): the model and its class names,
+// the defaults of `simulate --perception rendered`, `perceive` and `detect`.
+std::string CommittedDetectorModel();
+std::string CommittedDetectorClasses();
+
 // The executables beside `moslam`.
 inline constexpr const char* kRobotExecutable = "moslam-robot";
 inline constexpr const char* kPerceptionExecutable = "moslam-perception";

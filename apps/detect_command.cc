@@ -23,7 +23,7 @@ namespace moslam::cli {
 namespace {
 
 struct DetectArgs {
-  std::string model = std::string(MOSLAM_MODELS_DIR) + "/detector/moslam_yolo.onnx";
+  std::string model = CommittedDetectorModel();
   std::string format = "moslam";
   std::string cfg;
   std::string classes;  // default: classes.txt beside the model

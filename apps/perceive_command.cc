@@ -42,8 +42,8 @@ namespace {
 
 struct PerceiveArgs {
   std::string sequence;
-  std::string model = std::string(MOSLAM_MODELS_DIR) + "/detector/moslam_yolo.onnx";
-  std::string classes = std::string(MOSLAM_MODELS_DIR) + "/detector/classes.txt";
+  std::string model = CommittedDetectorModel();
+  std::string classes = CommittedDetectorClasses();
   std::string templates;
   int every = 1;
   int max_frames = 0;

@@ -65,8 +65,8 @@ struct SimulateArgs {
   bool json = false;
   std::string plot;
   std::string perception = "sampled";
-  std::string model = std::string(MOSLAM_MODELS_DIR) + "/detector/moslam_yolo.onnx";
-  std::string classes = std::string(MOSLAM_MODELS_DIR) + "/detector/classes.txt";
+  std::string model = CommittedDetectorModel();
+  std::string classes = CommittedDetectorClasses();
   std::string templates;
   std::string template_cache = DefaultTemplateCacheDir();
   int perceive_every = 1;
