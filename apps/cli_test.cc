@@ -389,6 +389,37 @@ TEST(CliExecutables, PerceptionAndRobotCommandsRunThroughMoslam) {
       << committed.out;
 }
 
+// `perceive` takes the detector's operating point as `detect` does (apps/detector_flags.h) and
+// reports it in its summary; out-of-range values are refused before any work.
+TEST(CliPerceive, TakesTheDetectorsOperatingPoint) {
+  const fs::path dir = fs::temp_directory_path() / "moslam_cli_perceive";
+  fs::remove_all(dir);
+  const CommandResult render = RunMoslam("render --scenario chairs25 --robots 1 --poses 1 "
+                                         "--format tum --out " + dir.string());
+  ASSERT_EQ(render.exit_code, 0) << render.out;
+  const std::string seq = (dir / "robot0").string();
+  const CommandResult fallback = RunMoslam("perceive " + seq + " --template-cache none --json");
+  ASSERT_EQ(fallback.exit_code, 0) << fallback.out;
+  const auto d = nlohmann::json::parse(LastLine(fallback.out))["detector"];
+  EXPECT_NEAR(d["threshold"].get<double>(), 0.3, 1e-6);
+  EXPECT_NEAR(d["nms"].get<double>(), 0.4, 1e-6);
+  EXPECT_TRUE(d["agnostic_nms"].get<bool>());
+  EXPECT_TRUE(d["flip_test"].get<bool>());
+  const CommandResult set = RunMoslam("perceive " + seq +
+                                      " --template-cache none --threshold 0.5 --nms 0.45 "
+                                      "--per-class-nms --no-flip-test --json");
+  ASSERT_EQ(set.exit_code, 0) << set.out;
+  const auto e = nlohmann::json::parse(LastLine(set.out))["detector"];
+  EXPECT_NEAR(e["threshold"].get<double>(), 0.5, 1e-6);
+  EXPECT_NEAR(e["nms"].get<double>(), 0.45, 1e-6);
+  EXPECT_FALSE(e["agnostic_nms"].get<bool>());
+  EXPECT_FALSE(e["flip_test"].get<bool>());
+  const CommandResult bad = RunMoslam("perceive " + seq + " --nms 2");
+  EXPECT_NE(bad.exit_code, 0) << bad.out;
+  EXPECT_NE(bad.out.find("--nms"), std::string::npos) << bad.out;
+  fs::remove_all(dir);
+}
+
 TEST(CliExecutables, AMissingSiblingExecutableIsAClearError) {
   const fs::path dir = fs::temp_directory_path() / "moslam_cli_alone";
   fs::create_directories(dir);

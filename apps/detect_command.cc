@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "commands.h"
+#include "detector_flags.h"
 #include "moslam/common/errors.h"
 #include "moslam/detection/detector.h"
 #include "moslam/detection/evaluation.h"
@@ -29,10 +30,7 @@ struct DetectArgs {
   std::string classes;  // default: classes.txt beside the model
   std::string input_size = "320x240";
   bool letterbox = false;
-  float threshold = 0.3f;
-  float nms = 0.45f;
-  bool agnostic_nms = false;
-  bool no_flip_test = false;
+  DetectorFlags detector;
   float iou = 0.5f;
   std::string data;
   std::string image;
@@ -70,10 +68,8 @@ DetectorConfig MakeConfig(const DetectArgs& a, float threshold) {
     throw InvalidInputError("--input-size '" + a.input_size + "' is not WIDTHxHEIGHT");
   }
   c.resize_mode = a.letterbox ? ResizeMode::kLetterbox : ResizeMode::kStretch;
+  a.detector.applyTo(&c);
   c.confidence_threshold = threshold;
-  c.nms_iou_threshold = a.nms;
-  c.class_agnostic_nms = a.agnostic_nms;
-  c.flip_test = !a.no_flip_test;
   return c;
 }
 
@@ -94,7 +90,7 @@ void Annotate(cv::Mat& img, const std::vector<Detection>& dets) {
 }
 
 int RunOnImage(const DetectArgs& a) {
-  Detector detector(MakeConfig(a, a.threshold));
+  Detector detector(MakeConfig(a, a.detector.threshold));
   cv::Mat img = ReadImage(a.image);
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<Detection> dets = detector.detect(img);
@@ -163,15 +159,16 @@ void PrintMetrics(const DetectionMetrics& m, bool ignored_column) {
 int RunOnDataset(const DetectArgs& a) {
   const YoloDataset data = ReadYoloDataset(a.data);
   // Detections down to 0.01 enter the AP; precision and recall count those >= --threshold
-  // (per-class NMS keeps the same boxes above the threshold either way).
-  Detector detector(MakeConfig(a, std::min(a.threshold, 0.01f)));
+  // (NMS keeps the same boxes above the threshold either way: only a higher-scoring box
+  // suppresses one).
+  Detector detector(MakeConfig(a, std::min(a.detector.threshold, 0.01f)));
   if (detector.classNames() != data.class_names) {
     throw InvalidInputError("the dataset classes (" + a.data +
                             "/classes.txt) differ from the model's class names");
   }
   EvaluationOptions eo;
   eo.iou_threshold = a.iou;
-  eo.confidence_threshold = a.threshold;
+  eo.confidence_threshold = a.detector.threshold;
   DetectionEvaluator evaluator(data.class_names, eo);    // strict: labels only
   DetectionEvaluator with_ignore(data.class_names, eo);  // plus DIR/ignore/ regions
   if (!a.annotate.empty()) std::filesystem::create_directories(a.annotate);
@@ -189,7 +186,7 @@ int RunOnDataset(const DetectArgs& a) {
     with_ignore.addFrame(dets, gt, ignore);
     if (!a.annotate.empty()) {
       dets.erase(std::remove_if(dets.begin(), dets.end(),
-                                [&](const Detection& d) { return d.confidence < a.threshold; }),
+                                [&](const Detection& d) { return d.confidence < a.detector.threshold; }),
                  dets.end());
       Annotate(img, dets);
       const auto out = std::filesystem::path(a.annotate) / std::filesystem::path(s.image_path).filename();
@@ -208,7 +205,7 @@ int RunOnDataset(const DetectArgs& a) {
     nlohmann::json j = MetricsJson(m);
     j["data"] = a.data;
     j["model"] = a.model;
-    j["threshold"] = a.threshold;
+    j["threshold"] = a.detector.threshold;
     j["iou"] = a.iou;
     j["ms_per_frame_mean"] = mean;
     j["ms_per_frame_median"] = median;
@@ -216,7 +213,7 @@ int RunOnDataset(const DetectArgs& a) {
     fmt::print("{}\n", j.dump());
     return 0;
   }
-  fmt::print("{}: {} frames, threshold {:.2f}, IoU {:.2f}\n", a.data, m.frames, a.threshold, a.iou);
+  fmt::print("{}: {} frames, threshold {:.2f}, IoU {:.2f}\n", a.data, m.frames, a.detector.threshold, a.iou);
   fmt::print("strict (every detection that matches no label is a false positive):\n");
   PrintMetrics(m, false);
   if (data.has_ignore) {
@@ -250,17 +247,7 @@ Runner RegisterDetect(CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--letterbox", args->letterbox,
                 "keep the aspect ratio and pad (default: stretch, as moslam's model is trained)");
-  sub->add_option("--threshold", args->threshold, "score threshold (objectness x class prob.)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  sub->add_option("--nms", args->nms, "NMS IoU threshold")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  sub->add_flag("--agnostic-nms", args->agnostic_nms,
-                "NMS over all boxes whatever their class (default: per class)");
-  sub->add_flag("--no-flip-test", args->no_flip_test,
-                "run the network on the image only (default: on the image and its mirror image, "
-                "the two passes' scores averaged)");
+  AddDetectorFlags(sub, &args->detector);
   sub->add_option("--iou", args->iou, "IoU for a detection to match a ground-truth box")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();

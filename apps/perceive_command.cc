@@ -1,7 +1,9 @@
 // `moslam perceive <sequence dir>`: the perception front-end on an RGB-D sequence in the TUM RGB-D
 // layout (render/tum_sequence.h): detections and object poses per frame, as JSON.
 //
-//   moslam perceive DIR [--model M.onnx --classes classes.txt] [--templates DIR] [--every K]
+//   moslam perceive DIR [--model M.onnx --classes classes.txt] [--threshold S] [--nms IOU]
+//                   [--agnostic-nms|--per-class-nms] [--no-flip-test] [--templates DIR]
+//                   [--every K]
 //                   [--max-frames N] [--out detections.json] [--annotate DIR] [--world world.json]
 //                   [--template-cache DIR|none] [--consensus prerejective|sac-ia] [--threads N]
 //                   [--template-views N]
@@ -33,6 +35,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "detector_flags.h"
 #include "moslam/common/errors.h"
 #include "moslam/perception/object_perception.h"
 #include "moslam/render/tum_sequence.h"
@@ -44,6 +47,7 @@ struct PerceiveArgs {
   std::string sequence;
   std::string model = CommittedDetectorModel();
   std::string classes = CommittedDetectorClasses();
+  DetectorFlags detector;
   std::string templates;
   int every = 1;
   int max_frames = 0;
@@ -154,6 +158,7 @@ int RunPerceive(const PerceiveArgs& a) {
   PerceptionConfig config;
   config.detector.model_path = a.model;
   config.detector.class_names_file = a.classes;
+  a.detector.applyTo(&config.detector);
   config.templates_dir = a.templates;
   config.template_cache_dir = TemplateCacheDir(a.template_cache);
   config.template_views.views = a.template_views;
@@ -287,6 +292,11 @@ int RunPerceive(const PerceiveArgs& a) {
         {"total", times.total() / nf}}},
       {"template_seconds", perception.templateSeconds()},
       {"templates_from_cache", perception.templatesFromCache()},
+      {"detector",
+       {{"threshold", a.detector.threshold},
+        {"nms", a.detector.nms},
+        {"agnostic_nms", a.detector.agnostic_nms},
+        {"flip_test", a.detector.flip_test}}},
       {"consensus", a.consensus},
       {"threads", a.threads},
   };
@@ -349,6 +359,7 @@ Runner RegisterPerceive(CLI::App& app) {
   sub->add_option("--model", args->model, "detector ONNX model")->capture_default_str();
   sub->add_option("--classes", args->classes, "detector class names, one per line")
       ->capture_default_str();
+  AddDetectorFlags(sub, &args->detector);
   sub->add_option("--templates", args->templates,
                   "folder of <label>.pcd templates replacing the built-in models");
   sub->add_option("--every", args->every, "perceive every K-th frame")

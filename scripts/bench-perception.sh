@@ -14,13 +14,15 @@
 #   scripts/bench-perception.sh          (~10 min on 2 cores with SAC-IA, ~3 min without)
 # Environment: BUILD_DIR (default build-release), MOSLAM (a built binary: skips the build),
 # POSES (default 40: poses per robot), EVERY (default 2: perceive every 2nd pose),
-# CONSENSUS (default "prerejective sac-ia"), SIMULATE (default 1).
+# CONSENSUS (default "prerejective sac-ia"), SIMULATE (default 1), DETECTOR_FLAGS (default none:
+# the detector's operating point for `perceive`, e.g. "--agnostic-nms --nms 0.4").
 set -euo pipefail
 
 POSES="${POSES:-40}"
 EVERY="${EVERY:-2}"
 CONSENSUS="${CONSENSUS:-prerejective sac-ia}"
 SIMULATE="${SIMULATE:-1}"
+read -r -a DETECTOR_FLAGS <<<"${DETECTOR_FLAGS:-}"
 source "$(dirname "${BASH_SOURCE[0]}")/lib/moslam.sh"
 OUT="$BUILD_DIR/perception"
 rm -rf "$OUT"
@@ -49,7 +51,7 @@ for consensus in $CONSENSUS; do
     for robot in 0 1; do
       base="$OUT/${scenario}_robot${robot}_${consensus}"
       "$MOSLAM" perceive "$OUT/$scenario/robot$robot" --world "$OUT/$scenario/world.json" \
-        --every "$EVERY" --consensus "$consensus" --template-cache "$CACHE" \
+        --every "$EVERY" --consensus "$consensus" --template-cache "$CACHE" "${DETECTOR_FLAGS[@]}" \
         --out "$base.json" --json 2>/dev/null | tail -n 1 >"$base.summary.json"
       jq -r --arg s "$scenario robot $robot" --arg c "$consensus" "$JQ_STATS"'
         .classes.all as $a |

@@ -374,11 +374,11 @@ def freeze_batch_norms(model):
 
 
 def check_with_opencv(moslam, model_path, classes_path, image_path, model, width, height):
-    """Runs `moslam detect --image` (OpenCV DNN, one pass: the flip test off, as torch here) and
-    compares with torch's detections."""
+    """Runs `moslam detect --image` (OpenCV DNN, one pass: the flip test off, as torch here; per-class
+    NMS at 0.45, as decode() here) and compares with torch's detections."""
     cmd = [moslam, "detect", "--model", model_path, "--classes", classes_path, "--image",
            image_path, "--input-size", f"{width}x{height}", "--threshold", "0.05",
-           "--no-flip-test", "--json"]
+           "--no-flip-test", "--per-class-nms", "--nms", "0.45", "--json"]
     res = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
     img = Image.open(image_path).convert("RGB")
     sx, sy = img.size[0] / width, img.size[1] / height

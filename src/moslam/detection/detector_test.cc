@@ -25,6 +25,7 @@ DetectorConfig TinyConfig(DetectorOutputFormat format) {
   c.input_width = 8;
   c.input_height = 8;
   c.flip_test = false;  // the decoding tests read one pass; the flip tests turn it on
+  c.class_agnostic_nms = false;  // per class: ClassAgnosticNmsSuppressesAcrossClasses turns it on
   return c;
 }
 
