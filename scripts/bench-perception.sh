@@ -15,7 +15,7 @@
 # Environment: BUILD_DIR (default build-release), MOSLAM (a built binary: skips the build),
 # POSES (default 40: poses per robot), EVERY (default 2: perceive every 2nd pose),
 # CONSENSUS (default "prerejective sac-ia"), SIMULATE (default 1), DETECTOR_FLAGS (default none:
-# the detector's operating point for `perceive`, e.g. "--agnostic-nms --nms 0.4").
+# the detector's operating point for `perceive`, e.g. "--per-class-nms --nms 0.45").
 set -euo pipefail
 
 POSES="${POSES:-40}"
