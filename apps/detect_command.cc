@@ -186,7 +186,9 @@ int RunOnDataset(const DetectArgs& a) {
     with_ignore.addFrame(dets, gt, ignore);
     if (!a.annotate.empty()) {
       dets.erase(std::remove_if(dets.begin(), dets.end(),
-                                [&](const Detection& d) { return d.confidence < a.detector.threshold; }),
+                                [&](const Detection& d) {
+                                  return d.confidence < a.detector.threshold;
+                                }),
                  dets.end());
       Annotate(img, dets);
       const auto out = std::filesystem::path(a.annotate) / std::filesystem::path(s.image_path).filename();
@@ -213,7 +215,8 @@ int RunOnDataset(const DetectArgs& a) {
     fmt::print("{}\n", j.dump());
     return 0;
   }
-  fmt::print("{}: {} frames, threshold {:.2f}, IoU {:.2f}\n", a.data, m.frames, a.detector.threshold, a.iou);
+  fmt::print("{}: {} frames, threshold {:.2f}, IoU {:.2f}\n", a.data, m.frames,
+             a.detector.threshold, a.iou);
   fmt::print("strict (every detection that matches no label is a false positive):\n");
   PrintMetrics(m, false);
   if (data.has_ignore) {

@@ -21,8 +21,8 @@ struct DetectorFlags {
   }
 };
 
-// --threshold, --nms, --agnostic-nms / --per-class-nms and --no-flip-test, written into `flags` (which must outlive
-// the parse).
+// --threshold, --nms, --agnostic-nms / --per-class-nms and --no-flip-test, written into `flags`
+// (which must outlive the parse).
 inline void AddDetectorFlags(CLI::App* sub, DetectorFlags* flags) {
   sub->add_option("--threshold", flags->threshold, "score threshold (objectness x class prob.)")
       ->check(CLI::Range(0.0, 1.0))
