@@ -405,15 +405,17 @@ TEST(CliPerceive, TakesTheDetectorsOperatingPoint) {
   EXPECT_NEAR(d["nms"].get<double>(), 0.4, 1e-6);
   EXPECT_TRUE(d["agnostic_nms"].get<bool>());
   EXPECT_TRUE(d["flip_test"].get<bool>());
+  EXPECT_TRUE(nlohmann::json::parse(LastLine(fallback.out))["depth_smoothing"].get<bool>());
   const CommandResult set = RunMoslam("perceive " + seq +
                                       " --template-cache none --threshold 0.5 --nms 0.45 "
-                                      "--per-class-nms --no-flip-test --json");
+                                      "--per-class-nms --no-flip-test --no-depth-smoothing --json");
   ASSERT_EQ(set.exit_code, 0) << set.out;
   const auto e = nlohmann::json::parse(LastLine(set.out))["detector"];
   EXPECT_NEAR(e["threshold"].get<double>(), 0.5, 1e-6);
   EXPECT_NEAR(e["nms"].get<double>(), 0.45, 1e-6);
   EXPECT_FALSE(e["agnostic_nms"].get<bool>());
   EXPECT_FALSE(e["flip_test"].get<bool>());
+  EXPECT_FALSE(nlohmann::json::parse(LastLine(set.out))["depth_smoothing"].get<bool>());
   const CommandResult bad = RunMoslam("perceive " + seq + " --nms 2");
   EXPECT_NE(bad.exit_code, 0) << bad.out;
   EXPECT_NE(bad.out.find("--nms"), std::string::npos) << bad.out;

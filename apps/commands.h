@@ -63,6 +63,7 @@ struct RenderedPerceptionArgs {
   int every = 1;
   std::string template_cache;  // "" = none
   int template_views = 8;  // TemplateViews::views (perception/view_template.h); 0: whole model
+  bool depth_smoothing = true;  // DepthSmoothingConfig::enabled (pose_estimation/depth_smoothing.h)
 };
 
 // Where built templates are cached unless --template-cache says otherwise:

@@ -6,7 +6,7 @@
 //                   [--every K]
 //                   [--max-frames N] [--out detections.json] [--annotate DIR] [--world world.json]
 //                   [--template-cache DIR|none] [--consensus prerejective|sac-ia] [--threads N]
-//                   [--template-views N]
+//                   [--template-views N] [--no-depth-smoothing]
 //                   [--json]
 //
 // Every K-th frame runs detect -> segment -> register (perception/object_perception.h). --out
@@ -57,6 +57,7 @@ struct PerceiveArgs {
   std::string template_cache = DefaultTemplateCacheDir();
   std::string consensus = "prerejective";
   int template_views = TemplateViews{}.views;
+  bool depth_smoothing = DepthSmoothingConfig{}.enabled;
   int threads = 2;
   bool json = false;
 };
@@ -162,6 +163,7 @@ int RunPerceive(const PerceiveArgs& a) {
   config.templates_dir = a.templates;
   config.template_cache_dir = TemplateCacheDir(a.template_cache);
   config.template_views.views = a.template_views;
+  config.segmentation.smoothing.enabled = a.depth_smoothing;
   config.threads = a.threads;
   config.registration.consensus =
       a.consensus == "sac-ia" ? Consensus::kSacIa : Consensus::kPrerejective;
@@ -298,6 +300,7 @@ int RunPerceive(const PerceiveArgs& a) {
         {"agnostic_nms", a.detector.agnostic_nms},
         {"flip_test", a.detector.flip_test}}},
       {"consensus", a.consensus},
+      {"depth_smoothing", a.depth_smoothing},
       {"threads", a.threads},
   };
   nlohmann::json classes = nlohmann::json::object();
@@ -383,6 +386,10 @@ Runner RegisterPerceive(CLI::App& app) {
                   "from the whole model)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  sub->add_flag("!--no-depth-smoothing", args->depth_smoothing,
+                "register far segments as measured (default: their depths smoothed along the "
+                "pixels' rays where the sensor's noise is large, "
+                "pose_estimation/depth_smoothing.h)");
   sub->add_option("--threads", args->threads, "detections of a frame registered in parallel")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();

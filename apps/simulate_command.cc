@@ -71,6 +71,7 @@ struct SimulateArgs {
   std::string template_cache = DefaultTemplateCacheDir();
   int perceive_every = 1;
   int template_views = 8;  // TemplateViews::views (perception/view_template.h)
+  bool depth_smoothing = true;
   std::optional<double> exclusion_radius;  // unset: kRenderedExclusionRadius when rendered, else 0
   bool leave_one_out_check = false;
   bool online = false;
@@ -154,6 +155,9 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "(0: from the whole model)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  sub->add_flag("!--no-depth-smoothing", args->depth_smoothing,
+                "rendered: register far segments as measured (default: their depths smoothed "
+                "along the pixels' rays where the sensor's noise is large)");
   sub->add_option("--perceive-every", args->perceive_every,
                   "rendered: perceive every K-th pose (the others have no object measurement)")
       ->check(CLI::PositiveNumber)
@@ -180,7 +184,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
     const bool rendered = a.perception == "rendered";
     if (rendered) perceive = make_perception(
           {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
-           a.template_views});
+           a.template_views, a.depth_smoothing});
     if (a.online) {
       if (rendered || a.information != "noise") {
         throw InvalidInputError(

@@ -23,6 +23,7 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
   config->perception.templates_dir = args.templates;
   config->perception.template_cache_dir = TemplateCacheDir(args.template_cache);
   config->perception.template_views.views = args.template_views;
+  config->perception.segmentation.smoothing.enabled = args.depth_smoothing;
   config->every = args.every;
   config->validate();
   const PointCloudModel point_cloud;

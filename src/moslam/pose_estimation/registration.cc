@@ -365,6 +365,8 @@ void RegistrationConfig::validate() const {
           p + "information_max_effective_points", "must be positive");
   Require(PositiveFinite(sigma_rotation_floor_deg), p + "sigma_rotation_floor_deg",
           "must be positive");
+  Require(std::isfinite(information_floor_noise) && information_floor_noise >= 0.0,
+          p + "information_floor_noise", "must be >= 0 (m; 0: fixed floors)");
   Require(PositiveFinite(sigma_translation_floor), p + "sigma_translation_floor",
           "must be positive");
 }
@@ -387,6 +389,11 @@ const char* ToString(RegistrationStatus status) {
     case RegistrationStatus::kShapeMismatch: return "shape_mismatch";
   }
   return "unknown";
+}
+
+double InformationFloorScale(double mean_depth, const RegistrationConfig& config) {
+  if (config.information_floor_noise <= 0.0 || !(mean_depth > 0.0)) return 1.0;
+  return std::max(1.0, config.depth_noise.sigma(mean_depth) / config.information_floor_noise);
 }
 
 namespace pose_detail {
@@ -751,8 +758,12 @@ Matrix6 Information(const FeatureCloud& source, const FeatureCloud::Ptr& target,
   const double deflate = n > 0 ? std::min(1.0, config.information_max_effective_points / n) : 1.0;
   const Matrix6 H_scaled = H * (deflate / s2) + 1e-6 * Matrix6::Identity();
   Matrix6 Sigma = H_scaled.ldlt().solve(Matrix6::Identity());
-  const double sr = config.sigma_rotation_floor_deg * kDegToRad;
-  const double st = config.sigma_translation_floor;
+  double mean_depth = 0.0;
+  for (const auto& sp : source.points) mean_depth += sp.z;
+  mean_depth /= std::max<std::size_t>(1, source.size());
+  const double scale = InformationFloorScale(mean_depth, config);
+  const double sr = scale * config.sigma_rotation_floor_deg * kDegToRad;
+  const double st = scale * config.sigma_translation_floor;
   Sigma.diagonal().head<3>().array() += sr * sr;
   Sigma.diagonal().tail<3>().array() += st * st;
   Sigma = 0.5 * (Sigma + Sigma.transpose());

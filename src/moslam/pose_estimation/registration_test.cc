@@ -245,6 +245,40 @@ TEST(Registration, AgreementRadiusWidensWithTheDepthNoise) {
   EXPECT_FALSE(flipped.accepted());
 }
 
+// The information's floors grow with the depth noise beyond information_floor_noise: a view 6 m
+// away (a Kinect's sigma 6.1 cm there) is known no better than 3 times the floors, one 1.6 m away
+// keeps them.
+TEST(Registration, InformationFloorsGrowWithTheDepthNoise) {
+  RegistrationConfig config;
+  EXPECT_DOUBLE_EQ(InformationFloorScale(1.6, config), 1.0);
+  EXPECT_NEAR(InformationFloorScale(6.0, config), config.depth_noise.sigma(6.0) / 0.02, 1e-12);
+  EXPECT_NEAR(InformationFloorScale(6.0, config), 3.04, 0.01);
+  const ObjectTemplate& tmpl = TestTemplate();
+  const SE3 body_T_object(SO3::Exp(Vector3(0.0, 0.0, 0.6)), Vector3(6.0, 0.1, -0.05));
+  const SE3 truth = BodyFromCamera().inverse() * body_T_object;
+  const auto segment = test::ViewOf(test::MakeTestObject(0.02), truth, 0.002, 3u);
+  config.symmetry_turns = 1;
+  const RegistrationResult scaled = RefinePose(*segment, tmpl, truth, config);
+  RegistrationConfig fixed = config;
+  fixed.information_floor_noise = 0.0;
+  const RegistrationResult unscaled = RefinePose(*segment, tmpl, truth, fixed);
+  ASSERT_EQ(scaled.status, RegistrationStatus::kAccepted) << ToString(scaled.status);
+  ASSERT_EQ(unscaled.status, RegistrationStatus::kAccepted) << ToString(unscaled.status);
+  const double k = InformationFloorScale(6.0, config);
+  const double st = config.sigma_translation_floor;
+  for (int i = 3; i < 6; ++i) {
+    EXPECT_LE(scaled.information(i, i), 1.0 / (k * k * st * st) * 1.1) << i;
+    EXPECT_LT(scaled.information(i, i), 0.5 * unscaled.information(i, i)) << i;
+  }
+  EXPECT_THROW(
+      [] {
+        RegistrationConfig bad;
+        bad.information_floor_noise = -1.0;
+        bad.validate();
+      }(),
+      InvalidInputError);
+}
+
 // A randomly coloured sphere of 0.3 m radius at `centre` (camera frame), its half facing the
 // camera: a segment of another shape than any template.
 std::shared_ptr<OrganizedCloud> ColouredSphere(const Vector3& centre) {

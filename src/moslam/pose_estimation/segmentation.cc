@@ -121,6 +121,7 @@ void SegmentationConfig::validate() const {
   Require(min_segment_points >= 1, "min_segment_points", "must be >= 1");
   Require(std::isfinite(tie_ratio) && tie_ratio > 0.0 && tie_ratio <= 1.0, "tie_ratio",
           "must be in (0, 1]");
+  smoothing.validate("SegmentationConfig.smoothing.");
 }
 
 const char* ToString(SegmentationStatus status) {
@@ -378,6 +379,9 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
     result.segment->push_back(cloud[i]);
   }
   result.segment->is_dense = true;
+  if (config.smoothing.enabled) {
+    result.segment = SmoothAlongRays(cloud, result.indices, config.depth_noise, config.smoothing);
+  }
   result.status = SegmentationStatus::kOk;
   result.time_ms = MsSince(t0);
   return result;

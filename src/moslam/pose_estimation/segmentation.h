@@ -40,6 +40,8 @@
 //        points inside the (original) box; components within `tie_ratio` of the best count are
 //        ties, won by the nearest (smallest mean z).
 //        The segment keeps the winner's points in the grown box.
+//     6. the segment's depths smoothed along their rays where the depth noise is large
+//        (pose_estimation/depth_smoothing.h; `smoothing`, with `depth_noise`): far views.
 //
 // Units: metres, camera optical frame (z forward, x right, y down); boxes in pixels
 // (x = column of the left edge, y = row of the top edge, width, height).
@@ -52,6 +54,7 @@
 #include <string>
 #include <vector>
 
+#include "moslam/pose_estimation/depth_smoothing.h"
 #include "moslam/pose_estimation/organized_cloud.h"
 #include "moslam/render/rgbd.h"
 
@@ -92,6 +95,7 @@ struct SegmentationConfig {
   int min_segment_points = 50;     // points of the chosen component inside the box
   ComponentSelection selection = ComponentSelection::kBoxFit;
   double tie_ratio = 0.9;          // in (0, 1], kMostPoints only
+  DepthSmoothingConfig smoothing;  // step 6
 
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
