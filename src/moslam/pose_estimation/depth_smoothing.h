@@ -30,6 +30,7 @@
 // intrinsics are needed. Units: metres, camera optical frame (pose_estimation/organized_cloud.h).
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "moslam/pose_estimation/organized_cloud.h"
