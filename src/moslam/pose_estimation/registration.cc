@@ -758,10 +758,7 @@ Matrix6 Information(const FeatureCloud& source, const FeatureCloud::Ptr& target,
   const double deflate = n > 0 ? std::min(1.0, config.information_max_effective_points / n) : 1.0;
   const Matrix6 H_scaled = H * (deflate / s2) + 1e-6 * Matrix6::Identity();
   Matrix6 Sigma = H_scaled.ldlt().solve(Matrix6::Identity());
-  double mean_depth = 0.0;
-  for (const auto& sp : source.points) mean_depth += sp.z;
-  mean_depth /= std::max<std::size_t>(1, source.size());
-  const double scale = InformationFloorScale(mean_depth, config);
+  const double scale = InformationFloorScale(Centroid(source).z(), config);
   const double sr = scale * config.sigma_rotation_floor_deg * kDegToRad;
   const double st = scale * config.sigma_translation_floor;
   Sigma.diagonal().head<3>().array() += sr * sr;
