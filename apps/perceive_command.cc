@@ -204,6 +204,7 @@ int RunPerceive(const PerceiveArgs& a) {
                           {"refined_inliers", o.registration.refined_inliers},
                           {"geometric_agreement", o.registration.geometric_agreement},
                           {"colour_agreement", o.registration.colour_agreement},
+                          {"covered_agreement", o.registration.covered_agreement},
                           {"hypothesis", o.registration.hypothesis}};
       if (o.status == PerceptionStatus::kSegmentationFailed) {
         const SegmentationResult& sr = o.segmentation;

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <optional>
 #include <random>
 #include <string>
 #include <utility>
@@ -356,6 +357,12 @@ void RegistrationConfig::validate() const {
   Require(std::isfinite(min_geometric_agreement) && min_geometric_agreement >= 0.0 &&
               min_geometric_agreement <= 1.0,
           p + "min_geometric_agreement", "must be in [0, 1]");
+  Require(std::isfinite(min_covered_agreement) && min_covered_agreement >= 0.0 &&
+              min_covered_agreement <= 1.0,
+          p + "min_covered_agreement", "must be in [0, 1]");
+  Require(std::isfinite(min_geometric_agreement_covered) &&
+              min_geometric_agreement_covered >= 0.0 && min_geometric_agreement_covered <= 1.0,
+          p + "min_geometric_agreement_covered", "must be in [0, 1]");
   Require(std::isfinite(min_colour_agreement) && min_colour_agreement >= 0.0 &&
               min_colour_agreement <= 1.0,
           p + "min_colour_agreement", "must be in [0, 1]");
@@ -606,12 +613,39 @@ struct PoseScore {
   double geometric = 0.0;  // fraction of segment points with a template point within reach
   double colour = 0.0;     // of those, the fraction whose colour agrees
   double score = 0.0;      // fraction of segment points agreeing in both
+  double covered = 0.0;    // geometric points / covered points (with_covered only, else 0)
+};
+
+// The template points' rays: normalised image coordinates (x/z, y/z) of the points in front of
+// the camera, for "does the template cover this pixel" (AGREEMENT RULE's covered(i)).
+class TemplateRays {
+ public:
+  TemplateRays(const FeatureCloud& target, const Eigen::Affine3f& camera_T_object)
+      : rays_(std::make_shared<pcl::PointCloud<pcl::PointXYZ>>()) {
+    for (const auto& q : target.points) {
+      const Eigen::Vector3f c = camera_T_object * q.getVector3fMap();
+      if (c.z() > 0.0f) rays_->push_back(pcl::PointXYZ(c.x() / c.z(), c.y() / c.z(), 0.0f));
+    }
+    if (!rays_->empty()) tree_.setInputCloud(rays_);
+  }
+  // Whether a template point lies within `reach` (normalised units) of the ray through p.
+  bool covers(const FeaturePoint& p, float reach) {
+    if (rays_->empty() || !(p.z > 0.0f)) return false;
+    return tree_.radiusSearch(pcl::PointXYZ(p.x / p.z, p.y / p.z, 0.0f), reach, idx_, sq_, 1) > 0;
+  }
+
+ private:
+  pcl::PointCloud<pcl::PointXYZ>::Ptr rays_;
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree_;
+  std::vector<int> idx_;
+  std::vector<float> sq_;
 };
 
 // The agreement rule of registration.h, segment points mapped by object_T_camera, against the
 // template points facing the camera at that pose.
 PoseScore ScorePose(const FeatureCloud& source, const ObjectTemplate& tmpl,
-                    const Eigen::Matrix4f& object_T_camera, const RegistrationConfig& config) {
+                    const Eigen::Matrix4f& object_T_camera, const RegistrationConfig& config,
+                    bool with_covered = false) {
   const FeatureCloud::Ptr target = FrontFaces(tmpl, object_T_camera, config);
   pcl::KdTreeFLANN<FeaturePoint> tree;
   tree.setInputCloud(target);
@@ -620,14 +654,20 @@ PoseScore ScorePose(const FeatureCloud& source, const ObjectTemplate& tmpl,
   const Eigen::Affine3f T(object_T_camera);
   std::vector<int> idx;
   std::vector<float> sq;
-  int geometric = 0, both = 0;
+  int geometric = 0, both = 0, covered = 0;
+  std::optional<TemplateRays> rays;
+  if (with_covered) rays.emplace(*target, T.inverse());
   for (const auto& sp : source.points) {
     FeaturePoint y;
     y.getVector3fMap() = T * sp.getVector3fMap();
     const auto radius = static_cast<float>(WidenedByDepthNoise(
         config.score_distance, sp.z, config.score_depth_sigmas, config.depth_noise));
-    if (tree.radiusSearch(y, radius, idx, sq) <= 0) continue;
+    if (tree.radiusSearch(y, radius, idx, sq) <= 0) {
+      if (rays && rays->covers(sp, static_cast<float>(config.score_distance) / sp.z)) ++covered;
+      continue;
+    }
     ++geometric;
+    ++covered;
     const Eigen::Vector3f cs = Chroma(sp, k);
     for (int j : idx) {
       if ((Chroma((*target)[static_cast<std::size_t>(j)], k) - cs).squaredNorm() <= tol_sq) {
@@ -641,7 +681,15 @@ PoseScore ScorePose(const FeatureCloud& source, const ObjectTemplate& tmpl,
   s.geometric = geometric / n;
   s.colour = geometric > 0 ? static_cast<double>(both) / geometric : 0.0;
   s.score = both / n;
+  s.covered = covered > 0 ? static_cast<double>(geometric) / covered : 0.0;
   return s;
+}
+
+// SHAPE RULE of registration.h.
+bool ShapeAgrees(const PoseScore& s, const RegistrationConfig& config) {
+  return s.geometric >= config.min_geometric_agreement ||
+         (s.covered >= config.min_covered_agreement &&
+          s.geometric >= config.min_geometric_agreement_covered);
 }
 
 // The symmetry hypotheses of registration.h: `initial` itself, then for each turn by
@@ -806,7 +854,7 @@ void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl
                             config, config.gicp_max_iterations,
                             config.gicp_max_correspondence_distance);
     if (g.ok) {
-      best_score = ScorePose(*source, tmpl, g.object_T_camera, config);
+      best_score = ScorePose(*source, tmpl, g.object_T_camera, config, true);
       best = std::move(g);
       best_index = start;
     }
@@ -822,8 +870,9 @@ void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl
   result.score = best_score.score;
   result.geometric_agreement = best_score.geometric;
   result.colour_agreement = best_score.colour;
+  result.covered_agreement = best_score.covered;
   result.camera_T_object = ToSE3(best.object_T_camera).inverse();
-  if (best_score.geometric < config.min_geometric_agreement) {
+  if (!ShapeAgrees(best_score, config)) {
     result.status = RegistrationStatus::kShapeMismatch;
     return;
   }
@@ -1013,6 +1062,7 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   result.score = refined.score;
   result.geometric_agreement = refined.geometric_agreement;
   result.colour_agreement = refined.colour_agreement;
+  result.covered_agreement = refined.covered_agreement;
   result.fitness = refined.fitness;
   result.times = refined.times;
   result.status = RegistrationStatus::kTooFewInliers;
