@@ -371,16 +371,17 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
     }
   }
 
-  result.segment = std::make_shared<OrganizedCloud>();
   for (auto index : component_indices[best->component].indices) {
     const auto i = static_cast<std::size_t>(index);
-    if ((*labels)[i].label != 0) continue;
-    result.indices.push_back(static_cast<int>(i));
-    result.segment->push_back(cloud[i]);
+    if ((*labels)[i].label == 0) result.indices.push_back(static_cast<int>(i));
   }
-  result.segment->is_dense = true;
-  if (config.smoothing.enabled) {
+  if (config.smoothing.enabled) {  // the segment's points, copied once
     result.segment = SmoothAlongRays(cloud, result.indices, config.depth_noise, config.smoothing);
+  } else {
+    result.segment = std::make_shared<OrganizedCloud>();
+    result.segment->reserve(result.indices.size());
+    for (int i : result.indices) result.segment->push_back(cloud[static_cast<std::size_t>(i)]);
+    result.segment->is_dense = true;
   }
   result.status = SegmentationStatus::kOk;
   result.time_ms = MsSince(t0);
