@@ -353,6 +353,42 @@ TEST(CliSimulate, BadInputExitsOneWithAClearMessage) {
   EXPECT_NE(RunMoslam("simulate --robots 0").exit_code, 0);
 }
 
+// --detection-log: every detection of every run as a JSON line, with its ground-truth evaluation;
+// refused without rendered perception, whose detections it logs.
+TEST(CliSimulate, RenderedPerceptionLogsEveryDetection) {
+  const fs::path log = fs::temp_directory_path() / "moslam_cli_detections.jsonl";
+  fs::remove(log);
+  const CommandResult sampled = RunMoslam("simulate --robots 2 --runs 1 --detection-log " +
+                                          log.string());
+  EXPECT_EQ(sampled.exit_code, 1) << sampled.out;
+  EXPECT_NE(sampled.out.find("--detection-log needs --perception rendered"), std::string::npos)
+      << sampled.out;
+  const CommandResult r = RunMoslam(
+      "simulate --scenario chairs25 --robots 1 --runs 1 --poses 3 --perception rendered "
+      "--template-cache none --table perception --json --detection-log " + log.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto run = nlohmann::json::parse(LastLine(r.out))["rows"][0]["runs"][0];
+  std::ifstream in(log);
+  std::string line;
+  int lines = 0, accepted = 0;
+  while (std::getline(in, line)) {
+    const auto d = nlohmann::json::parse(line);
+    ++lines;
+    EXPECT_EQ(d["scenario"], "chairs25");
+    EXPECT_EQ(d["run"], 0);
+    EXPECT_FALSE(d["label"].get<std::string>().empty());
+    for (const char* key : {"robot", "pose", "status", "object", "depth", "translation_error",
+                            "inliers", "geometric_agreement", "covered_agreement"}) {
+      EXPECT_TRUE(d.contains(key)) << key << " missing in " << line;
+    }
+    if (d["status"] == "accepted") ++accepted;
+  }
+  EXPECT_GT(lines, 0);
+  EXPECT_EQ(lines, run["perception_detections"].get<int>()) << r.out;
+  EXPECT_EQ(accepted, run["perception_accepted"].get<int>()) << r.out;
+  fs::remove(log);
+}
+
 // The pose-graph executable loads nothing of the perception or middleware stacks (apps/cli.h):
 // its shared libraries, as the dynamic loader resolves them.
 TEST(CliExecutables, PoseGraphCommandsLoadNoPerceptionOrDdsLibrary) {

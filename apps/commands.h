@@ -64,6 +64,7 @@ struct RenderedPerceptionArgs {
   std::string template_cache;  // "" = none
   int template_views = 8;  // TemplateViews::views (perception/view_template.h); 0: whole model
   bool depth_smoothing = true;  // DepthSmoothingConfig::enabled (pose_estimation/depth_smoothing.h)
+  std::string detection_log;    // JSON lines, one per detection ("" = none; --detection-log)
 };
 
 // Where built templates are cached unless --template-cache says otherwise:

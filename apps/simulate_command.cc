@@ -5,7 +5,8 @@
 //                   [--dgs two-level|one-level]
 //                   [--table accuracy|association|memory|scale|perception|all ...] [--json]
 //                   [--plot FILE.svg] [--perception sampled|rendered [--model M.onnx]
-//                   [--classes classes.txt] [--templates DIR] [--perceive-every K]]
+//                   [--classes classes.txt] [--templates DIR] [--perceive-every K]
+//                   [--detection-log FILE.jsonl]]
 //                   [--exclusion-radius M] [--leave-one-out-check]
 //   moslam simulate --online --scenario house --robots 6 --runs 10 [--plot FILE.svg] [--json]
 //                   [--outliers P] [--robust]
@@ -72,6 +73,7 @@ struct SimulateArgs {
   int perceive_every = 1;
   int template_views = 8;  // TemplateViews::views (perception/view_template.h)
   bool depth_smoothing = true;
+  std::string detection_log;
   std::optional<double> exclusion_radius;  // unset: kRenderedExclusionRadius when rendered, else 0
   bool leave_one_out_check = false;
   bool online = false;
@@ -158,6 +160,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
   sub->add_flag("!--no-depth-smoothing", args->depth_smoothing,
                 "rendered: register far segments as measured (default: their depths smoothed "
                 "along the pixels' rays where the sensor's noise is large)");
+  sub->add_option("--detection-log", args->detection_log,
+                  "rendered: write every detection of every run, evaluated against the "
+                  "renderer's ground truth, as JSON lines (class, depth, status, pose error, "
+                  "registration scores)");
   sub->add_option("--perceive-every", args->perceive_every,
                   "rendered: perceive every K-th pose (the others have no object measurement)")
       ->check(CLI::PositiveNumber)
@@ -182,9 +188,13 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
     }
     ExperimentConfig::Perceive perceive;
     const bool rendered = a.perception == "rendered";
+    if (!rendered && !a.detection_log.empty()) {
+      throw InvalidInputError("simulate: --detection-log needs --perception rendered (sampled "
+                              "measurements have no detections)");
+    }
     if (rendered) perceive = make_perception(
           {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
-           a.template_views, a.depth_smoothing});
+           a.template_views, a.depth_smoothing, a.detection_log});
     if (a.online) {
       if (rendered || a.information != "noise") {
         throw InvalidInputError(

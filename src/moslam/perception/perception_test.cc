@@ -143,6 +143,34 @@ TEST(RenderedSensing, CountsTrueDetectionsOfObjectsSeenEnoughByClassAndDepth) {
             static_cast<std::size_t>(stats.accepted - all.accepted));
   EXPECT_LE(stats.accepted_true_other_object, stats.accepted_true_off);
   EXPECT_LE(stats.accepted_true_off, all.accepted);
+  EXPECT_TRUE(stats.records.empty());  // kept on request only
+  // Every detection's evaluation on request, the same detections and counts.
+  config.record_detections = true;
+  SimulationData again = data;
+  const RenderedSensingStats kept = PerceiveSimulation(again, config);
+  ASSERT_EQ(kept.records.size(), static_cast<std::size_t>(kept.detections));
+  EXPECT_EQ(kept.accepted, stats.accepted);
+  int true_records = 0, accepted_true_records = 0;
+  for (const DetectionRecord& d : kept.records) {
+    EXPECT_EQ(d.robot, 0);
+    EXPECT_TRUE(d.pose == 0 || d.pose == 1) << d.pose;
+    if (d.object < 0) continue;
+    ++true_records;
+    EXPECT_EQ(d.label, "chair");
+    EXPECT_EQ(d.pose, 0);  // the robot faces the chair at pose 0 only
+    EXPECT_GE(d.depth, 2.0);  // the bin above
+    EXPECT_LT(d.depth, 3.0);
+    EXPECT_GE(d.visible_fraction, config.min_visible_fraction);
+    if (d.status == PerceptionStatus::kAccepted) {
+      ++accepted_true_records;
+      EXPECT_LT(d.translation_error, 0.1);
+      EXPECT_TRUE(d.inliers >= 12 || d.refined_inliers >= 12);  // the gate (registration.h)
+      EXPECT_GT(d.geometric_agreement, 0.0);
+    }
+  }
+  EXPECT_EQ(true_records, all.true_detections);
+  EXPECT_EQ(accepted_true_records, all.accepted);
+  config.record_detections = false;
   config.min_visible_fraction = 1.5;  // a share
   EXPECT_THROW(PerceiveSimulation(data, config), InvalidInputError);
 }

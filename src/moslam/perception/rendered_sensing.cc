@@ -100,6 +100,36 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
             if (visible) ++c->true_visible;
           }
         }
+        if (config.record_detections) {
+          DetectionRecord rec;
+          rec.robot = r;
+          rec.pose = static_cast<int>(i);
+          rec.label = o.detection.label;
+          rec.status = o.status;
+          const RegistrationResult& g = o.registration;
+          const bool registered = o.status != PerceptionStatus::kNoTemplate &&
+                                  o.status != PerceptionStatus::kSegmentationFailed &&
+                                  o.status != PerceptionStatus::kTooFewPoints;
+          if (truth) {
+            rec.object = truth->id;
+            rec.visible_fraction = truth->visibleFraction();
+            rec.depth = truth->camera_T_object.translation().z();
+            if (registered) {
+              rec.translation_error =
+                  (g.camera_T_object.translation() - truth->camera_T_object.translation()).norm();
+              rec.rotation_error_deg = RotationErrorDeg(truth->camera_T_object, g.camera_T_object);
+            }
+          }
+          if (registered) {
+            rec.inliers = g.inliers;
+            rec.refined_inliers = g.refined_inliers;
+            rec.segment_points = g.segment_points;
+            rec.geometric_agreement = g.geometric_agreement;
+            rec.covered_agreement = g.covered_agreement;
+            rec.colour_agreement = g.colour_agreement;
+          }
+          stats.records.push_back(std::move(rec));
+        }
         switch (o.status) {
           case PerceptionStatus::kAccepted:
             break;

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <string>
 #include <utility>
@@ -33,6 +34,8 @@ struct RenderedSensingConfig {
   // The true detections also counted apart for objects with at least this share of their
   // silhouette seen (VisibleObject::visibleFraction), the "30 % visible" population.
   double min_visible_fraction = 0.3;
+  // Keep every detection's evaluation (RenderedSensingStats::records).
+  bool record_detections = false;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
@@ -42,6 +45,25 @@ struct RenderedSensingConfig {
 struct AcceptanceCounts {
   int true_detections = 0, accepted = 0;
   int true_visible = 0, accepted_visible = 0;
+};
+
+// One detection as evaluated against the renderer's ground truth (record_detections).
+struct DetectionRecord {
+  int robot = 0;
+  int pose = 0;                 // the trajectory index of the frame
+  std::string label;
+  PerceptionStatus status = PerceptionStatus::kNoTemplate;
+  int object = -1;              // the true object's id (World::objects); -1: a false detection
+  double visible_fraction = 0.0;  // the true object's (VisibleObject::visibleFraction); 0: false
+  double depth = 0.0;           // the true object's centre z in the camera frame (m); 0: false
+  // The pose the registration reported (accepted, or the rejected best or consensus pose) against
+  // the true object's, as for the statistics; NaN when false or when no pose was registered
+  // (no template, failed segmentation, too few points).
+  double translation_error = std::numeric_limits<double>::quiet_NaN();
+  double rotation_error_deg = std::numeric_limits<double>::quiet_NaN();
+  // The registration's diagnostics (registration.h), of a registered detection.
+  int inliers = 0, refined_inliers = -1, segment_points = 0;
+  double geometric_agreement = 0.0, covered_agreement = 0.0, colour_agreement = 0.0;
 };
 
 struct RenderedSensingStats {
@@ -69,6 +91,7 @@ struct RenderedSensingStats {
   // frame shows none. A small error is a real object whose box the detector drew otherwise (an
   // occluded object's full extent against its visible pixels), a large one a false measurement.
   std::vector<std::pair<double, double>> false_accepted_errors;
+  std::vector<DetectionRecord> records;    // every detection, in order (record_detections)
   StageTimes times;                        // summed over the frames
   double render_ms = 0.0;
   double template_seconds = 0.0;
