@@ -100,25 +100,28 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
             if (visible) ++c->true_visible;
           }
         }
+        // The reported pose's error against the true object's (NaN: false, or no pose).
+        const RegistrationResult& g = o.registration;
+        const bool registered = o.status != PerceptionStatus::kNoTemplate &&
+                                o.status != PerceptionStatus::kSegmentationFailed &&
+                                o.status != PerceptionStatus::kTooFewPoints;
+        double t_error = std::numeric_limits<double>::quiet_NaN(), r_error = t_error;
+        if (truth && registered) {
+          t_error = (g.camera_T_object.translation() - truth->camera_T_object.translation()).norm();
+          r_error = RotationErrorDeg(truth->camera_T_object, g.camera_T_object);
+        }
         if (config.record_detections) {
           DetectionRecord rec;
           rec.robot = r;
           rec.pose = static_cast<int>(i);
           rec.label = o.detection.label;
           rec.status = o.status;
-          const RegistrationResult& g = o.registration;
-          const bool registered = o.status != PerceptionStatus::kNoTemplate &&
-                                  o.status != PerceptionStatus::kSegmentationFailed &&
-                                  o.status != PerceptionStatus::kTooFewPoints;
+          rec.translation_error = t_error;
+          rec.rotation_error_deg = r_error;
           if (truth) {
             rec.object = truth->id;
             rec.visible_fraction = truth->visibleFraction();
             rec.depth = truth->camera_T_object.translation().z();
-            if (registered) {
-              rec.translation_error =
-                  (g.camera_T_object.translation() - truth->camera_T_object.translation()).norm();
-              rec.rotation_error_deg = RotationErrorDeg(truth->camera_T_object, g.camera_T_object);
-            }
           }
           if (registered) {
             rec.inliers = g.inliers;
@@ -150,7 +153,7 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
         d.measurement = o.body_T_object;
         d.information = o.registration.information;
         // The same-label object seen nearest the pose, and the pose's error against it.
-        const SE3& est = o.registration.camera_T_object;
+        const SE3& est = g.camera_T_object;
         const VisibleObject* nearest = nullptr;
         double nearest_t = std::numeric_limits<double>::infinity();
         for (const VisibleObject& v : frame.objects) {
@@ -171,8 +174,6 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
             if (visible) ++c->accepted_visible;
           }
           d.object_id = truth->id;
-          const double t_error = (est.translation() - truth->camera_T_object.translation()).norm();
-          const double r_error = RotationErrorDeg(truth->camera_T_object, est);
           stats.translation_errors.push_back(t_error);
           stats.rotation_errors_deg.push_back(r_error);
           if (t_error > 0.1 || r_error > 10.0) {
