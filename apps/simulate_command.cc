@@ -7,7 +7,7 @@
 //                   [--plot FILE.svg] [--perception sampled|rendered [--model M.onnx]
 //                   [--classes classes.txt] [--templates DIR] [--perceive-every K]
 //                   [--detection-log FILE.jsonl]]
-//                   [--exclusion-radius M] [--leave-one-out-check]
+//                   [--exclusion-radius M] [--leave-one-out-check] [--loop-closure]
 //   moslam simulate --online --scenario house --robots 6 --runs 10 [--plot FILE.svg] [--json]
 //                   [--outliers P] [--robust]
 //
@@ -76,6 +76,7 @@ struct SimulateArgs {
   std::string detection_log;
   std::optional<double> exclusion_radius;  // unset: kRenderedExclusionRadius when rendered, else 0
   bool leave_one_out_check = false;
+  bool loop_closure = false;
   bool online = false;
 };
 }  // namespace
@@ -177,6 +178,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                 "a robot refuses a match that disagrees with its pose localised on the pose's "
                 "other matches, and discards the detection (fewer wrong matches among objects "
                 "of one label standing close, fewer right ones elsewhere; off: the paper's rule)");
+  sub->add_flag("--loop-closure", args->loop_closure,
+                "a robot aligns the constellation of its recent landmarks with its older ones and "
+                "joins the objects it finds mapped twice (slam/object_slam.h; off: the paper's "
+                "rule)");
 
   return [args, make_perception]() -> int {
     const SimulateArgs& a = *args;
@@ -196,10 +201,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
           {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
            a.template_views, a.depth_smoothing, a.detection_log});
     if (a.online) {
-      if (rendered || a.information != "noise") {
+      if (rendered || a.information != "noise" || a.loop_closure) {
         throw InvalidInputError(
-            "simulate --online: perception rendered and --information fixed are not part of "
-            "the online mission");
+            "simulate --online: perception rendered, --information fixed and --loop-closure are "
+            "not part of the online mission");
       }
       std::vector<OnlineExperimentResult> results;
       for (int robots : a.robots) {
@@ -260,6 +265,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         c.perceive = perceive;
         c.exclusion_radius = a.exclusion_radius.value_or(rendered ? kRenderedExclusionRadius : 0.0);
         c.leave_one_out_check = a.leave_one_out_check;
+        c.loop_closure = a.loop_closure;
         results.push_back(RunExperiment(c, results.empty() ? &first : nullptr));
       }
     }
@@ -283,6 +289,14 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
       if (!first_table) fmt::print("\n");
       first_table = false;
       fmt::print("{}", FormatMarkdownTable(results, kind));
+    }
+    if (a.loop_closure) {
+      for (const ExperimentResult& r : results) {
+        fmt::print(stderr, "loop closures, {} ({} robots): {:.1f} object pairs per run, {:.1f} of "
+                   "them wrong\n",
+                   r.config.scenario, r.config.robots, r.mean.intra_loop_closures,
+                   r.mean.intra_wrong_loop_closures);
+      }
     }
     if (!a.plot.empty()) {
       std::ofstream out(a.plot);

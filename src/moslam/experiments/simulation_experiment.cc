@@ -89,6 +89,8 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"intra_recall", &RunMetrics::intra_recall},
       {"intra_discarded", &RunMetrics::intra_discarded},
       {"intra_refused", &RunMetrics::intra_refused},
+      {"intra_loop_closures", &RunMetrics::intra_loop_closures},
+      {"intra_wrong_loop_closures", &RunMetrics::intra_wrong_loop_closures},
       {"inter_precision", &RunMetrics::inter_precision},
       {"inter_recall", &RunMetrics::inter_recall},
       {"rendezvous_bytes", &RunMetrics::rendezvous_bytes},
@@ -287,6 +289,7 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   out.slam.known_initial_poses = config.known_initial_poses;
   out.slam.slam.exclusion_radius = config.exclusion_radius;
   out.slam.slam.leave_one_out_check = config.leave_one_out_check;
+  out.slam.slam.loop_closure = config.loop_closure;
   out.slam.outlier_fraction = config.outlier_fraction;
   out.slam.outlier_seed = out.seed;
   return out;
@@ -351,6 +354,8 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.intra_recall = slam.intra.recall();
   m.intra_discarded = slam.intra.discarded;
   m.intra_refused = slam.intra.refused;
+  m.intra_loop_closures = slam.intra.loop_closures;
+  m.intra_wrong_loop_closures = slam.intra.wrong_loop_closures;
   m.inter_precision = slam.inter.precision();
   m.inter_recall = slam.inter.recall();
   m.rendezvous_bytes = static_cast<double>(slam.bytes);

@@ -103,6 +103,9 @@ struct ExperimentConfig {
   // The robots' leave-one-out check of their matches (ObjectSlamConfig::leave_one_out_check;
   // `moslam simulate --leave-one-out-check`).
   bool leave_one_out_check = false;
+  // The robots' loop closure by object constellations (ObjectSlamConfig::loop_closure;
+  // `moslam simulate --loop-closure`).
+  bool loop_closure = false;
   // A run in which some robot never gets linked to robot 0 (no rendezvous aligned, or, with
   // robust, the separator check refused all its links) is left out of the mean and counted
   // (ExperimentResult::skipped), instead of failing the experiment.
@@ -145,6 +148,9 @@ struct RunMetrics {
   // Detections the robots discarded (ObjectSlamConfig::exclusion_radius) and matches they refused
   // (ObjectSlamConfig::leave_one_out_check; their detections discarded too).
   double intra_discarded = 0, intra_refused = 0;
+  // Object-object factors of the robots' loop closures (ObjectSlamConfig::loop_closure), and the
+  // wrong ones (landmarks created for two world objects).
+  double intra_loop_closures = 0, intra_wrong_loop_closures = 0;
   double rendezvous_bytes = 0;  // all rendezvous messages
   // Unknown initial poses: rendezvous aligned, refused (too few consistent objects, ambiguous),
   // accepted with mostly wrong pairs; the rendezvous where both robots had mapped 4 or more

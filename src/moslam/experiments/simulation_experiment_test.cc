@@ -131,6 +131,19 @@ TEST(SimulationExperiment, LeaveOneOutCheckRefusesWrongMatchesOfTheRobots) {
   EXPECT_GT(checked.intra_precision, paper.intra_precision + 0.02);
 }
 
+TEST(SimulationExperiment, LoopClosureJoinsObjectsTheRobotsMappedTwice) {
+  ExperimentConfig c;
+  c.scenario = "chairs25";
+  c.robots = 2;
+  c.seed = 11;
+  const RunMetrics paper = RunSimulationOnce(c, 0);
+  EXPECT_EQ(paper.intra_loop_closures, 0.0);
+  c.loop_closure = true;
+  const RunMetrics closed = RunSimulationOnce(c, 0);
+  EXPECT_GT(closed.intra_loop_closures, 0.0);
+  EXPECT_EQ(closed.intra_wrong_loop_closures, 0.0);
+}
+
 TEST(SimulationExperiment, SameSeedSameNumbers) {
   const RunMetrics a = RunSimulationOnce(Tiny(), 0);
   const RunMetrics b = RunSimulationOnce(Tiny(), 0);

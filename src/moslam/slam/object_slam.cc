@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <set>
 #include <utility>
 
@@ -151,6 +152,8 @@ AssociationStats& AssociationStats::operator+=(const AssociationStats& o) {
   discarded += o.discarded;
   refused += o.refused;
   associable += o.associable;
+  loop_closures += o.loop_closures;
+  wrong_loop_closures += o.wrong_loop_closures;
   return *this;
 }
 
@@ -173,6 +176,25 @@ void ObjectSlamConfig::validate() const {
     throw InvalidInputError(
         "ObjectSlamConfig: leave_one_out_check localises the pose on the other matches and needs "
         "localization_iterations >= 1");
+  }
+  if (loop_closure_window < 1) {
+    throw InvalidInputError("ObjectSlamConfig: loop_closure_window must be >= 1");
+  }
+  if (!(loop_closure_sigma_rotation_deg > 0.0 && std::isfinite(loop_closure_sigma_rotation_deg))) {
+    throw InvalidInputError("ObjectSlamConfig: loop_closure_sigma_rotation_deg must be finite and "
+                            "> 0");
+  }
+  if (!(loop_closure_sigma_translation > 0.0 && std::isfinite(loop_closure_sigma_translation))) {
+    throw InvalidInputError("ObjectSlamConfig: loop_closure_sigma_translation must be finite and "
+                            "> 0");
+  }
+  if (loop_closure_iterations < 0) {
+    throw InvalidInputError("ObjectSlamConfig: loop_closure_iterations must be >= 0");
+  }
+  try {
+    loop_closure_alignment.validate();
+  } catch (const InvalidInputError& e) {
+    throw InvalidInputError(std::string("ObjectSlamConfig: loop_closure_alignment: ") + e.what());
   }
 }
 
@@ -393,7 +415,57 @@ bool ObjectSlam::excluded(const ObjectDetection& detection, const SE3& x) const 
 }
 
 void ObjectSlam::maybeUpdate() {
-  if ((num_poses_ - 1) % config_.update_every == 0) optimize(config_.iterations_per_update);
+  if ((num_poses_ - 1) % config_.update_every != 0) return;
+  optimize(config_.iterations_per_update);
+  if (closeLoops()) {
+    optimize(std::max(config_.iterations_per_update, config_.loop_closure_iterations));
+  }
+}
+
+bool ObjectSlam::closeLoops() {
+  if (!config_.loop_closure || landmarks_.size() == landmarks_at_last_loop_attempt_) return false;
+  landmarks_at_last_loop_attempt_ = landmarks_.size();
+  // Recent: created within the last loop_closure_window poses and not closed yet; older: before.
+  const int start = num_poses_ - config_.loop_closure_window;
+  std::vector<ConstellationObject> recent, older;
+  for (std::size_t k = 0; k < landmarks_.size(); ++k) {
+    const Landmark& l = landmarks_[k];
+    ConstellationObject o{static_cast<std::uint32_t>(k), l.label, landmarkPose(k)};
+    if (l.first_pose < start) {
+      older.push_back(std::move(o));
+    } else if (l.closed_with < 0) {
+      recent.push_back(std::move(o));
+    }
+  }
+  const auto min_support = static_cast<std::size_t>(config_.loop_closure_alignment.min_support);
+  if (recent.size() < min_support || older.size() < min_support) return false;
+  const ConstellationAlignment alignment =
+      AlignConstellations(recent, older, config_.loop_closure_alignment);
+  if (alignment.status != AlignmentStatus::kAligned) return false;
+  // Each pair, the drift corrected, must pass the robot's association gate: the match it would
+  // have made without the drift. The others are dropped, and too few left refuse the alignment.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  for (const auto& [r, o] : alignment.pairs) {
+    if (config_.association.accepts(alignment.b_T_a * landmarkPose(r), landmarkPose(o))) {
+      pairs.emplace_back(r, o);
+    }
+  }
+  if (pairs.size() < min_support) return false;
+  const double sr = config_.loop_closure_sigma_rotation_deg / kRadToDeg;
+  const double st = config_.loop_closure_sigma_translation;
+  Vector6 diagonal;
+  diagonal << Vector3::Constant(1.0 / (sr * sr)), Vector3::Constant(1.0 / (st * st));
+  const Matrix6 information = diagonal.asDiagonal();
+  for (const auto& [r, o] : pairs) {
+    local_graph_.add(
+        RelativePoseFactor(Key::Object(0, o), Key::Object(0, r), SE3(), information));
+    factor_objects_.push_back(kNoObservation);
+    landmarks_[r].closed_with = static_cast<int>(o);
+    ++stats_.loop_closures;
+    const int tr = landmarks_[r].true_object, to = landmarks_[o].true_object;
+    if (tr >= 0 && to >= 0 && tr != to) ++stats_.wrong_loop_closures;
+  }
+  return true;
 }
 
 PoseGraph ObjectSlam::weightedGraph() const {

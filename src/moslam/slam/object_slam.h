@@ -61,18 +61,48 @@
 // generated (no wrong observation to find) 1.0 / 0.85 / 0.84 -> 1.2 / 0.80 / 0.87 m (1.3 / 0.96
 // / 0.94 m without the rival rule). Off by default.
 //
+// Loop closure by object constellations (ObjectSlamConfig::loop_closure, an addition; off by
+// default). With few object measurements per pose (a front-end that accepts some views only), a
+// pose is placed by odometry over stretches of several poses, and where the robot comes back to
+// a room it mapped before its predicted detections fall outside the gate (measured on house with
+// rendered perception, 2 robots, seeds 11-13: of 114 new landmarks for objects already mapped,
+// the predicted pose was 2.0 m / 37 deg from the object's landmark at the median; 11 failed the
+// gate on the orientation alone): it maps the room a second time and never closes the loop.
+// So at each update (every update_every poses), when landmarks were created since the last
+// attempt, the robot aligns the constellation of its recent landmarks (created within the last
+// loop_closure_window poses, not yet closed) with that of its older ones (created before the
+// window) by AlignConstellations (constellation.h: label-consistent pairs, pairwise consistency
+// of relative poses, maximum clique, refusal when too few or ambiguous). Each pair of an
+// alignment must then pass the robot's association gate with the drift corrected (b_T_a applied
+// to the recent landmark): the match the robot would have made had it not drifted. The others
+// are dropped, and fewer than the alignment's min_support pairs left refuse it (chosen on
+// chairs25 and house with rendered perception, 2 robots, seeds 11-13: the pairwise tolerances,
+// made for two robots' maps, took two wrong alignments of four chairs and four wrong pairs
+// inside right alignments; their pairs lay 0.5-3.1 m from their partners after the correction,
+// the right ones at most 0.89 m / 17 deg). Each pair (recent k, older j) left becomes an
+// object-object factor o_j -> o_k with measurement identity
+// and information diag(1/s_R^2 I3, 1/s_t^2 I3) (loop_closure_sigma_*), the recent landmark is
+// marked closed (Landmark::closed_with = j; never aligned again), and the graph is optimised with
+// at least loop_closure_iterations iterations. Both landmarks stay (the factor joins them):
+// later detections join the nearer one. The factors are the robot's own (graph(); evaluation
+// marks them ObjectSlam::kNoObservation, as odometry): the robust solve does not weigh them.
+// Failure modes: a wrong alignment (a layout the refusal rules cannot tell from another one)
+// joins two rooms; a loop closed with fewer than min_support recent objects is not found.
+//
 // Ground truth: a detection may carry the id of the world object it saw (simulation); a landmark
 // then records the object of the detection that created it. This only feeds the association
 // statistics and the evaluation; it never influences the estimate.
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "moslam/graph/pose_graph.h"
 #include "moslam/sim/sensing.h"
+#include "moslam/slam/constellation.h"
 
 namespace moslam {
 
@@ -127,6 +157,9 @@ struct Landmark {
   int true_object = -1;   // evaluation only: world object of the detection that created it
   int observations = 0;   // detections associated with it (the creating one included)
   int first_pose = 0;     // pose index of the creating detection
+  // Loop closure (ObjectSlamConfig::loop_closure): the index of the older landmark this one was
+  // found to be, joined by an object-object factor; -1: none.
+  int closed_with = -1;
 };
 
 // Association against ground truth (detections that carry object ids only).
@@ -139,6 +172,8 @@ struct AssociationStats {
   int discarded = 0;           // detections discarded (ObjectSlamConfig::exclusion_radius)
   int refused = 0;             // matches refused by the leave-one-out check (detections discarded)
   int associable = 0;          // detections whose object already had a landmark
+  int loop_closures = 0;       // object-object factors of loop closures (landmark pairs)
+  int wrong_loop_closures = 0; // ... whose landmarks were created for two world objects
   double precision() const { return associated > 0 ? double(correct) / associated : 1.0; }
   double recall() const { return associable > 0 ? double(correct) / associable : 1.0; }
   AssociationStats& operator+=(const AssociationStats& o);
@@ -171,6 +206,13 @@ struct ObjectSlamConfig {
   // (ObjectDetection::object_id, required >= 0), else creates it; neither the gate, the
   // exclusion radius nor the leave-one-out check is used.
   bool ground_truth_association = false;
+  // Loop closure by object constellations (above; off: the paper's rule).
+  bool loop_closure = false;
+  int loop_closure_window = 20;  // poses: landmarks created within the last ones are "recent"
+  ConstellationConfig loop_closure_alignment;
+  double loop_closure_sigma_rotation_deg = 5.0;  // the object-object factor's information
+  double loop_closure_sigma_translation = 0.2;   // m
+  int loop_closure_iterations = 10;  // Gauss-Newton iterations after a loop is closed (at least)
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
@@ -255,6 +297,8 @@ class ObjectSlam {
                  const std::vector<ObjectDetection>& detections,
                  const std::vector<std::optional<std::size_t>>& assigned) const;
   void maybeUpdate();
+  // Loop closure (ObjectSlamConfig::loop_closure): whether factors were added.
+  bool closeLoops();
 
   int robot_;
   ObjectSlamConfig config_;
@@ -267,6 +311,7 @@ class ObjectSlam {
   AssociationStats stats_;
   std::vector<std::size_t> last_associations_;
   std::vector<int> factor_objects_;  // parallel to local_graph_.factors()
+  std::size_t landmarks_at_last_loop_attempt_ = 0;
   std::size_t factors_at_last_optimize_ = 0;
   bool stale_ = false;  // team factors or estimate replaced since the last optimize()
   std::vector<RelativePoseFactor> team_factors_;        // keys of this robot

@@ -274,6 +274,105 @@ TEST(ObjectSlam, LeaveOneOutCheckRefusesAMatchTheOtherMatchesDisagreeWith) {
   EXPECT_THROW(c.validate(), InvalidInputError);
 }
 
+// A robot that stands still while its odometry turns it 2.5 deg and moves it 5 cm a step: back at
+// its first view after 25 steps, its prediction is 62 deg off and it maps the objects again.
+struct DriftedReturn {
+  std::vector<ObjectDetection> seen;  // from the true pose (the identity), every time
+  OdometryReading drifted{SE3(SO3::Exp(Vector3(0.0, 0.0, 2.5 * kDeg)), Vector3(0.05, 0.0, 0.0)),
+                          Info(5.0, 0.2)};
+  // Pose 0 sees `seen`, poses 1-24 nothing, poses 25-27 `returned` (default: `seen`).
+  ObjectSlam run(const ObjectSlamConfig& c, std::vector<ObjectDetection> returned = {}) const {
+    if (returned.empty()) returned = seen;
+    ObjectSlam slam(0, c);
+    slam.addFirstPose(seen);
+    for (int i = 1; i <= 24; ++i) slam.addPose(drifted, {});
+    for (int i = 25; i <= 27; ++i) slam.addPose(drifted, returned);
+    return slam;
+  }
+};
+
+TEST(ObjectSlam, LoopClosureJoinsTheObjectsARobotMappedTwice) {
+  DriftedReturn d;
+  d.seen = {Det("chair", Pose(3, 0, 0), 0), Det("chair", Pose(3, 2, 0, 60), 1),
+            Det("chair", Pose(3, -2, 0, -60), 2), Det("table", Pose(5, 0, 0, 30), 3),
+            Det("plant", Pose(4, 3, 0, -20), 4)};
+  ObjectSlamConfig c = TestSlamConfig();
+  c.iterations_per_update = 5;
+  const ObjectSlam paper = d.run(c);
+  ASSERT_EQ(paper.landmarks().size(), 10u);  // every object mapped twice
+  EXPECT_EQ(paper.associationStats().duplicate_landmarks, 5);
+  EXPECT_EQ(paper.associationStats().loop_closures, 0);
+  EXPECT_GT(SO3::Log(paper.pose(27).rotation()).norm(), 60.0 * kDeg);  // dead reckoning
+
+  c.loop_closure = true;
+  const ObjectSlam slam = d.run(c);
+  ASSERT_EQ(slam.landmarks().size(), 10u);  // the second map stays, joined to the first
+  const AssociationStats& s = slam.associationStats();
+  EXPECT_EQ(s.loop_closures, 5);
+  EXPECT_EQ(s.wrong_loop_closures, 0);
+  for (std::size_t k = 0; k < 5; ++k) {
+    EXPECT_EQ(slam.landmarks()[k].closed_with, -1);
+    EXPECT_EQ(slam.landmarks()[5 + k].closed_with, static_cast<int>(k));
+    EXPECT_LT(PoseDistance(slam.landmarkPose(5 + k), slam.landmarkPose(k)), 0.05);
+    EXPECT_LT(PoseDistance(slam.landmarkPose(k), d.seen[k].measurement), 0.05);
+  }
+  // The odometry, 26 links of 5 deg each, takes the loop's error: the last pose is back at the
+  // first to about a degree.
+  EXPECT_LT(SO3::Log(slam.pose(27).rotation()).norm(), 2.0 * kDeg);
+  EXPECT_LT(slam.pose(27).translation().norm(), 0.1);
+  // 27 odometry, 5 + 15 object-pose and 5 object-object factors.
+  const PoseGraph graph = slam.graph();
+  EXPECT_EQ(graph.factors().size(), 52u);
+  std::size_t object_object = 0;
+  for (const auto& f : graph.factors()) {
+    if (f.a().isObject() && f.b().isObject()) {
+      ++object_object;
+      EXPECT_EQ(f.a().robot, 0);
+      EXPECT_EQ(f.b().robot, 0);
+      EXPECT_LT(f.a().index, 5u);
+      EXPECT_GE(f.b().index, 5u);
+    }
+  }
+  EXPECT_EQ(object_object, 5u);
+
+  // Too few objects back in view (3 of min_support 4): no alignment is tried.
+  const ObjectSlam few = d.run(c, {d.seen[0], d.seen[1], d.seen[3]});
+  EXPECT_EQ(few.associationStats().loop_closures, 0);
+  EXPECT_EQ(few.landmarks().size(), 8u);
+}
+
+TEST(ObjectSlam, LoopClosureRefusesARowOfAlikeObjectsItCannotPlace) {
+  // Six chairs in a row 1.5 m apart, all facing the robot: four of them seen again fit the row
+  // at three places; the robot keeps its two maps apart rather than guess.
+  DriftedReturn d;
+  for (int k = 0; k < 6; ++k) d.seen.push_back(Det("chair", Pose(3, 1.5 * k - 3.75, 0), k));
+  ObjectSlamConfig c = TestSlamConfig();
+  c.iterations_per_update = 5;
+  c.loop_closure = true;
+  const ObjectSlam slam = d.run(c, {d.seen[1], d.seen[2], d.seen[3], d.seen[4]});
+  EXPECT_EQ(slam.landmarks().size(), 10u);
+  EXPECT_EQ(slam.associationStats().loop_closures, 0);
+  for (const Landmark& l : slam.landmarks()) EXPECT_EQ(l.closed_with, -1);
+}
+
+TEST(ObjectSlam, LoopClosureOptionsAreValidated) {
+  ObjectSlamConfig c;
+  c.loop_closure_window = 0;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = ObjectSlamConfig{};
+  c.loop_closure_sigma_rotation_deg = 0.0;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = ObjectSlamConfig{};
+  c.loop_closure_sigma_translation = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = ObjectSlamConfig{};
+  c.loop_closure_iterations = -1;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = ObjectSlamConfig{};
+  c.loop_closure_alignment.min_support = 0;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+}
+
 TEST(ObjectSlam, GroundTruthAssociationFollowsTheObjectIds) {
   ObjectSlamConfig c = TestSlamConfig();
   c.ground_truth_association = true;
