@@ -133,7 +133,7 @@ TEST(SimulationExperiment, LeaveOneOutCheckRefusesWrongMatchesOfTheRobots) {
 
 TEST(SimulationExperiment, LoopClosureJoinsObjectsTheRobotsMappedTwice) {
   ExperimentConfig c;
-  c.scenario = "chairs25";
+  c.scenario = "generated";
   c.robots = 2;
   c.seed = 11;
   const RunMetrics paper = RunSimulationOnce(c, 0);

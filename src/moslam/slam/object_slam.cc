@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <set>
+#include <string>
 #include <utility>
 
 #include "moslam/common/errors.h"
@@ -187,6 +188,9 @@ void ObjectSlamConfig::validate() const {
   if (!(loop_closure_sigma_translation > 0.0 && std::isfinite(loop_closure_sigma_translation))) {
     throw InvalidInputError("ObjectSlamConfig: loop_closure_sigma_translation must be finite and "
                             "> 0");
+  }
+  if (loop_closure_min_labels < 1) {
+    throw InvalidInputError("ObjectSlamConfig: loop_closure_min_labels must be >= 1");
   }
   if (loop_closure_iterations < 0) {
     throw InvalidInputError("ObjectSlamConfig: loop_closure_iterations must be >= 0");
@@ -450,7 +454,12 @@ bool ObjectSlam::closeLoops() {
       pairs.emplace_back(r, o);
     }
   }
-  if (pairs.size() < min_support) return false;
+  std::set<std::string> labels;
+  for (const auto& [r, o] : pairs) labels.insert(landmarks_[r].label);
+  if (pairs.size() < min_support ||
+      static_cast<int>(labels.size()) < config_.loop_closure_min_labels) {
+    return false;
+  }
   const double sr = config_.loop_closure_sigma_rotation_deg / kRadToDeg;
   const double st = config_.loop_closure_sigma_translation;
   Vector6 diagonal;

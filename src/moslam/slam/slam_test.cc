@@ -349,10 +349,28 @@ TEST(ObjectSlam, LoopClosureRefusesARowOfAlikeObjectsItCannotPlace) {
   ObjectSlamConfig c = TestSlamConfig();
   c.iterations_per_update = 5;
   c.loop_closure = true;
+  c.loop_closure_min_labels = 1;  // the alignment itself refuses it
   const ObjectSlam slam = d.run(c, {d.seen[1], d.seen[2], d.seen[3], d.seen[4]});
   EXPECT_EQ(slam.landmarks().size(), 10u);
   EXPECT_EQ(slam.associationStats().loop_closures, 0);
   for (const Landmark& l : slam.landmarks()) EXPECT_EQ(l.closed_with, -1);
+}
+
+TEST(ObjectSlam, LoopClosureNeedsObjectsOfTwoLabelsByDefault) {
+  // Five chairs turned every which way align (one label: allowed with min_labels 1), but a
+  // constellation of one label is not trusted by default.
+  DriftedReturn d;
+  d.seen = {Det("chair", Pose(3, 0, 0), 0), Det("chair", Pose(3, 2, 0, 100), 1),
+            Det("chair", Pose(3, -2, 0, -100), 2), Det("chair", Pose(5, 0, 0, 180), 3),
+            Det("chair", Pose(4, 3, 0, 45), 4)};
+  ObjectSlamConfig c = TestSlamConfig();
+  c.iterations_per_update = 5;
+  c.loop_closure = true;
+  EXPECT_EQ(d.run(c).associationStats().loop_closures, 0);
+  c.loop_closure_min_labels = 1;
+  const ObjectSlam one_label = d.run(c);
+  EXPECT_EQ(one_label.associationStats().loop_closures, 5);
+  EXPECT_EQ(one_label.associationStats().wrong_loop_closures, 0);
 }
 
 TEST(ObjectSlam, LoopClosureOptionsAreValidated) {
@@ -367,6 +385,9 @@ TEST(ObjectSlam, LoopClosureOptionsAreValidated) {
   EXPECT_THROW(c.validate(), InvalidInputError);
   c = ObjectSlamConfig{};
   c.loop_closure_iterations = -1;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+  c = ObjectSlamConfig{};
+  c.loop_closure_min_labels = 0;
   EXPECT_THROW(c.validate(), InvalidInputError);
   c = ObjectSlamConfig{};
   c.loop_closure_alignment.min_support = 0;
