@@ -165,6 +165,9 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
   sub->add_flag("--leave-one-out-check", f.spec.leave_one_out_check,
                 "A robot re-tests each match of a pose at the pose localised on its other "
                 "matches, and refuses the ones that disagree (as simulate)");
+  sub->add_flag("--loop-closure", f.spec.loop_closure,
+                "A robot aligns its recent landmarks with its older ones and joins the objects it "
+                "mapped twice (as simulate; not with --online)");
 }
 
 std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
@@ -176,6 +179,7 @@ std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
       fmt::format("{}", f.rendezvous_timeout), "--initial-poses", f.initial_poses,
       "--exclusion-radius", fmt::format("{}", f.spec.exclusion_radius)};
   if (f.spec.leave_one_out_check) a.push_back("--leave-one-out-check");
+  if (f.spec.loop_closure) a.push_back("--loop-closure");
   return a;
 }
 
@@ -310,6 +314,7 @@ void AddSessionSummary(const ScenarioSpec& spec, const RobotSessionResult& r, nl
   j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
   j["exclusion_radius"] = spec.exclusion_radius;
   j["leave_one_out_check"] = spec.leave_one_out_check;
+  j["loop_closure"] = spec.loop_closure;
   j["poses"] = r.poses;
   j["landmarks"] = r.landmarks;
   j["shared"] = SharedJson(r.shared);
@@ -358,6 +363,9 @@ int RunScenarioRobot(const RobotArgs& a) {
     throw InvalidInputError(fmt::format("robot: --out writes g2o files with objects, which hold "
                                         "at most {} robots (--robots {})",
                                         kMaxRobotsWithObjects, spec.robots));
+  }
+  if (a.online && spec.loop_closure) {
+    throw InvalidInputError("robot: --loop-closure is not part of the online mission (--online)");
   }
   RobotSessionOptions options;
   options.slam = ScenarioSlamConfig(spec);
@@ -916,6 +924,9 @@ int RunScenarioTeam(const TeamArgs& a) {
   const fs::path out = a.out.empty() ? fs::temp_directory_path() /
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
+  if (a.online && spec.loop_closure) {
+    throw InvalidInputError("team: --loop-closure is not part of the online mission (--online)");
+  }
   fs::create_directories(out);
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
   const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
@@ -938,6 +949,7 @@ int RunScenarioTeam(const TeamArgs& a) {
   j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
   j["exclusion_radius"] = spec.exclusion_radius;
   j["leave_one_out_check"] = spec.leave_one_out_check;
+  j["loop_closure"] = spec.loop_closure;
   j["poses_per_robot"] = spec.poses_per_robot;
   j["domain"] = a.domain;
   j["out"] = out.string();

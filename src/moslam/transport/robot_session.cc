@@ -83,6 +83,7 @@ MultiRobotSlamConfig ScenarioSlamConfig(const ScenarioSpec& spec) {
   config.known_initial_poses = spec.known_initial_poses;
   config.slam.exclusion_radius = spec.exclusion_radius;
   config.slam.leave_one_out_check = spec.leave_one_out_check;
+  config.slam.loop_closure = spec.loop_closure;
   return config;
 }
 
@@ -211,6 +212,23 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
     f.add(k->same_object_radius);
     f.add(static_cast<std::uint64_t>(k->ambiguity_margin));
     f.add(static_cast<std::uint64_t>(k->max_search_nodes));
+  }
+  if (c.slam.loop_closure) {  // (only then: the fingerprints of journals without it stay)
+    f.add(std::string("loop_closure"));
+    f.add(static_cast<std::uint64_t>(c.slam.loop_closure_window));
+    f.add(static_cast<std::uint64_t>(c.slam.loop_closure_min_labels));
+    f.add(static_cast<std::uint64_t>(c.slam.loop_closure_iterations));
+    f.add(c.slam.loop_closure_sigma_rotation_deg);
+    f.add(c.slam.loop_closure_sigma_translation);
+    const ConstellationConfig& k = c.slam.loop_closure_alignment;
+    f.add(k.sigma_translation);
+    f.add(k.sigma_rotation_deg);
+    f.add(k.drift_per_m);
+    f.add(k.num_sigmas);
+    f.add(static_cast<std::uint64_t>(k.min_support));
+    f.add(k.same_object_radius);
+    f.add(static_cast<std::uint64_t>(k.ambiguity_margin));
+    f.add(static_cast<std::uint64_t>(k.max_search_nodes));
   }
   if (options.online) {  // the group solves change the maps, hence the later rendezvous
     f.add(std::string("online"));

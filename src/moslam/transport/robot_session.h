@@ -119,6 +119,9 @@ struct ScenarioSpec {
   // radius (m, 0: off) and the leave-one-out check of a pose's matches.
   double exclusion_radius = 0.0;
   bool leave_one_out_check = false;
+  // The robots' loop closure by object constellations (ObjectSlamConfig::loop_closure; off, as
+  // `moslam simulate` without --loop-closure).
+  bool loop_closure = false;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };

@@ -276,6 +276,26 @@ TEST(RobotSession, TheRobotsAssociationOptionsGiveTheInProcessPipelineWithThem) 
   ExpectEqualToInProcess(results, ref);
 }
 
+// The robots' loop closure (slam/object_slam.h) runs inside each robot's own SLAM: the processes
+// map and solve as the in-process pipeline with it.
+TEST(RobotSession, TheRobotsLoopClosureGivesTheInProcessPipelineWithIt) {
+  ScenarioSpec spec = Small();
+  spec.scenario = "generated";
+  spec.seed = 6;  // seeds 1-5 with 40 poses: no loop closed, or the team not linked
+  spec.loop_closure = true;
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  ASSERT_TRUE(ref.joint.unanchored_robots.empty());
+  EXPECT_GE(ref.slam.intra.loop_closures, 4);
+  ScenarioSpec paper = spec;
+  paper.loop_closure = false;
+  EXPECT_GT(MaxPoseDifference(InProcess(paper, data).dgs.values, ref.dgs.values), 1e-6);
+
+  const std::vector<RobotSessionResult> results = RunTeam(spec, data);
+  ASSERT_FALSE(HasFailure());
+  ExpectEqualToInProcess(results, ref);
+}
+
 // Unknown initial poses: beta aligns the object maps and drops pairs of earlier rendezvous that
 // the new ones contradict, as in-process; the answers carry the removed pairs. The slices hold
 // random initial poses: the result does not change, so nothing reads them.
