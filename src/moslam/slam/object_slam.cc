@@ -443,6 +443,10 @@ bool ObjectSlam::closeLoops() {
   }
   const auto min_support = static_cast<std::size_t>(config_.loop_closure_alignment.min_support);
   if (recent.size() < min_support || older.size() < min_support) return false;
+  // An alignment's pairs hold recent landmarks only: too few labels among them, none would do.
+  std::set<std::string> recent_labels;
+  for (const ConstellationObject& o : recent) recent_labels.insert(o.label);
+  if (static_cast<int>(recent_labels.size()) < config_.loop_closure_min_labels) return false;
   const ConstellationAlignment alignment =
       AlignConstellations(recent, older, config_.loop_closure_alignment);
   if (alignment.status != AlignmentStatus::kAligned) return false;

@@ -84,14 +84,14 @@
 // alone, and on chairs25 (a grid of chairs) that was not enough (sampled measurements, 2 and 6
 // robots, seeds 11-19: 20 of 85 such alignments wrong, their corrections turning 12-174 deg, the
 // right ones' 5-50 deg; the robots' Laplace covariances did not tell them apart either: right
-// pairs reached chi-square 275, wrong ones came down to 8.5). Each pair (recent k, older j) left
-// becomes an
-// object-object factor o_j -> o_k with measurement identity
-// and information diag(1/s_R^2 I3, 1/s_t^2 I3) (loop_closure_sigma_*), the recent landmark is
-// marked closed (Landmark::closed_with = j; never aligned again), and the graph is optimised with
-// at least loop_closure_iterations iterations. Both landmarks stay (the factor joins them):
-// later detections join the nearer one. The factors are the robot's own (graph(); evaluation
-// marks them ObjectSlam::kNoObservation, as odometry): the robust solve does not weigh them.
+// pairs reached chi-square 275, wrong ones came down to 8.5); with fewer labels among the recent
+// landmarks no alignment is tried. Each pair (recent k, older j) left becomes an object-object
+// factor o_j -> o_k with measurement identity and information diag(1/s_R^2 I3, 1/s_t^2 I3)
+// (loop_closure_sigma_*), the recent landmark is marked closed (Landmark::closed_with = j; never
+// aligned again), and the graph is optimised with at least loop_closure_iterations iterations.
+// Both landmarks stay (the factor joins them): later detections join the nearer one. The factors
+// are the robot's own (graph(); evaluation marks them ObjectSlam::kNoObservation, as odometry):
+// the robust solve does not weigh them.
 // Failure modes: a wrong alignment (a layout the refusal rules cannot tell from another one)
 // joins two rooms; a loop closed with fewer than min_support recent objects is not found.
 //
