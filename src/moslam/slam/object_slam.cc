@@ -189,8 +189,8 @@ void ObjectSlamConfig::validate() const {
     throw InvalidInputError("ObjectSlamConfig: loop_closure_sigma_translation must be finite and "
                             "> 0");
   }
-  if (loop_closure_min_labels < 1) {
-    throw InvalidInputError("ObjectSlamConfig: loop_closure_min_labels must be >= 1");
+  if (loop_closure_one_label_min_support < 1) {
+    throw InvalidInputError("ObjectSlamConfig: loop_closure_one_label_min_support must be >= 1");
   }
   if (loop_closure_iterations < 0) {
     throw InvalidInputError("ObjectSlamConfig: loop_closure_iterations must be >= 0");
@@ -441,14 +441,20 @@ bool ObjectSlam::closeLoops() {
       recent.push_back(std::move(o));
     }
   }
-  const auto min_support = static_cast<std::size_t>(config_.loop_closure_alignment.min_support);
-  if (recent.size() < min_support || older.size() < min_support) return false;
-  // An alignment's pairs hold recent landmarks only: too few labels among them, none would do.
+  // The pairs an alignment needs: min_support, or loop_closure_one_label_min_support when they
+  // hold one label. Its pairs hold recent landmarks only: with one label among those, the
+  // alignment itself is asked for that many.
   std::set<std::string> recent_labels;
   for (const ConstellationObject& o : recent) recent_labels.insert(o.label);
-  if (static_cast<int>(recent_labels.size()) < config_.loop_closure_min_labels) return false;
-  const ConstellationAlignment alignment =
-      AlignConstellations(recent, older, config_.loop_closure_alignment);
+  const auto needed = [&](std::size_t labels) {
+    return static_cast<std::size_t>(labels > 1 ? config_.loop_closure_alignment.min_support
+                                               : config_.loop_closure_one_label_min_support);
+  };
+  ConstellationConfig alignment_config = config_.loop_closure_alignment;
+  alignment_config.min_support = static_cast<int>(needed(recent_labels.size()));
+  const auto min_support = static_cast<std::size_t>(alignment_config.min_support);
+  if (recent.size() < min_support || older.size() < min_support) return false;
+  const ConstellationAlignment alignment = AlignConstellations(recent, older, alignment_config);
   if (alignment.status != AlignmentStatus::kAligned) return false;
   // Each pair, the drift corrected, must pass the robot's association gate: the match it would
   // have made without the drift. The others are dropped, and too few left refuse the alignment.
@@ -460,10 +466,7 @@ bool ObjectSlam::closeLoops() {
   }
   std::set<std::string> labels;
   for (const auto& [r, o] : pairs) labels.insert(landmarks_[r].label);
-  if (pairs.size() < min_support ||
-      static_cast<int>(labels.size()) < config_.loop_closure_min_labels) {
-    return false;
-  }
+  if (pairs.size() < std::max(min_support, needed(labels.size()))) return false;
   const double sr = config_.loop_closure_sigma_rotation_deg / kRadToDeg;
   const double st = config_.loop_closure_sigma_translation;
   Vector6 diagonal;

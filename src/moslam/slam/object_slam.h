@@ -79,12 +79,14 @@
 // chairs25 and house with rendered perception, 2 robots, seeds 11-13: the pairwise tolerances,
 // made for two robots' maps, took two wrong alignments of four chairs and four wrong pairs
 // inside right alignments; their pairs lay 0.5-3.1 m from their partners after the correction,
-// the right ones at most 0.89 m / 17 deg). The pairs left must also hold objects of at least
-// loop_closure_min_labels labels (2): a constellation of one label is told apart by its geometry
-// alone, and on chairs25 (a grid of chairs) that was not enough (sampled measurements, 2 and 6
-// robots, seeds 11-19: 20 of 85 such alignments wrong, their corrections turning 12-174 deg, the
-// right ones' 5-50 deg; the robots' Laplace covariances did not tell them apart either: right
-// pairs reached chi-square 275, wrong ones came down to 8.5); with fewer labels among the recent
+// the right ones at most 0.89 m / 17 deg). Pairs of one label must be at least
+// loop_closure_one_label_min_support (6; the alignment is then asked for as many): a
+// constellation of one label is told apart by its geometry and orientations alone, and on
+// chairs25 (a grid of chairs) four were not enough (sampled measurements, 6 robots, seeds 11-19:
+// 7.9 wrong pairs per run with 4, GT ATE 0.83 -> 0.97 m; with 6, none wrong and 0.83 -> 0.32 m; 8
+// gave 0.33 m; with objects of two labels or more 6 lost a third of generated's pairs, 0.35 ->
+// 0.37 m, and 8 nearly all; the robots' Laplace covariances did not tell wrong alignments apart
+// either: right pairs reached chi-square 275, wrong ones came down to 8.5); with too few recent
 // landmarks no alignment is tried. Each pair (recent k, older j) left becomes an object-object
 // factor o_j -> o_k with measurement identity and information diag(1/s_R^2 I3, 1/s_t^2 I3)
 // (loop_closure_sigma_*), the recent landmark is marked closed (Landmark::closed_with = j; never
@@ -219,7 +221,7 @@ struct ObjectSlamConfig {
   double loop_closure_sigma_rotation_deg = 5.0;  // the object-object factor's information
   double loop_closure_sigma_translation = 0.2;   // m
   int loop_closure_iterations = 10;  // Gauss-Newton iterations after a loop is closed (at least)
-  int loop_closure_min_labels = 2;   // distinct labels among an alignment's pairs (above)
+  int loop_closure_one_label_min_support = 6;  // pairs of an alignment of one label (above)
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };

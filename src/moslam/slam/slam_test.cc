@@ -349,16 +349,16 @@ TEST(ObjectSlam, LoopClosureRefusesARowOfAlikeObjectsItCannotPlace) {
   ObjectSlamConfig c = TestSlamConfig();
   c.iterations_per_update = 5;
   c.loop_closure = true;
-  c.loop_closure_min_labels = 1;  // the alignment itself refuses it
+  c.loop_closure_one_label_min_support = 4;  // the alignment itself refuses it
   const ObjectSlam slam = d.run(c, {d.seen[1], d.seen[2], d.seen[3], d.seen[4]});
   EXPECT_EQ(slam.landmarks().size(), 10u);
   EXPECT_EQ(slam.associationStats().loop_closures, 0);
   for (const Landmark& l : slam.landmarks()) EXPECT_EQ(l.closed_with, -1);
 }
 
-TEST(ObjectSlam, LoopClosureNeedsObjectsOfTwoLabelsByDefault) {
-  // Five chairs turned every which way align (one label: allowed with min_labels 1), but a
-  // constellation of one label is not trusted by default.
+TEST(ObjectSlam, LoopClosureOfOneLabelNeedsMoreObjects) {
+  // Chairs turned every which way align by their geometry and orientations alone; an alignment
+  // of one label needs loop_closure_one_label_min_support pairs (6): five are refused, six joined.
   DriftedReturn d;
   d.seen = {Det("chair", Pose(3, 0, 0), 0), Det("chair", Pose(3, 2, 0, 100), 1),
             Det("chair", Pose(3, -2, 0, -100), 2), Det("chair", Pose(5, 0, 0, 180), 3),
@@ -367,10 +367,17 @@ TEST(ObjectSlam, LoopClosureNeedsObjectsOfTwoLabelsByDefault) {
   c.iterations_per_update = 5;
   c.loop_closure = true;
   EXPECT_EQ(d.run(c).associationStats().loop_closures, 0);
-  c.loop_closure_min_labels = 1;
-  const ObjectSlam one_label = d.run(c);
-  EXPECT_EQ(one_label.associationStats().loop_closures, 5);
-  EXPECT_EQ(one_label.associationStats().wrong_loop_closures, 0);
+  c.loop_closure_one_label_min_support = 5;
+  const ObjectSlam five = d.run(c);
+  EXPECT_EQ(five.associationStats().loop_closures, 5);
+  EXPECT_EQ(five.associationStats().wrong_loop_closures, 0);
+
+  d.seen.push_back(Det("chair", Pose(2, -3, 0, 60), 5));
+  c.loop_closure_one_label_min_support = ObjectSlamConfig{}.loop_closure_one_label_min_support;
+  const ObjectSlam six = d.run(c);
+  EXPECT_EQ(six.associationStats().loop_closures, 6);
+  EXPECT_EQ(six.associationStats().wrong_loop_closures, 0);
+  EXPECT_LT(SO3::Log(six.pose(27).rotation()).norm(), 2.0 * kDeg);
 }
 
 TEST(ObjectSlam, LoopClosureOptionsAreValidated) {
@@ -387,7 +394,7 @@ TEST(ObjectSlam, LoopClosureOptionsAreValidated) {
   c.loop_closure_iterations = -1;
   EXPECT_THROW(c.validate(), InvalidInputError);
   c = ObjectSlamConfig{};
-  c.loop_closure_min_labels = 0;
+  c.loop_closure_one_label_min_support = 0;
   EXPECT_THROW(c.validate(), InvalidInputError);
   c = ObjectSlamConfig{};
   c.loop_closure_alignment.min_support = 0;

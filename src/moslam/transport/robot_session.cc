@@ -216,7 +216,7 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
   if (c.slam.loop_closure) {  // (only then: the fingerprints of journals without it stay)
     f.add(std::string("loop_closure"));
     f.add(static_cast<std::uint64_t>(c.slam.loop_closure_window));
-    f.add(static_cast<std::uint64_t>(c.slam.loop_closure_min_labels));
+    f.add(static_cast<std::uint64_t>(c.slam.loop_closure_one_label_min_support));
     f.add(static_cast<std::uint64_t>(c.slam.loop_closure_iterations));
     f.add(c.slam.loop_closure_sigma_rotation_deg);
     f.add(c.slam.loop_closure_sigma_translation);
