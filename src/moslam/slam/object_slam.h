@@ -95,7 +95,9 @@
 // are the robot's own (graph(); evaluation marks them ObjectSlam::kNoObservation, as odometry):
 // the robust solve does not weigh them.
 // Failure modes: a wrong alignment (a layout the refusal rules cannot tell from another one)
-// joins two rooms; a loop closed with fewer than min_support recent objects is not found.
+// joins two rooms; a loop closed with fewer than min_support recent objects (6 when they hold one
+// label) is not found; a right alignment can still leave the robot's own association worse
+// (chairs25 rendered, 2 robots, seed 13: no wrong pair, intra precision 0.957 -> 0.935).
 //
 // Ground truth: a detection may carry the id of the world object it saw (simulation); a landmark
 // then records the object of the detection that created it. This only feeds the association
