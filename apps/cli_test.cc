@@ -344,6 +344,27 @@ TEST(CliSimulate, RunsEndToEndWithJsonAndPlot) {
   EXPECT_EQ(k["rows"][0]["runs"][1]["gn_cost"], row["runs"][1]["gn_cost"]);
 }
 
+// The robots' loop closure: off with sampled measurements (the paper's rule, Tables 1-3) unless
+// asked for; the two flags exclude each other.
+TEST(CliSimulate, LoopClosureIsOffWithSampledMeasurementsUnlessAskedFor) {
+  const std::string run = "simulate --scenario chairs25 --robots 2 --runs 1 --poses 30 --seed 3 --json";
+  const CommandResult paper = RunMoslam(run);
+  ASSERT_EQ(paper.exit_code, 0) << paper.out;
+  const auto config = nlohmann::json::parse(LastLine(paper.out))["rows"][0]["config"];
+  EXPECT_EQ(config["loop_closure"], false);
+  EXPECT_EQ(config["exclusion_radius"], 0.0);
+  const CommandResult asked = RunMoslam(run + " --loop-closure");
+  ASSERT_EQ(asked.exit_code, 0) << asked.out;
+  EXPECT_EQ(nlohmann::json::parse(LastLine(asked.out))["rows"][0]["config"]["loop_closure"], true);
+  const CommandResult refused = RunMoslam(run + " --no-loop-closure");
+  ASSERT_EQ(refused.exit_code, 0) << refused.out;
+  EXPECT_EQ(nlohmann::json::parse(LastLine(refused.out))["rows"][0]["config"]["loop_closure"],
+            false);
+  const CommandResult both = RunMoslam(run + " --loop-closure --no-loop-closure");
+  EXPECT_NE(both.exit_code, 0) << both.out;
+  EXPECT_NE(both.out.find("excludes"), std::string::npos) << both.out;
+}
+
 TEST(CliSimulate, BadInputExitsOneWithAClearMessage) {
   const CommandResult mismatch =
       RunMoslam("simulate --robots 2 --runs 1 --sigma-rot 1 5 --sigma-trans 0.1");
@@ -367,7 +388,12 @@ TEST(CliSimulate, RenderedPerceptionLogsEveryDetection) {
       "simulate --scenario chairs25 --robots 1 --runs 1 --poses 3 --perception rendered "
       "--template-cache none --table perception --json --detection-log " + log.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  const auto run = nlohmann::json::parse(LastLine(r.out))["rows"][0]["runs"][0];
+  const auto row = nlohmann::json::parse(LastLine(r.out))["rows"][0];
+  // Rendered perception's defaults: the exclusion radius and the robots' loop closure.
+  EXPECT_EQ(row["config"]["perception"], "rendered");
+  EXPECT_EQ(row["config"]["exclusion_radius"], 0.5);
+  EXPECT_EQ(row["config"]["loop_closure"], true);
+  const auto run = row["runs"][0];
   std::ifstream in(log);
   std::string line;
   int lines = 0, accepted = 0;

@@ -762,6 +762,9 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"initial_poses", c.known_initial_poses ? "known" : "unknown"},
                              {"outlier_fraction", c.outlier_fraction},
                              {"robust", c.robust},
+                             {"exclusion_radius", c.exclusion_radius},
+                             {"leave_one_out_check", c.leave_one_out_check},
+                             {"loop_closure", c.loop_closure},
                              {"skipped_runs", r.skipped}};
     nlohmann::json runs = nlohmann::json::array();
     for (const RunMetrics& m : r.runs) runs.push_back(metrics(m));

@@ -103,8 +103,9 @@ struct ExperimentConfig {
   // The robots' leave-one-out check of their matches (ObjectSlamConfig::leave_one_out_check;
   // `moslam simulate --leave-one-out-check`).
   bool leave_one_out_check = false;
-  // The robots' loop closure by object constellations (ObjectSlamConfig::loop_closure;
-  // `moslam simulate --loop-closure`).
+  // The robots' loop closure by object constellations (ObjectSlamConfig::loop_closure). Off
+  // here (the paper's rule); `moslam simulate` turns it on with --perception rendered unless
+  // --no-loop-closure.
   bool loop_closure = false;
   // A run in which some robot never gets linked to robot 0 (no rendezvous aligned, or, with
   // robust, the separator check refused all its links) is left out of the mean and counted
