@@ -7,7 +7,9 @@
 #   2. per class, the same over the four sequences (first consensus);
 #   3. template start-up: the house templates built into an empty cache, then read from it;
 #   4. runs `moslam simulate --perception rendered` on chairs25 with 2 robots, every frame
-#      perceived, with the sampled-measurement run of the same seed beside it (SIMULATE=0 skips).
+#      perceived (the robots close loops: the default with rendered perception), with the
+#      sampled-measurement runs of the same seed beside it, without loop closure (the paper's
+#      rule, sampled measurements' default) and with it (SIMULATE=0 skips).
 # Times are wall clock per detection on one thread (the two threads of `perceive` register two
 # detections at once); the machine's load is printed before and after.
 # Writes $BUILD_DIR/perception/*.json and prints Markdown.
@@ -102,4 +104,10 @@ if [[ "$SIMULATE" == "1" ]]; then
   echo
   "$MOSLAM" simulate --scenario chairs25 --robots 2 --runs 1 --seed 1 --poses "$POSES" \
     --table accuracy association --json | tee "$OUT/simulate_sampled.txt" | sed '$d'
+  echo
+  echo "Sampled, with the robots' loop closure too (--loop-closure):"
+  echo
+  "$MOSLAM" simulate --scenario chairs25 --robots 2 --runs 1 --seed 1 --poses "$POSES" \
+    --table accuracy association --loop-closure --json |
+    tee "$OUT/simulate_sampled_loop_closure.txt" | sed '$d'
 fi
