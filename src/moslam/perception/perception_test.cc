@@ -201,6 +201,34 @@ TEST(Perception, ADetectedClassWithoutTemplateIsReportedNotRegistered) {
   EXPECT_TRUE(ToObjectDetections(seen).empty());
 }
 
+// The object a view measures, for evaluation: the one its registered pose places when a
+// same-label object seen lies within the radius, else the box's (MeasuredObject).
+TEST(RenderedSensing, AViewMeasuresTheObjectItsPosePlaces) {
+  auto seen_object = [](int id, const std::string& label, double x) {
+    VisibleObject v;
+    v.id = id;
+    v.label = label;
+    v.camera_T_object = SE3(SO3(), Vector3(x, 0.0, 3.0));
+    return v;
+  };
+  const std::vector<VisibleObject> seen = {seen_object(1, "chair", 0.0),
+                                           seen_object(2, "chair", 0.8),
+                                           seen_object(3, "table", 0.4)};
+  // A box of chair 1 whose segment registered to chair 2 (the neighbour in the box).
+  EXPECT_EQ(MeasuredObject(seen, "chair", Vector3(0.78, 0.0, 3.02), 1, 0.25), 2);
+  // A false box (no object's pixels) that registered to chair 1.
+  EXPECT_EQ(MeasuredObject(seen, "chair", Vector3(0.03, 0.0, 2.98), -1, 0.25), 1);
+  // Far from every chair: the box decides, right or false; the table does not count.
+  EXPECT_EQ(MeasuredObject(seen, "chair", Vector3(0.4, 0.0, 3.0), 1, 0.25), 1);
+  EXPECT_EQ(MeasuredObject(seen, "chair", Vector3(0.4, 0.0, 3.0), -1, 0.25), -1);
+  // Radius 0: always the box.
+  EXPECT_EQ(MeasuredObject(seen, "chair", Vector3(0.8, 0.0, 3.0), 1, 0.0), 1);
+  EXPECT_EQ(MeasuredObject(seen, "chair", Vector3(0.8, 0.0, 3.0), -1, 0.0), -1);
+  RenderedSensingConfig c;
+  c.same_object_radius = -0.1;
+  EXPECT_THROW(c.validate(), InvalidInputError);
+}
+
 TEST(Perception, ValidatesItsConfig) {
   PerceptionConfig c = CommittedModel();
   c.template_spacing = 0.0;

@@ -27,6 +27,24 @@ void RenderedSensingConfig::validate() const {
   if (!(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0)) {
     throw InvalidInputError("RenderedSensingConfig: min_visible_fraction must be in [0, 1]");
   }
+  if (!(same_object_radius >= 0.0) || !std::isfinite(same_object_radius)) {
+    throw InvalidInputError("RenderedSensingConfig: same_object_radius must be finite and >= 0");
+  }
+}
+
+int MeasuredObject(const std::vector<VisibleObject>& seen, const std::string& label,
+                   const Vector3& camera_t_object, int box_object, double radius) {
+  int best = box_object;
+  double best_distance = radius;
+  for (const VisibleObject& v : seen) {
+    if (v.label != label) continue;
+    const double d = (v.camera_T_object.translation() - camera_t_object).norm();
+    if (d < best_distance) {
+      best_distance = d;
+      best = v.id;
+    }
+  }
+  return best;
 }
 
 AcceptanceCounts RenderedSensingStats::total() const {
@@ -173,7 +191,6 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
             ++c->accepted;
             if (visible) ++c->accepted_visible;
           }
-          d.object_id = truth->id;
           stats.translation_errors.push_back(t_error);
           stats.rotation_errors_deg.push_back(r_error);
           if (t_error > 0.1 || r_error > 10.0) {
@@ -181,6 +198,8 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
             if (nearest != truth && nearest_t <= 0.1) ++stats.accepted_true_other_object;
           }
         }
+        d.object_id = MeasuredObject(frame.objects, d.label, est.translation(),
+                                     truth ? truth->id : -1, config.same_object_radius);
         m.detections[i].push_back(std::move(d));
       }
     }
