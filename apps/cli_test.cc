@@ -347,7 +347,8 @@ TEST(CliSimulate, RunsEndToEndWithJsonAndPlot) {
 // The robots' loop closure: off with sampled measurements (the paper's rule, Tables 1-3) unless
 // asked for; the two flags exclude each other.
 TEST(CliSimulate, LoopClosureIsOffWithSampledMeasurementsUnlessAskedFor) {
-  const std::string run = "simulate --scenario chairs25 --robots 2 --runs 1 --poses 30 --seed 3 --json";
+  const std::string run =
+      "simulate --scenario chairs25 --robots 2 --runs 1 --poses 30 --seed 3 --json";
   const CommandResult paper = RunMoslam(run);
   ASSERT_EQ(paper.exit_code, 0) << paper.out;
   const auto config = nlohmann::json::parse(LastLine(paper.out))["rows"][0]["config"];

@@ -32,19 +32,26 @@ void RenderedSensingConfig::validate() const {
   }
 }
 
-int MeasuredObject(const std::vector<VisibleObject>& seen, const std::string& label,
-                   const Vector3& camera_t_object, int box_object, double radius) {
-  int best = box_object;
-  double best_distance = radius;
+std::pair<const VisibleObject*, double> NearestSeen(const std::vector<VisibleObject>& seen,
+                                                    const std::string& label,
+                                                    const Vector3& camera_t_object) {
+  const VisibleObject* nearest = nullptr;
+  double distance = std::numeric_limits<double>::infinity();
   for (const VisibleObject& v : seen) {
     if (v.label != label) continue;
     const double d = (v.camera_T_object.translation() - camera_t_object).norm();
-    if (d < best_distance) {
-      best_distance = d;
-      best = v.id;
+    if (d < distance) {
+      distance = d;
+      nearest = &v;
     }
   }
-  return best;
+  return {nearest, distance};
+}
+
+int MeasuredObject(const std::vector<VisibleObject>& seen, const std::string& label,
+                   const Vector3& camera_t_object, int box_object, double radius) {
+  const auto [nearest, distance] = NearestSeen(seen, label, camera_t_object);
+  return nearest != nullptr && distance < radius ? nearest->id : box_object;
 }
 
 AcceptanceCounts RenderedSensingStats::total() const {
@@ -172,16 +179,8 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
         d.information = o.registration.information;
         // The same-label object seen nearest the pose, and the pose's error against it.
         const SE3& est = g.camera_T_object;
-        const VisibleObject* nearest = nullptr;
-        double nearest_t = std::numeric_limits<double>::infinity();
-        for (const VisibleObject& v : frame.objects) {
-          if (v.label != o.detection.label) continue;
-          const double t = (est.translation() - v.camera_T_object.translation()).norm();
-          if (t < nearest_t) {
-            nearest_t = t;
-            nearest = &v;
-          }
-        }
+        const auto [nearest, nearest_t] =
+            NearestSeen(frame.objects, o.detection.label, est.translation());
         if (!truth) {
           stats.false_accepted_errors.emplace_back(
               nearest_t, nearest ? RotationErrorDeg(nearest->camera_T_object, est)

@@ -37,10 +37,10 @@ struct RenderedSensingConfig {
   // Keep every detection's evaluation (RenderedSensingStats::records).
   bool record_detections = false;
   // m: an accepted view's ground-truth object (ObjectDetection::object_id, for evaluation only:
-  // the robots' association precision, the rendezvous', the robust solve's wrong observations) is
-  // the object its registered pose places, when a same-label object seen lies nearer it than this; else
-  // the object of its box (MeasuredObject). Below half the least spacing of two objects of one
-  // label in the worlds (house's kitchen chairs, 0.8 m); 0: always the box's object.
+  // the robots' association precision, the rendezvous', the robust solve's wrong observations)
+  // is the object its registered pose places, when a same-label object seen lies nearer it than
+  // this; else the object of its box (MeasuredObject). Below half the least spacing of two
+  // objects of one label in the worlds (house's kitchen chairs, 0.8 m); 0: always the box's.
   double same_object_radius = 0.25;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
@@ -108,13 +108,19 @@ struct RenderedSensingStats {
   double medianRotationErrorDeg() const;
 };
 
-// The world object an accepted view measures, for evaluation: of the objects seen with the view's
-// label, the one whose true position (camera frame) lies nearest the registered position
-// `camera_t_object`, if nearer than `radius`; otherwise `box_object`, the object whose visible pixels the
-// detection box matches (-1: none, a false detection). The box and the segment can disagree: a box
-// drawn otherwise than the object's pixels counts as false though its segment registers to the
-// object exactly, and the segment of a neighbour (another chair in the box) registers to that
-// neighbour; both are views of the object their pose places, and the robots map them as such.
+// The object seen with `label` whose true position (camera frame) lies nearest `camera_t_object`,
+// and its distance (nullptr and infinity when none is seen).
+std::pair<const VisibleObject*, double> NearestSeen(const std::vector<VisibleObject>& seen,
+                                                    const std::string& label,
+                                                    const Vector3& camera_t_object);
+
+// The world object an accepted view measures, for evaluation: the object seen with the view's
+// label nearest its registered position `camera_t_object` (NearestSeen), if nearer than
+// `radius`; otherwise `box_object`, the object whose visible pixels the detection box matches
+// (-1: none, a false detection). The box and the segment can disagree: a box drawn otherwise
+// than the object's pixels counts as false though its segment registers to the object exactly,
+// and the segment of a neighbour (another chair in the box) registers to that neighbour; both are
+// views of the object their pose places, and the robots map them as such.
 int MeasuredObject(const std::vector<VisibleObject>& seen, const std::string& label,
                    const Vector3& camera_t_object, int box_object, double radius);
 
