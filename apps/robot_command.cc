@@ -26,6 +26,7 @@
 #include "moslam/io/tum.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/online/online_team.h"
+#include "moslam/robust/gnc.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/optimizer.h"
 #include "moslam/transport/dds_transport.h"

@@ -400,6 +400,63 @@ TEST(RobustDgs, WithoutOutliersIsTheLeastSquaresSolve) {
   EXPECT_LT(MaxDistance(r.values, ls.values), 1e-6);
 }
 
+// Two robots that map the same four objects, noise-free; robot 0 closed a loop wrongly (its
+// landmarks 0 and 1, 3 m apart, joined as one object; an object-object factor of 0.2 m / 5 deg,
+// as ObjectSlam's loop closure). Robust as ObjectFactors marks it, the robot owns its weight and
+// GNC rejects it: the estimate is the truth. Least squares in a solve where only the shared pairs
+// and the object measurements are robust (the simulation's mask before), it bends robot 0's map.
+TEST(RobustDgs, ARobotsWrongLoopClosurePairIsRejectedWhenRobust) {
+  Values truth;
+  const std::vector<Vector3> objects = {{1.0, 2.0, 0.0}, {4.0, 2.0, 0.0}, {2.0, -2.0, 0.5},
+                                        {5.0, -1.0, 0.3}};
+  for (int r = 0; r < 2; ++r) {
+    for (int i = 0; i < 6; ++i) {
+      truth[Key::Pose(r, static_cast<std::uint64_t>(i))] =
+          SE3(SO3::Exp(Vector3(0.0, 0.0, 0.1 * i - 0.3 * r)), Vector3(i, 0.5 * r, 0.0));
+    }
+    for (std::size_t k = 0; k < objects.size(); ++k) {
+      truth[Key::Object(r, k)] = SE3(SO3::Exp(Vector3(0.0, 0.0, 0.4 * k)), objects[k]);
+    }
+  }
+  const Matrix6 info = 100.0 * Matrix6::Identity();
+  PoseGraph g;
+  const auto add = [&](const Key& a, const Key& b, const SE3& z, const Matrix6& omega) {
+    g.add(RelativePoseFactor(a, b, z, omega));
+  };
+  for (int r = 0; r < 2; ++r) {
+    for (std::uint64_t i = 0; i + 1 < 6; ++i) {
+      add(Key::Pose(r, i), Key::Pose(r, i + 1),
+          truth.at(Key::Pose(r, i)).between(truth.at(Key::Pose(r, i + 1))), info);
+    }
+    for (std::uint64_t k = 0; k < objects.size(); ++k) {
+      for (std::uint64_t i : {k, k + 2}) {
+        add(Key::Pose(r, i), Key::Object(r, k),
+            truth.at(Key::Pose(r, i)).between(truth.at(Key::Object(r, k))), info);
+      }
+    }
+  }
+  Matrix6 pair_info = Matrix6::Zero();
+  pair_info.topLeftCorner<3, 3>() = std::pow(180.0 / (5.0 * M_PI), 2) * Matrix3::Identity();
+  pair_info.bottomRightCorner<3, 3>() = (1.0 / 0.04) * Matrix3::Identity();
+  add(Key::Object(0, 0), Key::Object(0, 1), SE3(), pair_info);  // the wrong loop closure
+  const std::size_t wrong = g.factors().size() - 1;
+  for (std::uint64_t k = 0; k < objects.size(); ++k) {
+    add(Key::Object(0, k), Key::Object(1, k), SE3(), pair_info);  // the shared objects
+  }
+  RobustDgsOptions options;
+  options.dgs.coarse_correction = true;
+  const std::vector<bool> robust = ObjectFactors(g);
+  ASSERT_TRUE(robust[wrong]);
+  const RobustDgsResult r = RunRobustDgs(g, truth, robust, options);
+  EXPECT_LT(r.weights[wrong], 0.5);
+  EXPECT_EQ(r.outliers, 1);
+  EXPECT_LT(MaxDistance(r.values, truth), 1e-6);
+  std::vector<bool> before = robust;
+  before[wrong] = false;
+  const RobustDgsResult bent = RunRobustDgs(g, truth, before, options);
+  EXPECT_GT(MaxDistance(bent.values, truth), 0.1);
+}
+
 // Two robots linked by one or two separators: the check keeps none (too few to confirm one
 // another), so no robust estimate can place the second robot: a typed error naming the check.
 TEST(RobustDgs, ATeamTheCheckUnlinksIsAnUnderdeterminedErrorNamingTheCheck) {

@@ -189,7 +189,10 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
       const int object = all.factor_objects[first + j];
       const RelativePoseFactor& f = all.graph.factors()[first + j];
       if (object == ObjectSlam::kNoObservation) {
-        right_factors.push_back(f);
+        // Odometry, and the robot's own loop-closure pairs: right unless their landmarks stand
+        // for two world objects.
+        const bool pair = f.a().isObject() && f.b().isObject();
+        if (!pair || !WrongPair(objects, f.a(), f.b())) right_factors.push_back(f);
         continue;
       }
       const bool wrong = object < 0 || object != objects.at(f.b());

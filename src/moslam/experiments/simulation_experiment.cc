@@ -17,6 +17,7 @@
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/robust_dgs.h"
 #include "moslam/metrics/metrics.h"
+#include "moslam/robust/gnc.h"
 #include "moslam/sim/sensing.h"
 #include "moslam/sim/world.h"
 #include "moslam/slam/multi_robot.h"
@@ -91,6 +92,9 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"intra_refused", &RunMetrics::intra_refused},
       {"intra_loop_closures", &RunMetrics::intra_loop_closures},
       {"intra_wrong_loop_closures", &RunMetrics::intra_wrong_loop_closures},
+      {"wrong_loop_closure_factors", &RunMetrics::wrong_loop_closure_factors},
+      {"loop_closure_precision", &RunMetrics::loop_closure_precision},
+      {"loop_closure_recall", &RunMetrics::loop_closure_recall},
       {"inter_precision", &RunMetrics::inter_precision},
       {"inter_recall", &RunMetrics::inter_recall},
       {"rendezvous_bytes", &RunMetrics::rendezvous_bytes},
@@ -422,23 +426,27 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.dgs_are_landmarks = dgs_gt.aligned.objects.are_deg;
 
   if (config.robust) {
-    // Robust: the object-object factors, wrong when their landmarks are other world objects, and
-    // the object-pose factors, wrong when the detection is of another object than its landmark's
-    // (a wrong association inside the robot's own map, as the intra-association errors of Table 2).
-    // A landmark stands for the world object most of its observations are of (ties: the one
-    // that created it): a wrong association inside a map can outnumber the right ones.
+    // Robust: the factors that touch an object (ObjectFactors, as the robot processes), of three
+    // kinds. The object-object factors between robots and those of a robot's own loop closures,
+    // wrong when their landmarks are other world objects; the object-pose factors, wrong when the
+    // detection is of another object than its landmark's (a wrong association inside the robot's
+    // own map, as the intra-association errors of Table 2). A landmark stands for the world object
+    // most of its observations are of (ties: the one that created it): a wrong association inside
+    // a map can outnumber the right ones.
     const std::size_t nf = joint.graph.factors().size();
     const std::map<Key, int> truth_of = LandmarkObjects(joint, slam.robots);
-    std::vector<bool> robust(nf, false), wrong(nf, false), separator(nf, false);
+    const std::vector<bool> robust = ObjectFactors(joint.graph);
+    enum class Kind { kOther, kSeparator, kObservation, kLoopClosure };
+    std::vector<Kind> kind(nf, Kind::kOther);
+    std::vector<bool> wrong(nf, false);
     std::vector<RelativePoseFactor> right;
     for (std::size_t i = 0; i < nf; ++i) {
       const RelativePoseFactor& f = joint.graph.factors()[i];
-      separator[i] = f.a().isObject() && f.b().isObject() && f.a().robot != f.b().robot;
-      const bool observation = joint.factor_objects[i] != ObjectSlam::kNoObservation;
-      robust[i] = separator[i] || observation;
-      if (separator[i]) {
+      if (f.a().isObject() && f.b().isObject()) {
+        kind[i] = f.a().robot != f.b().robot ? Kind::kSeparator : Kind::kLoopClosure;
         wrong[i] = WrongPair(truth_of, f.a(), f.b());
-      } else if (observation) {
+      } else if (joint.factor_objects[i] != ObjectSlam::kNoObservation) {
+        kind[i] = Kind::kObservation;
         wrong[i] = joint.factor_objects[i] < 0 || joint.factor_objects[i] != truth_of.at(f.b());
       }
       if (!wrong[i]) right.push_back(f);
@@ -457,11 +465,11 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
       throw UnlinkedRobotError(fmt::format("experiment {} with {} robots, seed {}: {}",
                                            config.scenario, config.robots, seed, e.what()));
     }
-    // Precision and recall of the rejections, separators and observations apart.
-    auto score = [&](bool separators, double* count, double* precision, double* recall) {
+    // Precision and recall of the rejections, each kind apart.
+    auto score = [&](Kind k, double* count, double* precision, double* recall) {
       int flagged = 0, flagged_wrong = 0, wrong_count = 0;
       for (std::size_t i = 0; i < nf; ++i) {
-        if (!robust[i] || separator[i] != separators) continue;
+        if (!robust[i] || kind[i] != k) continue;
         wrong_count += wrong[i] ? 1 : 0;
         if (r.weights[i] < 0.5) {
           ++flagged;
@@ -472,8 +480,11 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
       *precision = flagged > 0 ? static_cast<double>(flagged_wrong) / flagged : 1.0;
       *recall = wrong_count > 0 ? static_cast<double>(flagged_wrong) / wrong_count : 1.0;
     };
-    score(true, &m.wrong_factors, &m.outlier_precision, &m.outlier_recall);
-    score(false, &m.wrong_observations, &m.observation_precision, &m.observation_recall);
+    score(Kind::kSeparator, &m.wrong_factors, &m.outlier_precision, &m.outlier_recall);
+    score(Kind::kObservation, &m.wrong_observations, &m.observation_precision,
+          &m.observation_recall);
+    score(Kind::kLoopClosure, &m.wrong_loop_closure_factors, &m.loop_closure_precision,
+          &m.loop_closure_recall);
     m.robust_bytes = static_cast<double>(r.bytes());
     m.robust_extra_bytes =
         static_cast<double>(r.weight_bytes + r.control_bytes + r.consistency_bytes);

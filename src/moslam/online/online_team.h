@@ -100,9 +100,10 @@ std::vector<SharedObject> AcceptedPairs(const std::vector<SharedObject>& shared,
 std::pair<Key, Key> UnorderedPair(const Key& a, const Key& b);
 
 // The masks of a robust group solve over a group's graph (GroupProblem::graph with its team
-// flags, or a robot's RobotGroupPart::subgraph with its own): robust, the shared pairs between two
-// robots and the object-pose factors of the robots' own graphs (a team factor is a pose-object
-// factor too, but not robust); checked (the separator check's), every factor but the team ones.
+// flags, or a robot's RobotGroupPart::subgraph with its own): robust, ObjectFactors (gnc.h: the
+// shared pairs between two robots, the object-pose factors of the robots' own graphs and their
+// loop-closure pairs) but the team factors (pose-object factors too, not robust); checked (the
+// separator check's), every factor but the team ones.
 struct RobustGroupMasks {
   std::vector<bool> robust, checked;
 };

@@ -144,6 +144,15 @@ std::vector<bool> DefaultRobustFactors(const PoseGraph& graph) {
   return out;
 }
 
+std::vector<bool> ObjectFactors(const PoseGraph& graph) {
+  std::vector<bool> out;
+  out.reserve(graph.factors().size());
+  for (const RelativePoseFactor& f : graph.factors()) {
+    out.push_back(f.a().isObject() || f.b().isObject());
+  }
+  return out;
+}
+
 GncResult SolveGnc(const PoseGraph& graph, const Values& initial, const std::vector<bool>& robust,
                    const GncOptions& options, const OptimizerOptions& solver) {
   const auto t0 = std::chrono::steady_clock::now();

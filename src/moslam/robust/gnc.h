@@ -105,6 +105,12 @@ std::vector<bool> SeparatorFactors(const PoseGraph& graph);
 // The factors robust by default: those between two robots (inter-robot loop closures, shared
 // objects); in a single-robot graph, the loop closures (poses not consecutive).
 std::vector<bool> DefaultRobustFactors(const PoseGraph& graph);
+// The factors robust in object SLAM: every factor that touches an object landmark (the shared
+// objects' object-object factors between robots, the robots' object measurements, and their own
+// loop closures by object constellations, object-object factors within one robot). Odometry and
+// pose-pose loop closures stay least squares. The simulation, the robot processes and the online
+// group solves take their robust factors from it (online without the held team factors).
+std::vector<bool> ObjectFactors(const PoseGraph& graph);
 
 struct GncResult {
   Values values;

@@ -181,6 +181,21 @@ TEST(SolveGnc, AVariableOnlyRejectedFactorsTouchKeepsTheRoundsEstimate) {
   EXPECT_LT((r.values.at(seen).translation() - object.translation()).norm(), 1e-6);
 }
 
+// Object SLAM's robust factors: every factor that touches an object, whoever owns it; odometry and
+// pose-pose loop closures stay least squares.
+TEST(ObjectFactors, MarksEveryFactorThatTouchesAnObject) {
+  PoseGraph g;
+  const Matrix6 info = Matrix6::Identity();
+  g.add(RelativePoseFactor(Key::Pose(0, 0), Key::Pose(0, 1), SE3(), info));      // odometry
+  g.add(RelativePoseFactor(Key::Pose(0, 0), Key::Pose(0, 5), SE3(), info));      // pose loop
+  g.add(RelativePoseFactor(Key::Pose(0, 1), Key::Object(0, 0), SE3(), info));    // measurement
+  g.add(RelativePoseFactor(Key::Object(0, 0), Key::Object(0, 3), SE3(), info));  // own loop closure
+  g.add(RelativePoseFactor(Key::Object(0, 3), Key::Object(1, 2), SE3(), info));  // shared object
+  g.add(RelativePoseFactor(Key::Pose(0, 5), Key::Pose(1, 0), SE3(), info));      // pose separator
+  EXPECT_EQ(ObjectFactors(g), (std::vector<bool>{false, false, true, true, true, false}));
+  EXPECT_TRUE(ObjectFactors(PoseGraph()).empty());
+}
+
 TEST(SolveGnc, RejectsAMaskOfTheWrongSize) {
   const Dataset data = ReadG2oFolder(BlocksWorld(2));
   EXPECT_THROW(SolveGnc(data.graph, ChordalInitialization(data.graph, SE3()), {true}),

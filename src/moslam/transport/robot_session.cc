@@ -20,6 +20,7 @@
 #include "moslam/io/tum.h"
 #include "moslam/online/group_solve.h"
 #include "moslam/online/online_team.h"
+#include "moslam/robust/gnc.h"
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/event_record.h"
@@ -104,15 +105,6 @@ RobotScenarioData SliceForRobot(const SimulationData& data, int robot, bool know
   }
   d.events = data.rendezvous;
   return d;
-}
-
-std::vector<bool> ObjectFactors(const PoseGraph& graph) {
-  std::vector<bool> out;
-  out.reserve(graph.factors().size());
-  for (const RelativePoseFactor& f : graph.factors()) {
-    out.push_back(f.a().isObject() || f.b().isObject());
-  }
-  return out;
 }
 
 void RobotSessionOptions::validate() const {

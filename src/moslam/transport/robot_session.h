@@ -230,11 +230,6 @@ struct RobotSessionResult {
 PoseGraph SessionSubgraph(const ObjectSlam& slam, const std::vector<SharedObject>& shared,
                           const Matrix6& lambda);
 
-// One flag per factor of `graph`: whether it touches an object landmark (an object-object factor
-// or an object measurement): the factors robust in a session's robust solve, as in the
-// simulation's (dgs.gnc).
-std::vector<bool> ObjectFactors(const PoseGraph& graph);
-
 class RobotSession {
  public:
   // Throws InvalidInputError on bad options, a transport of another robot or inconsistent data;
