@@ -313,8 +313,8 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         // their observations; the outlier-free solve leaves those out).
         std::string robust;
         if (r.config.robust) {
-          robust = fmt::format("; {:.1f} wrong by their landmarks' majority, rejected by the robust "
-                               "solve with precision {:.3f} / recall {:.3f}",
+          robust = fmt::format("; {:.1f} wrong by their landmarks' majority, rejected by the "
+                               "robust solve with precision {:.3f} / recall {:.3f}",
                                r.mean.wrong_loop_closure_factors, r.mean.loop_closure_precision,
                                r.mean.loop_closure_recall);
         }

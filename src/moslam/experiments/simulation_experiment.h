@@ -163,11 +163,11 @@ struct RunMetrics {
   // Robust solve (ExperimentConfig::robust): object-object factors that are wrong (injected or
   // found), the robust solve's outlier precision and recall over them; the same for the
   // object-pose factors (observations) wrongly associated in a robot's own map, and for the
-  // object-object factors of the robots' own loop closures (ExperimentConfig::loop_closure; JSON
-  // only); ground-truth errors of the least-squares DGS (refined), of the robust DGS and of the
-  // outlier-free solve (every wrong factor of the three kinds removed), the robust estimate
-  // against the outlier-free one (same gauge, no alignment), and the robust solve's traffic (all
-  // of it; the weights and its checks alone).
+  // object-object factors of the robots' own loop closures (ExperimentConfig::loop_closure; in
+  // the JSON and on `moslam simulate`'s stderr); ground-truth errors of the least-squares DGS
+  // (refined), of the robust DGS and of the outlier-free solve (every wrong factor of the three
+  // kinds removed), the robust estimate against the outlier-free one (same gauge, no alignment),
+  // and the robust solve's traffic (all of it; the weights and its checks alone).
   double injected = 0, wrong_factors = 0, outlier_precision = 0, outlier_recall = 0;
   double wrong_observations = 0, observation_precision = 0, observation_recall = 0;
   double wrong_loop_closure_factors = 0, loop_closure_precision = 0, loop_closure_recall = 0;

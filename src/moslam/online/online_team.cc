@@ -205,11 +205,11 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
   } else {
     // Robust: the object-object factors among the group's robots (their keys map back to the
     // team's through part[]), the object-pose factors and loop-closure pairs of the robots' own
-    // graphs (the held factors are pose-object factors too, but not robust). The separator check tests the pairs
-    // in the robots' own maps, without the held factors (which pin a robot's landmarks to
-    // copies of earlier solves, so that its map's covariances no longer say how far they may be
-    // off: on chairs25, 6 robots, 10 runs, no wrong pair injected, right pairs set aside 10.6
-    // -> 6.3 per run; and with the object-pose factors robust, 1.3).
+    // graphs (the held factors are pose-object factors too, but not robust). The separator check
+    // tests the pairs in the robots' own maps, without the held factors (which pin a robot's
+    // landmarks to copies of earlier solves, so that its map's covariances no longer say how far
+    // they may be off: on chairs25, 6 robots, 10 runs, no wrong pair injected, right pairs set
+    // aside 10.6 -> 6.3 per run; and with the object-pose factors robust, 1.3).
     const RobustGroupMasks masks = RobustGroupFactors(problem.graph, problem.team);
     const std::vector<bool>& robust = masks.robust;
     const std::vector<bool>& checked = masks.checked;
