@@ -134,6 +134,8 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
         {"consistency_rejected", r.consistency_rejected},
         {"retests", r.retests},
         {"retest_readmitted", r.retest_readmitted},
+        {"group_retests", r.group_retests},
+        {"group_readmitted", r.group_readmitted},
         {"consistency_deferred", r.consistency_deferred},
         {"sweeps", r.sweeps},
         {"seconds", r.seconds},
@@ -163,8 +165,9 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
                "themselves, their robots linked otherwise)\n",
                r.consistency_rejected, r.consistency_deferred);
     if (options.retest_left_out && options.check_separators) {
-      fmt::print("re-tested against the joint estimate: {} left-out separator(s), {} back\n",
-                 r.retests, r.retest_readmitted);
+      fmt::print("re-tested against the joint estimate: {} left-out separator(s), {} back; "
+                 "{} robot pair group(s), {} separator(s) back\n",
+                 r.retests, r.retest_readmitted, r.group_retests, r.group_readmitted);
     }
     fmt::print("traffic: {} bytes (solves {}, weights {} in {} messages, control {}, separator "
                "check {}); {} sweeps; {:.3f} s\n",

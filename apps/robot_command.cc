@@ -88,6 +88,7 @@ DgsNodeOptions NodeOptions(const SolveFlags& f) {
     o.gnc = r.gnc;
     if (r.check_separators) o.separator_check = r.consistency;
     o.retest_left_out = r.retest_left_out;
+    o.retest_groups = r.retest_groups;
     o.solver.refine = true;
   }
   return o;
@@ -102,6 +103,7 @@ RobustDgsOptions ReferenceRobustOptions(const DgsNodeOptions& o) {
   r.check_separators = o.separator_check.has_value();
   if (o.separator_check) r.consistency = *o.separator_check;
   r.retest_left_out = o.retest_left_out;
+  r.retest_groups = o.retest_groups;
   return r;
 }
 
@@ -260,6 +262,8 @@ nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
     j["readmitted"] = r.robust->readmitted;
     j["retests"] = r.robust->retests;  // --retest-left-out: the team's
     j["retest_readmitted"] = r.robust->retest_readmitted;  // of those, its own back
+    j["group_retests"] = r.robust->group_retests;          // the team's groups re-tested
+    j["group_readmitted"] = r.robust->group_readmitted;    // of those, its own back
     j["polished"] = r.robust->polished;
     j["polish_refused"] = r.robust->polish_refused;  // it raised the inliers' cost: not kept
     j["weight_messages"] = r.weight_messages;
@@ -649,6 +653,7 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
   if (robust) {
     std::int64_t messages = 0, binary = 0, dds = 0, check_binary = 0, check_dds = 0;
     int rounds = 0, outliers = 0, check_rejected = 0, retests = 0, retest_readmitted = 0;
+    int group_retests = 0, group_readmitted = 0;
     for (const auto& [r, s] : t.summaries) {
       messages += s["weight_messages"].get<std::int64_t>();
       binary += s["weight_binary_bytes"].get<std::int64_t>();
@@ -660,6 +665,8 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
       outliers += s["outliers"].get<int>();
       retests = std::max(retests, s["retests"].get<int>());
       retest_readmitted += s["retest_readmitted"].get<int>();
+      group_retests = std::max(group_retests, s["group_retests"].get<int>());
+      group_readmitted += s["group_readmitted"].get<int>();
     }
     j["gnc_rounds"] = rounds;
     j["in_process_gnc_rounds"] = robust->iterations;
@@ -679,6 +686,10 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
     j["retest_readmitted"] = retest_readmitted;
     j["in_process_retests"] = robust->retests;
     j["in_process_retest_readmitted"] = robust->retest_readmitted;
+    j["group_retests"] = group_retests;
+    j["group_readmitted"] = group_readmitted;
+    j["in_process_group_retests"] = robust->group_retests;
+    j["in_process_group_readmitted"] = robust->group_readmitted;
     fmt::print("separator check: {} separators left out (in-process {}); {} B binary for it "
                "(in-process {} B), {} B CDR payload of covariances\n",
                check_rejected, robust->consistency_rejected, check_binary,

@@ -17,9 +17,11 @@ struct RobustSolveArgs {
   double gnc_threshold = 0.0;          // 0: GncOptions' default
   int separator_support = 3;           // 0: no separator check
   bool retest_left_out = true;
+  bool retest_groups = true;
   // The GNC threshold and the separator check (whether, its kind and support) in `options`.
   void applyTo(RobustDgsOptions* options) const {
     options->retest_left_out = retest_left_out;
+    options->retest_groups = retest_groups;
     options->gnc.threshold = gnc_threshold;
     options->consistency.map_uncertainty = separator_test == "map";
     options->check_separators = separator_support > 0;
@@ -31,20 +33,26 @@ struct RobustSolveArgs {
                                   fmt::format("{}", gnc_threshold), "--separator-support",
                                   std::to_string(separator_support)};
     if (!retest_left_out) a.push_back("--no-retest-left-out");
+    if (!retest_groups) a.push_back("--no-retest-groups");
     return a;
   }
 };
 
-// --no-retest-left-out (AddRobustSolveFlags adds it; `moslam simulate` alone).
-inline void AddRetestFlag(CLI::App* sub, bool* retest) {
+// --no-retest-left-out and --no-retest-groups (AddRobustSolveFlags adds them; `moslam simulate`
+// alone).
+inline void AddRetestFlags(CLI::App* sub, bool* retest, bool* groups) {
   sub->add_flag("!--no-retest-left-out", *retest,
                 "--robust: do not test, after the inliers' solve, each separator the pairwise "
                 "check left out that agrees with at least --separator-support kept ones of its "
                 "robot pair against the joint estimate (one more solve each; it comes back when it "
-                "raises the optimal cost by at most c2 / 2)");
+                "raises the optimal cost by at most c2 / 2), nor the groups");
+  sub->add_flag("!--no-retest-groups", *groups,
+                "--robust: after that, do not test the separators of each robot pair the check "
+                "left out as a group (all of them in, the truncated cost's weights to a fixed "
+                "point: kept when the truncated cost falls)");
 }
 
-// --separator-test, --gnc-threshold, --separator-support and --no-retest-left-out, written into
+// --separator-test, --gnc-threshold, --separator-support and the re-test flags, written into
 // `args` (which must outlive the parse).
 inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
   sub->add_option("--separator-test", args->separator_test,
@@ -64,7 +72,7 @@ inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
                   "pairwise consistent set if it has at least this many (0: no check)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  AddRetestFlag(sub, &args->retest_left_out);
+  AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
 }
 
 }  // namespace moslam::cli

@@ -72,6 +72,7 @@ struct SimulateArgs {
   bool robust = false;
   double gnc_threshold = 0.0;
   bool retest_left_out = true;
+  bool retest_groups = true;
   bool skip_unlinked = false;
   std::vector<std::string> table{"all"};
   bool json = false;
@@ -137,7 +138,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "22.46, chi-square 6 dof at 0.999)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  AddRetestFlag(sub, &args->retest_left_out);
+  AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
   sub->add_flag("--skip-unlinked", args->skip_unlinked,
                 "leave out (and count) the runs in which a robot never links to robot 0, instead "
                 "of failing");
@@ -240,6 +241,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
           c.base.robust = a.robust;
           c.base.gnc_threshold = a.gnc_threshold;
           c.base.retest_left_out = a.retest_left_out;
+          c.base.retest_groups = a.retest_groups;
           results.push_back(RunOnlineExperiment(c));
         }
       }
@@ -277,6 +279,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         c.robust = a.robust;
         c.gnc_threshold = a.gnc_threshold;
         c.retest_left_out = a.retest_left_out;
+        c.retest_groups = a.retest_groups;
         c.skip_unlinked = a.skip_unlinked;
         c.perceive = perceive;
         c.exclusion_radius = a.exclusion_radius.value_or(rendered ? kRenderedExclusionRadius : 0.0);

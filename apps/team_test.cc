@@ -437,6 +437,25 @@ TEST(Team, RobustScenarioProcessesEqualTheInProcessRobustSolve) {
   fs::remove_all(out);
 }
 
+// The group re-test over DDS (robust_program.h, step 5): chairs25, 4 robots, their loop closures,
+// seed 2, where the check leaves a robot pair's right separators out and only their group brings
+// them back (experiments/simulation_experiment_test.cc): the processes' weights, trials and
+// estimate are the in-process robust solve's.
+TEST(Team, RobustGroupRetestProcessesEqualTheInProcessRobustSolve) {
+  const fs::path out = FreshDir("robust_groups");
+  const nlohmann::json j =
+      RunScenarioTeam(out, 57, {"--robust", "--loop-closure"},
+                      {"--scenario", "chairs25", "--robots", "4", "--seed", "2"});
+  ASSERT_TRUE(j.is_object());
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  EXPECT_GT(j["in_process_group_readmitted"].get<int>(), 0);
+  EXPECT_EQ(j["group_retests"], j["in_process_group_retests"]);
+  EXPECT_EQ(j["group_readmitted"], j["in_process_group_readmitted"]);
+  EXPECT_EQ(j["check_binary_bytes"], j["in_process_check_bytes"]);
+  fs::remove_all(out);
+}
+
 // Robust online group solves between processes: every map and the pairs set aside at the end as
 // the twin's (OnlineOptions::robust). 60 poses, seed 2: pairs set aside and groups left unlinked
 // (transport/online_session_test.cc).

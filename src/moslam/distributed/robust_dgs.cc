@@ -18,6 +18,9 @@ void RobustDgsOptions::validate() const {
   if (!(consistency.threshold >= 0.0)) {
     throw InvalidInputError("RobustDgsOptions: consistency.threshold must be >= 0");
   }
+  if (retest_group_solves < 1) {
+    throw InvalidInputError("RobustDgsOptions: retest_group_solves must be >= 1");
+  }
   if (consistency.min_support < 1) {
     throw InvalidInputError("RobustDgsOptions: consistency.min_support must be >= 1");
   }
@@ -146,6 +149,124 @@ int Retest(const PoseGraph& graph, const std::vector<std::size_t>& candidates, d
   return back;
 }
 
+// The groups of the check's rejects to re-test together (RobustDgsOptions::retest_groups), taken
+// before the one-by-one re-test: per robot pair, in increasing (lower id, higher id), its robust
+// separators left out by the check and still rejected whose two variables inliers hold, support
+// or not.
+std::vector<std::vector<std::size_t>> RetestGroups(const PoseGraph& graph,
+                                                   const SeparatorConsistencyResult& check,
+                                                   const std::vector<bool>& robust,
+                                                   const std::vector<double>& weights) {
+  if (check.support.size() != graph.factors().size()) return {};  // no check ran
+  const std::set<Key> held = InlierKeys(graph, weights);
+  std::map<std::pair<int, int>, std::vector<std::size_t>> groups;
+  for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+    const RelativePoseFactor& f = graph.factors()[i];
+    const int a = f.a().robot, b = f.b().robot;
+    if (a != b && robust[i] && !check.kept[i] && weights[i] < 0.5 && held.count(f.a()) &&
+        held.count(f.b())) {
+      groups[{std::min(a, b), std::max(a, b)}].push_back(i);
+    }
+  }
+  std::vector<std::vector<std::size_t>> out;
+  for (auto& [pair, members] : groups) out.push_back(std::move(members));
+  return out;
+}
+
+// Of a group, the members still rejected (weight < 0.5); none when fewer than two are left (one
+// alone is the one-by-one re-test's).
+std::vector<std::size_t> StillRejected(const std::vector<std::size_t>& group,
+                                       const std::vector<double>& weights) {
+  std::vector<std::size_t> out;
+  for (std::size_t i : group) {
+    if (weights[i] < 0.5) out.push_back(i);
+  }
+  if (out.size() < 2) out.clear();
+  return out;
+}
+
+// The truncated least-squares cost of `values`: per factor r^T Omega r / 2, a robust one's at most
+// c2 / 2, each robot's share (the factors it owns) reduced by total(shares).
+template <class Total>
+double TruncatedCost(const PoseGraph& graph, const std::vector<bool>& robust, const Values& values,
+                     double c2, const Total& total) {
+  std::map<int, double> share;
+  for (const Key& k : graph.keys()) share[k.robot] = 0.0;
+  const std::vector<double> r2 = SquaredResiduals(graph, values);
+  for (std::size_t i = 0; i < r2.size(); ++i) {
+    const RelativePoseFactor& f = graph.factors()[i];
+    share[std::min(f.a().robot, f.b().robot)] += 0.5 * (robust[i] ? std::min(r2[i], c2) : r2[i]);
+  }
+  return total(share);
+}
+
+// The group re-test (RobustDgsOptions::retest_groups) of `group` from the current weights and
+// estimate: the factors it may use are all but the check's other rejects still left out; the
+// group's separators join the inliers (weight 1, every other robust factor 1 if an inlier, else
+// 0), the weighted graph of those factors (WeightedGraph: min_weight for weight 0) is solved by
+// solve(graph, start, round), and the robust factors' weights become 1 where r^T Omega r <= c2
+// at the result, 0 beyond, until no weight changes (changed(counts per robot, round): the
+// team's count) or after max_solves. It is kept (those weights, that estimate) when the
+// truncated cost of those factors falls (truncated(graph, robust, values)). Returns whether it
+// was.
+template <class Solve, class Changed, class Truncated>
+bool RetestGroup(const PoseGraph& graph, const std::vector<bool>& robust,
+                 const std::vector<bool>& left_out, const std::vector<std::size_t>& group,
+                 const GncOptions& gnc, int max_solves, std::vector<double>* weights,
+                 Values* values, const Solve& solve, const Changed& changed,
+                 const Truncated& truncated) {
+  std::vector<bool> usable(graph.factors().size());
+  for (std::size_t i = 0; i < usable.size(); ++i) usable[i] = !left_out[i];
+  for (std::size_t i : group) usable[i] = true;
+  std::vector<std::size_t> index;
+  const PoseGraph sub = SubGraph(graph, usable, &index);
+  std::vector<double> w(index.size());
+  for (std::size_t j = 0; j < index.size(); ++j) {
+    w[j] = !robust[index[j]] || (*weights)[index[j]] >= 0.5 ? 1.0 : 0.0;
+  }
+  for (std::size_t i : group) {
+    w[static_cast<std::size_t>(std::lower_bound(index.begin(), index.end(), i) - index.begin())] =
+        1.0;
+  }
+  Values x = *values;
+  const double c2 = gnc.threshold2();
+  for (int k = 0; k < max_solves; ++k) {
+    try {
+      for (const auto& [key, v] : solve(WeightedGraph(sub, w, gnc.min_weight), x, k)) x[key] = v;
+    } catch (const UnderdeterminedError&) {
+      return false;
+    }
+    const std::vector<double> r2 = SquaredResiduals(sub, x);
+    std::map<int, double> count;
+    for (std::size_t j = 0; j < index.size(); ++j) {
+      if (!robust[index[j]]) continue;
+      const double next = r2[j] <= c2 ? 1.0 : 0.0;
+      const RelativePoseFactor& f = sub.factors()[j];
+      count[std::min(f.a().robot, f.b().robot)] += next != w[j] ? 1.0 : 0.0;
+      w[j] = next;
+    }
+    if (changed(count, k) == 0.0) break;
+  }
+  std::vector<bool> sub_robust;
+  for (std::size_t i : index) sub_robust.push_back(robust[i]);
+  const double before = truncated(sub, sub_robust, *values);
+  const double after = truncated(sub, sub_robust, x);
+  if (!(std::isfinite(after) && after < before)) return false;
+  for (std::size_t j = 0; j < index.size(); ++j) (*weights)[index[j]] = w[j];
+  *values = std::move(x);
+  return true;
+}
+
+// The robust factors the check left out that are still rejected.
+std::vector<bool> LeftOut(const SeparatorConsistencyResult& check, const std::vector<bool>& robust,
+                          const std::vector<double>& weights) {
+  std::vector<bool> out(weights.size(), false);
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i] = robust[i] && !check.kept[i] && weights[i] < 0.5;
+  }
+  return out;
+}
+
 std::vector<bool> Select(const std::vector<bool>& mask, const std::vector<std::size_t>& index) {
   std::vector<bool> out;
   for (std::size_t i : index) out.push_back(mask[i]);
@@ -185,6 +306,7 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
       // The inliers leave part of the graph unanchored: keep GNC's estimate.
     }
     if (solved && options.retest_left_out) {
+      const auto groups = RetestGroups(graph, check, robust, r.weights);
       Retest(graph,
              RetestCandidates(graph, check, robust, r.weights, r.values,
                               options.consistency.min_support),
@@ -193,6 +315,26 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
                return Optimize(g, start, solver).values;
              },
              [](const PoseGraph& g, const Values& x) { return g.cost(x); });
+      for (const std::vector<std::size_t>& group : groups) {
+        if (!options.retest_groups) break;
+        const std::vector<std::size_t> members = StillRejected(group, r.weights);
+        if (members.empty()) continue;
+        const auto sum = [](const std::map<int, double>& share) {
+          double total = 0.0;
+          for (const auto& [robot, x] : share) total += x;
+          return total;
+        };
+        RetestGroup(
+            graph, robust, LeftOut(check, robust, r.weights), members, options.gnc,
+            options.retest_group_solves, &r.weights, &r.values,
+            [&](const PoseGraph& g, const Values& start, int) {
+              return Optimize(g, start, solver).values;
+            },
+            [&](const std::map<int, double>& count, int) { return sum(count); },
+            [&](const PoseGraph& g, const std::vector<bool>& g_robust, const Values& x) {
+              return TruncatedCost(g, g_robust, x, options.gnc.threshold2(), sum);
+            });
+      }
     }
   }
   r.outliers = CountOutliers(robust, r.weights);
@@ -339,6 +481,8 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     });
     const std::vector<std::size_t> candidates = RetestCandidates(
         graph, check, robust, r.weights, r.values, options.consistency.min_support);
+    const std::vector<std::vector<std::size_t>> groups =
+        RetestGroups(graph, check, robust, r.weights);
     const std::vector<int> robots = RobotsOf(graph);
     Coordinator coordinator(robots, &r.control_bytes);
     std::uint32_t step = 0;
@@ -371,6 +515,71 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     r.retests = static_cast<int>(candidates.size());
     r.retest_readmitted = Retest(graph, candidates, options.gnc.threshold2(), &r.weights,
                                  &r.values, trial_solve, team_cost);
+    for (const std::vector<std::size_t>& group : groups) {
+      if (!options.retest_groups) break;
+      const std::vector<std::size_t> members = StillRejected(group, r.weights);
+      if (members.empty()) continue;
+      // A step in which each robot offers the size of its next group: the lowest robot's is tried.
+      std::map<int, double> offers;
+      for (int robot : robots) offers[robot] = 0.0;
+      const RelativePoseFactor& first = graph.factors()[members.front()];
+      offers[std::min(first.a().robot, first.b().robot)] = static_cast<double>(members.size());
+      coordinator.reduce(offers, ++step, /*take_max=*/true);
+      ++r.group_retests;
+      const auto reduce = [&](const std::map<int, double>& share) {
+        std::map<int, double> all;
+        for (int robot : robots) all[robot] = 0.0;
+        for (const auto& [robot, x] : share) all[robot] += x;
+        return coordinator.reduce(all, ++step, /*take_max=*/false);
+      };
+      const std::vector<bool> left_out = LeftOut(check, robust, r.weights);
+      std::vector<bool> usable(n);
+      for (std::size_t i = 0; i < n; ++i) usable[i] = !left_out[i];
+      for (std::size_t i : members) usable[i] = true;
+      // A weight step: the owner of each robust separator it may use sends the other robot its
+      // weight, one message per robot pair.
+      const auto weight_step = [&]() {
+        std::map<std::pair<int, int>, WeightMessage> sent;
+        for (std::size_t i = 0; i < n; ++i) {
+          const int a = graph.factors()[i].a().robot, b = graph.factors()[i].b().robot;
+          if (a == b || !robust[i] || !usable[i]) continue;
+          WeightMessage& m = sent[{std::min(a, b), std::max(a, b)}];
+          m.sender = std::min(a, b);
+          m.receiver = std::max(a, b);
+          m.round = step;
+          m.weights.push_back(r.weights[i]);
+        }
+        for (const auto& [pair, m] : sent) {
+          r.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
+          ++r.weight_messages;
+        }
+      };
+      const auto weighted_solve = [&](const PoseGraph& g, const Values& start, int) {
+        DgsOptions dgs = options.dgs;
+        dgs.refine = true;
+        const DgsResult trial = RunDgs(g, start, dgs);
+        r.solve_bytes += trial.bytes;
+        r.sweeps += trial.rotation.iterations + trial.pose.iterations + trial.refine.sweeps;
+        return trial.values;
+      };
+      // The weights to the truncated cost's and the group's in (a weight step), the estimates of
+      // the factors the trial may use (for the truncated cost before).
+      weight_step();
+      r.consistency_bytes += LeftOutEstimateBytes(
+          graph, r.values, [&](std::size_t i, const Key&) { return usable[i]; });
+      if (RetestGroup(graph, robust, left_out, members, options.gnc, options.retest_group_solves,
+                      &r.weights, &r.values, weighted_solve,
+                      [&](const std::map<int, double>& count, int) {
+                        weight_step();
+                        return reduce(count);
+                      },
+                      [&](const PoseGraph& g, const std::vector<bool>& g_robust,
+                          const Values& x) {
+                        return TruncatedCost(g, g_robust, x, options.gnc.threshold2(), reduce);
+                      })) {
+        for (std::size_t i : members) r.group_readmitted += r.weights[i] >= 0.5 ? 1 : 0;
+      }
+    }
   }
   r.outliers = CountOutliers(robust, r.weights);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

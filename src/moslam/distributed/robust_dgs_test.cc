@@ -332,6 +332,7 @@ TEST(RobustDgs, RetestBringsBackARightSeparatorTheCheckLeftOutAndNotAWrongOne) {
   EXPECT_GT(MaxDistance(plain.values, optimum), 0.05);
 
   options.retest_left_out = true;
+  options.retest_groups = false;
   const RobustDgsResult r = RunRobustDgs(g, initial, robust, options);
   EXPECT_EQ(r.consistency_rejected, plain.consistency_rejected);
   EXPECT_EQ(r.retests, 2);  // separator 2 and the 0.4 m copy
@@ -352,6 +353,20 @@ TEST(RobustDgs, RetestBringsBackARightSeparatorTheCheckLeftOutAndNotAWrongOne) {
     EXPECT_EQ(central.weights[i] < 0.5, r.weights[i] < 0.5) << "factor " << i;
   }
   EXPECT_LT(MaxDistance(central.values, optimum), 1e-6);
+
+  // Then the group of the three left out (the near miss and the two 30 deg ones): tried, and the
+  // truncated cost does not fall with them, so nothing changes.
+  options.retest_groups = true;
+  const RobustDgsResult grouped = RunRobustDgs(g, initial, robust, options);
+  EXPECT_EQ(grouped.group_retests, 1);
+  EXPECT_EQ(grouped.group_readmitted, 0);
+  EXPECT_EQ(grouped.weights, r.weights);
+  EXPECT_LT(MaxDistance(grouped.values, optimum), 1e-6);
+  EXPECT_GT(grouped.weight_messages, r.weight_messages);
+  const GncResult central_grouped = SolveRobustCentralized(
+      g, [](const PoseGraph& kept) { return ChordalInitialization(kept, SE3()); }, robust,
+      options);
+  EXPECT_EQ(central_grouped.weights, central.weights);
 }
 
 // With the separator check first: blocks_world in 16 robots, 90 % of the separators wrong.
@@ -415,7 +430,8 @@ TEST(RobustDgs, ARobotsWrongLoopClosurePairIsRejectedWhenRobust) {
           SE3(SO3::Exp(Vector3(0.0, 0.0, 0.1 * i - 0.3 * r)), Vector3(i, 0.5 * r, 0.0));
     }
     for (std::size_t k = 0; k < objects.size(); ++k) {
-      truth[Key::Object(r, k)] = SE3(SO3::Exp(Vector3(0.0, 0.0, 0.4 * k)), objects[k]);
+      truth[Key::Object(r, k)] =
+          SE3(SO3::Exp(Vector3(0.0, 0.0, 0.4 * static_cast<double>(k))), objects[k]);
     }
   }
   const Matrix6 info = 100.0 * Matrix6::Identity();
@@ -484,11 +500,14 @@ TEST(RobustDgs, ATeamTheCheckUnlinksIsAnUnderdeterminedErrorNamingTheCheck) {
   EXPECT_NO_THROW(RunRobustDgs(two, initial, DefaultRobustFactors(two), options));
 }
 
-TEST(RobustDgs, RejectsAMaskOfTheWrongSize) {
+TEST(RobustDgs, RejectsBadMasksAndOptions) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   EXPECT_THROW(RunRobustDgs(data.graph, data.initial, {true, false}), InvalidInputError);
   const std::vector<bool> robust = DefaultRobustFactors(data.graph);
   EXPECT_THROW(RunRobustDgs(data.graph, data.initial, robust, {}, {true}), InvalidInputError);
+  RobustDgsOptions no_solve;
+  no_solve.retest_group_solves = 0;
+  EXPECT_THROW(RunRobustDgs(data.graph, data.initial, robust, no_solve), InvalidInputError);
 }
 
 TEST(WeightMessage, RoundTripsAndRejectsBadBytes) {

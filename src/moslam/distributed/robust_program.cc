@@ -15,6 +15,9 @@ namespace moslam {
 void RobustProgramOptions::validate() const {
   solver.validate();
   gnc.validate();
+  if (retest_group_solves < 1) {
+    throw InvalidInputError("RobustProgramOptions: retest_group_solves must be >= 1");
+  }
   if (solver.order != SweepOrder::kJacobi) {
     throw InvalidInputError("RobustProgramOptions: solver.order must be Jacobi (the robots of a "
                             "team solve in parallel)");
@@ -79,6 +82,7 @@ class RobustProgram {
       if (a == b) continue;
       std::vector<std::size_t>& list = pairs_[a == p_.robot ? b : a];  // every neighbour
       if (p_.checked.empty() || p_.checked[i]) list.push_back(i);
+      shared_[a == p_.robot ? b : a].push_back(i);
     }
     full_ = MakeIndex(p_.robot, p_.subgraph, p_.robust);
   }
@@ -415,17 +419,17 @@ class RobustProgram {
   // After GNC: the higher robot of each pair sends the lower its estimates of its variables in
   // the robust separators the check left out (empty messages elsewhere), for their residuals.
   void fetchLeftOut(const std::vector<bool>& kept) {
-    sendLeftOut([&](std::size_t i, const Key&) { return !kept[i] && p_.robust[i]; });
+    sendEstimates([&](std::size_t i, const Key&) { return !kept[i] && p_.robust[i]; });
   }
 
   // One step: the higher robot of each pair sends the lower its estimates of its variable `mine`
   // in the separators i with select(i, mine) (empty messages elsewhere), each message counted
   // with the check. Returns the variables received, now among its copies.
   template <class Select>
-  std::set<Key> sendLeftOut(const Select& select) {
+  std::set<Key> sendEstimates(const Select& select) {
     (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
     std::vector<OutgoingMessage> estimates;
-    for (const auto& [other, list] : pairs_) {
+    for (const auto& [other, list] : shared_) {
       OutgoingMessage o = emptyMessageTo(other);
       if (other < p_.robot) {
         std::set<Key> keys;
@@ -555,25 +559,32 @@ class RobustProgram {
   // As RunRobustDgs: R1, the higher robot of each pair sends the lower its estimates of its
   // variables, held by inliers, in the robust separators the check left out and still rejected;
   // R2, the lower robot's candidates (support, both ends held) by r^T Omega r, then subgraph
-  // order; then per candidate, team-wide in increasing r^T Omega r (ties: the lower robot): a step
-  // choosing it, a step with its trial weight, the solve of the inliers with it, a step reducing
-  // their cost F1; it stays when 2 (F1 - F0) <= c2, else the weights and estimate go back.
+  // order, and its groups (retest_groups: per neighbour of higher id, increasing, the separators
+  // left out with both ends held); then per candidate, team-wide in increasing r^T Omega r (ties:
+  // the lower robot), a trial (tryCandidate), and per group with two or more members still
+  // rejected, team-wide in increasing (robot, neighbour), a trial of all of them.
   void retest(const std::vector<bool>& kept, std::uint32_t round) {
     const std::vector<RelativePoseFactor>& factors = p_.subgraph.factors();
     const auto left_out = [&](std::size_t i) {
       return p_.robust[i] && !kept[i] && out_.weights[i] < 0.5;
     };
     const std::set<Key> held_there =
-        sendLeftOut([&](std::size_t i, const Key& mine) { return left_out(i) && held(mine); });
+        sendEstimates([&](std::size_t i, const Key& mine) { return left_out(i) && held(mine); });
     std::vector<std::pair<double, std::size_t>> mine;
+    std::vector<std::vector<std::size_t>> groups;
     for (const auto& [other, list] : pairs_) {
       if (other < p_.robot) continue;
+      groups.emplace_back();
       for (std::size_t i : list) {
         const RelativePoseFactor& f = factors[i];
         const bool a_mine = f.a().robot == p_.robot;
+        if (!left_out(i) || !held(a_mine ? f.a() : f.b()) ||
+            !held_there.count(a_mine ? f.b() : f.a())) {
+          continue;
+        }
+        groups.back().push_back(i);
         const auto it = support_.find(i);
-        if (left_out(i) && it != support_.end() && it->second >= consistency_.min_support &&
-            held(a_mine ? f.a() : f.b()) && held_there.count(a_mine ? f.b() : f.a())) {
+        if (it != support_.end() && it->second >= consistency_.min_support) {
           mine.emplace_back(2.0 * f.cost(values_.at(f.a()), values_.at(f.b())), i);
         }
       }
@@ -581,7 +592,8 @@ class RobustProgram {
     std::sort(mine.begin(), mine.end());
     std::size_t next = 0;
     double f0 = inlier_cost_;
-    for (std::uint32_t k = round;; ++k) {
+    std::uint32_t k = round;
+    for (;; ++k) {
       TeamReport offer;
       offer.value[0] = next < mine.size() ? 1.0 : 0.0;
       offer.value[1] = next < mine.size() ? mine[next].first : 0.0;
@@ -594,32 +606,137 @@ class RobustProgram {
           best = o.value[1];
         }
       }
-      if (chosen < 0) return;
+      if (chosen < 0) break;
       ++out_.retests;
-      const std::vector<double> weights = out_.weights;
-      const Values values = values_;
-      std::size_t candidate = factors.size();
-      if (chosen == p_.robot) {
-        candidate = mine[next++].second;
-        out_.weights[candidate] = 1.0;
+      std::vector<std::size_t> candidate;
+      if (chosen == p_.robot) candidate = {mine[next++].second};
+      out_.retest_readmitted += tryCandidate(candidate, k, &f0);
+    }
+    if (!options_.retest_groups) return;
+    std::size_t group = 0;
+    for (++k;; ++k) {
+      std::vector<std::size_t> left;
+      for (; group < groups.size() && left.empty(); ++group) {
+        for (std::size_t i : groups[group]) {
+          if (out_.weights[i] < 0.5) left.push_back(i);
+        }
+        if (left.size() < 2) left.clear();  // one alone: the one-by-one re-test's
       }
-      // The candidate's robots need not be neighbours in the last solve: an agent of the whole
-      // subgraph for the weight step (see AgentFactory).
-      (void)make_agent_(p_.subgraph, values_);
-      exchangeWeights(full_, out_.weights, k, 0.0);
-      const PoseGraph trial = SubGraph(p_.subgraph, Inliers(out_.weights));
-      solve(trial);
-      TeamReport cost;
-      cost.value[0] = ownedCost(trial);
-      const double f1 = TeamSum(step(cost), 0);
-      if (std::isfinite(f1) && 2.0 * (f1 - f0) <= options_.gnc.threshold2()) {
-        f0 = f1;
-        if (candidate < factors.size()) ++out_.retest_readmitted;
-      } else {
-        out_.weights = weights;
-        values_ = values;
+      TeamReport offer;
+      offer.value[0] = static_cast<double>(left.size());
+      const TeamStep offers = step(offer);
+      int chosen = -1;
+      for (const auto& [r, o] : offers.reports) {  // robot id order: the lowest offering
+        if (o.value[0] > 0.0) {
+          chosen = r;
+          break;
+        }
+      }
+      if (chosen < 0) return;
+      if (chosen != p_.robot && !left.empty()) --group;  // offered again in the next step
+      ++out_.group_retests;
+      if (chosen != p_.robot) left.clear();
+      if (tryGroup(left, kept, &k)) {
+        for (std::size_t i : left) out_.group_readmitted += out_.weights[i] >= 0.5 ? 1 : 0;
       }
     }
+  }
+
+  // One trial of the re-test, in step k: the separators of `candidate` (its own; empty on the
+  // other robots) get weight 1, the weight step, the inliers' solve, a step reducing their cost
+  // F1; they stay when 2 (F1 - F0) <= c2, F0 then F1; else every robot puts its weights and
+  // estimate back. Returns how many of its own came back.
+  int tryCandidate(const std::vector<std::size_t>& candidate, std::uint32_t k, double* f0) {
+    const std::vector<double> weights = out_.weights;
+    const Values values = values_;
+    for (std::size_t i : candidate) out_.weights[i] = 1.0;
+    // The candidate's robots need not be neighbours in the last solve: an agent of the whole
+    // subgraph for the weight step (see AgentFactory).
+    (void)make_agent_(p_.subgraph, values_);
+    exchangeWeights(full_, out_.weights, k, 0.0);
+    const PoseGraph trial = SubGraph(p_.subgraph, Inliers(out_.weights));
+    solve(trial);
+    TeamReport cost;
+    cost.value[0] = ownedCost(trial);
+    const double f1 = TeamSum(step(cost), 0);
+    if (std::isfinite(f1) && 2.0 * (f1 - *f0) <= options_.gnc.threshold2()) {
+      *f0 = f1;
+      return static_cast<int>(candidate.size());
+    }
+    out_.weights = weights;
+    values_ = values;
+    return 0;
+  }
+
+  // The trial of a group (RunRobustDgs's RetestGroup), from step *k on: the weights of its
+  // robust factors to the truncated cost's (1 for an inlier, 0 else), the group's (its own;
+  // empty on the other robots) 1, a weight step; the factors it may use (all but the check's
+  // rejects still left out), a step in which the higher robot of each pair sends the lower its
+  // estimates of its variables in them (for the truncated cost before); then solves of the
+  // weighted factors it may use, each followed by a weight step with the weights it owns at the
+  // result (1 within c2, else 0) and the team's count of changed ones, until none changed or
+  // after retest_group_solves; a step reducing the truncated cost before and after. Kept when it
+  // fell, else every robot puts its weights and estimate back.
+  bool tryGroup(const std::vector<std::size_t>& group, const std::vector<bool>& kept,
+                std::uint32_t* k) {
+    const std::size_t n = p_.subgraph.factors().size();
+    const double c2 = options_.gnc.threshold2();
+    const std::vector<double> weights = out_.weights;
+    const Values values = values_;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (p_.robust[i]) out_.weights[i] = out_.weights[i] >= 0.5 ? 1.0 : 0.0;
+    }
+    for (std::size_t i : group) out_.weights[i] = 1.0;
+    (void)make_agent_(p_.subgraph, values_);
+    exchangeWeights(full_, out_.weights, *k, 0.0);
+    std::vector<bool> usable(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      usable[i] = !(p_.robust[i] && !kept[i] && out_.weights[i] < 0.5);
+    }
+    sendEstimates([&](std::size_t i, const Key&) { return usable[i]; });
+    std::vector<std::size_t> index;
+    const PoseGraph sub = SubGraph(p_.subgraph, usable, &index);
+    std::vector<bool> sub_robust;
+    for (std::size_t i : index) sub_robust.push_back(p_.robust[i]);
+    const double before = ownedTruncatedCost(sub, sub_robust);
+    for (int s = 0; s < options_.retest_group_solves; ++s) {
+      std::vector<double> w;
+      for (std::size_t i : index) w.push_back(out_.weights[i]);
+      solve(WeightedGraph(sub, w, options_.gnc.min_weight));
+      double changed = 0.0;
+      for (std::size_t i : full_.owned) {
+        if (!usable[i]) continue;
+        const RelativePoseFactor& f = p_.subgraph.factors()[i];
+        const double next = 2.0 * f.cost(values_.at(f.a()), values_.at(f.b())) <= c2 ? 1.0 : 0.0;
+        if (next != out_.weights[i]) changed += 1.0;
+        out_.weights[i] = next;
+      }
+      (void)make_agent_(p_.subgraph, values_);
+      if (TeamSum(exchangeWeights(full_, out_.weights, ++*k, changed), 0) == 0.0) break;
+    }
+    TeamReport cost;
+    cost.value[0] = before;
+    cost.value[1] = ownedTruncatedCost(sub, sub_robust);
+    const TeamStep got = step(cost);
+    const double after = TeamSum(got, 1);
+    if (std::isfinite(after) && after < TeamSum(got, 0)) return true;
+    out_.weights = weights;
+    values_ = values;
+    return false;
+  }
+
+  // The truncated cost of the factors of `graph` it owns (r^T Omega r / 2, a robust one's at most
+  // c2 / 2) at its estimate and copies.
+  double ownedTruncatedCost(const PoseGraph& graph, const std::vector<bool>& robust) const {
+    const double c2 = options_.gnc.threshold2();
+    double cost = 0.0;
+    for (std::size_t i = 0; i < graph.factors().size(); ++i) {
+      const RelativePoseFactor& f = graph.factors()[i];
+      if (std::min(f.a().robot, f.b().robot) != p_.robot) continue;
+      const double r2 = 2.0 * f.cost(values_.at(f.a()), values_.at(f.b()));
+      cost += 0.5 * (robust[i] ? std::min(r2, c2) : r2);
+    }
+    return cost;
   }
 
   const RobustRobotProblem& p_;
@@ -630,6 +747,7 @@ class RobustProgram {
   SeparatorConsistencyOptions consistency_;  // threshold resolved
   RobustIndex full_;                         // the whole subgraph's robust factors
   std::map<int, std::vector<std::size_t>> pairs_;  // per neighbour: every checked separator
+  std::map<int, std::vector<std::size_t>> shared_;  // per neighbour: every separator
   double check_rejected_by_team_ = 0.0;  // separators the check left out, over the team
   Values values_;                                  // its estimate and copies
   std::map<std::size_t, int> support_;  // per separator it checked: the check's support

@@ -33,7 +33,18 @@
 //      (the team takes the lowest, ties to the lower robot id; none left: done), a weight step
 //      (the owner's weight 1), the solve of the inliers with it, and a step reducing their cost
 //      F1: it stays when 2 (F1 - F0) <= c2 (F0 the inliers' cost so far), else every robot puts
-//      its weights and estimate back.
+//      its weights and estimate back. Then, with retest_groups, the groups (RunRobustDgs's): a
+//      step in which every robot offers the size of its next group of two or more separators
+//      still left out (per neighbour of higher id, increasing: those with both ends held, support
+//      or not); the team takes the lowest robot offering. The trial: every robot sets the robust
+//      weights to 1 for an inlier, else 0, the group's owner its separators to 1, a weight step;
+//      a step in which the higher robot of each pair sends the lower its estimates of its
+//      variables in the factors it may use (all but the check's rejects still left out), for the
+//      truncated cost before; then solves of those factors weighted (WeightedGraph), each followed
+//      by a weight step with the weights it owns at the result (1 within c2, else 0) and the
+//      team's count of changed ones, until none changed or after retest_group_solves; a step
+//      reducing the truncated cost of those factors before and after: kept when it fell, else
+//      every robot puts its weights and estimate back.
 // Before step 1, with options.check_separators, the pairwise check of the separators
 // (separator_consistency.h, PCM), as RunRobustDgs runs it:
 //   C1. every robot builds its own map (its own factors solved alone, the robust ones by GNC-TLS,
@@ -101,6 +112,9 @@ struct RobustProgramOptions {
   // After the inliers' solve, the check's rejects re-tested against the joint estimate, as
   // RobustDgsOptions::retest_left_out (step 5 at the top; without the check, nothing to re-test).
   bool retest_left_out = true;
+  // Then the robot pairs' groups of the check's rejects, as RobustDgsOptions::retest_groups.
+  bool retest_groups = true;
+  int retest_group_solves = 10;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
@@ -131,6 +145,8 @@ struct RobustProgramResult {
   int readmitted = 0;   // owned factors back after GNC (r2 within c2)
   int retests = 0;            // candidates re-tested by the team (retest_left_out), and of those
   int retest_readmitted = 0;  // it owns, the ones back
+  int group_retests = 0;      // groups re-tested by the team (retest_groups), and of the
+  int group_readmitted = 0;   // separators it owns in them, the ones back
   bool polished = false;  // the inliers were solved alone
   bool polish_refused = false;  // ... but that solve raised their cost: the rounds' estimate kept
   int outliers = 0;     // robust factors of the subgraph with weight < 0.5

@@ -107,6 +107,8 @@ RobustDgsOptions ReferenceOptions(const RobustProgramOptions& o) {
   r.check_separators = o.check_separators;
   r.consistency = o.consistency;
   r.retest_left_out = o.retest_left_out;
+  r.retest_groups = o.retest_groups;
+  r.retest_group_solves = o.retest_group_solves;
   return r;
 }
 
@@ -346,9 +348,14 @@ TEST(RobustProgram, TheCheckWithMapCovariancesIsRunRobustDgs) {
   const TeamOutcome team = RunTeam(graph, initial, robust, options);
   ASSERT_EQ(team.error, "");
   // Robot 1's map estimates of its 8 separator variables and their covariance, then its
-  // estimates of the 2 in the rejected separators for the readmission, and again after the
-  // inliers' solve for the re-test (which finds no candidate): RunRobustDgs's count.
-  EXPECT_EQ(team.results.at(1).check_messages, 4);
+  // estimates of the 2 in the rejected separators for the readmission, again after the inliers'
+  // solve for the re-test (which finds no candidate), and its estimates in the factors the group
+  // trial of the two wrong ones may use (which keeps them out): RunRobustDgs's count.
+  ASSERT_EQ(reference.group_retests, 1);
+  ASSERT_EQ(reference.group_readmitted, 0);
+  EXPECT_EQ(team.results.at(1).check_messages, 5);
+  EXPECT_EQ(team.results.at(0).group_retests, 1);
+  EXPECT_EQ(team.results.at(1).group_retests, 1);
   EXPECT_EQ(team.results.at(1).check_bytes, reference.consistency_bytes);
   EXPECT_EQ(team.results.at(0).check_rejected, 2);
 }
@@ -505,6 +512,9 @@ TEST(RobustProgram, RejectsBadInput) {
   options.solver.order = SweepOrder::kGaussSeidel;
   EXPECT_THROW(RunRobustRobotProgram(p, options, make, channel), InvalidInputError);
   options.solver.order = SweepOrder::kJacobi;
+  options.retest_group_solves = 0;
+  EXPECT_THROW(RunRobustRobotProgram(p, options, make, channel), InvalidInputError);
+  options.retest_group_solves = 10;
   EXPECT_THROW(RunRobustRobotProgram(p, options, nullptr, channel), InvalidInputError);
 }
 

@@ -98,6 +98,7 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
     RobustDgsOptions robust;  // its dgs: options.solver (OnlineOptions::robust)
     robust.gnc.threshold = config.base.gnc_threshold;
     robust.retest_left_out = config.base.retest_left_out;
+    robust.retest_groups = config.base.retest_groups;
     options.robust = robust;
   }
 

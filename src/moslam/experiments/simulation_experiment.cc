@@ -457,6 +457,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
     options.gnc.threshold = config.gnc_threshold;
     options.retest_left_out = config.retest_left_out;
+    options.retest_groups = config.retest_groups;
     RobustDgsResult r;
     try {
       r = RunRobustDgs(joint.graph, joint.initial, robust, options);

@@ -94,8 +94,9 @@ struct ExperimentConfig {
   bool robust = false;
   // GNC's threshold on r^T Omega r of an object-object factor (0: GncOptions' default).
   double gnc_threshold = 0.0;
-  // RobustDgsOptions::retest_left_out.
+  // RobustDgsOptions::retest_left_out and retest_groups.
   bool retest_left_out = true;
+  bool retest_groups = true;
   // The robots' landmark exclusion radius (ObjectSlamConfig::exclusion_radius; m, 0: off). `moslam
   // simulate` sets 0.5 m with --perception rendered: the front-end confuses a chair with its
   // quarter and half turns, which sampled measurements never do.

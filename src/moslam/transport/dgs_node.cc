@@ -327,6 +327,7 @@ class DgsNode::Impl final : public TeamChannel {
     options.check_separators = options_.separator_check.has_value();
     if (options_.separator_check) options.consistency = *options_.separator_check;
     options.retest_left_out = options_.retest_left_out;
+    options.retest_groups = options_.retest_groups;
     bool first = true;
     const AgentFactory make = [&](const PoseGraph& graph, const Values& start) -> RobotAgent& {
       for (const auto& [k, x] : agent_->estimate()) own_[k] = x;

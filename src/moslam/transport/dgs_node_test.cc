@@ -584,6 +584,7 @@ RobustDgsResult RobustReference(const Dataset& data, const DgsNodeOptions& o) {
   ro.gnc = *o.gnc;
   ro.consistency = *o.separator_check;
   ro.retest_left_out = o.retest_left_out;
+  ro.retest_groups = o.retest_groups;
   return RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), ro);
 }
 
