@@ -150,21 +150,21 @@ int Retest(const PoseGraph& graph, const std::vector<std::size_t>& candidates, d
 }
 
 // The groups of the check's rejects to re-test together (RobustDgsOptions::retest_groups), taken
-// before the one-by-one re-test: per robot pair, in increasing (lower id, higher id), its robust
-// separators left out by the check and still rejected whose two variables inliers hold, support
-// or not.
+// before the one-by-one re-test: per robot pair, in increasing (lower id, higher id), the
+// separators of its runner-up set (SeparatorConsistencyResult::runner_up) still rejected whose
+// two variables inliers hold.
 std::vector<std::vector<std::size_t>> RetestGroups(const PoseGraph& graph,
                                                    const SeparatorConsistencyResult& check,
                                                    const std::vector<bool>& robust,
                                                    const std::vector<double>& weights) {
-  if (check.support.size() != graph.factors().size()) return {};  // no check ran
+  if (check.runner_up.size() != graph.factors().size()) return {};  // no check ran
   const std::set<Key> held = InlierKeys(graph, weights);
   std::map<std::pair<int, int>, std::vector<std::size_t>> groups;
   for (std::size_t i = 0; i < graph.factors().size(); ++i) {
     const RelativePoseFactor& f = graph.factors()[i];
     const int a = f.a().robot, b = f.b().robot;
-    if (a != b && robust[i] && !check.kept[i] && weights[i] < 0.5 && held.count(f.a()) &&
-        held.count(f.b())) {
+    if (a != b && robust[i] && !check.kept[i] && check.runner_up[i] && weights[i] < 0.5 &&
+        held.count(f.a()) && held.count(f.b())) {
       groups[{std::min(a, b), std::max(a, b)}].push_back(i);
     }
   }
@@ -173,15 +173,15 @@ std::vector<std::vector<std::size_t>> RetestGroups(const PoseGraph& graph,
   return out;
 }
 
-// Of a group, the members still rejected (weight < 0.5); none when fewer than two are left (one
-// alone is the one-by-one re-test's).
+// Of a group, the members still rejected (weight < 0.5); none when fewer than
+// GroupMinimum(min_support) are left.
 std::vector<std::size_t> StillRejected(const std::vector<std::size_t>& group,
-                                       const std::vector<double>& weights) {
+                                       const std::vector<double>& weights, int min_support) {
   std::vector<std::size_t> out;
   for (std::size_t i : group) {
     if (weights[i] < 0.5) out.push_back(i);
   }
-  if (out.size() < 2) out.clear();
+  if (out.size() < GroupMinimum(min_support)) out.clear();
   return out;
 }
 
@@ -317,7 +317,8 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
              [](const PoseGraph& g, const Values& x) { return g.cost(x); });
       for (const std::vector<std::size_t>& group : groups) {
         if (!options.retest_groups) break;
-        const std::vector<std::size_t> members = StillRejected(group, r.weights);
+        const std::vector<std::size_t> members =
+          StillRejected(group, r.weights, options.consistency.min_support);
         if (members.empty()) continue;
         const auto sum = [](const std::map<int, double>& share) {
           double total = 0.0;
@@ -421,9 +422,11 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     check = part;
     check.kept.assign(n, true);
     check.support.assign(n, -1);
+    check.runner_up.assign(n, false);
     for (std::size_t j = 0; j < seen.size(); ++j) {
       check.kept[seen[j]] = part.kept[j];
       check.support[seen[j]] = part.support[j];
+      check.runner_up[seen[j]] = part.runner_up[j];
     }
   }
   std::vector<std::size_t> index;
@@ -517,7 +520,8 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
                                  &r.values, trial_solve, team_cost);
     for (const std::vector<std::size_t>& group : groups) {
       if (!options.retest_groups) break;
-      const std::vector<std::size_t> members = StillRejected(group, r.weights);
+      const std::vector<std::size_t> members =
+          StillRejected(group, r.weights, options.consistency.min_support);
       if (members.empty()) continue;
       // A step in which each robot offers the size of its next group: the lowest robot's is tried.
       std::map<int, double> offers;

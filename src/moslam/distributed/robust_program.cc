@@ -282,6 +282,7 @@ class RobustProgram {
       int largest = 0;                // its largest consistent set
       std::vector<std::size_t> kept;  // PairConsistency::kept: positions in pairs_[other]
       std::vector<int> support;       // per position: the members of kept it agrees with
+      std::vector<std::size_t> runner_up;  // PairConsistency::runner_up
     };
     std::map<int, Verdict> verdicts;
     for (const auto& [other, list] : pairs_) {
@@ -312,6 +313,7 @@ class RobustProgram {
       v.largest = check.largest;
       v.kept = std::move(check.kept);
       v.support = std::move(check.support);
+      v.runner_up = std::move(check.runner_up);
       v.confirmed = v.largest >= consistency_.min_support;
     }
     const auto verdictWeights = [&](int other, bool final) {
@@ -389,6 +391,9 @@ class RobustProgram {
       const std::vector<std::size_t>& list = pairs_.at(other);
       for (std::size_t j = 0; j < list.size(); ++j) {
         support_[list[j]] = v.kept.empty() ? 0 : v.support[j];
+      }
+      if (!v.kept.empty()) {
+        for (std::size_t j : v.runner_up) runner_up_.insert(list[j]);
       }
     }
     std::vector<bool> kept(p_.subgraph.factors().size(), true);
@@ -560,9 +565,10 @@ class RobustProgram {
   // variables, held by inliers, in the robust separators the check left out and still rejected;
   // R2, the lower robot's candidates (support, both ends held) by r^T Omega r, then subgraph
   // order, and its groups (retest_groups: per neighbour of higher id, increasing, the separators
-  // left out with both ends held); then per candidate, team-wide in increasing r^T Omega r (ties:
-  // the lower robot), a trial (tryCandidate), and per group with two or more members still
-  // rejected, team-wide in increasing (robot, neighbour), a trial of all of them.
+  // left out of the pair's runner-up set with both ends held); then per candidate, team-wide in
+  // increasing r^T Omega r (ties: the lower robot), a trial (tryCandidate), and per group with
+  // GroupMinimum or more members still rejected, team-wide in increasing (robot, neighbour), a
+  // trial of all of them (tryGroup).
   void retest(const std::vector<bool>& kept, std::uint32_t round) {
     const std::vector<RelativePoseFactor>& factors = p_.subgraph.factors();
     const auto left_out = [&](std::size_t i) {
@@ -582,7 +588,7 @@ class RobustProgram {
             !held_there.count(a_mine ? f.b() : f.a())) {
           continue;
         }
-        groups.back().push_back(i);
+        if (runner_up_.count(i)) groups.back().push_back(i);
         const auto it = support_.find(i);
         if (it != support_.end() && it->second >= consistency_.min_support) {
           mine.emplace_back(2.0 * f.cost(values_.at(f.a()), values_.at(f.b())), i);
@@ -620,7 +626,7 @@ class RobustProgram {
         for (std::size_t i : groups[group]) {
           if (out_.weights[i] < 0.5) left.push_back(i);
         }
-        if (left.size() < 2) left.clear();  // one alone: the one-by-one re-test's
+        if (left.size() < GroupMinimum(consistency_.min_support)) left.clear();
       }
       TeamReport offer;
       offer.value[0] = static_cast<double>(left.size());
@@ -751,6 +757,7 @@ class RobustProgram {
   double check_rejected_by_team_ = 0.0;  // separators the check left out, over the team
   Values values_;                                  // its estimate and copies
   std::map<std::size_t, int> support_;  // per separator it checked: the check's support
+  std::set<std::size_t> runner_up_;     // the separators it checked in their pair's runner-up set
   double inlier_cost_ = 0.0;            // F of the inliers' solve, when kept
   RobustProgramResult out_;
 };

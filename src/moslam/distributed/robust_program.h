@@ -34,9 +34,10 @@
 //      (the owner's weight 1), the solve of the inliers with it, and a step reducing their cost
 //      F1: it stays when 2 (F1 - F0) <= c2 (F0 the inliers' cost so far), else every robot puts
 //      its weights and estimate back. Then, with retest_groups, the groups (RunRobustDgs's): a
-//      step in which every robot offers the size of its next group of two or more separators
-//      still left out (per neighbour of higher id, increasing: those with both ends held, support
-//      or not); the team takes the lowest robot offering. The trial: every robot sets the robust
+//      step in which every robot offers the size of its next group of GroupMinimum or more
+//      separators still left out (per neighbour of higher id, increasing: those of the pair's
+//      runner-up set, PairConsistency::runner_up, with both ends held); the team takes the lowest
+//      robot offering. The trial: every robot sets the robust
 //      weights to 1 for an inlier, else 0, the group's owner its separators to 1, a weight step;
 //      a step in which the higher robot of each pair sends the lower its estimates of its
 //      variables in the factors it may use (all but the check's rejects still left out), for the
@@ -79,6 +80,7 @@
 // robot fails).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -101,6 +103,13 @@ namespace moslam {
 // solve that still fails (a robot or landmark the inliers do not tie to robot 0 at all, though
 // the robots are linked) is what this turns away.
 bool KeepInlierSolve(double cost_before, double cost_after);
+
+// The fewest separators a group of the re-test (RobustDgsOptions::retest_groups) tries: as many
+// as confirm a robot pair (min_support; two agree by chance), and at least two (one alone is the
+// one-by-one re-test's).
+inline std::size_t GroupMinimum(int min_support) {
+  return static_cast<std::size_t>(std::max(2, min_support));
+}
 
 struct RobustProgramOptions {
   DgsOptions solver;  // every solve (the refinement is forced on; Jacobi order required)

@@ -260,11 +260,14 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
     }
   }
   out.support.assign(separators.size(), 0);
+  std::vector<bool> others(separators.size(), true);
+  for (std::size_t m : out.kept) others[m] = false;
   for (std::size_t i = 0; i < separators.size(); ++i) {
     for (std::size_t m : out.kept) {
       if (m != i && g.adjacent(static_cast<int>(i), static_cast<int>(m))) ++out.support[i];
     }
   }
+  for (int v : MaximumClique(g, others).nodes) out.runner_up.push_back(static_cast<std::size_t>(v));
   return out;
 }
 
@@ -283,6 +286,7 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
   SeparatorConsistencyResult out;
   out.kept.assign(factors.size(), true);
   out.support.assign(factors.size(), -1);
+  out.runner_up.assign(factors.size(), false);
   std::map<std::pair<int, int>, std::vector<std::size_t>> pairs;
   for (std::size_t i = 0; i < factors.size(); ++i) {
     const int a = factors[i].a().robot, b = factors[i].b().robot;
@@ -306,12 +310,17 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     std::pair<int, int> pair;
     std::vector<std::size_t> list, kept;  // its separators; what it keeps if left to GNC
     std::vector<int> support;             // per separator: the members of kept it agrees with
+    std::vector<std::size_t> runner_up;   // the runner-up set (PairConsistency::runner_up)
     int largest = 0;                      // its largest consistent set
   };
   // The support of a pair's separators: against what it keeps if it is kept, else none.
+  // And of a kept pair, its runner-up set.
   const auto set_support = [&](const std::vector<std::size_t>& list,
-                               const std::vector<int>& support, bool kept) {
+                               const std::vector<int>& support,
+                               const std::vector<std::size_t>& runner_up, bool kept) {
     for (std::size_t p = 0; p < list.size(); ++p) out.support[list[p]] = kept ? support[p] : 0;
+    if (!kept) return;
+    for (std::size_t p : runner_up) out.runner_up[list[p]] = true;
   };
   std::vector<Unconfirmed> unconfirmed;
   const auto reject_except = [&](const std::vector<std::size_t>& list,
@@ -354,10 +363,10 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
     for (std::size_t p : check.kept) kept.push_back(list[p]);
     if (check.largest >= options.min_support) {
       reject_except(list, kept);
-      set_support(list, check.support, true);
+      set_support(list, check.support, check.runner_up, true);
       confirmed.push_back(pair);
     } else {  // judged below, once every pair is known
-      unconfirmed.push_back({pair, list, kept, check.support, check.largest});
+      unconfirmed.push_back({pair, list, kept, check.support, check.runner_up, check.largest});
     }
   }
   // The robots linked through confirmed pairs: the same group.
@@ -374,11 +383,11 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
       ++out.robot_pairs_deferred;
       out.deferred += static_cast<int>(u.kept.size());
       reject_except(u.list, u.kept);
-      set_support(u.list, u.support, true);
+      set_support(u.list, u.support, u.runner_up, true);
     } else {
       ++out.robot_pairs_rejected;
       reject_except(u.list, {});
-      set_support(u.list, u.support, false);
+      set_support(u.list, u.support, u.runner_up, false);
     }
   }
   return out;

@@ -79,6 +79,10 @@ struct SeparatorConsistencyResult {
   // it passes the pairwise test with (one-to-one exclusions counting as failures); -1 for the
   // other factors and for pairs not checked. What RobustDgsOptions::retest_left_out reads.
   std::vector<int> support;
+  // Per factor of the graph: whether it is in the runner-up set of its robot pair
+  // (PairConsistency::runner_up) when the pair is kept (false for the other factors and pairs).
+  // What RobustDgsOptions::retest_groups reads.
+  std::vector<bool> runner_up;
 };
 
 // One robot's own map for the check: the factors between its own variables in `graph` (the whole
@@ -127,6 +131,9 @@ struct PairConsistency {
   std::vector<std::size_t> kept;
   // Per separator: how many members of `kept` it passes the pairwise test with (not itself).
   std::vector<int> support;
+  // The largest pairwise-consistent set of the separators not in `kept` (positions, increasing):
+  // the runner-up, which RobustDgsOptions::retest_groups tests again when the pair is kept.
+  std::vector<std::size_t> runner_up;
 };
 
 // The check of one robot pair a < b, at robot a: `separators` are the factors between the two
