@@ -498,6 +498,15 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
       }
       return coordinator.reduce(share, ++step, /*take_max=*/false);
     };
+    // A solve of the trials: RunDgs with the refinement, its traffic counted.
+    const auto refined_solve = [&](const PoseGraph& g, const Values& start) {
+      DgsOptions dgs = options.dgs;
+      dgs.refine = true;
+      const DgsResult trial = RunDgs(g, start, dgs);
+      r.solve_bytes += trial.bytes;
+      r.sweeps += trial.rotation.iterations + trial.pose.iterations + trial.refine.sweeps;
+      return trial.values;
+    };
     const auto trial_solve = [&](const PoseGraph& g, const Values& start, std::size_t i) {
       // The candidate's owner sends the other robot its trial weight.
       const RelativePoseFactor& f = graph.factors()[i];
@@ -508,12 +517,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
       m.weights = {1.0};
       r.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
       ++r.weight_messages;
-      DgsOptions dgs = options.dgs;
-      dgs.refine = true;
-      const DgsResult trial = RunDgs(g, start, dgs);
-      r.solve_bytes += trial.bytes;
-      r.sweeps += trial.rotation.iterations + trial.pose.iterations + trial.refine.sweeps;
-      return trial.values;
+      return refined_solve(g, start);
     };
     r.retests = static_cast<int>(candidates.size());
     r.retest_readmitted = Retest(graph, candidates, options.gnc.threshold2(), &r.weights,
@@ -559,12 +563,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
         }
       };
       const auto weighted_solve = [&](const PoseGraph& g, const Values& start, int) {
-        DgsOptions dgs = options.dgs;
-        dgs.refine = true;
-        const DgsResult trial = RunDgs(g, start, dgs);
-        r.solve_bytes += trial.bytes;
-        r.sweeps += trial.rotation.iterations + trial.pose.iterations + trial.refine.sweeps;
-        return trial.values;
+        return refined_solve(g, start);
       };
       // The weights to the truncated cost's and the group's in (a weight step), the estimates of
       // the factors the trial may use (for the truncated cost before).
