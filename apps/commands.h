@@ -65,6 +65,7 @@ struct RenderedPerceptionArgs {
   int template_views = 8;  // TemplateViews::views (perception/view_template.h); 0: whole model
   bool depth_smoothing = true;  // DepthSmoothingConfig::enabled (pose_estimation/depth_smoothing.h)
   std::string detection_log;    // JSON lines, one per detection ("" = none; --detection-log)
+  std::string perception_cache;  // folder of perceived runs ("" = none; --perception-cache)
 };
 
 // Where built templates are cached unless --template-cache says otherwise:

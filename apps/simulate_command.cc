@@ -86,6 +86,7 @@ struct SimulateArgs {
   int template_views = 8;  // TemplateViews::views (perception/view_template.h)
   bool depth_smoothing = true;
   std::string detection_log;
+  std::string perception_cache;
   std::optional<double> exclusion_radius;  // unset: kRenderedExclusionRadius when rendered, else 0
   bool leave_one_out_check = false;
   std::optional<bool> loop_closure;  // unset: kRenderedLoopClosure when rendered, else off
@@ -177,6 +178,11 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "rendered: write every detection of every run, evaluated against the "
                   "renderer's ground truth, as JSON lines (class, depth, status, pose error, "
                   "registration scores)");
+  sub->add_option("--perception-cache", args->perception_cache,
+                  "rendered: folder keeping each run's perceived detections, keyed by the run's "
+                  "world and trajectories and by the front-end (its executable, detector, "
+                  "templates, options): a run perceived before is replayed, not perceived again "
+                  "(experiments/perception_cache.h)");
   sub->add_option("--perceive-every", args->perceive_every,
                   "rendered: perceive every K-th pose (the others have no object measurement)")
       ->check(CLI::PositiveNumber)
@@ -214,9 +220,17 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
       throw InvalidInputError("simulate: --detection-log needs --perception rendered (sampled "
                               "measurements have no detections)");
     }
+    if (!rendered && !a.perception_cache.empty()) {
+      throw InvalidInputError("simulate: --perception-cache needs --perception rendered (sampled "
+                              "measurements are not perceived)");
+    }
+    if (!a.perception_cache.empty() && !a.detection_log.empty()) {
+      throw InvalidInputError("simulate: --detection-log and --perception-cache together: a run "
+                              "replayed from the cache has no detection records; drop one");
+    }
     if (rendered) perceive = make_perception(
           {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
-           a.template_views, a.depth_smoothing, a.detection_log});
+           a.template_views, a.depth_smoothing, a.detection_log, a.perception_cache});
     if (a.online) {
       if (rendered || a.information != "noise" || a.loop_closure.value_or(false)) {
         throw InvalidInputError(

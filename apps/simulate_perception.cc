@@ -9,12 +9,17 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "commands.h"
 #include "moslam/common/errors.h"
+#include "moslam/common/fnv.h"
+#include "moslam/experiments/perception_cache.h"
 #include "moslam/perception/rendered_sensing.h"
 #include "moslam/sim/sensing.h"
 
@@ -51,6 +56,44 @@ void WriteDetectionLog(std::ofstream& out, const std::string& path, int run,
   if (!out) throw Error("simulate: cannot write the detection log '" + path + "'");
 }
 
+// FNV-1a 64 of a file's bytes, continuing from `state`. Throws InvalidInputError naming the file
+// when it cannot be read.
+std::uint64_t FileDigest(const std::string& path, std::uint64_t state) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InvalidInputError("simulate --perception-cache: cannot read '" + path + "'");
+  std::vector<char> buffer(std::size_t{1} << 20);
+  while (in) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    state = Fnv1a64(buffer.data(), static_cast<std::size_t>(in.gcount()), state);
+  }
+  if (!in.eof()) throw InvalidInputError("simulate --perception-cache: read error in '" + path + "'");
+  return state;
+}
+
+// The perception cache's front-end digest (experiments/perception_cache.h): this executable (the
+// front-end's code and its compiled defaults), the detector's model and class names, the templates
+// replacing the built-in models (each file's name and bytes, in name order) and the options the
+// result depends on. The template cache is left out: it holds what the templates make.
+std::uint64_t FrontEndDigest(const RenderedPerceptionArgs& args) {
+  std::uint64_t h = FileDigest("/proc/self/exe", kFnvOffset);
+  h = FileDigest(args.model, h);
+  h = FileDigest(args.classes, h);
+  if (!args.templates.empty()) {
+    std::vector<std::filesystem::path> files;
+    for (const auto& entry : std::filesystem::directory_iterator(args.templates)) {
+      if (entry.is_regular_file()) files.push_back(entry.path());
+    }
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files) {
+      const std::string name = f.filename().string();
+      h = Fnv1a64(name.data(), name.size(), h);
+      h = FileDigest(f.string(), h);
+    }
+  }
+  const int options[] = {args.every, args.template_views, args.depth_smoothing ? 1 : 0};
+  return Fnv1a64(options, sizeof options, h);
+}
+
 }  // namespace
 
 ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& args) {
@@ -74,8 +117,9 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
   }
   const PointCloudModel point_cloud;
   auto run = std::make_shared<int>(0);
-  return [config, point_cloud, log, run, path = args.detection_log](SimulationData& data,
-                                                                     RunMetrics& m) {
+  // The front-end on the run's frames; returns the run's report (per class, by depth, off poses).
+  ReportingPerceive perceive = [config, point_cloud, log, run, path = args.detection_log](
+                                   SimulationData& data, RunMetrics& m) {
     const RenderedSensingStats p = PerceiveSimulation(data, *config);
     if (log) WriteDetectionLog(*log, path, (*run)++, data, p.records);
     const double frames = std::max(1, p.frames);
@@ -115,7 +159,6 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
     line += fmt::format("\naccepted true detections more than 10 cm / 10 deg off: {} of {}, {} of "
                         "them within 10 cm of another same-label object seen",
                         p.accepted_true_off, all.accepted, p.accepted_true_other_object);
-    fmt::print(stderr, "{}\n", line);
     m.perception_rejected_inliers = p.rejected_inliers;
     m.perception_rejected_inliers_false = p.rejected_inliers_false;
     m.perception_median_error_m = p.medianTranslationError();
@@ -127,7 +170,14 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
     m.perception_pcd_bytes = static_cast<double>(p.valid_depth_points) *
                              point_cloud.bytes_per_point /
                              data.numRobots();
+    return line;
   };
+  const auto print = [](const std::string& report) { fmt::print(stderr, "{}\n", report); };
+  if (args.perception_cache.empty()) {
+    return [perceive, print](SimulationData& data, RunMetrics& m) { print(perceive(data, m)); };
+  }
+  return CachedPerception(perceive, PerceptionCache(args.perception_cache),
+                          FrontEndDigest(args), print);
 }
 
 }  // namespace moslam::cli

@@ -147,6 +147,7 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"perception_ms_segment", &RunMetrics::perception_ms_segment},
       {"perception_ms_register", &RunMetrics::perception_ms_register},
       {"perception_pcd_bytes", &RunMetrics::perception_pcd_bytes},
+      {"perception_cached", &RunMetrics::perception_cached},
       {"measurements_per_pose", &RunMetrics::measurements_per_pose},
       {"poses_without_measurement", &RunMetrics::poses_without_measurement},
       {"longest_without_measurement", &RunMetrics::longest_without_measurement},

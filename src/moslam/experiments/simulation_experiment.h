@@ -196,6 +196,9 @@ struct RunMetrics {
   // Per robot: the point clouds of the perceived frames (valid depth points x
   // PointCloudModel::bytes_per_point), against memory_obj_measured (the object map).
   double perception_pcd_bytes = kNotRun;
+  // 1 when the run's perception was replayed from a cache (experiments/perception_cache.h: its
+  // perception_* timings are then those of the run that filled it), 0 when perceived.
+  double perception_cached = kNotRun;
   // The poses' object measurements (sampled or perceived): per pose, the share of poses with
   // none, and the most consecutive poses of one robot with none (MeasurementCoverage,
   // sim/sensing.h).
