@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for a bounded time: the g2o
 # reader, the decoders of the messages robots send one another (fuzz/messages_fuzz.cc), the
-# journal a restarted robot replays (fuzz/journal_fuzz.cc), and the
-# template cache decoder (fuzz/template_cache_fuzz.cc).
+# journal a restarted robot replays (fuzz/journal_fuzz.cc), the
+# template cache decoder (fuzz/template_cache_fuzz.cc) and the perception cache decoder
+# (fuzz/perception_cache_fuzz.cc).
 # Usage: scripts/fuzz.sh [seconds per target, default 60]
 # Exits non-zero when the fuzzer finds a crash, a sanitizer report, a leak or a timeout; the input
 # that triggered it is saved under build-fuzz/artifacts/.
@@ -24,7 +25,8 @@ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER="$CC_BIN" -DCMAKE_CXX_COMPILER="$CXX_BIN" \
   -DMOSLAM_BUILD_FUZZ=ON -DMOSLAM_BUILD_TESTS=OFF -DMOSLAM_BUILD_BENCH=OFF >/dev/null
-cmake --build "$build" --target g2o_reader_fuzz messages_fuzz template_cache_fuzz journal_fuzz
+cmake --build "$build" --target g2o_reader_fuzz messages_fuzz template_cache_fuzz journal_fuzz \
+  perception_cache_fuzz
 
 # Seed corpus, made fresh at every run from short snippets (datasets are never copied into the
 # repository).
@@ -159,4 +161,42 @@ cat >"$tdict" <<'DICT'
 "\x0a\x00\x00\x00"
 DICT
 run_target template_cache_fuzz "$tcorpus" "$tdict" 65536
+
+# Perception cache files (without their checksum, which the harness appends): one robot with two
+# poses, the second with a chair (identity rotation and information, object id 3), the 16
+# metrics and a report.
+pcorpus="$work/perceived"
+mkdir -p "$pcorpus"
+f64() {  # the little-endian bytes of a few doubles
+  case "$1" in
+    0) printf '\x00\x00\x00\x00\x00\x00\x00\x00' ;;
+    1) printf '\x00\x00\x00\x00\x00\x00\xf0\x3f' ;;
+    1.5) printf '\x00\x00\x00\x00\x00\x00\xf8\x3f' ;;
+    -2) printf '\x00\x00\x00\x00\x00\x00\x00\xc0' ;;
+    100) printf '\x00\x00\x00\x00\x00\x00\x59\x40' ;;
+  esac
+}
+{
+  printf 'MOSLPRC1\x2a\x00\x00\x00\x00\x00\x00\x00'  # fingerprint 42
+  printf '\x01\x00\x00\x00\x02\x00\x00\x00\x00\x00\x00\x00\x01\x00\x00\x00'
+  printf '\x05\x00\x00\x00chair'
+  for i in 0 1 2; do for j in 0 1 2; do if ((i == j)); then f64 1; else f64 0; fi; done; done
+  f64 1.5; f64 -2; f64 1
+  for i in 0 1 2 3 4 5; do for j in 0 1 2 3 4 5; do if ((i == j)); then f64 100; else f64 0; fi; done; done
+  printf '\x03\x00\x00\x00\x10\x00\x00\x00'
+  for k in $(seq 16); do f64 1.5; done
+  printf '\x04\x00\x00\x00ok\n\n'
+} >"$pcorpus/one_chair"
+printf 'MOSLPRC1\x2a\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x10\x00\x00\x00' >"$pcorpus/no_robot_no_metrics"
+pdict="$work/perceived.dict"
+cat >"$pdict" <<'DICT'
+"MOSLPRC1"
+"\x05\x00\x00\x00chair"
+"\x00\x00\x00\x00\x00\x00\xf0\x3f"
+"\x00\x00\x00\x00\x00\x00\xf8\x7f"
+"\x00\x00\x00\x00\x00\x00\xf0\x7f"
+"\x10\x00\x00\x00"
+"\xff\xff\xff\xff"
+DICT
+run_target perception_cache_fuzz "$pcorpus" "$pdict" 65536
 echo "fuzz.sh: no crash in ${seconds}s per target"

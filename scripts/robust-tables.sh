@@ -12,7 +12,7 @@
 # SCENARIOS (default "chairs25 house generated"), FRACTIONS (default "0 0.1 0.3 0.5 0.7 0.9"),
 # ROBOTS (default "2 4 6"), POSES (default "known unknown"; empty: no table 1), JSON (default
 # docs/robust_tables.json). Extra arguments go to every `moslam simulate` call (e.g.
-# --perception rendered).
+# --perception rendered --perception-cache DIR: each run perceived once, replayed in the other rows).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib/simulate-table.sh"
 SCENARIOS="${SCENARIOS:-chairs25 house generated}"

@@ -479,8 +479,9 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     // First the higher robot of each pair sends the lower its estimates of its variables, held by
     // inliers, in the separators the check left out that are still rejected (for their residuals).
     const std::set<Key> held = InlierKeys(graph, r.weights);
+    const std::vector<bool> rejected = LeftOut(check, robust, r.weights);
     r.consistency_bytes += LeftOutEstimateBytes(graph, r.values, [&](std::size_t i, const Key& k) {
-      return !check.kept[i] && robust[i] && r.weights[i] < 0.5 && held.count(k) > 0;
+      return rejected[i] && held.count(k) > 0;
     });
     const std::vector<std::size_t> candidates = RetestCandidates(
         graph, check, robust, r.weights, r.values, options.consistency.min_support);
