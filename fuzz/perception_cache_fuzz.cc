@@ -6,12 +6,11 @@
 // same bytes.
 #include <cstddef>
 #include <cstdint>
-#include <cstring>
 #include <string>
 
 #include "moslam/common/errors.h"
-#include "moslam/common/fnv.h"
 #include "moslam/experiments/perception_cache.h"
+#include "sealed_input.h"
 
 namespace {
 
@@ -32,13 +31,6 @@ void Decode(const std::string& bytes, std::uint64_t fingerprint) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string raw(reinterpret_cast<const char*>(data), size);
-  std::uint64_t fingerprint = 0;
-  if (size >= 16) std::memcpy(&fingerprint, data + 8, sizeof(fingerprint));
-  Decode(raw, fingerprint);
-  std::string sealed = raw;
-  const std::uint64_t checksum = moslam::Fnv1a64(sealed.data(), sealed.size());
-  sealed.append(reinterpret_cast<const char*>(&checksum), sizeof(checksum));
-  Decode(sealed, fingerprint);
+  DecodeRawAndSealed(data, size, Decode);
   return 0;
 }

@@ -5,15 +5,13 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
-#include <system_error>
-#include <unistd.h>
 #include <utility>
 
 #include "moslam/common/byte_io.h"
 #include "moslam/common/errors.h"
 #include "moslam/common/fnv.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/sim/world.h"
 
 namespace moslam {
@@ -186,17 +184,10 @@ std::string PerceptionCache::path(std::uint64_t fingerprint) const {
 std::optional<PerceivedRun> PerceptionCache::load(std::uint64_t fingerprint,
                                                   std::string* why_not) const {
   const std::string file = path(fingerprint);
-  if (why_not) why_not->clear();
-  std::error_code ec;
-  if (!std::filesystem::exists(file, ec)) return std::nullopt;
-  std::ifstream in(file, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (!in && !in.eof()) {
-    if (why_not) *why_not = file + ": read error";
-    return std::nullopt;
-  }
+  const std::optional<std::string> bytes = ReadWholeFile(file, why_not);
+  if (!bytes) return std::nullopt;
   try {
-    return DecodePerceivedRun(bytes, fingerprint);
+    return DecodePerceivedRun(*bytes, fingerprint);
   } catch (const InvalidInputError& e) {
     if (why_not) *why_not = file + ": " + e.what();
     return std::nullopt;
@@ -204,28 +195,7 @@ std::optional<PerceivedRun> PerceptionCache::load(std::uint64_t fingerprint,
 }
 
 void PerceptionCache::store(const PerceivedRun& run, std::uint64_t fingerprint) const {
-  std::error_code ec;
-  std::filesystem::create_directories(dir_, ec);
-  if (ec) {
-    throw InvalidInputError("PerceptionCache: cannot create '" + dir_ + "': " + ec.message());
-  }
-  const std::string file = path(fingerprint);
-  const std::string tmp = file + ".tmp" + std::to_string(::getpid());
-  const std::string bytes = EncodePerceivedRun(run, fingerprint);
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::filesystem::remove(tmp, ec);
-      throw InvalidInputError("PerceptionCache: cannot write '" + tmp + "'");
-    }
-  }
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw InvalidInputError("PerceptionCache: cannot rename into '" + file + "'");
-  }
+  WriteWholeFile(path(fingerprint), EncodePerceivedRun(run, fingerprint), "PerceptionCache");
 }
 
 ExperimentConfig::Perceive CachedPerception(ReportingPerceive perceive, PerceptionCache cache,

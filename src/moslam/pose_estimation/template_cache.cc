@@ -3,13 +3,11 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
-#include <system_error>
 #include <type_traits>
-#include <unistd.h>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 
 namespace moslam {
 namespace {
@@ -241,25 +239,10 @@ std::optional<ObjectTemplate> TemplateCache::load(const std::string& label,
                                                   const FeatureConfig& config,
                                                   std::string* why_not) const {
   const std::string file = path(label, fingerprint);
-  if (why_not) why_not->clear();
-  std::error_code ec;
-  if (!std::filesystem::exists(file, ec)) return std::nullopt;
-  std::ifstream in(file, std::ios::binary);
-  if (!in) {
-    if (why_not) *why_not = file + ": cannot be opened";
-    return std::nullopt;
-  }
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  in.seekg(0, std::ios::beg);
-  std::string bytes(size > 0 ? static_cast<std::size_t>(size) : 0, '\0');
-  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  if (size < 0 || !in) {
-    if (why_not) *why_not = file + ": read error";
-    return std::nullopt;
-  }
+  const std::optional<std::string> bytes = ReadWholeFile(file, why_not);
+  if (!bytes) return std::nullopt;
   try {
-    return DecodeTemplate(bytes, label, fingerprint, config);
+    return DecodeTemplate(*bytes, label, fingerprint, config);
   } catch (const InvalidInputError& e) {
     if (why_not) *why_not = file + ": " + e.what();
     return std::nullopt;
@@ -267,26 +250,8 @@ std::optional<ObjectTemplate> TemplateCache::load(const std::string& label,
 }
 
 void TemplateCache::store(const ObjectTemplate& tmpl, std::uint64_t fingerprint) const {
-  std::error_code ec;
-  std::filesystem::create_directories(dir_, ec);
-  if (ec) throw InvalidInputError("TemplateCache: cannot create '" + dir_ + "': " + ec.message());
-  const std::string file = path(tmpl.label, fingerprint);
-  const std::string tmp = file + ".tmp" + std::to_string(::getpid());
-  const std::string bytes = EncodeTemplate(tmpl, fingerprint);
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::filesystem::remove(tmp, ec);
-      throw InvalidInputError("TemplateCache: cannot write '" + tmp + "'");
-    }
-  }
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw InvalidInputError("TemplateCache: cannot rename into '" + file + "'");
-  }
+  WriteWholeFile(path(tmpl.label, fingerprint), EncodeTemplate(tmpl, fingerprint),
+                 "TemplateCache");
 }
 
 }  // namespace moslam

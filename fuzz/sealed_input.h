@@ -1,0 +1,24 @@
+// The two decodings each cache-file harness runs (template cache, perception cache): the input as
+// it is, and sealed with the checksum both formats end with (FNV-1a 64 of every byte before it),
+// so that the fuzzer reaches the fields behind the checksum. The fingerprint the decoder expects
+// is the one the input names (its bytes 8-15, after an 8-byte magic).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <string>
+
+#include "moslam/common/fnv.h"
+
+template <class Decode>
+void DecodeRawAndSealed(const std::uint8_t* data, std::size_t size, const Decode& decode) {
+  const std::string raw(reinterpret_cast<const char*>(data), size);
+  std::uint64_t fingerprint = 0;
+  if (size >= 16) std::memcpy(&fingerprint, data + 8, sizeof(fingerprint));
+  decode(raw, fingerprint);
+  std::string sealed = raw;
+  const std::uint64_t checksum = moslam::Fnv1a64(sealed.data(), sealed.size());
+  sealed.append(reinterpret_cast<const char*>(&checksum), sizeof(checksum));
+  decode(sealed, fingerprint);
+}

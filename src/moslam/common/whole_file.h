@@ -1,0 +1,67 @@
+// Whole files for the caches on disk (the template cache, the perception cache): read at once,
+// and written so that a reader never sees half of one (the bytes go to a temporary file beside
+// the target, renamed into place: atomic on one filesystem).
+#pragma once
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <system_error>
+
+#include "moslam/common/errors.h"
+
+namespace moslam {
+
+// The file's bytes, or nullopt: no such file (`why_not` left empty), or one that cannot be read
+// (`why_not` names it and says why).
+inline std::optional<std::string> ReadWholeFile(const std::string& path,
+                                                std::string* why_not = nullptr) {
+  if (why_not) why_not->clear();
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return std::nullopt;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    if (why_not) *why_not = path + ": cannot be opened";
+    return std::nullopt;
+  }
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) {
+    if (why_not) *why_not = path + ": read error";
+    return std::nullopt;
+  }
+  return bytes;
+}
+
+// Writes `bytes` to `path`, creating its folder. Throws InvalidInputError, prefixed with `who`,
+// naming the path when it cannot; the target is then unchanged.
+inline void WriteWholeFile(const std::string& path, std::string_view bytes,
+                           const std::string& who) {
+  std::error_code ec;
+  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  if (!dir.empty()) {
+    std::filesystem::create_directories(dir, ec);
+    if (ec) throw InvalidInputError(who + ": cannot create '" + dir.string() + "': " + ec.message());
+  }
+  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    out.close();
+    if (!out) {
+      std::filesystem::remove(tmp, ec);
+      throw InvalidInputError(who + ": cannot write '" + tmp + "'");
+    }
+  }
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw InvalidInputError(who + ": cannot rename into '" + path + "'");
+  }
+}
+
+}  // namespace moslam
