@@ -20,6 +20,11 @@ class ByteWriter {
   void u32(std::uint32_t v) { put(v); }
   void i32(std::int32_t v) { put(static_cast<std::uint32_t>(v)); }
   void u64(std::uint64_t v) { put(v); }
+  void f32(float v) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    put(bits);
+  }
   void f64(double v) {
     std::uint64_t bits;
     std::memcpy(&bits, &v, sizeof bits);
@@ -51,6 +56,12 @@ class ByteReader {
   std::uint32_t u32(const char* field) { return get<std::uint32_t>(field); }
   std::int32_t i32(const char* field) { return static_cast<std::int32_t>(u32(field)); }
   std::uint64_t u64(const char* field) { return get<std::uint64_t>(field); }
+  float f32(const char* field) {
+    const std::uint32_t bits = u32(field);
+    float v;
+    std::memcpy(&v, &bits, sizeof v);
+    return v;
+  }
   double f64(const char* field) {
     const std::uint64_t bits = u64(field);
     double v;

@@ -1,11 +1,10 @@
 #include "moslam/pose_estimation/template_cache.h"
 
 #include <cmath>
-#include <cstring>
 #include <filesystem>
 #include <sstream>
-#include <type_traits>
 
+#include "moslam/common/byte_io.h"
 #include "moslam/common/errors.h"
 #include "moslam/common/whole_file.h"
 
@@ -17,89 +16,34 @@ constexpr char kMagic[8] = {'M', 'O', 'S', 'L', 'T', 'P', 'L', '2'};
 constexpr std::size_t kHistogram = 250;  // pcl::PFHRGBSignature250
 constexpr std::size_t kPointBytes = 6 * sizeof(float) + sizeof(std::uint32_t);
 
-class Writer {
- public:
-  template <typename T>
-  void put(const T& v) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    out_.append(reinterpret_cast<const char*>(&v), sizeof(T));
-  }
-  void bytes(const void* p, std::size_t n) { out_.append(static_cast<const char*>(p), n); }
-  void point(const FeaturePoint& p) {
-    for (float v : {p.x, p.y, p.z, p.normal_x, p.normal_y, p.normal_z}) put(v);
-    put(static_cast<std::uint32_t>(p.rgba));
-  }
-  std::string& str() { return out_; }
+void PutPoint(ByteWriter& w, const FeaturePoint& p) {
+  for (float v : {p.x, p.y, p.z, p.normal_x, p.normal_y, p.normal_z}) w.f32(v);
+  w.u32(static_cast<std::uint32_t>(p.rgba));
+}
 
- private:
-  std::string out_;
-};
-
-class Reader {
- public:
-  explicit Reader(std::string_view in) : in_(in) {}
-  template <typename T>
-  T get(const char* what) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    need(sizeof(T), what);
-    T v;
-    std::memcpy(&v, in_.data() + at_, sizeof(T));
-    at_ += sizeof(T);
-    return v;
+// `unit_normal`: the normal must be a unit vector (template points); keypoints are voxel
+// centroids whose normals may cancel, so only finiteness is required of them.
+FeaturePoint ReadPoint(ByteReader& r, const char* what, bool unit_normal) {
+  float v[6];
+  for (float& x : v) {
+    x = r.f32(what);
+    if (!std::isfinite(x)) r.fail(std::string("non-finite value in ") + what);
   }
-  std::string_view take(std::size_t n, const char* what) {
-    need(n, what);
-    const std::string_view s = in_.substr(at_, n);
-    at_ += n;
-    return s;
+  FeaturePoint p;
+  p.x = v[0];
+  p.y = v[1];
+  p.z = v[2];
+  p.normal_x = v[3];
+  p.normal_y = v[4];
+  p.normal_z = v[5];
+  p.curvature = 0.0f;
+  p.rgba = r.u32(what);
+  const float n = p.getNormalVector3fMap().norm();
+  if (unit_normal && std::abs(n - 1.0f) > 1e-2f) {
+    r.fail(std::string("a normal in ") + what + " is not a unit vector");
   }
-  // A count of items of `item_bytes` each that must fit in the bytes left.
-  std::size_t count(std::size_t item_bytes, const char* what) {
-    const auto n = get<std::uint32_t>(what);
-    if (static_cast<std::uint64_t>(n) * item_bytes > in_.size() - at_) {
-      throw InvalidInputError(std::string("template cache: ") + what + " count " +
-                              std::to_string(n) + " exceeds the file");
-    }
-    return n;
-  }
-  // `unit_normal`: the normal must be a unit vector (template points); keypoints are voxel
-  // centroids whose normals may cancel, so only finiteness is required of them.
-  FeaturePoint point(const char* what, bool unit_normal) {
-    FeaturePoint p;
-    float v[6];
-    for (float& x : v) {
-      x = get<float>(what);
-      if (!std::isfinite(x)) {
-        throw InvalidInputError(std::string("template cache: non-finite value in ") + what);
-      }
-    }
-    p.x = v[0];
-    p.y = v[1];
-    p.z = v[2];
-    p.normal_x = v[3];
-    p.normal_y = v[4];
-    p.normal_z = v[5];
-    p.curvature = 0.0f;
-    p.rgba = get<std::uint32_t>(what);
-    const float n = p.getNormalVector3fMap().norm();
-    if (unit_normal && std::abs(n - 1.0f) > 1e-2f) {
-      throw InvalidInputError(std::string("template cache: a normal in ") + what +
-                              " is not a unit vector");
-    }
-    return p;
-  }
-  std::size_t at() const { return at_; }
-  std::size_t left() const { return in_.size() - at_; }
-
- private:
-  void need(std::size_t n, const char* what) const {
-    if (n > in_.size() - at_) {
-      throw InvalidInputError(std::string("template cache: truncated in ") + what);
-    }
-  }
-  std::string_view in_;
-  std::size_t at_ = 0;
-};
+  return p;
+}
 
 std::string SafeLabel(const std::string& label) {
   std::string s;
@@ -114,23 +58,22 @@ std::string SafeLabel(const std::string& label) {
 }  // namespace
 
 std::uint64_t CloudDigest(const FeatureCloud& cloud) {
-  Writer w;
-  for (const FeaturePoint& p : cloud.points) w.point(p);
+  ByteWriter w;
+  for (const FeaturePoint& p : cloud.points) PutPoint(w, p);
   return Fnv1a64(w.str().data(), w.str().size());
 }
 
 std::uint64_t TemplateFingerprint(const std::string& label, std::uint64_t source_digest,
                                   const FeatureConfig& config) {
-  Writer w;
-  w.bytes(kMagic, sizeof(kMagic));
-  w.put(source_digest);
-  w.put(static_cast<std::uint32_t>(label.size()));
-  w.bytes(label.data(), label.size());
-  w.put(config.voxel_size);
-  w.put(config.normal_radius);
-  w.put(config.feature_radius);
-  w.put(config.feature_surface_voxel);
-  w.put(config.keypoint_voxel);
+  ByteWriter w;
+  w.bytes(std::string_view(kMagic, sizeof(kMagic)));
+  w.u64(source_digest);
+  w.u32(static_cast<std::uint32_t>(label.size()));
+  w.bytes(label);
+  for (double v : {config.voxel_size, config.normal_radius, config.feature_radius,
+                   config.feature_surface_voxel, config.keypoint_voxel}) {
+    w.f64(v);
+  }
   return Fnv1a64(w.str().data(), w.str().size());
 }
 
@@ -139,23 +82,24 @@ std::string EncodeTemplate(const ObjectTemplate& tmpl, std::uint64_t fingerprint
       tmpl.keypoints->size() != tmpl.features->size()) {
     throw InvalidInputError("EncodeTemplate: template '" + tmpl.label + "' is incomplete");
   }
-  Writer w;
-  w.bytes(kMagic, sizeof(kMagic));
-  w.put(fingerprint);
-  w.put(static_cast<std::uint32_t>(tmpl.label.size()));
-  w.bytes(tmpl.label.data(), tmpl.label.size());
+  ByteWriter w;
+  w.bytes(std::string_view(kMagic, sizeof(kMagic)));
+  w.u64(fingerprint);
+  w.u32(static_cast<std::uint32_t>(tmpl.label.size()));
+  w.bytes(tmpl.label);
   for (double v : {tmpl.config.voxel_size, tmpl.config.normal_radius, tmpl.config.feature_radius,
                    tmpl.config.feature_surface_voxel, tmpl.config.keypoint_voxel}) {
-    w.put(v);
+    w.f64(v);
   }
-  w.put(static_cast<std::uint32_t>(tmpl.cloud->size()));
-  for (const FeaturePoint& p : tmpl.cloud->points) w.point(p);
-  w.put(static_cast<std::uint32_t>(tmpl.keypoints->size()));
-  for (const FeaturePoint& p : tmpl.keypoints->points) w.point(p);
-  for (const auto& f : tmpl.features->points) w.bytes(f.histogram, sizeof(f.histogram));
-  const std::uint64_t checksum = Fnv1a64(w.str().data(), w.str().size());
-  w.put(checksum);
-  return std::move(w.str());
+  w.u32(static_cast<std::uint32_t>(tmpl.cloud->size()));
+  for (const FeaturePoint& p : tmpl.cloud->points) PutPoint(w, p);
+  w.u32(static_cast<std::uint32_t>(tmpl.keypoints->size()));
+  for (const FeaturePoint& p : tmpl.keypoints->points) PutPoint(w, p);
+  for (const auto& f : tmpl.features->points) {
+    for (float h : f.histogram) w.f32(h);
+  }
+  w.u64(Fnv1a64(w.str().data(), w.str().size()));
+  return w.take();
 }
 
 ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
@@ -164,12 +108,11 @@ ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
     throw InvalidInputError("template cache: too short to be a template");
   }
   const std::size_t body = bytes.size() - sizeof(std::uint64_t);
-  std::uint64_t stored = 0;
-  std::memcpy(&stored, bytes.data() + body, sizeof(stored));
+  const std::uint64_t stored = ByteReader(bytes.substr(body), "template cache").u64("checksum");
   if (Fnv1a64(bytes.data(), body) != stored) {
     throw InvalidInputError("template cache: checksum mismatch (damaged or partly written)");
   }
-  Reader r(bytes.substr(0, body));
+  ByteReader r(bytes.substr(0, body), "template cache");
   const std::string_view magic = r.take(sizeof(kMagic), "magic");
   if (magic.substr(0, sizeof(kMagic) - 1) == std::string_view(kMagic, sizeof(kMagic) - 1) &&
       magic != std::string_view(kMagic, sizeof(kMagic))) {
@@ -179,7 +122,7 @@ ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
   if (magic != std::string_view(kMagic, sizeof(kMagic))) {
     throw InvalidInputError("template cache: not a moslam template (bad magic)");
   }
-  if (r.get<std::uint64_t>("fingerprint") != fingerprint) {
+  if (r.u64("fingerprint") != fingerprint) {
     throw InvalidInputError("template cache: built from another model or configuration");
   }
   const std::size_t label_size = r.count(1, "label");
@@ -187,11 +130,11 @@ ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
     throw InvalidInputError("template cache: holds another label than '" + label + "'");
   }
   FeatureConfig stored_config;
-  stored_config.voxel_size = r.get<double>("config");
-  stored_config.normal_radius = r.get<double>("config");
-  stored_config.feature_radius = r.get<double>("config");
-  stored_config.feature_surface_voxel = r.get<double>("config");
-  stored_config.keypoint_voxel = r.get<double>("config");
+  stored_config.voxel_size = r.f64("config");
+  stored_config.normal_radius = r.f64("config");
+  stored_config.feature_radius = r.f64("config");
+  stored_config.feature_surface_voxel = r.f64("config");
+  stored_config.keypoint_voxel = r.f64("config");
   if (!(stored_config == config)) {
     throw InvalidInputError("template cache: built with another FeatureConfig");
   }
@@ -203,21 +146,20 @@ ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
   t.features = std::make_shared<PfhrgbCloud>();
   const std::size_t points = r.count(kPointBytes, "points");
   t.cloud->reserve(points);
-  for (std::size_t i = 0; i < points; ++i) t.cloud->push_back(r.point("points", true));
+  for (std::size_t i = 0; i < points; ++i) t.cloud->push_back(ReadPoint(r, "points", true));
   const std::size_t keypoints = r.count(kPointBytes + kHistogram * sizeof(float), "keypoints");
   t.keypoints->reserve(keypoints);
-  for (std::size_t i = 0; i < keypoints; ++i) t.keypoints->push_back(r.point("keypoints", false));
+  for (std::size_t i = 0; i < keypoints; ++i) t.keypoints->push_back(ReadPoint(r, "keypoints", false));
   t.features->reserve(keypoints);
   for (std::size_t i = 0; i < keypoints; ++i) {
     pcl::PFHRGBSignature250 f;
-    const std::string_view block = r.take(sizeof(f.histogram), "features");
-    std::memcpy(f.histogram, block.data(), sizeof(f.histogram));
-    for (float h : f.histogram) {
-      if (!std::isfinite(h)) throw InvalidInputError("template cache: non-finite feature");
+    for (float& h : f.histogram) {
+      h = r.f32("features");
+      if (!std::isfinite(h)) r.fail("non-finite feature");
     }
     t.features->push_back(f);
   }
-  if (r.left() != 0) throw InvalidInputError("template cache: trailing bytes");
+  r.finish();
   if (t.cloud->size() < 10 || t.keypoints->size() < 10) {
     throw InvalidInputError("template cache: fewer than 10 points or keypoints");
   }
