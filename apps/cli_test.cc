@@ -416,6 +416,41 @@ TEST(CliSimulate, RenderedPerceptionLogsEveryDetection) {
   fs::remove(log);
 }
 
+// --perception-cache: the second run of a seed is replayed (perception_cached 1), with the same
+// numbers; refused with sampled measurements and beside --detection-log.
+TEST(CliSimulate, PerceptionCacheReplaysARenderedRun) {
+  const fs::path dir = fs::temp_directory_path() / "moslam_cli_perception_cache";
+  fs::remove_all(dir);
+  const std::string command =
+      "simulate --scenario chairs25 --robots 1 --runs 1 --poses 3 --perception rendered "
+      "--template-cache none --table perception --json --perception-cache " + dir.string();
+  const CommandResult first = RunMoslam(command);
+  ASSERT_EQ(first.exit_code, 0) << first.out;
+  const CommandResult second = RunMoslam(command);
+  ASSERT_EQ(second.exit_code, 0) << second.out;
+  const auto a = nlohmann::json::parse(LastLine(first.out))["rows"][0]["runs"][0];
+  const auto b = nlohmann::json::parse(LastLine(second.out))["rows"][0]["runs"][0];
+  EXPECT_EQ(a["perception_cached"], 0.0);
+  EXPECT_EQ(b["perception_cached"], 1.0);
+  for (const char* key : {"perception_detections", "perception_accepted", "landmarks",
+                          "gn_cost", "gn_ate_poses"}) {
+    EXPECT_EQ(a[key], b[key]) << key;
+  }
+  const CommandResult sampled =
+      RunMoslam("simulate --robots 2 --runs 1 --perception-cache " + dir.string());
+  EXPECT_EQ(sampled.exit_code, 1) << sampled.out;
+  EXPECT_NE(sampled.out.find("--perception-cache needs --perception rendered"),
+            std::string::npos) << sampled.out;
+  const CommandResult both = RunMoslam(command + " --detection-log " + (dir / "log").string());
+  EXPECT_EQ(both.exit_code, 1) << both.out;
+  EXPECT_NE(both.out.find("--detection-log and --perception-cache"), std::string::npos)
+      << both.out;
+  const CommandResult no_templates = RunMoslam(command + " --templates " + (dir / "none").string());
+  EXPECT_EQ(no_templates.exit_code, 1) << no_templates.out;
+  EXPECT_NE(no_templates.out.find("none"), std::string::npos) << no_templates.out;
+  fs::remove_all(dir);
+}
+
 // The pose-graph executable loads nothing of the perception or middleware stacks (apps/cli.h):
 // its shared libraries, as the dynamic loader resolves them.
 TEST(CliExecutables, PoseGraphCommandsLoadNoPerceptionOrDdsLibrary) {

@@ -14,6 +14,7 @@
 #include <fstream>
 #include <memory>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "commands.h"
@@ -80,8 +81,14 @@ std::uint64_t FrontEndDigest(const RenderedPerceptionArgs& args) {
   h = FileDigest(args.classes, h);
   if (!args.templates.empty()) {
     std::vector<std::filesystem::path> files;
-    for (const auto& entry : std::filesystem::directory_iterator(args.templates)) {
-      if (entry.is_regular_file()) files.push_back(entry.path());
+    std::error_code ec;
+    for (std::filesystem::directory_iterator it(args.templates, ec), end; !ec && it != end;
+         it.increment(ec)) {
+      if (it->is_regular_file()) files.push_back(it->path());
+    }
+    if (ec) {
+      throw InvalidInputError("simulate --perception-cache: cannot list the templates folder '" +
+                              args.templates + "': " + ec.message());
     }
     std::sort(files.begin(), files.end());
     for (const auto& f : files) {
