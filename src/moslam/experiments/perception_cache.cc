@@ -132,14 +132,13 @@ std::string EncodePerceivedRun(const PerceivedRun& run, std::uint64_t fingerprin
 }
 
 PerceivedRun DecodePerceivedRun(std::string_view bytes, std::uint64_t fingerprint) {
-  ByteReader in(bytes, kFormat);
-  if (bytes.size() < sizeof kMagic + 16) in.fail("too short");
+  if (bytes.size() < sizeof kMagic + 16) ByteReader(bytes, kFormat).fail("too short");
   const std::string_view body = bytes.substr(0, bytes.size() - 8);
-  ByteReader tail(bytes.substr(body.size()), kFormat);
-  if (tail.u64("checksum") != Fnv1a64(body.data(), body.size())) {
+  ByteReader in(body, kFormat);
+  if (ByteReader(bytes.substr(body.size()), kFormat).u64("checksum") !=
+      Fnv1a64(body.data(), body.size())) {
     in.fail("checksum mismatch (damaged file)");
   }
-  in = ByteReader(body, kFormat);
   if (in.take(sizeof kMagic, "magic") != std::string_view(kMagic, sizeof kMagic)) {
     in.fail("bad magic (not a perception cache file of this version)");
   }
