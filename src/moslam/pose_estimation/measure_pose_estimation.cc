@@ -1,11 +1,16 @@
 // Measures segmentation + registration on rendered frames (render/renderer.h): one object of a
-// class at the centre of an 8 x 8 m room, seen from `--views` random viewpoints (distance
-// 1.5-3 m, camera 0.5 m above the floor, random object yaw), segmented in its ground-truth box
-// and registered to the template sampled from the same class model. Prints per-view status,
-// inliers, pose error against ground truth and per-stage times (wall clock; the process CPU
-// time is printed too because the machine may be shared). Not a test: a measurement tool.
+// class at the centre of a room (8 x 8 m, larger with --max-distance beyond 3 m), seen from
+// `--views` random viewpoints (1.5-3 m away by default, camera 0.5 m above the floor, random
+// object yaw), segmented in its ground-truth box and registered to the template sampled from the
+// same class model. --dining sets four chairs around it as around house's kitchen table; the
+// chairs' pixels are left out of its segment with --claim-others-truth (by their ground-truth
+// instance ids: what instance masks would give) or --claim-others-segments (the chairs' own
+// segments in their true boxes). Prints per-view status, inliers, pose error against ground
+// truth and per-stage times (wall clock; the process CPU time is printed too because the machine
+// may be shared). Not a test: a measurement tool.
 //
-//   measure_pose_estimation --label chair --views 20 [--voxel 0.015 --keypoint-voxel 0.03
+//   measure_pose_estimation --label chair --views 20 [--min-distance 1.5 --max-distance 3]
+//     [--dining] [--claim-others-truth] [--voxel 0.015 --keypoint-voxel 0.03
 //     --feature-radius 0.05 --normal-radius 0.03 --sac-iterations 500 --seed 1]
 #include <CLI/CLI.hpp>
 
@@ -39,11 +44,14 @@ int main(int argc, char** argv) {
   int views = 20;
   unsigned seed = 1;
   double template_spacing = 0.005;
+  double min_distance = 1.5, max_distance = 3.0;
   RegistrationConfig config;
   app.add_option("--label", label, "object class (sim/world.h StandardObjectClasses)");
   app.add_option("--views", views, "number of rendered views");
   app.add_option("--seed", seed, "viewpoint seed");
   app.add_option("--template-spacing", template_spacing, "template surface sampling (m)");
+  app.add_option("--min-distance", min_distance, "nearest viewpoint (m)");
+  app.add_option("--max-distance", max_distance, "farthest viewpoint (m)");
   app.add_option("--voxel", config.features.voxel_size, "segment/template voxel (m)");
   app.add_option("--keypoint-voxel", config.features.keypoint_voxel, "keypoint voxel (m)");
   app.add_option("--normal-radius", config.features.normal_radius, "normal radius (m)");
@@ -74,6 +82,15 @@ int main(int argc, char** argv) {
   app.add_option("--min-colour-agreement", config.min_colour_agreement, "colour gate");
   app.add_option("--colour-tolerance", config.colour_tolerance, "chromaticity tolerance");
   bool diagnose = false;
+  bool dining = false;
+  bool claim_truth = false;
+  bool claim_segments = false;
+  app.add_flag("--claim-others-segments", claim_segments,
+               "leave the other objects' segments (in their true boxes) out of the segment");
+  app.add_flag("--claim-others-truth", claim_truth,
+               "leave the other objects' pixels (ground truth) out of the segment");
+  app.add_flag("--dining", dining,
+               "four chairs around the object, as house's kitchen table (sim/world.cc)");
   app.add_flag("--diagnose", diagnose, "also run GICP from the true pose");
   CLI11_PARSE(app, argc, argv);
 
@@ -85,8 +102,19 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "unknown class %s\n", label.c_str());
     return 2;
   }
-  world.rooms.push_back({"room", Vector2(-4.0, -4.0), Vector2(4.0, 4.0)});
+  const double half_room = std::max(4.0, max_distance + 1.0);  // every viewpoint inside the room
+  world.rooms.push_back({"room", Vector2(-half_room, -half_room), Vector2(half_room, half_room)});
   world.objects.push_back({0, label, SE3(SO3(), Vector3(0.0, 0.0, 0.5 * cls->extent.z()))});
+  if (dining) {  // house's kitchen: chairs 0.4 m either side of the centre, 0.55 m out, backs out
+    const double chair_z = 0.5 * world.findClass("chair")->extent.z();
+    int id = 1;
+    for (const double x : {-0.4, 0.4}) {
+      for (const double y : {-0.55, 0.55}) {
+        const SO3 facing = SO3::Exp(Vector3(0, 0, y < 0 ? kPi / 2 : -kPi / 2));
+        world.objects.push_back({id++, "chair", SE3(facing, Vector3(x, y, chair_z))});
+      }
+    }
+  }
 
   const auto t_template = std::chrono::steady_clock::now();
   const ObjectTemplate tmpl = MakeObjectTemplate(
@@ -97,15 +125,16 @@ int main(int argc, char** argv) {
                                                         t_template).count());
 
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> yaw_dist(-kPi, kPi), dist_dist(1.5, 3.0),
-      side_dist(-0.3, 0.3);
+  std::uniform_real_distribution<double> yaw_dist(-kPi, kPi),
+      dist_dist(min_distance, max_distance), side_dist(-0.3, 0.3);
   const SegmentationConfig seg_config;
   std::vector<double> t_err, r_err, seg_ms, prep_ms, sac_ms, gate_ms, gicp_ms, total_ms,
       cpu_ms, seg_pts;
   int accepted = 0, attempted = 0;
   for (int k = 0; k < views; ++k) {
     World w = world;
-    w.objects[0].pose = SE3(SO3::Exp(Vector3(0, 0, yaw_dist(rng))), w.objects[0].pose.translation());
+    const SE3 turn(SO3::Exp(Vector3(0, 0, yaw_dist(rng))), Vector3::Zero());
+    for (auto& o : w.objects) o.pose = turn * o.pose;
     const double bearing = yaw_dist(rng), d = dist_dist(rng), side = side_dist(rng);
     const Vector3 cam(-d * std::cos(bearing), -d * std::sin(bearing), 0.5);
     // Look at the object, with a small lateral offset so it is not always centred.
@@ -114,14 +143,29 @@ int main(int argc, char** argv) {
     RenderConfig rc;
     Renderer renderer(w, rc);
     const RenderedFrame f = renderer.render(world_T_body, static_cast<std::uint64_t>(k));
-    if (f.objects.empty()) continue;
-    const VisibleObject& truth = f.objects[0];
+    const auto seen = std::find_if(f.objects.begin(), f.objects.end(),
+                                   [](const VisibleObject& o) { return o.id == 0; });
+    if (seen == f.objects.end()) continue;
+    const VisibleObject& truth = *seen;
     ++attempted;
     const double c0 = static_cast<double>(std::clock());
     const auto s0 = std::chrono::steady_clock::now();
     const PreparedFrame prepared = PrepareSegmentation(MakeOrganizedCloud(f.rgbd), seg_config);
+    std::vector<int> claimed;
+    if (claim_segments) {
+      for (const VisibleObject& other : f.objects) {
+        if (other.id == 0) continue;
+        const SegmentationResult o = SegmentObject(prepared, cv::Rect2f(other.box), seg_config);
+        claimed.insert(claimed.end(), o.indices.begin(), o.indices.end());
+      }
+    }
+    if (claim_truth) {
+      for (int v = 0; v < f.instance_ids.rows; ++v)
+        for (int u = 0; u < f.instance_ids.cols; ++u)
+          if (f.instance_ids.at<int>(v, u) > 0) claimed.push_back(v * f.instance_ids.cols + u);
+    }
     const SegmentationResult seg =
-        SegmentObject(prepared, cv::Rect2f(truth.box), seg_config);
+        SegmentObject(prepared, cv::Rect2f(truth.box), seg_config, claimed);
     const double seg_time =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s0).count();
     if (seg.status != SegmentationStatus::kOk) {
@@ -137,12 +181,14 @@ int main(int argc, char** argv) {
         object_pixels += f.instance_ids.at<int>(v, u) == truth.id &&
                          f.rgbd.depth.at<float>(v, u) > 0.0f;
     double truth_t = std::nan(""), truth_r = std::nan(""), truth_colour = std::nan("");
+    const char* truth_status = "-";
     if (diagnose) {
       RegistrationConfig truth_config = config;
       truth_config.symmetry_turns = 1;
       const RegistrationResult g =
           RefinePose(*seg.segment, tmpl, truth.camera_T_object, truth_config);
       truth_colour = g.colour_agreement;
+      truth_status = ToString(g.status);
       truth_t = (truth.camera_T_object.translation() - g.camera_T_object.translation()).norm();
       truth_r = SE3::Log(truth.camera_T_object.inverse() * g.camera_T_object).head<3>().norm() *
                 180.0 / kPi;
@@ -151,10 +197,10 @@ int main(int argc, char** argv) {
     const double sac_r = SE3::Log(truth.camera_T_object.inverse() * r.sac_camera_T_object).head<3>().norm() * 180.0 / kPi;
     std::printf("  SAC-IA error %.3f m %.2f deg; fitness sac %.2g gicp %.2g\n", sac_t, sac_r, r.sac_fitness, r.fitness);
     std::printf("  segment precision %.3f recall %.3f; GICP from truth -> %.3f m %.2f deg colour "
-                "%.2f\n",
+                "%.2f, %s\n",
                 static_cast<double>(on_object) / static_cast<double>(seg.indices.size()),
                 static_cast<double>(on_object) / std::max(1, object_pixels), truth_t, truth_r,
-                truth_colour);
+                truth_colour, truth_status);
     {
       const Vector3 axis =
           SE3::Log(truth.camera_T_object.inverse() * r.camera_T_object).head<3>().normalized();

@@ -222,6 +222,12 @@ PlaneRole ClassifyPlane(const ScenePlane& plane, std::size_t cloud_width, const 
 
 SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& box,
                                  const SegmentationConfig& config) {
+  return SegmentObject(frame, box, config, {});
+}
+
+SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& box,
+                                 const SegmentationConfig& config,
+                                 const std::vector<int>& claimed) {
   config.validate();
   if (!std::isfinite(box.x) || !std::isfinite(box.y) || !std::isfinite(box.width) ||
       !std::isfinite(box.height) || box.width < 0.0f || box.height < 0.0f) {
@@ -260,6 +266,16 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
       if (Finite(cloud.at(u, v))) (*labels)[static_cast<std::size_t>(v * width + u)].label = 0;
     }
   }
+  for (int index : claimed) {
+    if (index < 0 || static_cast<std::size_t>(index) >= labels->size()) {
+      throw InvalidInputError("SegmentObject: a claimed pixel index lies outside the cloud");
+    }
+    auto& l = (*labels)[static_cast<std::size_t>(index)];
+    if (l.label != 0) continue;
+    const Eigen::Vector2i uv = PixelOfIndex(static_cast<std::size_t>(index), cloud.width);
+    if (inner.contains(uv.x(), uv.y())) ++result.claimed_points_in_box;
+    l.label = 1;
+  }
   const double cos_normal = std::cos(config.structure_normal_tolerance_deg * kDegToRad);
   for (const ScenePlane& plane : frame.planes) {
     const PlaneRole role = ClassifyPlane(plane, cloud.width, box, config);
@@ -291,7 +307,9 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
       }
     }
   }
-  if (result.valid_points_in_box - result.structure_points_in_box < config.min_segment_points) {
+  if (result.valid_points_in_box - result.structure_points_in_box -
+          result.claimed_points_in_box <
+      config.min_segment_points) {
     result.status = SegmentationStatus::kTooFewPoints;
     result.time_ms = MsSince(t0);
     return result;

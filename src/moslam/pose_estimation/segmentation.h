@@ -130,6 +130,7 @@ struct SegmentationResult {
   std::vector<int> indices;     // of the segment's points in the organized cloud
   int valid_points_in_box = 0;  // finite points inside the box
   int structure_points_in_box = 0;  // of those, removed as scene structure
+  int claimed_points_in_box = 0;    // of those, claimed by other objects (SegmentObject's claimed)
   int planes_dropped = 0;
   int components = 0;           // components considered (with >= 1 point in the box)
   double time_ms = 0.0;         // this call (not PrepareSegmentation)
@@ -144,6 +145,12 @@ PreparedFrame PrepareSegmentation(const OrganizedCloud::ConstPtr& cloud,
 // kEmptyBox); throws InvalidInputError on an invalid config or a non-finite box.
 SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& box,
                                  const SegmentationConfig& config);
+// The same with the pixels of `claimed` (indices into the organized cloud: the segments of other
+// objects seen inside this box) left out, as if they were scene structure. Throws
+// InvalidInputError on an index outside the cloud.
+SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& box,
+                                 const SegmentationConfig& config,
+                                 const std::vector<int>& claimed);
 
 // Why a plane is (or is not) scene structure for a box (rule of the header comment).
 enum class PlaneRole { kObject, kFloor, kOutsideBox };

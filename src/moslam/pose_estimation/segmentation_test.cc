@@ -155,6 +155,52 @@ TEST(Segmentation, ASurfaceBehindTheObjectFillingTheBoxIsNotTakenForIt) {
   EXPECT_GT(r.segment->size(), 1500u);  // the upper part (about 53 x 48 pixels)
 }
 
+// A box around the object and a neighbour touching it at the same depth (chairs at a table): one
+// component, so the segment holds both. With the neighbour's pixels claimed (its own segment, in
+// ObjectPerception's use; here by colour) the segment is the object's alone.
+TEST(Segmentation, ClaimedPixelsOfAnotherObjectAreLeftOut) {
+  const PinholeIntrinsics K;
+  const test::Box3 neighbour{Vector3(0.25, -0.1, 1.5), Vector3(0.45, 0.5, 1.7)};
+  const RgbdFrame f = test::FloorAndBoxesFrame(
+      K, 0.5, {{kObject, cv::Vec3b(30, 30, 200)}, {neighbour, cv::Vec3b(30, 200, 30)}});
+  const cv::Rect2f both(128.0f, 82.0f, 84.0f, 96.0f);
+  const SegmentationConfig config;
+  const PreparedFrame prepared = PrepareSegmentation(MakeOrganizedCloud(f), config);
+  auto is_neighbour = [](const OrganizedPoint& p) { return p.r == 30 && p.g == 200 && p.b == 30; };
+  std::vector<int> claimed;
+  int neighbour_in_box = 0, object_in_box = 0;
+  const int width = static_cast<int>(prepared.cloud->width);
+  for (int v = 0; v < static_cast<int>(prepared.cloud->height); ++v) {
+    for (int u = 0; u < width; ++u) {
+      const OrganizedPoint& p = prepared.cloud->at(u, v);
+      const bool inside = both.contains(cv::Point2f(static_cast<float>(u), static_cast<float>(v)));
+      if (is_neighbour(p)) {
+        claimed.push_back(v * width + u);
+        neighbour_in_box += inside ? 1 : 0;
+      }
+      object_in_box += inside && IsObjectColour(p) ? 1 : 0;
+    }
+  }
+  ASSERT_GT(neighbour_in_box, 500);
+  ASSERT_GT(object_in_box, 1000);
+
+  const SegmentationResult plain = SegmentObject(prepared, both, config);
+  ASSERT_EQ(plain.status, SegmentationStatus::kOk) << ToString(plain.status);
+  int neighbour_kept = 0;
+  for (const auto& p : plain.segment->points) neighbour_kept += is_neighbour(p) ? 1 : 0;
+  EXPECT_GT(neighbour_kept, neighbour_in_box / 2);  // the case claims are for
+  EXPECT_EQ(plain.claimed_points_in_box, 0);
+
+  const SegmentationResult r = SegmentObject(prepared, both, config, claimed);
+  ASSERT_EQ(r.status, SegmentationStatus::kOk) << ToString(r.status);
+  EXPECT_EQ(CountObjectPixels(*r.segment), static_cast<int>(r.segment->size()));
+  EXPECT_GE(CountObjectPixels(*r.segment), 0.95 * object_in_box);
+  EXPECT_EQ(r.claimed_points_in_box, neighbour_in_box);
+
+  EXPECT_THROW(SegmentObject(prepared, both, config, {width * 240}), InvalidInputError);
+  EXPECT_THROW(SegmentObject(prepared, both, config, {-1}), InvalidInputError);
+}
+
 TEST(Segmentation, ReportsEmptyBoxesAndTooFewPoints) {
   const PinholeIntrinsics K;
   const RgbdFrame f = test::FloorAndBoxFrame(K, 0.5, kObject);
