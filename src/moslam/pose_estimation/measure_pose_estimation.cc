@@ -10,8 +10,9 @@
 // may be shared). Not a test: a measurement tool.
 //
 //   measure_pose_estimation --label chair --views 20 [--min-distance 1.5 --max-distance 3]
-//     [--dining] [--claim-others-truth] [--voxel 0.015 --keypoint-voxel 0.03
-//     --feature-radius 0.05 --normal-radius 0.03 --sac-iterations 500 --seed 1]
+//     [--dining] [--claim-others-truth | --claim-others-segments]
+//     [--voxel 0.015 --keypoint-voxel 0.03 --feature-radius 0.05 --normal-radius 0.03
+//     --sac-iterations 500 --seed 1]
 #include <CLI/CLI.hpp>
 
 #include <algorithm>

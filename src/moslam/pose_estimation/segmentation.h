@@ -21,6 +21,8 @@
 //        point (nothing lies beneath the floor); for an (a) plane, those whose integral-image
 //        normal is invalid or within structure_normal_tolerance_deg of the plane's normal (so an
 //        extended neighbouring plane does not slice the object).
+//        Pixels the caller says other objects claim (SegmentObject's `claimed`) are left out
+//        too, before the planes.
 //     4. connected components (pcl::OrganizedConnectedComponentSegmentation with
 //        pcl::EuclideanClusterComparator, its threshold `cluster_distance` widened by the depth
 //        noise at the pixel's depth) over the valid,
