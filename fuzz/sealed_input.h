@@ -1,5 +1,5 @@
 // The two decodings each cache-file harness runs (template cache, perception cache): the input as
-// it is, and sealed with the checksum both formats end with (FNV-1a 64 of every byte before it),
+// it is, and sealed with the checksum both formats end with (ByteWriter::seal, SealedBody),
 // so that the fuzzer reaches the fields behind the checksum. The fingerprint the decoder expects
 // is the one the input names (its bytes 8-15, after an 8-byte magic).
 #pragma once
@@ -9,7 +9,7 @@
 #include <cstring>
 #include <string>
 
-#include "moslam/common/fnv.h"
+#include "moslam/common/byte_io.h"
 
 template <class Decode>
 void DecodeRawAndSealed(const std::uint8_t* data, std::size_t size, const Decode& decode) {
@@ -17,8 +17,8 @@ void DecodeRawAndSealed(const std::uint8_t* data, std::size_t size, const Decode
   std::uint64_t fingerprint = 0;
   if (size >= 16) std::memcpy(&fingerprint, data + 8, sizeof(fingerprint));
   decode(raw, fingerprint);
-  std::string sealed = raw;
-  const std::uint64_t checksum = moslam::Fnv1a64(sealed.data(), sealed.size());
-  sealed.append(reinterpret_cast<const char*>(&checksum), sizeof(checksum));
-  decode(sealed, fingerprint);
+  moslam::ByteWriter sealed;
+  sealed.bytes(raw);
+  sealed.seal();
+  decode(sealed.str(), fingerprint);
 }

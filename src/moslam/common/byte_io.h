@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/fnv.h"
 
 namespace moslam {
 
@@ -31,6 +32,9 @@ class ByteWriter {
     put(bits);
   }
   void bytes(std::string_view s) { out_.append(s); }
+  // Appends the checksum the project's file formats end with: FNV-1a 64 of every byte so far
+  // (SealedBody checks it).
+  void seal() { u64(Fnv1a64(out_.data(), out_.size())); }
   const std::string& str() const { return out_; }
   std::string take() { return std::move(out_); }
 
@@ -109,5 +113,20 @@ class ByteReader {
   std::string format_;
   std::size_t at_ = 0;
 };
+
+// The bytes before the checksum ByteWriter::seal() appended, after checking it. Throws
+// InvalidInputError naming `format` if fewer than `min_body` bytes precede the checksum, or if it
+// does not match (a damaged or partly written file).
+inline std::string_view SealedBody(std::string_view bytes, std::size_t min_body,
+                                   const std::string& format) {
+  const ByteReader whole(bytes, format);
+  if (bytes.size() < min_body + sizeof(std::uint64_t)) whole.fail("too short");
+  const std::string_view body = bytes.substr(0, bytes.size() - sizeof(std::uint64_t));
+  if (ByteReader(bytes.substr(body.size()), format).u64("checksum") !=
+      Fnv1a64(body.data(), body.size())) {
+    whole.fail("checksum mismatch (damaged or partly written)");
+  }
+  return body;
+}
 
 }  // namespace moslam

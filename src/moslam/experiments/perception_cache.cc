@@ -127,18 +127,12 @@ std::string EncodePerceivedRun(const PerceivedRun& run, std::uint64_t fingerprin
   for (double v : run.metrics) out.f64(v);
   out.u32(static_cast<std::uint32_t>(run.report.size()));
   out.bytes(run.report);
-  out.u64(Fnv1a64(out.str().data(), out.str().size()));
+  out.seal();
   return out.take();
 }
 
 PerceivedRun DecodePerceivedRun(std::string_view bytes, std::uint64_t fingerprint) {
-  if (bytes.size() < sizeof kMagic + 16) ByteReader(bytes, kFormat).fail("too short");
-  const std::string_view body = bytes.substr(0, bytes.size() - 8);
-  ByteReader in(body, kFormat);
-  if (ByteReader(bytes.substr(body.size()), kFormat).u64("checksum") !=
-      Fnv1a64(body.data(), body.size())) {
-    in.fail("checksum mismatch (damaged file)");
-  }
+  ByteReader in(SealedBody(bytes, sizeof kMagic + 8, kFormat), kFormat);
   if (in.take(sizeof kMagic, "magic") != std::string_view(kMagic, sizeof kMagic)) {
     in.fail("bad magic (not a perception cache file of this version)");
   }

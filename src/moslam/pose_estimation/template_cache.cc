@@ -98,21 +98,14 @@ std::string EncodeTemplate(const ObjectTemplate& tmpl, std::uint64_t fingerprint
   for (const auto& f : tmpl.features->points) {
     for (float h : f.histogram) w.f32(h);
   }
-  w.u64(Fnv1a64(w.str().data(), w.str().size()));
+  w.seal();
   return w.take();
 }
 
 ObjectTemplate DecodeTemplate(std::string_view bytes, const std::string& label,
                               std::uint64_t fingerprint, const FeatureConfig& config) {
-  if (bytes.size() < sizeof(kMagic) + 2 * sizeof(std::uint64_t)) {
-    throw InvalidInputError("template cache: too short to be a template");
-  }
-  const std::size_t body = bytes.size() - sizeof(std::uint64_t);
-  const std::uint64_t stored = ByteReader(bytes.substr(body), "template cache").u64("checksum");
-  if (Fnv1a64(bytes.data(), body) != stored) {
-    throw InvalidInputError("template cache: checksum mismatch (damaged or partly written)");
-  }
-  ByteReader r(bytes.substr(0, body), "template cache");
+  ByteReader r(SealedBody(bytes, sizeof(kMagic) + sizeof(std::uint64_t), "template cache"),
+               "template cache");
   const std::string_view magic = r.take(sizeof(kMagic), "magic");
   if (magic.substr(0, sizeof(kMagic) - 1) == std::string_view(kMagic, sizeof(kMagic) - 1) &&
       magic != std::string_view(kMagic, sizeof(kMagic))) {
