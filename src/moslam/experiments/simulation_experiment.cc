@@ -295,6 +295,7 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   out.slam.slam.exclusion_radius = config.exclusion_radius;
   out.slam.slam.leave_one_out_check = config.leave_one_out_check;
   out.slam.slam.loop_closure = config.loop_closure;
+  out.slam.rendezvous.refine_by_constellation = config.rendezvous_constellation;
   out.slam.outlier_fraction = config.outlier_fraction;
   out.slam.outlier_seed = out.seed;
   return out;
@@ -778,6 +779,7 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"exclusion_radius", c.exclusion_radius},
                              {"leave_one_out_check", c.leave_one_out_check},
                              {"loop_closure", c.loop_closure},
+                             {"rendezvous_constellation", c.rendezvous_constellation},
                              {"skipped_runs", r.skipped}};
     nlohmann::json runs = nlohmann::json::array();
     for (const RunMetrics& m : r.runs) runs.push_back(metrics(m));

@@ -108,6 +108,10 @@ struct ExperimentConfig {
   // here (the paper's rule); `moslam simulate` turns it on with --perception rendered unless
   // --no-loop-closure.
   bool loop_closure = false;
+  // The rendezvous' refinement by the constellation of both object maps
+  // (RendezvousConfig::refine_by_constellation; known initial poses). Off here; `moslam simulate`
+  // turns it on with --perception rendered unless --no-rendezvous-constellation.
+  bool rendezvous_constellation = false;
   // A run in which some robot never gets linked to robot 0 (no rendezvous aligned, or, with
   // robust, the separator check refused all its links) is left out of the mean and counted
   // (ExperimentResult::skipped), instead of failing the experiment.

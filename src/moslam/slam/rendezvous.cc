@@ -339,6 +339,30 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> MatchObjectMaps(
   return out;
 }
 
+namespace {
+
+std::vector<ConstellationObject> Constellation(const std::vector<ObjectMapEntry>& objects) {
+  std::vector<ConstellationObject> out;
+  for (const auto& o : objects) out.push_back({o.landmark, o.label, o.pose});
+  return out;
+}
+
+// The size of the largest pairwise-consistent subset (constellation.h, step 2) of `pairs`,
+// (alpha landmark, beta landmark).
+int ConsistentCount(const std::vector<ConstellationObject>& a,
+                    const std::vector<ConstellationObject>& b,
+                    const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
+                    const ConstellationConfig& config) {
+  std::map<std::uint32_t, std::size_t> a_index, b_index;
+  for (std::size_t i = 0; i < a.size(); ++i) a_index.emplace(a[i].id, i);
+  for (std::size_t j = 0; j < b.size(); ++j) b_index.emplace(b[j].id, j);
+  std::vector<std::pair<std::size_t, std::size_t>> indexed;
+  for (const auto& [ka, kb] : pairs) indexed.emplace_back(a_index.at(ka), b_index.at(kb));
+  return static_cast<int>(ConsistentSubset(a, b, indexed, config).size());
+}
+
+}  // namespace
+
 SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
                     const std::vector<ObjectMapEntry>& beta_objects, const RendezvousConfig& config,
                     const std::vector<std::uint32_t>& alpha_taken,
@@ -403,6 +427,22 @@ SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
       }
     }
   }
+  if (config.refine_by_constellation) {
+    const std::vector<ConstellationObject> a = Constellation(from_alpha.objects),
+                                           b = Constellation(beta_objects);
+    const ConstellationAlignment aligned = AlignConstellations(a, b, config.constellation);
+    if (aligned.status == AlignmentStatus::kAligned) {
+      const auto consistent = [&](const SE3& T) {
+        return ConsistentCount(
+            a, b, MatchObjectMaps(from_alpha, T, beta_objects, config.gate, alpha_taken, beta_taken),
+            config.constellation);
+      };
+      if (consistent(aligned.b_T_a) > consistent(best)) {
+        best = aligned.b_T_a;
+        best_n = count(best);
+      }
+    }
+  }
   if (inliers != nullptr) *inliers = best_n;
   return best;
 }
@@ -456,16 +496,6 @@ RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
   out.removed_shared = RemovedObjectsOf(answer);
   return out;
 }
-
-namespace {
-
-std::vector<ConstellationObject> Constellation(const std::vector<ObjectMapEntry>& objects) {
-  std::vector<ConstellationObject> out;
-  for (const auto& o : objects) out.push_back({o.landmark, o.label, o.pose});
-  return out;
-}
-
-}  // namespace
 
 SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const ObjectSlam& beta,
                                      const std::optional<SE3>& beta_T_alpha,

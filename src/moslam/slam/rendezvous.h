@@ -23,8 +23,11 @@
 // transform is first refined by aligning the two object maps, since both maps drift from their
 // robots' first poses: on chairs25 with 6 robots at 5 deg / 0.2 m this raised the recall of the
 // shared objects from 0.67 to 0.91 at a precision of 0.99, and on generated worlds with 64
-// robots it is what connects the team (recall 0.20 -> 0.71). Beta answers with the list of new shared objects (a
-// SharedObjectsMessage), and both robots add one object-object factor per shared pair:
+// robots it is what connects the team (recall 0.20 -> 0.71). With
+// RendezvousConfig::refine_by_constellation (on with rendered perception) beta also aligns the
+// two maps by their constellation and keeps the transform whose matches agree best. Beta answers
+// with the list of new shared objects (a SharedObjectsMessage), and both robots add one
+// object-object factor per shared pair:
 //   RelativePoseFactor(a = o_{beta,l}, b = o_{alpha,k}, z = identity, information = Lambda),
 //   r = Log(o_{beta,l}^-1 o_{alpha,k}).
 // Both messages cross as bytes (encoded, then decoded by the receiver) and are counted.
@@ -104,6 +107,19 @@ struct RendezvousConfig {
   double max_correction_m = 4.0;
   double max_correction_deg = 45.0;
   int min_inliers = 3;
+  // Refinement by the constellation (an extension, off here; `simulate --perception rendered`
+  // turns it on): beta also aligns the two maps as with unknown initial poses
+  // (AlignConstellations over all their objects, shared ones included, with `constellation`),
+  // and when it aligns them, scores both transforms by the largest pairwise-consistent subset
+  // (constellation.h, step 2, `constellation`'s tolerances) of the matches each makes under the
+  // gate; the alignment's replaces the one above when it scores higher. A single pair's
+  // proposal carries one object's orientation error over the map and wins on a count of matches,
+  // which a grid read one row off in part can reach (chairs25, rendered, seed 2: 14 matches, 4
+  // of them wrong, of which 11 agree, against the alignment's 13 right, 12 agreeing); the
+  // alignment weighs every object's orientation and the drift between them, and refuses a layout
+  // it cannot read. It needs no prior (as with unknown initial poses), so max_correction_m /
+  // max_correction_deg do not bound it. Chosen on the selection seeds (README).
+  bool refine_by_constellation = false;
   // Simulation only, for ablations: beta pairs the landmarks whose true objects are equal
   // (Landmark::true_object), each at most once, instead of matching; the messages still cross.
   bool ground_truth_association = false;
@@ -140,8 +156,8 @@ bool EraseShared(std::vector<SharedObject>& shared, const SharedObject& pair);
 RelativePoseFactor ObjectObjectFactor(const SharedObject& shared, const Matrix6& lambda);
 
 // The transform under which beta matches alpha's objects: `prior` (the known-initial-pose
-// transform), or its refinement (RendezvousConfig::refine_alignment). `inliers` (optional): the
-// number of matches under the returned transform.
+// transform), or its refinement (RendezvousConfig::refine_alignment, refine_by_constellation).
+// `inliers` (optional): the number of matches under the returned transform.
 SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
                     const std::vector<ObjectMapEntry>& beta_objects, const RendezvousConfig& config,
                     const std::vector<std::uint32_t>& alpha_taken = {},

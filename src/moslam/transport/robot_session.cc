@@ -195,6 +195,7 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
   f.add(c.rendezvous.lambda());
   f.add(static_cast<std::uint64_t>(c.known_initial_poses));
   f.add(static_cast<std::uint64_t>(c.rendezvous.check_consistency));
+  f.add(static_cast<std::uint64_t>(c.rendezvous.refine_by_constellation));
   for (const ConstellationConfig* k : {&c.rendezvous.constellation, &c.rendezvous.consistency}) {
     f.add(k->sigma_translation);
     f.add(k->sigma_rotation_deg);
