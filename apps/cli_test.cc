@@ -366,6 +366,35 @@ TEST(CliSimulate, LoopClosureIsOffWithSampledMeasurementsUnlessAskedFor) {
   EXPECT_NE(both.out.find("excludes"), std::string::npos) << both.out;
 }
 
+// The rendezvous' refinement by the constellation of both maps: off with sampled measurements
+// (Tables 1-3's procedure) unless asked for; the two flags exclude each other; refused online.
+TEST(CliSimulate, RendezvousConstellationIsOffWithSampledMeasurementsUnlessAskedFor) {
+  const std::string run =
+      "simulate --scenario chairs25 --robots 2 --runs 1 --poses 30 --seed 3 --json";
+  const auto constellation = [](const CommandResult& r) {
+    return nlohmann::json::parse(LastLine(r.out))["rows"][0]["config"]["rendezvous_constellation"];
+  };
+  const CommandResult paper = RunMoslam(run);
+  ASSERT_EQ(paper.exit_code, 0) << paper.out;
+  EXPECT_EQ(constellation(paper), false);
+  const CommandResult asked = RunMoslam(run + " --rendezvous-constellation");
+  ASSERT_EQ(asked.exit_code, 0) << asked.out;
+  EXPECT_EQ(constellation(asked), true);
+  const CommandResult refused = RunMoslam(run + " --no-rendezvous-constellation");
+  ASSERT_EQ(refused.exit_code, 0) << refused.out;
+  EXPECT_EQ(constellation(refused), false);
+  const CommandResult both =
+      RunMoslam(run + " --rendezvous-constellation --no-rendezvous-constellation");
+  EXPECT_NE(both.exit_code, 0) << both.out;
+  EXPECT_NE(both.out.find("excludes"), std::string::npos) << both.out;
+  const CommandResult online = RunMoslam(
+      "simulate --online --scenario chairs25 --robots 2 --runs 1 --rendezvous-constellation");
+  EXPECT_EQ(online.exit_code, 1) << online.out;
+  EXPECT_NE(online.out.find("--rendezvous-constellation are not part of the online mission"),
+            std::string::npos)
+      << online.out;
+}
+
 TEST(CliSimulate, BadInputExitsOneWithAClearMessage) {
   const CommandResult mismatch =
       RunMoslam("simulate --robots 2 --runs 1 --sigma-rot 1 5 --sigma-trans 0.1");
@@ -390,10 +419,12 @@ TEST(CliSimulate, RenderedPerceptionLogsEveryDetection) {
       "--template-cache none --table perception --json --detection-log " + log.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto row = nlohmann::json::parse(LastLine(r.out))["rows"][0];
-  // Rendered perception's defaults: the exclusion radius and the robots' loop closure.
+  // Rendered perception's defaults: the exclusion radius, the robots' loop closure and the
+  // rendezvous' refinement by the constellation.
   EXPECT_EQ(row["config"]["perception"], "rendered");
   EXPECT_EQ(row["config"]["exclusion_radius"], 0.5);
   EXPECT_EQ(row["config"]["loop_closure"], true);
+  EXPECT_EQ(row["config"]["rendezvous_constellation"], true);
   const auto run = row["runs"][0];
   std::ifstream in(log);
   std::string line;
