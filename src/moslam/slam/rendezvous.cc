@@ -347,18 +347,18 @@ std::vector<ConstellationObject> Constellation(const std::vector<ObjectMapEntry>
   return out;
 }
 
-// The size of the largest pairwise-consistent subset (constellation.h, step 2) of `pairs`,
-// (alpha landmark, beta landmark).
-int ConsistentCount(const std::vector<ConstellationObject>& a,
-                    const std::vector<ConstellationObject>& b,
-                    const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
-                    const ConstellationConfig& config) {
+// ConsistentSubset of `pairs` given by landmark, (alpha landmark, beta landmark): the indices
+// into `pairs` of the largest pairwise-consistent subset (constellation.h, step 2).
+std::vector<std::size_t> ConsistentPairs(
+    const std::vector<ConstellationObject>& a, const std::vector<ConstellationObject>& b,
+    const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
+    const ConstellationConfig& config) {
   std::map<std::uint32_t, std::size_t> a_index, b_index;
   for (std::size_t i = 0; i < a.size(); ++i) a_index.emplace(a[i].id, i);
   for (std::size_t j = 0; j < b.size(); ++j) b_index.emplace(b[j].id, j);
   std::vector<std::pair<std::size_t, std::size_t>> indexed;
   for (const auto& [ka, kb] : pairs) indexed.emplace_back(a_index.at(ka), b_index.at(kb));
-  return static_cast<int>(ConsistentSubset(a, b, indexed, config).size());
+  return ConsistentSubset(a, b, indexed, config);
 }
 
 }  // namespace
@@ -433,9 +433,12 @@ SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
     const ConstellationAlignment aligned = AlignConstellations(a, b, config.constellation);
     if (aligned.status == AlignmentStatus::kAligned) {
       const auto consistent = [&](const SE3& T) {
-        return ConsistentCount(
-            a, b, MatchObjectMaps(from_alpha, T, beta_objects, config.gate, alpha_taken, beta_taken),
-            config.constellation);
+        return ConsistentPairs(
+                   a, b,
+                   MatchObjectMaps(from_alpha, T, beta_objects, config.gate, alpha_taken,
+                                   beta_taken),
+                   config.constellation)
+            .size();
       };
       if (consistent(aligned.b_T_a) > consistent(best)) {
         best = aligned.b_T_a;
@@ -551,13 +554,8 @@ SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const Obj
   // Consistency across rendezvous: the pairs shared before and the new ones, checked together.
   std::vector<std::pair<std::uint32_t, std::uint32_t>> all(before.begin(), before.end());
   all.insert(all.end(), reply.pairs.begin(), reply.pairs.end());
-  std::map<std::uint32_t, std::size_t> a_index, b_index;
-  for (std::size_t i = 0; i < received.objects.size(); ++i) a_index[received.objects[i].landmark] = i;
-  for (std::size_t j = 0; j < own.size(); ++j) b_index[own[j].landmark] = j;
-  std::vector<std::pair<std::size_t, std::size_t>> indexed;
-  for (const auto& [ka, kb] : all) indexed.emplace_back(a_index.at(ka), b_index.at(kb));
-  const std::vector<std::size_t> kept = ConsistentSubset(
-      Constellation(received.objects), Constellation(own), indexed, config.consistency);
+  const std::vector<std::size_t> kept = ConsistentPairs(
+      Constellation(received.objects), Constellation(own), all, config.consistency);
   std::vector<bool> keep(all.size(), false);
   for (std::size_t k : kept) keep[k] = true;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> added;
