@@ -393,6 +393,16 @@ TEST(CliSimulate, RendezvousConstellationIsOffWithSampledMeasurementsUnlessAsked
   EXPECT_NE(online.out.find("--rendezvous-constellation are not part of the online mission"),
             std::string::npos)
       << online.out;
+  // The robot processes take the flag too (Team.RendezvousConstellation...), not online.
+  for (const char* command : {"team --scenario chairs25 --robots 2",
+                              "robot --robot 0 --scenario chairs25 --robots 2"}) {
+    const CommandResult r =
+        RunMoslam(std::string(command) + " --online --rendezvous-constellation");
+    EXPECT_EQ(r.exit_code, 1) << r.out;
+    EXPECT_NE(r.out.find("--rendezvous-constellation are not part of the online mission"),
+              std::string::npos)
+        << r.out;
+  }
 }
 
 TEST(CliSimulate, BadInputExitsOneWithAClearMessage) {

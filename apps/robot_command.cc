@@ -171,6 +171,10 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
   sub->add_flag("--loop-closure", f.spec.loop_closure,
                 "A robot aligns its recent landmarks with its older ones and joins the objects it "
                 "mapped twice (as simulate; not with --online)");
+  sub->add_flag("--rendezvous-constellation", f.spec.rendezvous_constellation,
+                "Known initial poses: a rendezvous also aligns the two object maps by their "
+                "constellation and takes that transform when more of its matches agree pairwise "
+                "(as simulate; not with --online)");
 }
 
 std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
@@ -183,6 +187,7 @@ std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
       "--exclusion-radius", fmt::format("{}", f.spec.exclusion_radius)};
   if (f.spec.leave_one_out_check) a.push_back("--leave-one-out-check");
   if (f.spec.loop_closure) a.push_back("--loop-closure");
+  if (f.spec.rendezvous_constellation) a.push_back("--rendezvous-constellation");
   return a;
 }
 
@@ -320,6 +325,7 @@ void AddSessionSummary(const ScenarioSpec& spec, const RobotSessionResult& r, nl
   j["exclusion_radius"] = spec.exclusion_radius;
   j["leave_one_out_check"] = spec.leave_one_out_check;
   j["loop_closure"] = spec.loop_closure;
+  j["rendezvous_constellation"] = spec.rendezvous_constellation;
   j["poses"] = r.poses;
   j["landmarks"] = r.landmarks;
   j["shared"] = SharedJson(r.shared);
@@ -369,8 +375,9 @@ int RunScenarioRobot(const RobotArgs& a) {
                                         "at most {} robots (--robots {})",
                                         kMaxRobotsWithObjects, spec.robots));
   }
-  if (a.online && spec.loop_closure) {
-    throw InvalidInputError("robot: --loop-closure is not part of the online mission (--online)");
+  if (a.online && (spec.loop_closure || spec.rendezvous_constellation)) {
+    throw InvalidInputError("robot: --loop-closure and --rendezvous-constellation are not part "
+                            "of the online mission (--online)");
   }
   RobotSessionOptions options;
   options.slam = ScenarioSlamConfig(spec);
@@ -936,8 +943,9 @@ int RunScenarioTeam(const TeamArgs& a) {
   const fs::path out = a.out.empty() ? fs::temp_directory_path() /
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
-  if (a.online && spec.loop_closure) {
-    throw InvalidInputError("team: --loop-closure is not part of the online mission (--online)");
+  if (a.online && (spec.loop_closure || spec.rendezvous_constellation)) {
+    throw InvalidInputError("team: --loop-closure and --rendezvous-constellation are not part "
+                            "of the online mission (--online)");
   }
   fs::create_directories(out);
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
@@ -962,6 +970,7 @@ int RunScenarioTeam(const TeamArgs& a) {
   j["exclusion_radius"] = spec.exclusion_radius;
   j["leave_one_out_check"] = spec.leave_one_out_check;
   j["loop_closure"] = spec.loop_closure;
+  j["rendezvous_constellation"] = spec.rendezvous_constellation;
   j["poses_per_robot"] = spec.poses_per_robot;
   j["domain"] = a.domain;
   j["out"] = out.string();

@@ -394,6 +394,23 @@ TEST(Team, AScenarioAsProcessesEqualsTheInProcessPipeline) {
   fs::remove_all(out);
 }
 
+// --rendezvous-constellation reaches every robot process: chairs25 with 3 robots x 40 poses, seed
+// 2, pairs 25 objects with it (23 without, in-process: RobotSession.TheRendezvousConstellation...);
+// the processes pair the same and solve to the in-process estimate.
+TEST(Team, RendezvousConstellationAsProcessesEqualsTheInProcessPipeline) {
+  const fs::path out = FreshDir("constellation");
+  const nlohmann::json j =
+      RunScenarioTeam(out, 49, {"--rendezvous-constellation"},
+                      {"--scenario", "chairs25", "--robots", "3", "--poses", "40", "--seed", "2"});
+  ASSERT_TRUE(j.is_object());
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_EQ(j["rendezvous_constellation"], true);
+  EXPECT_EQ(j["shared_objects"], 25);
+  EXPECT_TRUE(j["shared_objects_equal"].get<bool>());
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  fs::remove_all(out);
+}
+
 // Unknown initial poses: beta aligns the object maps, and the answers drop pairs of earlier
 // rendezvous (12 removals counted over the robots in this run); pairs and estimate as in-process.
 TEST(Team, UnknownInitialPosesAsProcessesEqualTheInProcessPipeline) {

@@ -85,6 +85,7 @@ MultiRobotSlamConfig ScenarioSlamConfig(const ScenarioSpec& spec) {
   config.slam.exclusion_radius = spec.exclusion_radius;
   config.slam.leave_one_out_check = spec.leave_one_out_check;
   config.slam.loop_closure = spec.loop_closure;
+  config.rendezvous.refine_by_constellation = spec.rendezvous_constellation;
   return config;
 }
 

@@ -122,6 +122,10 @@ struct ScenarioSpec {
   // The robots' loop closure by object constellations (ObjectSlamConfig::loop_closure; off, as
   // `moslam simulate` without --loop-closure).
   bool loop_closure = false;
+  // Known initial poses: a rendezvous also aligns the two object maps by their constellation
+  // (RendezvousConfig::refine_by_constellation; off, as `moslam simulate` with sampled
+  // measurements and without --rendezvous-constellation).
+  bool rendezvous_constellation = false;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };

@@ -296,6 +296,26 @@ TEST(RobotSession, TheRobotsLoopClosureGivesTheInProcessPipelineWithIt) {
   ExpectEqualToInProcess(results, ref);
 }
 
+// The rendezvous refined by the constellation of both maps (slam/rendezvous.h) runs inside each
+// beta's rendezvous: the processes find the in-process pairs and estimate with it, which are not
+// the ones without it.
+TEST(RobotSession, TheRendezvousConstellationGivesTheInProcessPipelineWithIt) {
+  ScenarioSpec spec = Small();
+  spec.seed = 2;  // seeds 1-12 of chairs25, house and generated with 3 and 4 robots: the one
+                  // whose pairs the refinement changes (25 pairs, 23 without)
+  spec.rendezvous_constellation = true;
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  ASSERT_TRUE(ref.joint.unanchored_robots.empty());
+  ScenarioSpec proposals = spec;
+  proposals.rendezvous_constellation = false;
+  EXPECT_NE(InProcess(proposals, data).shared, ref.shared);
+
+  const std::vector<RobotSessionResult> results = RunTeam(spec, data);
+  ASSERT_FALSE(HasFailure());
+  ExpectEqualToInProcess(results, ref);
+}
+
 // Unknown initial poses: beta aligns the object maps and drops pairs of earlier rendezvous that
 // the new ones contradict, as in-process; the answers carry the removed pairs. The slices hold
 // random initial poses: the result does not change, so nothing reads them.
