@@ -37,6 +37,22 @@ inline std::optional<std::string> ReadWholeFile(const std::string& path,
   return bytes;
 }
 
+// The file decoded by `decode(bytes)`, or nullopt: no such file (`why_not` left empty), one that
+// cannot be read, or bytes `decode` refuses with InvalidInputError (`why_not` names the file and
+// says why). A cache's miss: the caller computes the value again.
+template <typename Decode>
+auto ReadDecodedFile(const std::string& path, std::string* why_not, Decode&& decode)
+    -> std::optional<decltype(decode(std::string()))> {
+  const std::optional<std::string> bytes = ReadWholeFile(path, why_not);
+  if (!bytes) return std::nullopt;
+  try {
+    return decode(*bytes);
+  } catch (const InvalidInputError& e) {
+    if (why_not) *why_not = path + ": " + e.what();
+    return std::nullopt;
+  }
+}
+
 // Writes `bytes` to `path`, creating its folder. Throws InvalidInputError, prefixed with `who`,
 // naming the path when it cannot; the target is then unchanged.
 inline void WriteWholeFile(const std::string& path, std::string_view bytes,

@@ -176,15 +176,9 @@ std::string PerceptionCache::path(std::uint64_t fingerprint) const {
 
 std::optional<PerceivedRun> PerceptionCache::load(std::uint64_t fingerprint,
                                                   std::string* why_not) const {
-  const std::string file = path(fingerprint);
-  const std::optional<std::string> bytes = ReadWholeFile(file, why_not);
-  if (!bytes) return std::nullopt;
-  try {
-    return DecodePerceivedRun(*bytes, fingerprint);
-  } catch (const InvalidInputError& e) {
-    if (why_not) *why_not = file + ": " + e.what();
-    return std::nullopt;
-  }
+  return ReadDecodedFile(path(fingerprint), why_not, [&](const std::string& bytes) {
+    return DecodePerceivedRun(bytes, fingerprint);
+  });
 }
 
 void PerceptionCache::store(const PerceivedRun& run, std::uint64_t fingerprint) const {

@@ -173,15 +173,9 @@ std::optional<ObjectTemplate> TemplateCache::load(const std::string& label,
                                                   std::uint64_t fingerprint,
                                                   const FeatureConfig& config,
                                                   std::string* why_not) const {
-  const std::string file = path(label, fingerprint);
-  const std::optional<std::string> bytes = ReadWholeFile(file, why_not);
-  if (!bytes) return std::nullopt;
-  try {
-    return DecodeTemplate(*bytes, label, fingerprint, config);
-  } catch (const InvalidInputError& e) {
-    if (why_not) *why_not = file + ": " + e.what();
-    return std::nullopt;
-  }
+  return ReadDecodedFile(path(label, fingerprint), why_not, [&](const std::string& bytes) {
+    return DecodeTemplate(bytes, label, fingerprint, config);
+  });
 }
 
 void TemplateCache::store(const ObjectTemplate& tmpl, std::uint64_t fingerprint) const {
