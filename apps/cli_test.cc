@@ -393,7 +393,17 @@ TEST(CliSimulate, RendezvousConstellationIsOffWithSampledMeasurementsUnlessAsked
   EXPECT_NE(online.out.find("--rendezvous-constellation are not part of the online mission"),
             std::string::npos)
       << online.out;
-  // The robot processes take the flag too (Team.RendezvousConstellation...), not online.
+  // The robot processes take the flag too (Team.RendezvousConstellation...), not online, and
+  // not without a scenario: with --data every scenario flag is refused, not ignored.
+  const std::string folder = fs::temp_directory_path().string();
+  for (const std::string& command :
+       {"team --data " + folder, "robot --robot 0 --data " + folder}) {
+    for (const char* flag : {"--rendezvous-constellation", "--loop-closure", "--seed 3"}) {
+      const CommandResult r = RunMoslam(command + " " + flag);
+      EXPECT_NE(r.exit_code, 0) << command << " " << flag << ": " << r.out;
+      EXPECT_NE(r.out.find("requires --scenario"), std::string::npos) << r.out;
+    }
+  }
   for (const char* command : {"team --scenario chairs25 --robots 2",
                               "robot --robot 0 --scenario chairs25 --robots 2"}) {
     const CommandResult r =

@@ -138,9 +138,11 @@ struct ScenarioFlags {
   }
 };
 
-// `with_robots`: also --robots (moslam team has its own).
+// `with_robots`: also --robots (moslam team has its own). Every flag but --scenario needs it:
+// given with --data (a g2o folder has none of them) it is an error, not ignored.
 void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
-  sub->add_option("--scenario", f.name,
+  const std::size_t before = sub->get_options().size();
+  CLI::Option* scenario = sub->add_option("--scenario", f.name,
                   "Simulated scenario (chairs25 | house | generated): every process simulates it "
                   "and keeps its own robot's measurements")
       ->check(CLI::IsMember({"chairs25", "house", "generated"}));
@@ -175,6 +177,10 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
                 "Known initial poses: a rendezvous also aligns the two object maps by their "
                 "constellation and takes that transform when more of its matches agree pairwise "
                 "(as simulate; not with --online)");
+  const std::vector<CLI::Option*> options = sub->get_options();
+  for (std::size_t i = before; i < options.size(); ++i) {
+    if (options[i] != scenario) options[i]->needs(scenario);
+  }
 }
 
 std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
