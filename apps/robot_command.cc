@@ -183,6 +183,15 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
   }
 }
 
+// Refuses what the online mission does not run (`who`: robot or team).
+void CheckOnlineScenario(const char* who, bool online, const ScenarioSpec& spec) {
+  if (online && (spec.loop_closure || spec.rendezvous_constellation)) {
+    throw InvalidInputError(fmt::format("{}: --loop-closure and --rendezvous-constellation are not "
+                                        "part of the online mission (--online)",
+                                        who));
+  }
+}
+
 std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
   std::vector<std::string> a = {
       "--scenario", f.name, "--robots", std::to_string(f.spec.robots), "--seed",
@@ -381,10 +390,7 @@ int RunScenarioRobot(const RobotArgs& a) {
                                         "at most {} robots (--robots {})",
                                         kMaxRobotsWithObjects, spec.robots));
   }
-  if (a.online && (spec.loop_closure || spec.rendezvous_constellation)) {
-    throw InvalidInputError("robot: --loop-closure and --rendezvous-constellation are not part "
-                            "of the online mission (--online)");
-  }
+  CheckOnlineScenario("robot", a.online, spec);
   RobotSessionOptions options;
   options.slam = ScenarioSlamConfig(spec);
   options.dgs = NodeOptions(a.online ? OnlineSolveFlags(a.solve) : a.solve);
@@ -949,10 +955,7 @@ int RunScenarioTeam(const TeamArgs& a) {
   const fs::path out = a.out.empty() ? fs::temp_directory_path() /
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
-  if (a.online && (spec.loop_closure || spec.rendezvous_constellation)) {
-    throw InvalidInputError("team: --loop-closure and --rendezvous-constellation are not part "
-                            "of the online mission (--online)");
-  }
+  CheckOnlineScenario("team", a.online, spec);
   fs::create_directories(out);
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
   const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
