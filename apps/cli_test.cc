@@ -393,6 +393,15 @@ TEST(CliSimulate, RendezvousConstellationIsOffWithSampledMeasurementsUnlessAsked
   EXPECT_NE(online.out.find("--rendezvous-constellation are not part of the online mission"),
             std::string::npos)
       << online.out;
+  // With unknown initial poses there is no known transform to refine: refused, not ignored.
+  for (const std::string& command :
+       {run, std::string("team --scenario chairs25 --robots 2"),
+        std::string("robot --robot 0 --scenario chairs25 --robots 2")}) {
+    const CommandResult r = RunMoslam(command + " --initial-poses unknown --rendezvous-constellation");
+    EXPECT_EQ(r.exit_code, 1) << r.out;
+    EXPECT_NE(r.out.find("refines the transform of known initial poses"), std::string::npos)
+        << r.out;
+  }
   // The robot processes take the flag too (Team.RendezvousConstellation...), not online, and
   // not without a scenario: with --data every scenario flag is refused, not ignored.
   const std::string folder = fs::temp_directory_path().string();

@@ -27,6 +27,12 @@ inline constexpr const char* kDetectDescription =
 inline constexpr const char* kPerceiveDescription =
     "The perception front-end on a TUM RGB-D layout sequence: detections and object poses (JSON)";
 
+// simulate, robot and team refuse --rendezvous-constellation with --initial-poses unknown.
+inline constexpr const char* kConstellationNeedsKnownPoses =
+    "--rendezvous-constellation refines the transform of known initial poses; with "
+    "--initial-poses unknown every rendezvous aligns the two object maps by their constellation "
+    "already";
+
 // The g2o reading flags of every subcommand that reads g2o input: --objects and
 // --drop-indefinite-coupling, written into `options` (which must outlive the parse).
 inline void AddG2oReadFlags(CLI::App* sub, G2oReadOptions* options) {

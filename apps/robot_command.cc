@@ -183,12 +183,16 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
   }
 }
 
-// Refuses what the online mission does not run (`who`: robot or team).
-void CheckOnlineScenario(const char* who, bool online, const ScenarioSpec& spec) {
+// Refuses what the online mission does not run, and a refinement of initial poses the robots do
+// not know (`who`: robot or team).
+void CheckScenarioFlags(const char* who, bool online, const ScenarioSpec& spec) {
   if (online && (spec.loop_closure || spec.rendezvous_constellation)) {
     throw InvalidInputError(fmt::format("{}: --loop-closure and --rendezvous-constellation are not "
                                         "part of the online mission (--online)",
                                         who));
+  }
+  if (spec.rendezvous_constellation && !spec.known_initial_poses) {
+    throw InvalidInputError(fmt::format("{}: {}", who, kConstellationNeedsKnownPoses));
   }
 }
 
@@ -390,7 +394,7 @@ int RunScenarioRobot(const RobotArgs& a) {
                                         "at most {} robots (--robots {})",
                                         kMaxRobotsWithObjects, spec.robots));
   }
-  CheckOnlineScenario("robot", a.online, spec);
+  CheckScenarioFlags("robot", a.online, spec);
   RobotSessionOptions options;
   options.slam = ScenarioSlamConfig(spec);
   options.dgs = NodeOptions(a.online ? OnlineSolveFlags(a.solve) : a.solve);
@@ -955,7 +959,7 @@ int RunScenarioTeam(const TeamArgs& a) {
   const fs::path out = a.out.empty() ? fs::temp_directory_path() /
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
-  CheckOnlineScenario("team", a.online, spec);
+  CheckScenarioFlags("team", a.online, spec);
   fs::create_directories(out);
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
   const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
