@@ -397,7 +397,8 @@ TEST(CliSimulate, RendezvousConstellationIsOffWithSampledMeasurementsUnlessAsked
   for (const std::string& command :
        {run, std::string("team --scenario chairs25 --robots 2"),
         std::string("robot --robot 0 --scenario chairs25 --robots 2")}) {
-    const CommandResult r = RunMoslam(command + " --initial-poses unknown --rendezvous-constellation");
+    const CommandResult r =
+        RunMoslam(command + " --initial-poses unknown --rendezvous-constellation");
     EXPECT_EQ(r.exit_code, 1) << r.out;
     EXPECT_NE(r.out.find("refines the transform of known initial poses"), std::string::npos)
         << r.out;

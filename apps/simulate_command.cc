@@ -252,12 +252,12 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
       throw InvalidInputError("simulate: --detection-log and --perception-cache together: a run "
                               "replayed from the cache has no detection records; drop one");
     }
-    if (rendered) perceive = make_perception(
-          {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
-           a.template_views, a.depth_smoothing, a.detection_log, a.perception_cache});
     if (a.rendezvous_constellation.value_or(false) && a.initial_poses == "unknown") {
       throw InvalidInputError(std::string("simulate: ") + kConstellationNeedsKnownPoses);
     }
+    if (rendered) perceive = make_perception(
+          {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
+           a.template_views, a.depth_smoothing, a.detection_log, a.perception_cache});
     if (a.online) {
       if (rendered || a.information != "noise" || a.loop_closure.value_or(false) ||
           a.rendezvous_constellation.value_or(false)) {
