@@ -205,8 +205,7 @@ int RunPerceive(const PerceiveArgs& a) {
                           {"geometric_agreement", o.registration.geometric_agreement},
                           {"colour_agreement", o.registration.colour_agreement},
                           {"covered_agreement", o.registration.covered_agreement},
-                          {"hypothesis", o.registration.hypothesis},
-                          {"tie_break", o.registration.tie_break}};
+                          {"hypothesis", o.registration.hypothesis}};
       if (o.status == PerceptionStatus::kSegmentationFailed) {
         const SegmentationResult& sr = o.segmentation;
         j["segmentation"] = {{"status", ToString(sr.status)},

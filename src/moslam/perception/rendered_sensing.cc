@@ -151,7 +151,6 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
           if (registered) {
             rec.inliers = g.inliers;
             rec.refined_inliers = g.refined_inliers;
-            rec.tie_break = g.tie_break;
             rec.segment_points = g.segment_points;
             rec.geometric_agreement = g.geometric_agreement;
             rec.covered_agreement = g.covered_agreement;

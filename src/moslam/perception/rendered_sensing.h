@@ -70,7 +70,6 @@ struct DetectionRecord {
   // The registration's diagnostics (registration.h), of a registered detection.
   int inliers = 0, refined_inliers = -1, segment_points = 0;
   double geometric_agreement = 0.0, covered_agreement = 0.0, colour_agreement = 0.0;
-  bool tie_break = false;  // the pose came from the symmetric tie-break
 };
 
 struct RenderedSensingStats {

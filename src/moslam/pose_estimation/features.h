@@ -77,13 +77,5 @@ FeatureCloud::Ptr Keypoints(const FeatureCloud& surface, double keypoint_voxel);
 PfhrgbCloud::Ptr ComputePfhrgb(const FeatureCloud::Ptr& surface, FeatureCloud::Ptr& keypoints,
                                const FeatureConfig& config);
 
-// Shading-invariant colour of the agreement score (registration.h, AGREEMENT RULE):
-// (c + k) / (r + g + b + 3k), k = chroma_dark_offset (pulls dark, noisy colours towards grey).
-inline Eigen::Vector3f Chromaticity(const FeaturePoint& p, float k) {
-  const Eigen::Vector3f c(static_cast<float>(p.r) + k, static_cast<float>(p.g) + k,
-                          static_cast<float>(p.b) + k);
-  return c / c.sum();
-}
-
 }  // namespace pose_detail
 }  // namespace moslam

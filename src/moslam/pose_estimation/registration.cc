@@ -26,7 +26,6 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/pose_estimation/feature_index.h"
-#include "moslam/pose_estimation/symmetry.h"
 #include "moslam/render/rgbd.h"
 
 namespace moslam {
@@ -367,11 +366,6 @@ void RegistrationConfig::validate() const {
   Require(std::isfinite(min_colour_agreement) && min_colour_agreement >= 0.0 &&
               min_colour_agreement <= 1.0,
           p + "min_colour_agreement", "must be in [0, 1]");
-  Require(std::isfinite(tie_break_score_margin) && tie_break_score_margin >= 0.0,
-          p + "tie_break_score_margin", "must be >= 0");
-  Require(std::isfinite(min_symmetry_self_agreement) && min_symmetry_self_agreement > 0.0 &&
-              min_symmetry_self_agreement <= 1.0,
-          p + "min_symmetry_self_agreement", "must be in (0, 1]");
   Require(PositiveFinite(information_sigma_point), p + "information_sigma_point",
           "must be positive");
   Require(PositiveFinite(information_max_effective_points),
@@ -607,6 +601,14 @@ GicpOutcome RunGicp(const GicpSource& source, const ObjectTemplate& tmpl,
   return out;
 }
 
+// Shading-invariant colour: (c + k) / (r + g + b + 3k), k = chroma_dark_offset (pulls dark,
+// noisy colours towards grey).
+Eigen::Vector3f Chroma(const FeaturePoint& p, float k) {
+  const Eigen::Vector3f c(static_cast<float>(p.r) + k, static_cast<float>(p.g) + k,
+                          static_cast<float>(p.b) + k);
+  return c / c.sum();
+}
+
 struct PoseScore {
   double geometric = 0.0;  // fraction of segment points with a template point within reach
   double colour = 0.0;     // of those, the fraction whose colour agrees
@@ -666,10 +668,9 @@ PoseScore ScorePose(const FeatureCloud& source, const ObjectTemplate& tmpl,
     }
     ++geometric;
     ++covered;
-    const Eigen::Vector3f cs = pose_detail::Chromaticity(sp, k);
+    const Eigen::Vector3f cs = Chroma(sp, k);
     for (int j : idx) {
-      const FeaturePoint& t = (*target)[static_cast<std::size_t>(j)];
-      if ((pose_detail::Chromaticity(t, k) - cs).squaredNorm() <= tol_sq) {
+      if ((Chroma((*target)[static_cast<std::size_t>(j)], k) - cs).squaredNorm() <= tol_sq) {
         ++both;
         break;
       }
@@ -815,54 +816,51 @@ Matrix6 Information(const FeatureCloud& source, const FeatureCloud::Ptr& target,
   return 0.5 * (info + info.transpose());
 }
 
-// The coarse pass: with several hypotheses, each aligned with a small subset of the segment and
-// few iterations, scored on at most 1000 segment points; the converged ones ranked best first
-// (ties: the lower index). One hypothesis: itself, not aligned (score 0).
-std::vector<CoarsePose> RankHypotheses(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl,
-                                       const std::vector<Eigen::Matrix4f>& hypotheses,
-                                       const RegistrationConfig& config) {
-  std::vector<CoarsePose> ranked;
-  if (hypotheses.size() == 1) {
-    ranked.push_back({0, hypotheses.front(), 0.0});
-    return ranked;
-  }
-  const GicpSource coarse = MakeGicpSource(source, config.gicp_coarse_points);
-  const FeatureCloud::Ptr scored = Subsample(source, 1000);
-  for (std::size_t h = 0; h < hypotheses.size(); ++h) {
-    const GicpOutcome g = RunGicp(coarse, tmpl, hypotheses[h], config,
-                                  config.gicp_coarse_iterations,
-                                  config.gicp_coarse_max_correspondence_distance);
-    if (!g.ok) continue;
-    ranked.push_back({static_cast<int>(h), g.object_T_camera,
-                      ScorePose(*scored, tmpl, g.object_T_camera, config).score});
-  }
-  std::stable_sort(ranked.begin(), ranked.end(),
-                   [](const CoarsePose& a, const CoarsePose& b) { return a.score > b.score; });
-  return ranked;
-}
-
-// GICP from `start` (a coarse pose; nullptr: none converged), the score, shape and colour gates,
-// then the information matrix; sets status, pose, fitness, scores, information and their times
-// (result.times.gicp and .information grow by this refinement's).
+// GICP from each hypothesis, the best-scoring result kept (ties: the earlier hypothesis), the
+// colour gate, then the information matrix; sets status, pose, fitness, scores, information and
+// their times.
 void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl,
-                     const CoarsePose* start, int hypotheses, const RegistrationConfig& config,
-                     RegistrationResult& result) {
+                     const std::vector<Eigen::Matrix4f>& hypotheses,
+                     const RegistrationConfig& config, RegistrationResult& result) {
   auto t0 = std::chrono::steady_clock::now();
+  // Coarse pass (several hypotheses only): each hypothesis aligned with a small subset of the
+  // segment and few iterations, scored on the whole segment; the best one is then refined.
+  int start = 0;
+  Eigen::Matrix4f initial = hypotheses.front();
+  if (hypotheses.size() > 1) {
+    const GicpSource coarse = MakeGicpSource(source, config.gicp_coarse_points);
+    // Coarse poses are ranked on at most 1000 segment points (the winner is scored on all).
+    const FeatureCloud::Ptr ranked = Subsample(source, 1000);
+    double best_coarse = -1.0;
+    start = -1;
+    for (std::size_t h = 0; h < hypotheses.size(); ++h) {
+      const GicpOutcome g =
+          RunGicp(coarse, tmpl, hypotheses[h], config, config.gicp_coarse_iterations,
+                  config.gicp_coarse_max_correspondence_distance);
+      if (!g.ok) continue;
+      const double score = ScorePose(*ranked, tmpl, g.object_T_camera, config).score;
+      if (score > best_coarse) {
+        best_coarse = score;
+        start = static_cast<int>(h);
+        initial = g.object_T_camera;
+      }
+    }
+  }
   GicpOutcome best;
   PoseScore best_score;
   int best_index = -1;
-  if (start != nullptr) {
-    GicpOutcome g = RunGicp(MakeGicpSource(source, config.gicp_max_source_points), tmpl,
-                            start->object_T_camera, config, config.gicp_max_iterations,
+  if (start >= 0) {
+    GicpOutcome g = RunGicp(MakeGicpSource(source, config.gicp_max_source_points), tmpl, initial,
+                            config, config.gicp_max_iterations,
                             config.gicp_max_correspondence_distance);
     if (g.ok) {
       best_score = ScorePose(*source, tmpl, g.object_T_camera, config, true);
       best = std::move(g);
-      best_index = start->hypothesis;
+      best_index = start;
     }
   }
-  result.hypotheses = hypotheses;
-  result.times.gicp += MsSince(t0);
+  result.hypotheses = static_cast<int>(hypotheses.size());
+  result.times.gicp = MsSince(t0);
   if (best_index < 0) {
     result.status = RegistrationStatus::kGicpFailed;
     return;
@@ -884,7 +882,7 @@ void RefineAndInform(const FeatureCloud::Ptr& source, const ObjectTemplate& tmpl
   }
   t0 = std::chrono::steady_clock::now();
   result.information = Information(*source, best.target, best.object_T_camera, config);
-  result.times.information += MsSince(t0);
+  result.times.information = MsSince(t0);
   result.status = RegistrationStatus::kAccepted;
 }
 
@@ -905,12 +903,7 @@ RegistrationResult RefinePose(const OrganizedCloud& segment, const ObjectTemplat
     return result;
   }
   const Eigen::Matrix4f initial = initial_camera_T_object.inverse().matrix().cast<float>();
-  const std::vector<Eigen::Matrix4f> hypotheses = Hypotheses(*source, tmpl, initial, config);
-  const auto t1 = std::chrono::steady_clock::now();
-  const std::vector<CoarsePose> ranked = RankHypotheses(source, tmpl, hypotheses, config);
-  result.times.gicp = MsSince(t1);
-  RefineAndInform(source, tmpl, ranked.empty() ? nullptr : &ranked.front(),
-                  static_cast<int>(hypotheses.size()), config, result);
+  RefineAndInform(source, tmpl, Hypotheses(*source, tmpl, initial, config), config, result);
   return result;
 }
 
@@ -1048,40 +1041,20 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   std::vector<Eigen::Matrix4f> hypotheses;
   if (!consensus_failed) hypotheses = Hypotheses(*source, tmpl, object_T_camera_sac, config);
   hypotheses.insert(hypotheses.end(), upright.begin(), upright.end());
-  t0 = std::chrono::steady_clock::now();
-  const std::vector<CoarsePose> ranked = RankHypotheses(source, tmpl, hypotheses, config);
-  refined.times.gicp = MsSince(t0);
-  const int n_hypotheses = static_cast<int>(hypotheses.size());
-  RefineAndInform(source, tmpl, ranked.empty() ? nullptr : &ranked.front(), n_hypotheses, config,
-                  refined);
+  RefineAndInform(source, tmpl, hypotheses, config, refined);
   if (refined.status == RegistrationStatus::kGicpFailed) {
     if (!sac_gate) refined.status = RegistrationStatus::kTooFewInliers;
     return refined;
   }
-  const int consensus_inliers = consensus_failed ? -1 : result.inliers;
-  auto gate_refined = [&](RegistrationResult& r) {
-    const auto t = std::chrono::steady_clock::now();
-    r.refined_inliers = count_inliers(r.camera_T_object.inverse().matrix().cast<float>());
-    r.times.gate += MsSince(t);
-    return PassesInlierGate(consensus_inliers, r.hypothesis, r.refined_inliers,
-                            config.min_inliers);
-  };
-  // Without gate_refined_pose the consensus' count alone decides (checked above).
-  if (gate_refined(refined) || !config.gate_refined_pose) return refined;
-  // SYMMETRIC TIE-BREAK: another pose the score ranks alike, accepted outright.
   t0 = std::chrono::steady_clock::now();
-  const std::vector<std::size_t> order =
-      SymmetricTieBreakOrder(ranked, tmpl, count_inliers, config);
-  refined.times.gicp += MsSince(t0);
-  for (const std::size_t i : order) {
-    RegistrationResult other = result;
-    other.times = refined.times;  // every refinement's time counts
-    RefineAndInform(source, tmpl, &ranked[i], n_hypotheses, config, other);
-    const bool accepted = other.status == RegistrationStatus::kAccepted && gate_refined(other);
-    refined.times = other.times;
-    if (!accepted) continue;
-    other.tie_break = true;
-    return other;
+  refined.refined_inliers =
+      count_inliers(refined.camera_T_object.inverse().matrix().cast<float>());
+  refined.times.gate += MsSince(t0);
+  // Without gate_refined_pose the consensus' count alone decides (checked above).
+  if (!config.gate_refined_pose ||
+      PassesInlierGate(consensus_failed ? -1 : result.inliers, refined.hypothesis,
+                       refined.refined_inliers, config.min_inliers)) {
+    return refined;
   }
   result.refined_inliers = refined.refined_inliers;
   result.hypotheses = refined.hypotheses;

@@ -105,24 +105,6 @@
 // the same hypotheses, score and colour gate from its initial pose instead of the consensus pose
 // (symmetry_turns = 1 to refine that pose alone).
 //
-// Symmetric tie-break (symmetric_tie_break; symmetry.h): the score cannot tell apart two poses of
-// a template that looks the same under the motion between them (a fridge, a box, under a quarter
-// or half turn), and the wrong one often wins the coarse ranking and then fails the inlier gate
-// (51 of 94 true fridge detections of the house selection runs were rejected at the gate, 22 of
-// them a half turn off). When the winner's refined pose fails the gate, the other coarse poses
-// whose score is within tie_break_score_margin of the winner's, whose motion from the winner is
-// nearest one of the hypotheses' turns (not the winner's pose found twice), under which turn and
-// motion the template's self-agreement (TemplateSelfAgreement) is at least
-// min_symmetry_self_agreement, and whose coarse pose holds the gate, are refined in turn, best
-// first (SymmetricTieBreakOrder); the first that is
-// accepted outright (the gate counted at its refined pose, then shape and colour) is reported
-// (RegistrationResult::tie_break). The gate stays the paper's 12 inliers at the pose reported;
-// only the choice among poses the score ranks alike changes. Templates with self-agreement below
-// the threshold under every turn never take this path. Measured on the house scenario's models at
-// the quarter and half turns (template_spacing 0.01, seed 1): fridges 0.972-0.974 under each,
-// tables 0.964 under the half turn, then lamps 0.82-0.84 and coffee tables 0.865 (half turn);
-// chairs 0.48-0.49, counters 0.54 at most, plants 0.46-0.47.
-//
 // Information matrix (6x6, tangent order (w, v): rotation first, shared/CONVENTIONS.md), for a
 // right perturbation camera_T_object * Exp(xi) (the same xi perturbs the body-frame measurement
 // BodyFromCamera() * camera_T_object on the right). RULE: point-to-plane Fisher information of the
@@ -232,10 +214,6 @@ struct RegistrationConfig {
   double min_covered_agreement = 0.92;
   double min_geometric_agreement_covered = 0.75;
   double min_colour_agreement = 0.6;   // below -> kColourMismatch
-  // SYMMETRIC TIE-BREAK (header comment; false: off).
-  bool symmetric_tie_break = true;
-  double tie_break_score_margin = 0.02;       // coarse score below the winner's
-  double min_symmetry_self_agreement = 0.9;   // TemplateSelfAgreement (symmetry.h)
   // Information matrix rule (see the header comment).
   double information_sigma_point = 0.005;           // m
   double information_max_effective_points = 50.0;
@@ -286,7 +264,6 @@ struct RegistrationResult {
   double fitness = 0.0;           // PCL's fitness score after GICP (m^2), winning hypothesis
   int hypotheses = 0;             // symmetry hypotheses refined by GICP
   int hypothesis = -1;            // the winner (0 = consensus pose; header comment for the others)
-  bool tie_break = false;         // the pose came from the SYMMETRIC TIE-BREAK
   // Agreement rule of the header comment, winning hypothesis (also filled when the refined pose
   // failed the inlier gate: kTooFewInliers with refined_inliers >= 0).
   double score = 0.0;

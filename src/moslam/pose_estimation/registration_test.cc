@@ -519,14 +519,6 @@ TEST(Registration, ConfigValidationNamesTheField) {
   c = {};
   c.sigma_translation_floor = 0.0;
   expect_bad(c, "sigma_translation_floor");
-  c = {};
-  c.tie_break_score_margin = -0.01;
-  expect_bad(c, "tie_break_score_margin");
-  c = {};
-  c.min_symmetry_self_agreement = 0.0;
-  expect_bad(c, "min_symmetry_self_agreement");
-  c.min_symmetry_self_agreement = 1.5;
-  expect_bad(c, "min_symmetry_self_agreement");
   // A template built with other feature parameters is refused.
   c = {};
   c.features.feature_radius = 0.06;
