@@ -199,5 +199,22 @@ TEST(Constellation, NoisyMapsAlignAndAWrongPairFailsConsistency) {
   for (std::size_t k : kept) EXPECT_NE(k, 7u);
 }
 
+// Two maps drift apart in heading as in position: two objects mapped 10 m apart may disagree by
+// 45 degrees about their relative orientation and still be one pair of objects; at 1 m they may
+// not.
+TEST(Constellation, TheRotationToleranceGrowsWithTheDistanceAsTheTranslationOneDoes) {
+  for (const double d : {1.0, 10.0}) {
+    const std::vector<ConstellationObject> a = {{0, "chair", SE3()},
+                                                {1, "sofa", Yawed(0.0, d, 0.0)}};
+    const std::vector<ConstellationObject> b = {{0, "chair", SE3()},
+                                                {1, "sofa", Yawed(kPi / 4.0, d, 0.0)}};
+    const std::vector<std::pair<std::size_t, std::size_t>> pairs = {{0, 0}, {1, 1}};
+    ConstellationConfig config;  // 5 degrees, 3.4 sigmas: 34 degrees + 0.05 rad per m
+    EXPECT_EQ(ConsistentSubset(a, b, pairs, config).size(), d > 5.0 ? 2u : 1u) << d;
+    config.drift_per_m = 0.0;  // no drift: 34 degrees at any distance
+    EXPECT_EQ(ConsistentSubset(a, b, pairs, config).size(), 1u) << d;
+  }
+}
+
 }  // namespace
 }  // namespace moslam
