@@ -18,14 +18,13 @@ constexpr double kDeg = M_PI / 180.0;
 bool Agree(const SE3& ai, const SE3& ak, const SE3& bj, const SE3& bl,
            const ConstellationConfig& c) {
   const SE3 A = ai.between(ak), B = bj.between(bl);
-  const double s_R = c.sigma_rotation_deg * kDeg, s_t = c.sigma_translation;
-  const double da = A.translation().norm(), db = B.translation().norm();
-  const double d = 0.5 * (da + db);
-  const double drift = c.drift_per_m * d;
-  if (std::abs(da - db) > c.num_sigmas * 2.0 * s_t + drift) return false;
+  const double s_R = c.sigma_rotation_deg * kDeg;
   const double angle = SO3::Log(A.rotation().inverse() * B.rotation()).norm();
-  if (angle > c.num_sigmas * 2.0 * s_R + c.heading_drift_per_m * d) return false;
-  const double tau = c.num_sigmas * std::sqrt(4.0 * s_t * s_t + 2.0 * d * d * s_R * s_R) + drift;
+  if (angle > c.num_sigmas * 2.0 * s_R) return false;
+  const double d = 0.5 * (A.translation().norm() + B.translation().norm());
+  const double s_t = c.sigma_translation;
+  const double tau = c.num_sigmas * std::sqrt(4.0 * s_t * s_t + 2.0 * d * d * s_R * s_R) +
+                     c.drift_per_m * d;
   return (A.translation() - B.translation()).norm() <= tau;
 }
 
@@ -36,7 +35,7 @@ bool TransformAgrees(const SE3& T, const SE3& ai, const SE3& bj, double lever,
   const SE3 moved = T * ai;
   const double s_R = c.sigma_rotation_deg * kDeg;
   const double angle = SO3::Log(moved.rotation().inverse() * bj.rotation()).norm();
-  if (angle > c.num_sigmas * 2.0 * s_R + c.heading_drift_per_m * lever) return false;
+  if (angle > c.num_sigmas * 2.0 * s_R) return false;
   const double s_t = c.sigma_translation;
   const double tau = c.num_sigmas * std::sqrt(2.0 * s_t * s_t + 2.0 * lever * lever * s_R * s_R) +
                      c.drift_per_m * lever;
@@ -113,9 +112,6 @@ void ConstellationConfig::validate() const {
   positive(num_sigmas, "num_sigmas");
   if (!(drift_per_m >= 0.0) || !std::isfinite(drift_per_m)) {
     throw InvalidInputError("constellation config: drift_per_m must be finite and >= 0");
-  }
-  if (!(heading_drift_per_m >= 0.0) || !std::isfinite(heading_drift_per_m)) {
-    throw InvalidInputError("constellation config: heading_drift_per_m must be finite and >= 0");
   }
   if (min_support < 2) {
     throw InvalidInputError("constellation config: min_support must be at least 2 (one object "

@@ -4,20 +4,14 @@
 //
 // 1. Candidates: every pair (i in a, j in b) with the same label.
 // 2. Consistency: two candidates (i, j) and (k, l) (i != k, j != l) agree when the relative pose
-//    of the two objects is the same in both maps: A = a_i^-1 a_k against B = b_j^-1 b_l, d the
-//    distance of the two objects (the mean of |t_A| and |t_B|), within three tolerances:
-//      distance  | |t_A| - |t_B| |   <= tau_d(d) = num_sigmas * 2 sigma_t + drift_per_m * d
-//      rotation  angle of A^-1 B     <= tau_R(d) = num_sigmas * 2 sigma_R + heading_drift_per_m * d
-//      position  |t_A - t_B|         <= tau_t(d) = num_sigmas * sqrt(4 sigma_t^2 + 2 (d sigma_R)^2)
-//                                                  + drift_per_m * d
-//    (per axis the four object errors add up to 2 sigma; the two maps drift apart between
-//    objects mapped far apart, in heading as in position, as a robot's errors grow with its path;
-//    num_sigmas bounds the norm of a 3-D error in units of its per-axis sigma: 3.4 is its 99 %
-//    quantile). The position test reads t_A in the first object's frame, whose orientation error
-//    acts over d (5 deg move an object 10 m away by 0.9 m), so far apart it is loose; the distance
-//    does not depend on any orientation and stays tight there: without it, 64 robots on
-//    generated accepted chance sets of 4 objects 5-14 m apart whose bearings agreed within the
-//    loose position test (README, Robustness). Each candidate alone fixes a transform
+//    of the two objects is the same in both maps: A = a_i^-1 a_k against B = b_j^-1 b_l, the
+//    rotation angle of A^-1 B within tau_R and the translations within tau_t(d), d the distance
+//    of the two objects:
+//      tau_R    = num_sigmas * 2 sigma_R
+//      tau_t(d) = num_sigmas * sqrt(4 sigma_t^2 + 2 (d sigma_R)^2) + drift_per_m * d
+//    (per axis the four object errors add up to 2 sigma; the orientation of the first object in
+//    each map acts over d; the two maps drift apart between objects mapped far apart; num_sigmas
+//    bounds the norm of a 3-D error in units of its per-axis sigma: 3.4 is its 99 % quantile). Each candidate alone fixes a transform
 //    T = b_j a_i^-1; two consistent candidates fix nearly the same one: the orientations of the
 //    objects are what tells a symmetric layout's positions apart (a grid of chairs).
 // 3. The largest set of pairwise consistent candidates, each object at most once: a maximum
@@ -54,8 +48,7 @@ namespace moslam {
 struct ConstellationConfig {
   double sigma_translation = 0.2;   // m: an object's position error in one map (per axis)
   double sigma_rotation_deg = 5.0;  // its orientation error
-  double drift_per_m = 0.05;          // relative error of the two maps: m per m between objects
-  double heading_drift_per_m = 0.05;  // rad per m between objects
+  double drift_per_m = 0.05;        // relative error of the two maps per metre between objects
   double num_sigmas = 3.4;
   // Objects in the accepted set. 3 accepted one wrong alignment in 475 on generated with 16
   // robots (README); 4 none, and as many of the rendezvous with 4 or more shared objects.

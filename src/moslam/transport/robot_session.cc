@@ -201,7 +201,6 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
     f.add(k->sigma_translation);
     f.add(k->sigma_rotation_deg);
     f.add(k->drift_per_m);
-    f.add(k->heading_drift_per_m);
     f.add(k->num_sigmas);
     f.add(static_cast<std::uint64_t>(k->min_support));
     f.add(k->same_object_radius);
@@ -219,7 +218,6 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
     f.add(k.sigma_translation);
     f.add(k.sigma_rotation_deg);
     f.add(k.drift_per_m);
-    f.add(k.heading_drift_per_m);
     f.add(k.num_sigmas);
     f.add(static_cast<std::uint64_t>(k.min_support));
     f.add(k.same_object_radius);
