@@ -296,7 +296,6 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   out.slam.slam.leave_one_out_check = config.leave_one_out_check;
   out.slam.slam.loop_closure = config.loop_closure;
   out.slam.rendezvous.refine_by_constellation = config.rendezvous_constellation;
-  out.slam.rendezvous.send_drift = !config.known_initial_poses;
   out.slam.outlier_fraction = config.outlier_fraction;
   out.slam.outlier_seed = out.seed;
   return out;

@@ -15,20 +15,16 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 
 // Whether two associations agree: the relative pose of their objects in map a and in map b.
-bool Agree(const ConstellationObject& ai, const ConstellationObject& ak,
-           const ConstellationObject& bj, const ConstellationObject& bl,
+bool Agree(const SE3& ai, const SE3& ak, const SE3& bj, const SE3& bl,
            const ConstellationConfig& c) {
-  const SE3 A = ai.pose.between(ak.pose), B = bj.pose.between(bl.pose);
+  const SE3 A = ai.between(ak), B = bj.between(bl);
   const double s_R = c.sigma_rotation_deg * kDeg;
-  const double drift = std::abs(ai.drift_variance - ak.drift_variance) +
-                       std::abs(bj.drift_variance - bl.drift_variance);
   const double angle = SO3::Log(A.rotation().inverse() * B.rotation()).norm();
-  if (angle > c.num_sigmas * std::sqrt(4.0 * s_R * s_R + drift)) return false;
+  if (angle > c.num_sigmas * 2.0 * s_R) return false;
   const double d = 0.5 * (A.translation().norm() + B.translation().norm());
   const double s_t = c.sigma_translation;
-  const double tau =
-      c.num_sigmas * std::sqrt(4.0 * s_t * s_t + 2.0 * d * d * s_R * s_R + d * d * drift) +
-      c.drift_per_m * d;
+  const double tau = c.num_sigmas * std::sqrt(4.0 * s_t * s_t + 2.0 * d * d * s_R * s_R) +
+                     c.drift_per_m * d;
   return (A.translation() - B.translation()).norm() <= tau;
 }
 
@@ -58,7 +54,7 @@ ConsistencyGraph BuildGraph(const std::vector<ConstellationObject>& a,
     for (int q = p + 1; q < n; ++q) {
       const auto [k, l] = candidates[static_cast<std::size_t>(q)];
       if (i == k || j == l) continue;  // an object is matched at most once
-      if (Agree(a[i], a[k], b[j], b[l], config)) g.connect(p, q);
+      if (Agree(a[i].pose, a[k].pose, b[j].pose, b[l].pose, config)) g.connect(p, q);
     }
   }
   return g;
@@ -86,15 +82,6 @@ int DistinctObjects(const std::vector<ConstellationObject>& a,
     }
   }
   return static_cast<int>(MaximumClique(distinct, {}, c.max_search_nodes).nodes.size());
-}
-
-void ValidateObjects(const std::vector<ConstellationObject>& objects, const char* what) {
-  for (const ConstellationObject& o : objects) {
-    if (!(o.drift_variance >= 0.0) || !std::isfinite(o.drift_variance)) {
-      throw InvalidInputError(std::string(what) + ": object " + std::to_string(o.id) +
-                              " has a drift variance that is negative or not finite");
-    }
-  }
 }
 
 SE3 FitTransform(const std::vector<ConstellationObject>& a,
@@ -157,8 +144,6 @@ ConstellationAlignment AlignConstellations(const std::vector<ConstellationObject
                                            const std::vector<ConstellationObject>& b,
                                            const ConstellationConfig& config) {
   config.validate();
-  ValidateObjects(a, "AlignConstellations");
-  ValidateObjects(b, "AlignConstellations");
   ConstellationAlignment out;
   std::vector<std::pair<std::size_t, std::size_t>> candidates;
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -228,8 +213,6 @@ std::vector<std::size_t> ConsistentSubset(
     const std::vector<std::pair<std::size_t, std::size_t>>& pairs,
     const ConstellationConfig& config) {
   config.validate();
-  ValidateObjects(a, "ConsistentSubset");
-  ValidateObjects(b, "ConsistentSubset");
   if (pairs.empty()) return {};
   const ConsistencyGraph graph = BuildGraph(a, b, pairs, config);
   const CliqueResult best = MaximumClique(graph, {}, config.max_search_nodes);

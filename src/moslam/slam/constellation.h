@@ -7,14 +7,11 @@
 //    of the two objects is the same in both maps: A = a_i^-1 a_k against B = b_j^-1 b_l, the
 //    rotation angle of A^-1 B within tau_R and the translations within tau_t(d), d the distance
 //    of the two objects:
-//      tau_R    = num_sigmas * sqrt(4 sigma_R^2 + D)
-//      tau_t(d) = num_sigmas * sqrt(4 sigma_t^2 + 2 (d sigma_R)^2 + d^2 D) + drift_per_m * d
-//      D        = |v_i - v_k| + |v_j - v_l|
+//      tau_R    = num_sigmas * 2 sigma_R
+//      tau_t(d) = num_sigmas * sqrt(4 sigma_t^2 + 2 (d sigma_R)^2) + drift_per_m * d
 //    (per axis the four object errors add up to 2 sigma; the orientation of the first object in
 //    each map acts over d; the two maps drift apart between objects mapped far apart; num_sigmas
-//    bounds the norm of a 3-D error in units of its per-axis sigma: 3.4 is its 99 % quantile;
-//    v the objects' drift_variance, each map's own heading drift between its two objects, 0
-//    when the maps do not say). Each candidate alone fixes a transform
+//    bounds the norm of a 3-D error in units of its per-axis sigma: 3.4 is its 99 % quantile). Each candidate alone fixes a transform
 //    T = b_j a_i^-1; two consistent candidates fix nearly the same one: the orientations of the
 //    objects are what tells a symmetric layout's positions apart (a grid of chairs).
 // 3. The largest set of pairwise consistent candidates, each object at most once: a maximum
@@ -70,11 +67,6 @@ struct ConstellationObject {
   std::uint32_t id = 0;  // the landmark index
   std::string label;
   SE3 pose;              // in its map's frame
-  // rad^2: how far its map's orientation may have drifted here, relative to the map's origin
-  // (the largest eigenvalue of the landmark's marginal rotation covariance, DriftVariances());
-  // 0 when unknown. Two objects of one map are then off in relative orientation by about
-  // |drift_variance_i - drift_variance_k| (a random walk), beyond their own sigma_rotation_deg.
-  double drift_variance = 0.0;
 };
 
 enum class AlignmentStatus { kAligned, kTooFew, kAmbiguous };

@@ -8,9 +8,6 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/metrics/metrics.h"
-#include "moslam/solver/marginals.h"
-
-#include <Eigen/Eigenvalues>
 
 namespace moslam {
 namespace {
@@ -20,7 +17,6 @@ constexpr std::uint8_t kVersion = 1;
 constexpr std::uint8_t kKindObjectMap = 1;
 constexpr std::uint8_t kKindSharedObjects = 2;
 constexpr std::uint8_t kKindSharedObjectsAndRemovals = 3;
-constexpr std::uint8_t kKindObjectMapWithDrift = 4;
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 class Writer {
@@ -145,7 +141,7 @@ std::vector<std::uint8_t> EncodeObjectMap(const ObjectMapMessage& message) {
   Writer w;
   w.u8(kMagic);
   w.u8(kVersion);
-  w.u8(message.with_drift ? kKindObjectMapWithDrift : kKindObjectMap);
+  w.u8(kKindObjectMap);
   w.u16(RobotId(message.sender, "EncodeObjectMap"));
   std::vector<std::string> labels;
   std::map<std::string, std::uint8_t> label_index;
@@ -179,23 +175,14 @@ std::vector<std::uint8_t> EncodeObjectMap(const ObjectMapMessage& message) {
     w.f32(q[2]);
     w.f32(q[3]);
     w.f32(q[0]);
-    if (message.with_drift) {
-      if (!(o.drift_variance >= 0.0) || !(o.drift_variance <= kMaxDriftVariance)) {
-        throw InvalidInputError("EncodeObjectMap: landmark " + std::to_string(o.landmark) +
-                                " has a drift variance outside [0, " +
-                                std::to_string(kMaxDriftVariance) + "] rad^2");
-      }
-      w.f32(o.drift_variance);
-    }
   }
   return w.take();
 }
 
 ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes) {
   Reader r(bytes, "object map message");
+  r.header(kKindObjectMap);
   ObjectMapMessage m;
-  m.with_drift = bytes.size() > 2 && bytes[2] == kKindObjectMapWithDrift;
-  r.header(m.with_drift ? kKindObjectMapWithDrift : kKindObjectMap);
   m.sender = r.u16("sender");
   const std::uint8_t num_labels = r.u8("label count");
   std::vector<std::string> labels;
@@ -205,7 +192,7 @@ ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes) {
     labels.push_back(r.str(n, "label"));
   }
   const std::uint32_t count = r.u32("object count");
-  r.plausibleCount(count, m.with_drift ? 37 : 33, "object");
+  r.plausibleCount(count, 33, "object");
   std::set<std::uint32_t> seen;
   for (std::uint32_t i = 0; i < count; ++i) {
     ObjectMapEntry e;
@@ -229,14 +216,6 @@ ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes) {
              std::to_string(norm));
     }
     e.pose = SE3(SO3::FromQuaternion(qw, qx, qy, qz), t);
-    if (m.with_drift) {
-      e.drift_variance = r.f32("drift variance");
-      if (!(e.drift_variance >= 0.0) || !(e.drift_variance <= kMaxDriftVariance)) {
-        r.fail("drift variance of landmark " + std::to_string(e.landmark) + " is " +
-               std::to_string(e.drift_variance) + ", outside [0, " +
-               std::to_string(kMaxDriftVariance) + "] rad^2");
-      }
-    }
     m.objects.push_back(std::move(e));
   }
   r.finish();
@@ -295,51 +274,18 @@ SharedObjectsMessage DecodeSharedObjects(const std::vector<std::uint8_t>& bytes)
   return m;
 }
 
-ObjectMapMessage MakeObjectMapMessage(const ObjectSlam& robot, bool with_drift) {
+ObjectMapMessage MakeObjectMapMessage(const ObjectSlam& robot) {
   ObjectMapMessage m;
   m.sender = robot.robot();
-  m.with_drift = with_drift;
   const auto& lms = robot.landmarks();
-  const std::vector<double> drift = with_drift ? DriftVariances(robot) : std::vector<double>();
   for (std::size_t k = 0; k < lms.size(); ++k) {
     if (lms[k].key.index > 0xFFFFFFFFu) {
       throw InvalidInputError("MakeObjectMapMessage: landmark index does not fit 32 bits");
     }
-    ObjectMapEntry e{static_cast<std::uint32_t>(lms[k].key.index), lms[k].label,
-                     robot.landmarkPose(k)};
-    if (with_drift) e.drift_variance = drift[k];
-    m.objects.push_back(std::move(e));
+    m.objects.push_back(
+        {static_cast<std::uint32_t>(lms[k].key.index), lms[k].label, robot.landmarkPose(k)});
   }
   return m;
-}
-
-std::vector<double> DriftVariances(const ObjectSlam& robot) {
-  const auto& lms = robot.landmarks();
-  std::vector<double> out(lms.size(), 0.0);
-  if (lms.empty()) return out;
-  // The robot's graph as robot 0 (the gauge of CONVENTIONS.md is robot 0's first pose: here
-  // the robot's own first pose, so the covariances are relative to it).
-  const auto as_zero = [](Key k) {
-    k.robot = 0;
-    return k;
-  };
-  const PoseGraph own = robot.graph();
-  PoseGraph graph;
-  for (const RelativePoseFactor& f : own.factors()) {
-    graph.add(RelativePoseFactor(as_zero(f.a()), as_zero(f.b()), f.measured(), f.information()));
-  }
-  Values values;
-  for (const auto& [k, x] : robot.estimate()) values.emplace(as_zero(k), x);
-  const Marginals marginals(graph, values);
-  for (std::size_t k = 0; k < lms.size(); ++k) {
-    const Matrix3 rotation = marginals.covariance(as_zero(lms[k].key)).topLeftCorner<3, 3>();
-    const double v = Eigen::SelfAdjointEigenSolver<Matrix3>(rotation, Eigen::EigenvaluesOnly)
-                         .eigenvalues()
-                         .maxCoeff();
-    // Float32 on the wire, bounded there: a map that lost its orientation says so with the bound.
-    out[k] = std::clamp(v, 0.0, kMaxDriftVariance);
-  }
-  return out;
 }
 
 void RendezvousConfig::validate() const {
@@ -397,7 +343,7 @@ namespace {
 
 std::vector<ConstellationObject> Constellation(const std::vector<ObjectMapEntry>& objects) {
   std::vector<ConstellationObject> out;
-  for (const auto& o : objects) out.push_back({o.landmark, o.label, o.pose, o.drift_variance});
+  for (const auto& o : objects) out.push_back({o.landmark, o.label, o.pose});
   return out;
 }
 
@@ -513,7 +459,7 @@ RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
   if (a == b) throw InvalidInputError("RunRendezvous: robot " + std::to_string(a) + " meets itself");
   RendezvousOutcome out;
   // Alpha -> beta: its object map, through the wire.
-  const ObjectMapMessage sent = MakeObjectMapMessage(alpha, config.send_drift);
+  const ObjectMapMessage sent = MakeObjectMapMessage(alpha);
   const std::vector<std::uint8_t> wire1 = EncodeObjectMap(sent);
   out.bytes_alpha_to_beta = wire1.size();
   out.objects_sent = static_cast<int>(sent.objects.size());
@@ -580,7 +526,7 @@ SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const Obj
   SharedObjectsMessage reply;
   reply.sender = b;
   reply.receiver = a;
-  const std::vector<ObjectMapEntry> own = MakeObjectMapMessage(beta, config.send_drift).objects;
+  const std::vector<ObjectMapEntry> own = MakeObjectMapMessage(beta).objects;
   if (beta_T_alpha) {
     const SE3 T =
         AlignObjectMaps(received, *beta_T_alpha, own, config, alpha_taken, beta_taken);

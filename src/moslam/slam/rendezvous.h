@@ -38,8 +38,6 @@
 //     u8 L (labels), L x { u8 length n >= 1, n bytes of label },
 //     u32 N (objects), N x { u32 landmark index, u8 label index < L,
 //                            f32 x y z, f32 qx qy qz qw }          (33 bytes per object)
-//   ObjectMap with drift (kind 4, RendezvousConfig::send_drift): as kind 1, each object followed
-//     by f32 drift variance in [0, 10] rad^2                          (37 bytes per object)
 //   SharedObjects (kind 2; kind 3 when it removes pairs):
 //     u8 magic, u8 version, u8 kind, u16 sender (beta), u16 receiver (alpha),
 //     u32 N, N x { u32 alpha landmark index, u32 beta landmark index }   (new pairs)
@@ -47,7 +45,7 @@
 // Poses travel as float32 (they serve association only). Decoding rejects with
 // InvalidInputError: truncated input, trailing bytes, a wrong magic/version/kind, an empty
 // label, a label index out of range, a repeated landmark index, non-finite numbers, a
-// quaternion whose norm is not 1 within 1e-3, a drift variance outside [0, 10], a list of new pairs that uses a landmark twice
+// quaternion whose norm is not 1 within 1e-3, a list of new pairs that uses a landmark twice
 // (one rendezvous' matching is one-to-one), and a list of removed pairs that holds a pair twice
 // (the pairs shared before need not be one-to-one: `simulate --outliers` injects wrong pairs
 // beside right ones on the same landmark, and both may be removed at once).
@@ -65,19 +63,14 @@
 
 namespace moslam {
 
-// rad^2: the bound of a drift variance (a rotation error cannot exceed pi; pi^2 < 10).
-inline constexpr double kMaxDriftVariance = 10.0;
-
 struct ObjectMapEntry {
   std::uint32_t landmark = 0;  // index k of o_{sender,k}
   std::string label;
   SE3 pose;                    // in the sender's frame
-  double drift_variance = 0.0;  // rad^2, ConstellationObject::drift_variance (with_drift only)
 };
 
 struct ObjectMapMessage {
   int sender = 0;
-  bool with_drift = false;  // the objects carry their drift variance (kind 4)
   std::vector<ObjectMapEntry> objects;
 };
 
@@ -98,16 +91,8 @@ std::vector<std::uint8_t> EncodeSharedObjects(const SharedObjectsMessage& messag
 ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes);
 SharedObjectsMessage DecodeSharedObjects(const std::vector<std::uint8_t>& bytes);
 
-// Alpha's message: all its landmarks with their current estimates, and with `with_drift` their
-// drift variances (DriftVariances).
-ObjectMapMessage MakeObjectMapMessage(const ObjectSlam& robot, bool with_drift = false);
-
-// Per landmark of `robot` (in landmarks() order): the largest eigenvalue of its marginal rotation
-// covariance (solver/marginals.h, relative to the robot's first pose), clamped to
-// [0, kMaxDriftVariance]: how far the robot's orientation estimate may have drifted where it
-// mapped the landmark. One sparse factorization of the robot's graph. Throws what Marginals
-// throws (a graph nothing anchors cannot happen: the first pose is the gauge).
-std::vector<double> DriftVariances(const ObjectSlam& robot);
+// Alpha's message: all its landmarks with their current estimates.
+ObjectMapMessage MakeObjectMapMessage(const ObjectSlam& robot);
 
 struct RendezvousConfig {
   AssociationGate gate;  // for matching the two maps
@@ -140,11 +125,6 @@ struct RendezvousConfig {
   bool ground_truth_association = false;
   // Unknown initial poses: the alignment of the two object maps (constellation.h).
   ConstellationConfig constellation;
-  // Both robots give each object its drift variance (DriftVariances; alpha sends it, 4 bytes
-  // per object) so that the alignment's and the consistency check's tolerances follow each
-  // map's own drift between two objects (constellation.h, step 2) rather than sigma_rotation_deg
-  // alone. Off: the objects carry 0, the tolerances of a map that does not drift.
-  bool send_drift = false;
   // Check every pair shared before with the new ones, drop the inconsistent (above); forced on
   // with unknown initial poses.
   bool check_consistency = false;

@@ -4,7 +4,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <iostream>
 #include <limits>
 #include <map>
@@ -457,15 +456,6 @@ TEST(ObjectSlam, RejectsMisuseAndBadMeasurementsWithoutChangingState) {
 
 // --------------------------------------------------------------------------------- messages
 
-void ExpectRejectedObjectMap(const std::vector<std::uint8_t>& bytes, const std::string& reason) {
-  try {
-    DecodeObjectMap(bytes);
-    ADD_FAILURE() << "accepted: " << reason;
-  } catch (const InvalidInputError& e) {
-    EXPECT_NE(std::string(e.what()).find(reason), std::string::npos) << e.what();
-  }
-}
-
 ObjectMapMessage SampleMap() {
   ObjectMapMessage m;
   m.sender = 3;
@@ -494,67 +484,6 @@ TEST(Messages, ObjectMapRoundTripAndSize) {
   EXPECT_EQ(EncodeObjectMap(ObjectMapMessage{}).size(), 5u + 1u + 4u);
 }
 
-TEST(Messages, ObjectMapWithDriftRoundTripSizeAndBadVariances) {
-  ObjectMapMessage m = SampleMap();
-  m.with_drift = true;
-  const double v[3] = {0.0, 0.0123, 2.5};
-  for (std::size_t i = 0; i < 3; ++i) m.objects[i].drift_variance = v[i];
-  const auto bytes = EncodeObjectMap(m);
-  EXPECT_EQ(bytes.size(), 5u + 13u + 4u + 3u * 37u);  // 4 bytes more per object
-  EXPECT_EQ(bytes[2], 4);                            // kind 4
-  const ObjectMapMessage d = DecodeObjectMap(bytes);
-  EXPECT_TRUE(d.with_drift);
-  ASSERT_EQ(d.objects.size(), 3u);
-  for (std::size_t i = 0; i < 3; ++i) {
-    EXPECT_NEAR(d.objects[i].drift_variance, v[i], 1e-7 * (1.0 + v[i]));
-    EXPECT_LT((d.objects[i].pose.translation() - m.objects[i].pose.translation()).norm(), 1e-5);
-  }
-  // Without the flag the variances stay home (kind 1, as before).
-  m.with_drift = false;
-  const ObjectMapMessage plain = DecodeObjectMap(EncodeObjectMap(m));
-  EXPECT_FALSE(plain.with_drift);
-  for (const auto& o : plain.objects) EXPECT_EQ(o.drift_variance, 0.0);
-  // Out of [0, 10] rad^2: refused by the encoder and by the decoder.
-  m.with_drift = true;
-  for (double bad : {-0.5, 10.5, std::nan("")}) {
-    ObjectMapMessage w = m;
-    w.objects[1].drift_variance = bad;
-    EXPECT_THROW(EncodeObjectMap(w), InvalidInputError) << bad;
-  }
-  // First object's variance at byte 22 + 33 (its landmark, label index and 7 floats before it).
-  auto b = bytes;
-  const float negative = -1.0f;
-  std::memcpy(&b[22 + 33], &negative, 4);
-  ExpectRejectedObjectMap(b, "drift variance");
-  b = bytes;
-  b.pop_back();
-  ExpectRejectedObjectMap(b, "truncated");
-}
-
-TEST(Messages, DriftVariancesGrowWithTheOdometryBetweenTheFirstPoseAndAnObject) {
-  // Chair 0 seen from the first pose, chair 1 after 10 odometry steps of 5 deg / 0.2 m: the
-  // map's orientation where chair 1 lies is 10 steps of heading noise less certain.
-  ObjectSlam slam(2, TestSlamConfig());
-  slam.addFirstPose({Det("chair", Pose(1.0, 0.0, 0.0))});
-  for (int t = 1; t <= 10; ++t) {
-    std::vector<ObjectDetection> seen;
-    if (t == 10) seen.push_back(Det("table", Pose(1.0, 0.0, 0.0)));
-    slam.addPose({Pose(1.0, 0.0, 0.0), Info(5.0, 0.2)}, seen);
-  }
-  slam.optimize(5);
-  ASSERT_EQ(slam.landmarks().size(), 2u);
-  const std::vector<double> v = DriftVariances(slam);
-  ASSERT_EQ(v.size(), 2u);
-  const double step = std::pow(5.0 * kDeg, 2);  // one step's (and one detection's) variance
-  EXPECT_NEAR(v[0], step, 1e-6);                // chair 0: its own detection only
-  EXPECT_NEAR(v[1], 11.0 * step, 1e-3 * step);  // 10 odometry steps and its detection
-  const ObjectMapMessage m = MakeObjectMapMessage(slam, true);
-  EXPECT_TRUE(m.with_drift);
-  ASSERT_EQ(m.objects.size(), 2u);
-  EXPECT_EQ(m.objects[1].drift_variance, v[1]);
-  EXPECT_EQ(MakeObjectMapMessage(slam).objects[1].drift_variance, 0.0);
-}
-
 TEST(Messages, SharedObjectsRoundTrip) {
   SharedObjectsMessage m;
   m.sender = 1;
@@ -570,6 +499,15 @@ TEST(Messages, SharedObjectsRoundTrip) {
   EXPECT_THROW(EncodeSharedObjects(m), InvalidInputError);
 }
 
+void ExpectRejected(const std::vector<std::uint8_t>& bytes, const std::string& reason) {
+  try {
+    DecodeObjectMap(bytes);
+    ADD_FAILURE() << "accepted: " << reason;
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find(reason), std::string::npos) << e.what();
+  }
+}
+
 TEST(Messages, DecodeRejectsTruncatedAndInconsistentInput) {
   const auto good = EncodeObjectMap(SampleMap());
   for (std::size_t n = 0; n < good.size(); ++n) {
@@ -579,36 +517,36 @@ TEST(Messages, DecodeRejectsTruncatedAndInconsistentInput) {
   }
   auto b = good;
   b.push_back(0);
-  ExpectRejectedObjectMap(b, "trailing");
+  ExpectRejected(b, "trailing");
   b = good;
   b[0] = 0x00;
-  ExpectRejectedObjectMap(b, "magic");
+  ExpectRejected(b, "magic");
   b = good;
   b[1] = 9;
-  ExpectRejectedObjectMap(b, "version");
+  ExpectRejected(b, "version");
   b = good;
   b[2] = 2;
-  ExpectRejectedObjectMap(b, "kind");
+  ExpectRejected(b, "kind");
   // Offsets: header 5, labels at 5 ("chair" at 6..11, "table" at 12..17), count at 18..21,
   // first object at 22: landmark 22..25, label index 26, floats 27..54.
   b = good;
   b[6] = 0;
-  ExpectRejectedObjectMap(b, "empty label");
+  ExpectRejected(b, "empty label");
   b = good;
   b[26] = 2;
-  ExpectRejectedObjectMap(b, "label index 2 out of range");
+  ExpectRejected(b, "label index 2 out of range");
   b = good;
   b[22 + 33] = 0;  // second object's landmark index 4 -> 0, a repeat
-  ExpectRejectedObjectMap(b, "appears twice");
+  ExpectRejected(b, "appears twice");
   b = good;
   for (int k = 27; k < 31; ++k) b[static_cast<std::size_t>(k)] = 0xFF;  // a NaN
-  ExpectRejectedObjectMap(b, "non-finite");
+  ExpectRejected(b, "non-finite");
   b = good;
   b[42] ^= 0x40;  // corrupt the quaternion's qx exponent
-  ExpectRejectedObjectMap(b, "quaternion");
+  ExpectRejected(b, "quaternion");
   b = good;
   b[18] = 200;  // object count far beyond the bytes
-  ExpectRejectedObjectMap(b, "truncated");
+  ExpectRejected(b, "truncated");
 
   SharedObjectsMessage s;
   s.pairs = {{1, 2}, {1, 3}};
