@@ -101,6 +101,7 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"aligned", &RunMetrics::aligned},
       {"refused_too_few", &RunMetrics::refused_too_few},
       {"refused_ambiguous", &RunMetrics::refused_ambiguous},
+      {"refused_contradicted", &RunMetrics::refused_contradicted},
       {"alignments_wrong", &RunMetrics::alignments_wrong},
       {"alignable", &RunMetrics::alignable},
       {"alignable_aligned", &RunMetrics::alignable_aligned},
@@ -373,6 +374,7 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     m.aligned += aligned ? 1 : 0;
     m.refused_too_few += *r.alignment == AlignmentStatus::kTooFew ? 1 : 0;
     m.refused_ambiguous += *r.alignment == AlignmentStatus::kAmbiguous ? 1 : 0;
+    m.refused_contradicted += *r.alignment == AlignmentStatus::kContradicted ? 1 : 0;
     m.alignments_wrong += r.alignment_wrong ? 1 : 0;
     if (r.truly_shared >= 4) {
       m.alignable += 1;
@@ -644,7 +646,7 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
       break;
     case TableKind::kRobust:
       extra = {"Initial poses", "P", "Runs (skipped)", "Rendezvous precision / recall",
-               "Aligned / refused few / ambiguous / wrong", "Aligned of alignable",
+               "Aligned / refused few / ambiguous / contradicted / wrong", "Aligned of alignable",
                "Wrong factors (injected)", "Outlier precision / recall",
                "Wrong observations", "Observation outliers precision / recall",
                "GT ATE poses LS / robust / free (m)", "GT ARE poses LS / robust / free (deg)",
@@ -720,8 +722,9 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
         extra = {unknown ? "unknown" : "known", Fix(c.outlier_fraction, 1),
                  fmt::format("{} ({})", r.runs.size(), r.skipped.size()),
                  Fix(m.inter_precision, 3) + " / " + Fix(m.inter_recall, 3),
-                 unknown ? fmt::format("{} / {} / {} / {}", Fix(m.aligned), Fix(m.refused_too_few),
-                                       Fix(m.refused_ambiguous), Fix(m.alignments_wrong))
+                 unknown ? fmt::format("{} / {} / {} / {} / {}", Fix(m.aligned),
+                                       Fix(m.refused_too_few), Fix(m.refused_ambiguous),
+                                       Fix(m.refused_contradicted), Fix(m.alignments_wrong))
                          : "-",
                  unknown && m.alignable > 0 ? Fix(100.0 * m.alignable_aligned / m.alignable, 1) + " %"
                                             : "-"};

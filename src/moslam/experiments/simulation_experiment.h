@@ -158,11 +158,12 @@ struct RunMetrics {
   // wrong ones (landmarks created for two world objects).
   double intra_loop_closures = 0, intra_wrong_loop_closures = 0;
   double rendezvous_bytes = 0;  // all rendezvous messages
-  // Unknown initial poses: rendezvous aligned, refused (too few consistent objects, ambiguous),
-  // accepted with mostly wrong pairs; the rendezvous where both robots had mapped 4 or more
-  // common objects, and how many of those were aligned. Consistency across rendezvous: pairs
-  // removed, and the right ones among them.
-  double aligned = 0, refused_too_few = 0, refused_ambiguous = 0, alignments_wrong = 0;
+  // Unknown initial poses: rendezvous aligned, refused (too few consistent objects, ambiguous,
+  // contradicted by the overlap check), accepted with mostly wrong pairs; the rendezvous where
+  // both robots had mapped 4 or more common objects, and how many of those were aligned.
+  // Consistency across rendezvous: pairs removed, and the right ones among them.
+  double aligned = 0, refused_too_few = 0, refused_ambiguous = 0, refused_contradicted = 0;
+  double alignments_wrong = 0;
   double alignable = 0, alignable_aligned = 0;
   double shared_removed = 0, shared_removed_correct = 0;
   // Robust solve (ExperimentConfig::robust): object-object factors that are wrong (injected or

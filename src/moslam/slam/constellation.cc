@@ -136,6 +136,8 @@ std::string ToString(AlignmentStatus status) {
       return "too few consistent objects";
     case AlignmentStatus::kAmbiguous:
       return "ambiguous";
+    case AlignmentStatus::kContradicted:
+      return "contradicted by the overlap";
   }
   return "unknown";
 }

@@ -69,7 +69,9 @@ struct ConstellationObject {
   SE3 pose;              // in its map's frame
 };
 
-enum class AlignmentStatus { kAligned, kTooFew, kAmbiguous };
+// kContradicted: aligned here, then refused by the rendezvous' overlap check (rendezvous.h,
+// OverlapCheck): the other map's objects fall where this robot looked and mapped none.
+enum class AlignmentStatus { kAligned, kTooFew, kAmbiguous, kContradicted };
 std::string ToString(AlignmentStatus status);
 
 struct ConstellationAlignment {

@@ -53,6 +53,7 @@ MultiRobotSlamConfig MultiRobotSlamConfigForNoise(const SensingConfig& sensing) 
       std::max(sensing.objects.sigma_rotation_deg, sensing.information_sigma_floor * kRadToDeg);
   c.rendezvous.lambda_sigma_translation =
       std::max(sensing.objects.sigma_translation, sensing.information_sigma_floor);
+  c.rendezvous.overlap.camera = sensing.camera;
   return c;
 }
 

@@ -306,6 +306,42 @@ void RendezvousConfig::validate() const {
   if (min_inliers < 1) bad("min_inliers must be >= 1");
   constellation.validate();
   consistency.validate();
+  overlap.validate();
+}
+
+void OverlapCheck::validate() const {
+  camera.validate();
+  auto bad = [](const std::string& msg) { throw InvalidInputError("OverlapCheck: " + msg); };
+  if (!(radius > 0.0) || !std::isfinite(radius)) bad("radius must be positive and finite");
+  if (min_seen < 1) bad("min_seen must be at least 1");
+  if (!(min_confirmed_fraction >= 0.0 && min_confirmed_fraction <= 1.0)) {
+    bad("min_confirmed_fraction must be in [0, 1]");
+  }
+}
+
+OverlapEvidence AlignmentOverlap(const std::vector<ObjectMapEntry>& alpha_objects,
+                                 const SE3& beta_T_alpha, const ObjectSlam& beta,
+                                 const std::vector<ObjectMapEntry>& beta_objects,
+                                 const OverlapCheck& check) {
+  check.validate();
+  std::vector<SE3> pose_T_beta;  // beta's poses, inverted once
+  pose_T_beta.reserve(static_cast<std::size_t>(beta.numPoses()));
+  for (int t = 0; t < beta.numPoses(); ++t) pose_T_beta.push_back(beta.pose(t).inverse());
+  OverlapEvidence out;
+  for (const ObjectMapEntry& o : alpha_objects) {
+    const Vector3 p = beta_T_alpha.transformFrom(o.pose.translation());
+    const bool seen = std::any_of(pose_T_beta.begin(), pose_T_beta.end(), [&](const SE3& x_inv) {
+      return check.camera.sees(x_inv.transformFrom(p));
+    });
+    if (!seen) continue;
+    ++out.seen;
+    const bool confirmed =
+        std::any_of(beta_objects.begin(), beta_objects.end(), [&](const ObjectMapEntry& b) {
+          return b.label == o.label && (b.pose.translation() - p).norm() <= check.radius;
+        });
+    out.confirmed += confirmed ? 1 : 0;
+  }
+  return out;
 }
 
 Matrix6 RendezvousConfig::lambda() const {
@@ -535,9 +571,23 @@ SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const Obj
   } else {
     // Unknown initial poses: the whole maps aligned from their objects; the consistent set is
     // what this pair shares now.
-    const ConstellationAlignment aligned =
+    ConstellationAlignment aligned =
         AlignConstellations(Constellation(received.objects), Constellation(own),
                             config.constellation);
+    if (aligned.status == AlignmentStatus::kAligned && config.overlap.enabled) {
+      const OverlapEvidence e =
+          AlignmentOverlap(received.objects, aligned.b_T_a, beta, own, config.overlap);
+      if (e.seen >= config.overlap.min_seen &&
+          e.confirmed < config.overlap.min_confirmed_fraction * e.seen) {
+        aligned.status = AlignmentStatus::kContradicted;
+        aligned.reason = std::to_string(e.confirmed) + " of the " + std::to_string(e.seen) +
+                         " objects of robot " + std::to_string(a) +
+                         " in view of this robot's poses have an object of their label within " +
+                         std::to_string(config.overlap.radius) + " m";
+        aligned.pairs.clear();
+        aligned.b_T_a = SE3();
+      }
+    }
     if (alignment) *alignment = aligned;
     if (aligned.status != AlignmentStatus::kAligned) return reply;  // refused: nothing changes
     std::vector<std::uint32_t> a_used = alpha_taken, b_used = beta_taken;

@@ -744,6 +744,79 @@ TEST(Rendezvous, ConstellationRefinementKeepsTheProposalsUnlessItsMatchesAgreeBe
   EXPECT_LT(PoseDistance(AlignObjectMaps(g.alpha, g.prior, g.beta, with), proposed), 1e-12);
 }
 
+TEST(Rendezvous, TheOverlapCheckRefusesAnAlignmentTheOtherObjectsContradict) {
+  // Beta stands at the origin looking along x (the camera: 90 x 60 deg, 0.3-6 m) and maps four
+  // chairs. Alpha maps the same four chairs and twenty lamps that, moved by the chairs'
+  // transform, stand where beta looked: a set of four objects whose surroundings deny it
+  // (4 of 24 objects in view confirmed, below 0.2), unless beta mapped the lamps too.
+  const SE3 wa = Pose(7, 1, 0.45, 100), wb = Pose(0, 0, 0.45, 0);
+  const std::vector<SE3> chairs = {Pose(2.0, -1.2, 0.45, 10), Pose(2.5, 1.4, 0.45, 70),
+                                   Pose(4.0, -2.0, 0.45, -40), Pose(4.5, 2.2, 0.45, 150)};
+  std::vector<SE3> lamps;  // 1.2 m apart, inside beta's view
+  for (const auto& [x, half] : std::vector<std::pair<double, int>>{{1.6, 1}, {2.8, 2}, {4.0, 3},
+                                                                   {5.2, 2}}) {
+    for (int k = -half; k <= half; ++k) lamps.push_back(Pose(x, 1.2 * k, 0.45, 0));
+  }
+  ASSERT_EQ(lamps.size(), 20u);
+  auto detections = [](const SE3& x, const std::vector<SE3>& chairs_seen,
+                       const std::vector<SE3>& lamps_seen) {
+    std::vector<ObjectDetection> out;
+    for (const SE3& o : chairs_seen) out.push_back(Det("chair", x.between(o)));
+    for (const SE3& o : lamps_seen) out.push_back(Det("lamp", x.between(o)));
+    return out;
+  };
+  ObjectSlam alpha(0, TestSlamConfig()), beta(1, TestSlamConfig()), beta_lamps(1, TestSlamConfig());
+  alpha.addFirstPose(detections(wa, chairs, lamps));
+  beta.addFirstPose(detections(wb, chairs, {}));
+  beta_lamps.addFirstPose(detections(wb, chairs, lamps));
+  ASSERT_EQ(alpha.landmarks().size(), 24u);
+  RendezvousConfig c;
+  c.gate = TestGate();
+  const ObjectMapMessage sent = MakeObjectMapMessage(alpha);
+
+  // The evidence under the true transform: every object of alpha in view, the chairs confirmed.
+  ObjectMapMessage with_one_behind = sent;
+  with_one_behind.objects.push_back({99, "chair", wa.between(Pose(-3, 0, 0.45, 0))});
+  OverlapEvidence e = AlignmentOverlap(with_one_behind.objects, BetaTAlpha(wa, wb), beta,
+                                       MakeObjectMapMessage(beta).objects, c.overlap);
+  EXPECT_EQ(e.seen, 24);
+  EXPECT_EQ(e.confirmed, 4);
+  e = AlignmentOverlap(sent.objects, BetaTAlpha(wa, wb), beta_lamps,
+                       MakeObjectMapMessage(beta_lamps).objects, c.overlap);
+  EXPECT_EQ(e.confirmed, 24);
+
+  ConstellationAlignment alignment;
+  const SharedObjectsMessage refused = AnswerObjectMap(sent, beta, std::nullopt, {}, c, &alignment);
+  EXPECT_EQ(alignment.status, AlignmentStatus::kContradicted) << alignment.reason;
+  EXPECT_NE(alignment.reason.find("4 of the 24 objects of robot 0"), std::string::npos)
+      << alignment.reason;
+  EXPECT_TRUE(alignment.pairs.empty());
+  EXPECT_TRUE(refused.pairs.empty());
+  // Without the check the four chairs align and are shared.
+  RendezvousConfig unchecked = c;
+  unchecked.overlap.enabled = false;
+  EXPECT_EQ(AnswerObjectMap(sent, beta, std::nullopt, {}, unchecked, &alignment).pairs.size(), 4u);
+  EXPECT_EQ(alignment.status, AlignmentStatus::kAligned) << alignment.reason;
+  // Too few in view to judge (min_seen 25): aligned.
+  RendezvousConfig lenient = c;
+  lenient.overlap.min_seen = 25;
+  AnswerObjectMap(sent, beta, std::nullopt, {}, lenient, &alignment);
+  EXPECT_EQ(alignment.status, AlignmentStatus::kAligned) << alignment.reason;
+  // Beta mapped the lamps too: confirmed, and all 24 objects shared.
+  EXPECT_EQ(AnswerObjectMap(sent, beta_lamps, std::nullopt, {}, c, &alignment).pairs.size(), 24u);
+  EXPECT_EQ(alignment.status, AlignmentStatus::kAligned) << alignment.reason;
+
+  RendezvousConfig bad = c;
+  bad.overlap.min_confirmed_fraction = 1.5;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  bad = c;
+  bad.overlap.radius = 0.0;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  bad = c;
+  bad.overlap.camera.max_range = -1.0;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+}
+
 TEST(Rendezvous, TwoRobotsShareTheObjectsBothMapped) {
   // Noise-free detections in each robot's frame of one world.
   const SE3 wa = Pose(0, 0, 0.5, 0), wb = Pose(6, 4, 0.5, 180);

@@ -207,6 +207,17 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
     f.add(static_cast<std::uint64_t>(k->ambiguity_margin));
     f.add(static_cast<std::uint64_t>(k->max_search_nodes));
   }
+  if (!c.known_initial_poses && c.rendezvous.overlap.enabled) {  // (as loop closure, below)
+    const OverlapCheck& o = c.rendezvous.overlap;
+    f.add(std::string("overlap"));
+    f.add(o.camera.horizontal_fov_deg);
+    f.add(o.camera.vertical_fov_deg);
+    f.add(o.camera.min_range);
+    f.add(o.camera.max_range);
+    f.add(o.radius);
+    f.add(static_cast<std::uint64_t>(o.min_seen));
+    f.add(o.min_confirmed_fraction);
+  }
   if (c.slam.loop_closure) {  // (only then: the fingerprints of journals without it stay)
     f.add(std::string("loop_closure"));
     f.add(static_cast<std::uint64_t>(c.slam.loop_closure_window));
