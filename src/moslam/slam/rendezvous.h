@@ -59,8 +59,8 @@
 #include <optional>
 
 #include "moslam/graph/factors.h"
-#include "moslam/slam/constellation.h"
 #include "moslam/sim/sensing.h"
+#include "moslam/slam/constellation.h"
 #include "moslam/slam/object_slam.h"
 
 namespace moslam {
