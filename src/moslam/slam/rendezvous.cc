@@ -321,7 +321,6 @@ void OverlapCheck::validate() const {
 
 OverlapEvidence AlignmentOverlap(const std::vector<ObjectMapEntry>& alpha_objects,
                                  const SE3& beta_T_alpha, const ObjectSlam& beta,
-                                 const std::vector<ObjectMapEntry>& beta_objects,
                                  const OverlapCheck& check) {
   check.validate();
   std::vector<SE3> pose_T_beta;  // beta's poses, inverted once
@@ -335,11 +334,14 @@ OverlapEvidence AlignmentOverlap(const std::vector<ObjectMapEntry>& alpha_object
     });
     if (!seen) continue;
     ++out.seen;
-    const bool confirmed =
-        std::any_of(beta_objects.begin(), beta_objects.end(), [&](const ObjectMapEntry& b) {
-          return b.label == o.label && (b.pose.translation() - p).norm() <= check.radius;
-        });
-    out.confirmed += confirmed ? 1 : 0;
+    const auto& landmarks = beta.landmarks();
+    for (std::size_t k = 0; k < landmarks.size(); ++k) {
+      if (landmarks[k].label == o.label &&
+          (beta.landmarkPose(k).translation() - p).norm() <= check.radius) {
+        ++out.confirmed;
+        break;
+      }
+    }
   }
   return out;
 }
@@ -576,7 +578,7 @@ SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const Obj
                             config.constellation);
     if (aligned.status == AlignmentStatus::kAligned && config.overlap.enabled) {
       const OverlapEvidence e =
-          AlignmentOverlap(received.objects, aligned.b_T_a, beta, own, config.overlap);
+          AlignmentOverlap(received.objects, aligned.b_T_a, beta, config.overlap);
       if (e.seen >= config.overlap.min_seen &&
           e.confirmed < config.overlap.min_confirmed_fraction * e.seen) {
         aligned.status = AlignmentStatus::kContradicted;

@@ -125,10 +125,9 @@ struct OverlapEvidence {
 };
 
 // The evidence of OverlapCheck for alpha's objects moved by beta_T_alpha into the frame of
-// `beta` (its poses and, in `beta_objects`, its landmarks).
+// `beta` (its poses and landmarks, at its current estimate).
 OverlapEvidence AlignmentOverlap(const std::vector<ObjectMapEntry>& alpha_objects,
                                  const SE3& beta_T_alpha, const ObjectSlam& beta,
-                                 const std::vector<ObjectMapEntry>& beta_objects,
                                  const OverlapCheck& check);
 
 struct RendezvousConfig {

@@ -777,12 +777,11 @@ TEST(Rendezvous, TheOverlapCheckRefusesAnAlignmentTheOtherObjectsContradict) {
   // The evidence under the true transform: every object of alpha in view, the chairs confirmed.
   ObjectMapMessage with_one_behind = sent;
   with_one_behind.objects.push_back({99, "chair", wa.between(Pose(-3, 0, 0.45, 0))});
-  OverlapEvidence e = AlignmentOverlap(with_one_behind.objects, BetaTAlpha(wa, wb), beta,
-                                       MakeObjectMapMessage(beta).objects, c.overlap);
+  OverlapEvidence e =
+      AlignmentOverlap(with_one_behind.objects, BetaTAlpha(wa, wb), beta, c.overlap);
   EXPECT_EQ(e.seen, 24);
   EXPECT_EQ(e.confirmed, 4);
-  e = AlignmentOverlap(sent.objects, BetaTAlpha(wa, wb), beta_lamps,
-                       MakeObjectMapMessage(beta_lamps).objects, c.overlap);
+  e = AlignmentOverlap(sent.objects, BetaTAlpha(wa, wb), beta_lamps, c.overlap);
   EXPECT_EQ(e.confirmed, 24);
 
   ConstellationAlignment alignment;
