@@ -20,5 +20,5 @@ void DecodeRawAndSealed(const std::uint8_t* data, std::size_t size, const Decode
   moslam::ByteWriter sealed;
   sealed.bytes(raw);
   sealed.seal();
-  decode(sealed.str(), fingerprint);
+  decode(sealed.data(), fingerprint);
 }

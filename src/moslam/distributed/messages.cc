@@ -1,9 +1,9 @@
 #include "moslam/distributed/messages.h"
 
 #include <cmath>
-#include <cstring>
 #include <string>
 
+#include "moslam/common/byte_io.h"
 #include "moslam/common/errors.h"
 #include "moslam/geometry/so3.h"
 
@@ -40,117 +40,17 @@ SE3 Message::pose(std::size_t i) const {
 
 namespace {
 
-constexpr std::size_t kMaxVarintBytes = 9;  // 7 bits each: 63 bits, enough for index << 1 | kind
+// 7 bits a byte: 63 bits, enough for index << 1 | kind.
+constexpr std::size_t kMaxKeyVarintBytes = 9;
 
 bool ValidStage(std::uint8_t s) { return s >= 1 && s <= 3; }
 
-// Writes into a buffer sized up front (the encoded size is known from the entries).
-class Writer {
- public:
-  explicit Writer(std::uint8_t* out) : p_(out) {}
-  void u8(std::uint8_t v) { *p_++ = v; }
-  void u16(std::uint16_t v) {
-    for (int b = 0; b < 2; ++b) *p_++ = static_cast<std::uint8_t>(v >> (8 * b));
-  }
-  void u32(std::uint32_t v) {
-    for (int b = 0; b < 4; ++b) *p_++ = static_cast<std::uint8_t>(v >> (8 * b));
-  }
-  void u64(std::uint64_t v) {
-    for (int b = 0; b < 8; ++b) *p_++ = static_cast<std::uint8_t>(v >> (8 * b));
-  }
-  void f64(double d) {
-    std::uint64_t v;
-    std::memcpy(&v, &d, sizeof v);
-    u64(v);
-  }
-  void varint(std::uint64_t v) {
-    while (v >= 0x80) {
-      *p_++ = static_cast<std::uint8_t>((v & 0x7F) | 0x80);
-      v >>= 7;
-    }
-    *p_++ = static_cast<std::uint8_t>(v);
-  }
-  const std::uint8_t* position() const { return p_; }
-
- private:
-  std::uint8_t* p_;
-};
-
-std::size_t VarintSize(std::uint64_t v) {
-  std::size_t n = 1;
-  while (v >= 0x80) {
-    v >>= 7;
-    ++n;
-  }
-  return n;
-}
-
-class Reader {
- public:
-  explicit Reader(const std::vector<std::uint8_t>& in) : in_(in) {}
-  std::size_t remaining() const { return in_.size() - pos_; }
-  void need(std::size_t n, const char* what) const {
-    if (remaining() < n) {
-      throw InvalidInputError(std::string("DGS message truncated: ") + what + " needs " +
-                              std::to_string(n) + " bytes, " + std::to_string(remaining()) +
-                              " left");
-    }
-  }
-  std::uint8_t u8(const char* what) {
-    need(1, what);
-    return in_[pos_++];
-  }
-  std::uint16_t u16(const char* what) {
-    need(2, what);
-    std::uint16_t v = 0;
-    for (int b = 0; b < 2; ++b) v = static_cast<std::uint16_t>(v | (in_[pos_++] << (8 * b)));
-    return v;
-  }
-  std::uint32_t u32(const char* what) {
-    need(4, what);
-    std::uint32_t v = 0;
-    for (int b = 0; b < 4; ++b) v |= std::uint32_t{in_[pos_++]} << (8 * b);
-    return v;
-  }
-  double f64(const char* what) {
-    need(8, what);
-    std::uint64_t v = 0;
-    for (int b = 0; b < 8; ++b) v |= std::uint64_t{in_[pos_++]} << (8 * b);
-    double d;
-    std::memcpy(&d, &v, sizeof d);
-    return d;
-  }
-  std::uint64_t varint(const char* what) {
-    std::uint64_t v = 0;
-    for (std::size_t i = 0; i < kMaxVarintBytes; ++i) {
-      const std::uint8_t byte = u8(what);
-      v |= std::uint64_t{byte & 0x7Fu} << (7 * i);
-      if ((byte & 0x80) == 0) {
-        if (i > 0 && byte == 0) {
-          throw InvalidInputError(std::string("DGS message: non-canonical varint in ") + what);
-        }
-        return v;
-      }
-    }
-    throw InvalidInputError(std::string("DGS message: varint longer than 9 bytes in ") + what);
-  }
-
- private:
-  const std::vector<std::uint8_t>& in_;
-  std::size_t pos_ = 0;
-};
-
 // The first two bytes of every message: its magic byte and the protocol version. Throws
 // "<message>: bad magic byte (not <noun>)" or "<message>: unsupported version V".
-void ReadMagicAndVersion(Reader& r, std::uint8_t magic, const std::string& message,
-                         const std::string& noun) {
-  if (r.u8("magic") != magic) {
-    throw InvalidInputError(message + ": bad magic byte (not " + noun + ")");
-  }
+void ReadMagicAndVersion(ByteReader& r, std::uint8_t magic, const std::string& noun) {
+  if (r.u8("magic") != magic) r.fail("bad magic byte (not " + noun + ")");
   const std::uint8_t version = r.u8("version");
-  if (version != kMessageVersion) {
-    throw InvalidInputError(message + ": unsupported version " + std::to_string(version));
-  }
+  if (version != kMessageVersion) r.fail("unsupported version " + std::to_string(version));
 }
 
 std::uint64_t PackKey(const Key& key) {
@@ -187,8 +87,7 @@ std::vector<std::uint8_t> EncodeMessage(const Message& m) {
   }
   std::size_t size = kMessageHeaderBytes + m.values.size() * 8;
   for (const Key& k : m.keys) size += VarintSize(PackKey(k));
-  std::vector<std::uint8_t> out(size);
-  Writer w(out.data());
+  WireWriter w(size);
   w.u8(kMessageMagic);
   w.u8(kMessageVersion);
   w.u8(static_cast<std::uint8_t>(m.stage));
@@ -202,59 +101,56 @@ std::vector<std::uint8_t> EncodeMessage(const Message& m) {
     const double* e = m.entry(i);
     for (int d = 0; d < dim; ++d) w.f64(e[d]);
   }
-  return out;
+  return w.take();
 }
 
 Message DecodeMessage(const std::vector<std::uint8_t>& bytes) {
-  Reader r(bytes);
+  ByteReader r(bytes, "DGS message");
   r.need(kMessageHeaderBytes, "header");
   Message m;
-  ReadMagicAndVersion(r, kMessageMagic, "DGS message", "a DGS message");
+  ReadMagicAndVersion(r, kMessageMagic, "a DGS message");
   const std::uint8_t stage = r.u8("stage");
   if (!ValidStage(stage)) {
-    throw InvalidInputError("DGS message: unknown stage " + std::to_string(stage));
+    r.fail("unknown stage " + std::to_string(stage));
   }
   m.stage = static_cast<DgsStage>(stage);
   const std::uint8_t flags = r.u8("flags");
   if ((flags & ~1u) != 0) {
-    throw InvalidInputError("DGS message: unknown flag bits " + std::to_string(flags));
+    r.fail("unknown flag bits " + std::to_string(flags));
   }
   m.initialised = (flags & 1u) != 0;
   m.sender = r.u16("sender");
-  if (r.u16("reserved") != 0) throw InvalidInputError("DGS message: reserved field not zero");
+  if (r.u16("reserved") != 0) r.fail("reserved field not zero");
   m.iteration = r.u32("iteration");
   const std::uint32_t count = r.u32("entry count");
   const std::size_t dim = static_cast<std::size_t>(StageDimension(m.stage));
   const std::size_t min_entry = 1 + 8 * dim;
-  if (count > r.remaining() / min_entry) {
-    throw InvalidInputError("DGS message: entry count " + std::to_string(count) +
-                            " exceeds what the " + std::to_string(r.remaining()) +
-                            " payload bytes can hold");
+  if (count > r.left() / min_entry) {
+    r.fail("entry count " + std::to_string(count) + " exceeds what the " +
+           std::to_string(r.left()) + " payload bytes can hold");
   }
   m.keys.reserve(count);
   m.values.reserve(count * dim);
   for (std::uint32_t i = 0; i < count; ++i) {
-    const std::uint64_t packed = r.varint("key");
+    const std::uint64_t packed = r.varint("key", kMaxKeyVarintBytes);
     if ((packed >> 1) > kMaxKeyIndex) {
-      throw InvalidInputError("DGS message: key index >= 2^56 at entry " + std::to_string(i));
+      r.fail("key index >= 2^56 at entry " + std::to_string(i));
     }
     Key key{m.sender, static_cast<VariableKind>(packed & 1u), packed >> 1};
     if (!m.keys.empty() && !(m.keys.back() < key)) {
-      throw InvalidInputError("DGS message: keys not strictly increasing at entry " +
-                              std::to_string(i));
+      r.fail("keys not strictly increasing at entry " + std::to_string(i));
     }
     m.keys.push_back(key);
     for (std::size_t d = 0; d < dim; ++d) {
       const double v = r.f64("estimate");
       if (!std::isfinite(v)) {
-        throw InvalidInputError("DGS message: non-finite estimate at entry " + std::to_string(i));
+        r.fail("non-finite estimate at entry " + std::to_string(i));
       }
       m.values.push_back(v);
     }
   }
-  if (r.remaining() != 0) {
-    throw InvalidInputError("DGS message: " + std::to_string(r.remaining()) +
-                            " trailing bytes after the last entry");
+  if (r.left() != 0) {
+    r.fail(std::to_string(r.left()) + " trailing bytes after the last entry");
   }
   return m;
 }
@@ -296,8 +192,7 @@ void CheckControl(const ControlMessage& m) {
 
 std::vector<std::uint8_t> EncodeControlMessage(const ControlMessage& m) {
   CheckControl(m);
-  std::vector<std::uint8_t> out(kControlMessageBytes);
-  Writer w(out.data());
+  WireWriter w(kControlMessageBytes);
   w.u8(kControlMagic);
   w.u8(kMessageVersion);
   w.u8(static_cast<std::uint8_t>(m.kind));
@@ -308,26 +203,26 @@ std::vector<std::uint8_t> EncodeControlMessage(const ControlMessage& m) {
   w.u32(m.sweep);
   w.f64(m.value[0]);
   w.f64(m.value[1]);
-  return out;
+  return w.take();
 }
 
 ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes) {
+  ByteReader r(bytes, "DGS control message");
   if (bytes.size() != kControlMessageBytes) {
-    throw InvalidInputError("DGS control message: " + std::to_string(bytes.size()) +
-                            " bytes, expected " + std::to_string(kControlMessageBytes));
+    r.fail(std::to_string(bytes.size()) + " bytes, expected " +
+           std::to_string(kControlMessageBytes));
   }
-  Reader r(bytes);
-  ReadMagicAndVersion(r, kControlMagic, "DGS control message", "a control message");
+  ReadMagicAndVersion(r, kControlMagic, "a control message");
   ControlMessage m;
   const std::uint8_t kind = r.u8("kind");
   if (!ValidControlKind(kind)) {
-    throw InvalidInputError("DGS control message: unknown kind " + std::to_string(kind));
+    r.fail("unknown kind " + std::to_string(kind));
   }
   m.kind = static_cast<ControlKind>(kind);
   m.flags = r.u8("flags");
   m.sender = r.u16("sender");
   if (r.u16("reserved") != 0) {
-    throw InvalidInputError("DGS control message: reserved field not zero");
+    r.fail("reserved field not zero");
   }
   m.round = r.u32("round");
   m.sweep = r.u32("sweep");
@@ -421,10 +316,8 @@ std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& m) {
   CheckCoarse(m);
   const std::size_t block =
       LayoutOf(m.kind).matrix_blocks ? m.k * m.k : m.k * m.ncols;
-  std::vector<std::uint8_t> out(kMessageHeaderBytes +
-                                8 * (m.center.size() + m.diagonal.size() + m.residual.size()) +
-                                m.blocks.size() * (2 + 8 * block));
-  Writer w(out.data());
+  WireWriter w(kMessageHeaderBytes + 8 * (m.center.size() + m.diagonal.size() + m.residual.size()) +
+               m.blocks.size() * (2 + 8 * block));
   w.u8(kCoarseMagic);
   w.u8(kMessageVersion);
   w.u8(static_cast<std::uint8_t>(m.stage));
@@ -443,27 +336,26 @@ std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& m) {
     w.u16(static_cast<std::uint16_t>(robot));
     for (double d : values) w.f64(d);
   }
-  return out;
+  return w.take();
 }
 
 CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
-  Reader r(bytes);
-  ReadMagicAndVersion(r, kCoarseMagic, "DGS coarse message", "a coarse message");
+  ByteReader r(bytes, "DGS coarse message");
+  ReadMagicAndVersion(r, kCoarseMagic, "a coarse message");
   CoarseMessage m;
   const std::uint8_t stage = r.u8("stage");
   if (stage < static_cast<std::uint8_t>(DgsStage::kRotation) ||
       stage > static_cast<std::uint8_t>(DgsStage::kRefine)) {
-    throw InvalidInputError("DGS coarse message: unknown stage " + std::to_string(stage));
+    r.fail("unknown stage " + std::to_string(stage));
   }
   m.stage = static_cast<DgsStage>(stage);
   const std::uint8_t kind = r.u8("kind");
   if (!KnownKind(kind)) {
-    throw InvalidInputError("DGS coarse message: unknown kind " + std::to_string(kind));
+    r.fail("unknown kind " + std::to_string(kind));
   }
   m.kind = static_cast<CoarseKind>(kind);
   if (!StageAllowed(m.kind, m.stage)) {
-    throw InvalidInputError("DGS coarse message: kind " + std::to_string(kind) +
-                            " does not belong to stage " + std::to_string(stage));
+    r.fail("kind " + std::to_string(kind) + " does not belong to stage " + std::to_string(stage));
   }
   m.sender = r.u16("sender");
   const std::size_t count = r.u16("block count");
@@ -471,20 +363,18 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
   m.k = r.u8("k");
   m.ncols = r.u8("ncols");
   if (m.k < 1 || m.k > kMaxCoarseK || m.ncols < 1 || m.ncols > 16) {
-    throw InvalidInputError("DGS coarse message: k must be in [1, " +
-                            std::to_string(kMaxCoarseK) + "] and ncols in [1, 16]");
+    r.fail("k must be in [1, " + std::to_string(kMaxCoarseK) + "] and ncols in [1, 16]");
   }
   const std::size_t centre = r.u8("center size");
   if (r.u8("reserved") != 0) {
-    throw InvalidInputError("DGS coarse message: reserved field not zero");
+    r.fail("reserved field not zero");
   }
   const CoarseLayout layout = LayoutOf(m.kind);
   if (centre != 0 && (centre != 3 || !layout.center)) {
-    throw InvalidInputError("DGS coarse message: center size " + std::to_string(centre) +
-                            " (0, or 3 in a share or a matrix)");
+    r.fail("center size " + std::to_string(centre) + " (0, or 3 in a share or a matrix)");
   }
   if (m.kind == CoarseKind::kResidual && count != 0) {
-    throw InvalidInputError("DGS coarse message: a residual carries no blocks");
+    r.fail("a residual carries no blocks");
   }
   const std::size_t kk = static_cast<std::size_t>(m.k * m.k);
   const std::size_t kc = static_cast<std::size_t>(m.k * m.ncols);
@@ -492,9 +382,8 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
   const std::size_t payload = 8 * centre + (layout.diagonal ? 8 * kk : 0) +
                               (layout.residual ? 8 * kc : 0) + count * (2 + 8 * block);
   r.need(payload, "payload");
-  if (r.remaining() != payload) {
-    throw InvalidInputError("DGS coarse message: " + std::to_string(r.remaining() - payload) +
-                            " trailing bytes");
+  if (r.left() != payload) {
+    r.fail(std::to_string(r.left() - payload) + " trailing bytes");
   }
   auto doubles = [&](std::size_t n) {
     std::vector<double> v(n);
@@ -543,8 +432,7 @@ void CheckWeights(const WeightMessage& m) {
 
 std::vector<std::uint8_t> EncodeWeightMessage(const WeightMessage& m) {
   CheckWeights(m);
-  std::vector<std::uint8_t> out(kWeightHeaderBytes + 8 * m.weights.size());
-  Writer w(out.data());
+  WireWriter w(kWeightHeaderBytes + 8 * m.weights.size());
   w.u8(kWeightMagic);
   w.u8(kMessageVersion);
   w.u16(static_cast<std::uint16_t>(m.sender));
@@ -553,22 +441,22 @@ std::vector<std::uint8_t> EncodeWeightMessage(const WeightMessage& m) {
   w.u32(m.round);
   w.u32(static_cast<std::uint32_t>(m.weights.size()));
   for (double v : m.weights) w.f64(v);
-  return out;
+  return w.take();
 }
 
 WeightMessage DecodeWeightMessage(const std::vector<std::uint8_t>& bytes) {
-  Reader r(bytes);
-  ReadMagicAndVersion(r, kWeightMagic, "DGS weight message", "a weight message");
+  ByteReader r(bytes, "DGS weight message");
+  ReadMagicAndVersion(r, kWeightMagic, "a weight message");
   WeightMessage m;
   m.sender = r.u16("sender");
   m.receiver = r.u16("receiver");
-  if (r.u16("reserved") != 0) throw InvalidInputError("DGS weight message: reserved field not 0");
+  if (r.u16("reserved") != 0) r.fail("reserved field not 0");
   m.round = r.u32("round");
   const std::uint32_t count = r.u32("count");
-  if (r.remaining() / 8 < count || r.remaining() != 8 * static_cast<std::size_t>(count)) {
-    throw InvalidInputError("DGS weight message: " + std::to_string(count) + " weights need " +
-                            std::to_string(8 * static_cast<std::size_t>(count)) + " bytes, " +
-                            std::to_string(r.remaining()) + " follow");
+  if (r.left() / 8 < count || r.left() != 8 * static_cast<std::size_t>(count)) {
+    r.fail(std::to_string(count) + " weights need " +
+           std::to_string(8 * static_cast<std::size_t>(count)) + " bytes, " +
+           std::to_string(r.left()) + " follow");
   }
   m.weights.resize(count);
   for (double& w : m.weights) w = r.f64("weight");
@@ -606,8 +494,7 @@ void CheckCovariance(const CovarianceMessage& m) {
 std::vector<std::uint8_t> EncodeCovarianceMessage(const CovarianceMessage& m) {
   CheckCovariance(m);
   const std::size_t n = static_cast<std::size_t>(m.covariance.rows());
-  std::vector<std::uint8_t> out(kCovarianceHeaderBytes + 8 * (n * (n + 1) / 2));
-  Writer w(out.data());
+  WireWriter w(kCovarianceHeaderBytes + 8 * (n * (n + 1) / 2));
   w.u8(kCovarianceMagic);
   w.u8(kMessageVersion);
   w.u16(static_cast<std::uint16_t>(m.sender));
@@ -620,15 +507,13 @@ std::vector<std::uint8_t> EncodeCovarianceMessage(const CovarianceMessage& m) {
       w.f64(m.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
     }
   }
-  return out;
+  return w.take();
 }
 
 CovarianceMessage DecodeCovarianceMessage(const std::vector<std::uint8_t>& bytes) {
-  Reader r(bytes);
-  auto bad = [](const std::string& what) {
-    throw InvalidInputError("DGS covariance message: " + what);
-  };
-  ReadMagicAndVersion(r, kCovarianceMagic, "DGS covariance message", "a covariance message");
+  ByteReader r(bytes, "DGS covariance message");
+  auto bad = [&r](const std::string& what) { r.fail(what); };
+  ReadMagicAndVersion(r, kCovarianceMagic, "a covariance message");
   CovarianceMessage m;
   m.sender = r.u16("sender");
   m.receiver = r.u16("receiver");
@@ -640,9 +525,9 @@ CovarianceMessage DecodeCovarianceMessage(const std::vector<std::uint8_t>& bytes
         std::to_string(kMaxCovarianceDimension));
   }
   const std::size_t count = static_cast<std::size_t>(n) * (n + 1) / 2;
-  if (r.remaining() != 8 * count) {
+  if (r.left() != 8 * count) {
     bad("dimension " + std::to_string(n) + " needs " + std::to_string(8 * count) + " bytes, " +
-        std::to_string(r.remaining()) + " follow");
+        std::to_string(r.left()) + " follow");
   }
   m.covariance.resize(n, n);
   for (std::uint32_t i = 0; i < n; ++i) {

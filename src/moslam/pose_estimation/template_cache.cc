@@ -60,7 +60,7 @@ std::string SafeLabel(const std::string& label) {
 std::uint64_t CloudDigest(const FeatureCloud& cloud) {
   ByteWriter w;
   for (const FeaturePoint& p : cloud.points) PutPoint(w, p);
-  return Fnv1a64(w.str().data(), w.str().size());
+  return Fnv1a64(w.data().data(), w.size());
 }
 
 std::uint64_t TemplateFingerprint(const std::string& label, std::uint64_t source_digest,
@@ -74,7 +74,7 @@ std::uint64_t TemplateFingerprint(const std::string& label, std::uint64_t source
                    config.feature_surface_voxel, config.keypoint_voxel}) {
     w.f64(v);
   }
-  return Fnv1a64(w.str().data(), w.str().size());
+  return Fnv1a64(w.data().data(), w.size());
 }
 
 std::string EncodeTemplate(const ObjectTemplate& tmpl, std::uint64_t fingerprint) {

@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <map>
 #include <set>
 
+#include "moslam/common/byte_io.h"
 #include "moslam/common/errors.h"
 #include "moslam/metrics/metrics.h"
 
@@ -19,97 +19,20 @@ constexpr std::uint8_t kKindSharedObjects = 2;
 constexpr std::uint8_t kKindSharedObjectsAndRemovals = 3;
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
-class Writer {
- public:
-  void u8(std::uint8_t v) { bytes_.push_back(v); }
-  void u16(std::uint16_t v) {
-    for (int s = 0; s < 16; s += 8) bytes_.push_back(static_cast<std::uint8_t>((v >> s) & 0xFFu));
-  }
-  void u32(std::uint32_t v) {
-    for (int s = 0; s < 32; s += 8) bytes_.push_back(static_cast<std::uint8_t>((v >> s) & 0xFFu));
-  }
-  void f32(double v) {
-    const auto f = static_cast<float>(v);
-    std::uint32_t bits;
-    std::memcpy(&bits, &f, sizeof bits);
-    u32(bits);
-  }
-  void str(const std::string& s) {
-    for (char c : s) bytes_.push_back(static_cast<std::uint8_t>(c));
-  }
-  std::vector<std::uint8_t> take() { return std::move(bytes_); }
+// The first three bytes of every rendezvous message: magic, version, kind.
+void ReadHeader(ByteReader& r, std::uint8_t kind) {
+  if (r.u8("magic") != kMagic) r.fail("bad magic byte (not a moslam rendezvous message)");
+  const std::uint8_t version = r.u8("version");
+  if (version != kVersion) r.fail("unsupported version " + std::to_string(version));
+  const std::uint8_t k = r.u8("kind");
+  if (k != kind) r.fail("message kind " + std::to_string(k) + ", expected " + std::to_string(kind));
+}
 
- private:
-  std::vector<std::uint8_t> bytes_;
-};
-
-class Reader {
- public:
-  Reader(const std::vector<std::uint8_t>& bytes, std::string what)
-      : bytes_(bytes), what_(std::move(what)) {}
-
-  [[noreturn]] void fail(const std::string& msg) const {
-    throw InvalidInputError(what_ + ": " + msg + " (at byte " + std::to_string(pos_) + " of " +
-                            std::to_string(bytes_.size()) + ")");
-  }
-  void need(std::size_t n, const char* field) const {
-    if (bytes_.size() - pos_ < n) fail(std::string("truncated while reading ") + field);
-  }
-  std::uint8_t u8(const char* field) {
-    need(1, field);
-    return bytes_[pos_++];
-  }
-  std::uint16_t u16(const char* field) {
-    need(2, field);
-    std::uint16_t v = 0;
-    for (int s = 0; s < 16; s += 8) v = static_cast<std::uint16_t>(v | (bytes_[pos_++] << s));
-    return v;
-  }
-  std::uint32_t u32(const char* field) {
-    need(4, field);
-    std::uint32_t v = 0;
-    for (int s = 0; s < 32; s += 8) v |= static_cast<std::uint32_t>(bytes_[pos_++]) << s;
-    return v;
-  }
-  double f32(const char* field) {
-    const std::uint32_t bits = u32(field);
-    float f;
-    std::memcpy(&f, &bits, sizeof f);
-    if (!std::isfinite(f)) fail(std::string("non-finite ") + field);
-    return static_cast<double>(f);
-  }
-  std::string str(std::size_t n, const char* field) {
-    need(n, field);
-    std::string s(bytes_.begin() + static_cast<std::ptrdiff_t>(pos_),
-                  bytes_.begin() + static_cast<std::ptrdiff_t>(pos_ + n));
-    pos_ += n;
-    return s;
-  }
-  void header(std::uint8_t kind) {
-    if (u8("magic") != kMagic) fail("bad magic byte (not a moslam rendezvous message)");
-    const std::uint8_t version = u8("version");
-    if (version != kVersion) fail("unsupported version " + std::to_string(version));
-    const std::uint8_t k = u8("kind");
-    if (k != kind) {
-      fail("message kind " + std::to_string(k) + ", expected " + std::to_string(kind));
-    }
-  }
-  void finish() const {
-    if (pos_ != bytes_.size()) fail(std::to_string(bytes_.size() - pos_) + " trailing bytes");
-  }
-  // Upper bound on a count so that a corrupt count cannot make us allocate gigabytes.
-  void plausibleCount(std::uint32_t count, std::size_t min_bytes_each, const char* field) const {
-    if (static_cast<std::uint64_t>(count) * min_bytes_each > bytes_.size() - pos_) {
-      fail(std::string("truncated: ") + field + " count " + std::to_string(count) +
-           " exceeds the bytes left");
-    }
-  }
-
- private:
-  const std::vector<std::uint8_t>& bytes_;
-  std::string what_;
-  std::size_t pos_ = 0;
-};
+double FiniteF32(ByteReader& r, const char* field) {
+  const float f = r.f32(field);
+  if (!std::isfinite(f)) r.fail(std::string("non-finite ") + field);
+  return static_cast<double>(f);
+}
 
 std::uint16_t RobotId(int robot, const char* what) {
   if (robot < 0 || robot > 65535) {
@@ -138,7 +61,7 @@ void TakenLandmarks(const std::vector<SharedObject>& shared, int a, int b,
 }  // namespace
 
 std::vector<std::uint8_t> EncodeObjectMap(const ObjectMapMessage& message) {
-  Writer w;
+  WireWriter w;
   w.u8(kMagic);
   w.u8(kVersion);
   w.u8(kKindObjectMap);
@@ -158,7 +81,7 @@ std::vector<std::uint8_t> EncodeObjectMap(const ObjectMapMessage& message) {
   w.u8(static_cast<std::uint8_t>(labels.size()));
   for (const auto& l : labels) {
     w.u8(static_cast<std::uint8_t>(l.size()));
-    w.str(l);
+    w.bytes(l);
   }
   w.u32(static_cast<std::uint32_t>(message.objects.size()));
   for (const auto& o : message.objects) {
@@ -170,18 +93,14 @@ std::vector<std::uint8_t> EncodeObjectMap(const ObjectMapMessage& message) {
     }
     w.u32(o.landmark);
     w.u8(label_index.at(o.label));
-    for (int k = 0; k < 3; ++k) w.f32(t[k]);
-    w.f32(q[1]);
-    w.f32(q[2]);
-    w.f32(q[3]);
-    w.f32(q[0]);
+    for (double v : {t[0], t[1], t[2], q[1], q[2], q[3], q[0]}) w.f32(static_cast<float>(v));
   }
   return w.take();
 }
 
 ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes) {
-  Reader r(bytes, "object map message");
-  r.header(kKindObjectMap);
+  ByteReader r(bytes, "object map message");
+  ReadHeader(r, kKindObjectMap);
   ObjectMapMessage m;
   m.sender = r.u16("sender");
   const std::uint8_t num_labels = r.u8("label count");
@@ -189,10 +108,9 @@ ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes) {
   for (int i = 0; i < num_labels; ++i) {
     const std::uint8_t n = r.u8("label length");
     if (n == 0) r.fail("empty label");
-    labels.push_back(r.str(n, "label"));
+    labels.emplace_back(r.take(n, "label"));
   }
-  const std::uint32_t count = r.u32("object count");
-  r.plausibleCount(count, 33, "object");
+  const std::uint32_t count = r.count(33, "object");
   std::set<std::uint32_t> seen;
   for (std::uint32_t i = 0; i < count; ++i) {
     ObjectMapEntry e;
@@ -207,9 +125,9 @@ ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes) {
     }
     e.label = labels[li];
     Vector3 t;
-    for (int k = 0; k < 3; ++k) t[k] = r.f32("translation");
-    const double qx = r.f32("quaternion"), qy = r.f32("quaternion"), qz = r.f32("quaternion"),
-                 qw = r.f32("quaternion");
+    for (int k = 0; k < 3; ++k) t[k] = FiniteF32(r, "translation");
+    const double qx = FiniteF32(r, "quaternion"), qy = FiniteF32(r, "quaternion"),
+                 qz = FiniteF32(r, "quaternion"), qw = FiniteF32(r, "quaternion");
     const double norm = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
     if (std::abs(norm - 1.0) > 1e-3) {
       r.fail("quaternion of landmark " + std::to_string(e.landmark) + " has norm " +
@@ -223,7 +141,7 @@ ObjectMapMessage DecodeObjectMap(const std::vector<std::uint8_t>& bytes) {
 }
 
 std::vector<std::uint8_t> EncodeSharedObjects(const SharedObjectsMessage& message) {
-  Writer w;
+  WireWriter w;
   w.u8(kMagic);
   w.u8(kVersion);
   w.u8(message.removed.empty() ? kKindSharedObjects : kKindSharedObjectsAndRemovals);
@@ -241,17 +159,16 @@ std::vector<std::uint8_t> EncodeSharedObjects(const SharedObjectsMessage& messag
 }
 
 SharedObjectsMessage DecodeSharedObjects(const std::vector<std::uint8_t>& bytes) {
-  Reader r(bytes, "shared objects message");
+  ByteReader r(bytes, "shared objects message");
   const bool removals = bytes.size() > 2 && bytes[2] == kKindSharedObjectsAndRemovals;
-  r.header(removals ? kKindSharedObjectsAndRemovals : kKindSharedObjects);
+  ReadHeader(r, removals ? kKindSharedObjectsAndRemovals : kKindSharedObjects);
   SharedObjectsMessage m;
   m.sender = r.u16("sender");
   m.receiver = r.u16("receiver");
   for (auto* list : {&m.pairs, &m.removed}) {
     if (list == &m.removed && !removals) break;
     const bool added = list == &m.pairs;
-    const std::uint32_t count = r.u32(added ? "pair count" : "removed pair count");
-    r.plausibleCount(count, 8, "pair");
+    const std::uint32_t count = r.count(8, added ? "pair" : "removed pair");
     std::set<std::uint32_t> alpha_seen, beta_seen;
     std::set<std::pair<std::uint32_t, std::uint32_t>> pairs_seen;
     for (std::uint32_t i = 0; i < count; ++i) {

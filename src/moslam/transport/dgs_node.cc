@@ -80,8 +80,8 @@ enum class RecordType : std::uint8_t {
 };
 
 using transport_detail::Fingerprint;
-using Bytes = transport_detail::RecordWriter;
-using Parse = transport_detail::RecordReader;
+using Bytes = WireWriter;
+using transport_detail::JournalRecordReader;
 using transport_detail::AppendStepRecord;
 using transport_detail::ReadStepRecord;
 using transport_detail::StepRecord;
@@ -386,13 +386,13 @@ class DgsNode::Impl final : public TeamChannel {
     }
     const std::string what = journal_->path();
     for (std::size_t i = 0; i < records.size(); ++i) {
-      Parse p(records[i], what);
-      const auto type = static_cast<RecordType>(p.u8());
+      ByteReader p = JournalRecordReader(records[i], 0, what);
+      const auto type = static_cast<RecordType>(p.u8("record type"));
       if (i == 0) {
         char magic[8];
-        for (char& c : magic) c = static_cast<char>(p.u8());
-        const int robot = p.u16();
-        const std::uint64_t fp = p.u64();
+        for (char& c : magic) c = static_cast<char>(p.u8("magic"));
+        const int robot = p.u16("robot");
+        const std::uint64_t fp = p.u64("fingerprint");
         if (type != RecordType::kHeader || std::memcmp(magic, kJournalMagic, 8) != 0 ||
             robot != robot_ || fp != fingerprint) {
           throw InvalidInputError(
@@ -407,8 +407,8 @@ class DgsNode::Impl final : public TeamChannel {
           ++result_.incarnation;
           break;
         case RecordType::kTeam: {
-          const int n = p.u16();
-          for (int k = 0; k < n; ++k) team_.insert(p.u16());
+          const int n = p.u16("team size");
+          for (int k = 0; k < n; ++k) team_.insert(p.u16("team robot"));
           break;
         }
         case RecordType::kStep:
@@ -423,7 +423,7 @@ class DgsNode::Impl final : public TeamChannel {
     }
   }
 
-  void record(std::vector<std::uint8_t>& payload) {
+  void record(const std::vector<std::uint8_t>& payload) {
     if (journal_) journal_->append(payload);
   }
 
@@ -432,11 +432,11 @@ class DgsNode::Impl final : public TeamChannel {
   std::optional<TeamStep> replayStep(std::uint32_t s, DgsStage stage) {
     const std::string what = journal_ ? journal_->path() : std::string();
     while (next_replay_ < replay_.size()) {
-      Parse p(journal_->records()[replay_[next_replay_]], what);
-      const auto type = static_cast<RecordType>(p.u8());
+      ByteReader p = JournalRecordReader(journal_->records()[replay_[next_replay_]], 0, what);
+      const auto type = static_cast<RecordType>(p.u8("record type"));
       if (type == RecordType::kLeft) {
-        left_.insert(p.u16());
-        (void)p.u32();
+        left_.insert(p.u16("robot"));
+        (void)p.u32("step");
         ++next_replay_;
         continue;
       }

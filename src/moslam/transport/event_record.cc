@@ -8,7 +8,7 @@
 namespace moslam::transport_detail {
 
 void AppendEventRecord(const EventRecord& record, std::vector<std::uint8_t>& out) {
-  RecordWriter b;
+  WireWriter b;
   b.u32(record.event);
   for (const ObjectPairs* list : {&record.pairs, &record.removed}) {
     b.u32(static_cast<std::uint32_t>(list->size()));
@@ -19,18 +19,14 @@ void AppendEventRecord(const EventRecord& record, std::vector<std::uint8_t>& out
 
 EventRecord ReadEventRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                             const std::string& what) {
-  const std::vector<std::uint8_t> body = RecordBody(bytes, offset, what);
-  RecordReader p(body, what);
+  ByteReader p = JournalRecordReader(bytes, offset, what);
   EventRecord record;
-  record.event = p.u32();
+  record.event = p.u32("event");
   for (ObjectPairs* list : {&record.pairs, &record.removed}) {
-    const std::uint32_t n = p.u32();
-    // Each pair takes 8 bytes: a count beyond what is left is a truncated record (checked
-    // before reserving anything).
-    if (n > body.size() / 8) throw InvalidInputError(what + ": truncated journal record");
+    const std::uint32_t n = p.count(8, "pair");
     std::set<std::uint32_t> alpha, beta;
     for (std::uint32_t k = 0; k < n; ++k) {
-      const std::uint32_t a = p.u32(), c = p.u32();
+      const std::uint32_t a = p.u32("alpha object"), c = p.u32("beta object");
       if (!alpha.insert(a).second || !beta.insert(c).second) {
         throw InvalidInputError(what + ": a rendezvous record uses object " +
                                 std::to_string(alpha.count(a) ? a : c) + " twice in one list");
@@ -38,24 +34,23 @@ EventRecord ReadEventRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
       list->emplace_back(a, c);
     }
   }
-  if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a rendezvous record");
+  if (!p.atEnd()) p.fail("trailing bytes after a rendezvous record");
   return record;
 }
 
 void AppendLeftRecord(const LeftRecord& record, std::vector<std::uint8_t>& out) {
-  RecordWriter b;
+  WireWriter b;
   b.u16(record.robot).u32(record.step);
   out.insert(out.end(), b.data().begin(), b.data().end());
 }
 
 LeftRecord ReadLeftRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                           const std::string& what) {
-  const std::vector<std::uint8_t> body = RecordBody(bytes, offset, what);
-  RecordReader p(body, what);
+  ByteReader p = JournalRecordReader(bytes, offset, what);
   LeftRecord record;
-  record.robot = p.u16();
-  record.step = p.u32();
-  if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a departure record");
+  record.robot = p.u16("robot");
+  record.step = p.u32("step");
+  if (!p.atEnd()) p.fail("trailing bytes after a departure record");
   return record;
 }
 

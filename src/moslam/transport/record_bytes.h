@@ -1,12 +1,12 @@
-// Little-endian journal records and run fingerprints shared by the journaled protocols
-// (dgs_node.cc, robot_session.cc). Internal to the transport module.
+// Journal records (read and written with common/byte_io.h) and run fingerprints shared by the
+// journaled protocols (dgs_node.cc, robot_session.cc). Internal to the transport module.
 #pragma once
 
 #include <cstdint>
-#include <cstring>
 #include <string>
 #include <vector>
 
+#include "moslam/common/byte_io.h"
 #include "moslam/common/errors.h"
 #include "moslam/common/fnv.h"
 #include "moslam/distributed/dgs_driver.h"
@@ -15,81 +15,16 @@
 
 namespace moslam::transport_detail {
 
-// Appends little-endian integers and length-prefixed byte strings.
-class RecordWriter {
- public:
-  RecordWriter& u8(std::uint8_t v) { return le(v, 1); }
-  RecordWriter& u16(std::uint16_t v) { return le(v, 2); }
-  RecordWriter& u32(std::uint32_t v) { return le(v, 4); }
-  RecordWriter& u64(std::uint64_t v) { return le(v, 8); }
-  RecordWriter& f64(double v) {
-    std::uint64_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    return le(bits, 8);
-  }
-  RecordWriter& raw(const std::vector<std::uint8_t>& v) {
-    u32(static_cast<std::uint32_t>(v.size()));
-    b_.insert(b_.end(), v.begin(), v.end());
-    return *this;
-  }
-  std::vector<std::uint8_t>& data() { return b_; }
-
- private:
-  RecordWriter& le(std::uint64_t v, int n) {
-    for (int i = 0; i < n; ++i) b_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
-    return *this;
-  }
-  std::vector<std::uint8_t> b_;
-};
-
-// The fields of a record from `offset` (just after its type byte) to the end; throws
-// InvalidInputError "<what>: truncated journal record" when the record is shorter.
-inline std::vector<std::uint8_t> RecordBody(const std::vector<std::uint8_t>& bytes,
-                                            std::size_t offset, const std::string& what) {
+// A reader of a journal record's fields from `offset` to its end (the record must outlive it);
+// its errors name the journal (`what`). Throws InvalidInputError when the record is shorter than
+// `offset`.
+inline ByteReader JournalRecordReader(const std::vector<std::uint8_t>& bytes, std::size_t offset,
+                                      const std::string& what) {
   if (offset > bytes.size()) throw InvalidInputError(what + ": truncated journal record");
-  return {bytes.begin() + static_cast<std::ptrdiff_t>(offset), bytes.end()};
+  return ByteReader(std::string_view(reinterpret_cast<const char*>(bytes.data()) + offset,
+                                     bytes.size() - offset),
+                    what + " (journal record)");
 }
-
-// Reads what RecordWriter wrote; throws InvalidInputError "<what>: truncated journal record".
-class RecordReader {
- public:
-  RecordReader(const std::vector<std::uint8_t>& b, std::string what)
-      : b_(b), what_(std::move(what)) {}
-  std::uint8_t u8() { return static_cast<std::uint8_t>(le(1)); }
-  std::uint16_t u16() { return static_cast<std::uint16_t>(le(2)); }
-  std::uint32_t u32() { return static_cast<std::uint32_t>(le(4)); }
-  std::uint64_t u64() { return le(8); }
-  double f64() {
-    const std::uint64_t bits = le(8);
-    double v;
-    std::memcpy(&v, &bits, sizeof v);
-    return v;
-  }
-  std::vector<std::uint8_t> raw() {
-    const std::uint32_t n = u32();
-    need(n);
-    std::vector<std::uint8_t> v(b_.begin() + static_cast<std::ptrdiff_t>(pos_),
-                                b_.begin() + static_cast<std::ptrdiff_t>(pos_ + n));
-    pos_ += n;
-    return v;
-  }
-  bool atEnd() const { return pos_ == b_.size(); }
-
- private:
-  void need(std::size_t n) const {
-    if (b_.size() - pos_ < n) throw InvalidInputError(what_ + ": truncated journal record");
-  }
-  std::uint64_t le(int n) {
-    need(static_cast<std::size_t>(n));
-    std::uint64_t v = 0;
-    for (int i = 0; i < n; ++i) v |= std::uint64_t{b_[pos_ + static_cast<std::size_t>(i)]} << (8 * i);
-    pos_ += static_cast<std::size_t>(n);
-    return v;
-  }
-  const std::vector<std::uint8_t>& b_;
-  std::string what_;
-  std::size_t pos_ = 0;
-};
 
 // FNV-1a over what a run depends on: a journal is only replayed by the run that wrote it.
 class Fingerprint {

@@ -151,9 +151,8 @@ constexpr std::uint8_t kLeftRecord = 5;   // a partner found gone for good
 using transport_detail::Fingerprint;
 using transport_detail::GroupRecord;
 using transport_detail::LeftRecord;
-using transport_detail::RecordReader;
 using transport_detail::SolveRecord;
-using Record = transport_detail::RecordWriter;
+using Record = WireWriter;
 
 std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionOptions& options) {
   const MultiRobotSlamConfig& c = options.slam;
@@ -1074,13 +1073,13 @@ class RobotSession::Impl {
     }
     const std::string what = journal_->path();
     for (std::size_t i = 0; i < records.size(); ++i) {
-      RecordReader p(records[i], what);
-      const auto type = static_cast<std::uint8_t>(p.u8());
+      ByteReader p = transport_detail::JournalRecordReader(records[i], 0, what);
+      const auto type = static_cast<std::uint8_t>(p.u8("record type"));
       if (i == 0) {
         char magic[8];
-        for (char& c : magic) c = static_cast<char>(p.u8());
-        const auto robot = static_cast<int>(p.u16());
-        const std::uint64_t fp = p.u64();
+        for (char& c : magic) c = static_cast<char>(p.u8("magic"));
+        const auto robot = static_cast<int>(p.u16("robot"));
+        const std::uint64_t fp = p.u64("fingerprint");
         if (type != kHeaderRecord || std::memcmp(magic, kJournalMagic, 8) != 0 ||
             robot != robot_ || fp != fingerprint) {
           throw InvalidInputError("state directory " + options_.dgs.state_dir +

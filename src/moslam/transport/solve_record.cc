@@ -14,32 +14,32 @@ constexpr std::uint8_t kUnlinked = 1;                 // solve record flags
 // Smallest encodings, to bound a count by what is left before reserving anything.
 constexpr std::size_t kKeyBytes = 2 + 1 + 8, kPoseBytes = 12 * 8;
 
-void WriteKey(RecordWriter& b, const Key& k) {
+void WriteKey(WireWriter& b, const Key& k) {
   b.u16(static_cast<std::uint16_t>(k.robot)).u8(static_cast<std::uint8_t>(k.kind)).u64(k.index);
 }
 
-void WritePose(RecordWriter& b, const SE3& x) {
+void WritePose(WireWriter& b, const SE3& x) {
   const Matrix3& R = x.rotation().matrix();
   for (int i = 0; i < 9; ++i) b.f64(R(i));
   for (int i = 0; i < 3; ++i) b.f64(x.translation()(i));
 }
 
-Key ReadKey(RecordReader& p, const std::string& what) {
+Key ReadKey(ByteReader& p, const std::string& what) {
   Key k;
-  k.robot = p.u16();
-  const std::uint8_t kind = p.u8();
+  k.robot = p.u16("key robot");
+  const std::uint8_t kind = p.u8("key kind");
   if (kind > 1) throw InvalidInputError(what + ": unknown variable kind " + std::to_string(kind));
   k.kind = static_cast<VariableKind>(kind);
-  k.index = p.u64();
+  k.index = p.u64("key index");
   if (k.index > kMaxKeyIndex) throw InvalidInputError(what + ": key index beyond 2^56 - 1");
   return k;
 }
 
-SE3 ReadPose(RecordReader& p, const std::string& what) {
+SE3 ReadPose(ByteReader& p, const std::string& what) {
   Matrix3 R;
   Vector3 t;
-  for (int i = 0; i < 9; ++i) R(i) = p.f64();
-  for (int i = 0; i < 3; ++i) t(i) = p.f64();
+  for (int i = 0; i < 9; ++i) R(i) = p.f64("rotation");
+  for (int i = 0; i < 3; ++i) t(i) = p.f64("translation");
   if (!R.allFinite() || !t.allFinite()) throw InvalidInputError(what + ": a pose is not finite");
   if (!((R.transpose() * R - Matrix3::Identity()).cwiseAbs().maxCoeff() <= 1e-6) ||
       !(R.determinant() > 0.0)) {
@@ -48,16 +48,10 @@ SE3 ReadPose(RecordReader& p, const std::string& what) {
   return SE3(SO3(R), t);
 }
 
-std::uint32_t Count(RecordReader& p, std::size_t each, std::size_t size, const std::string& what) {
-  const std::uint32_t n = p.u32();
-  if (n > size / each) throw InvalidInputError(what + ": truncated journal record");
-  return n;
-}
-
 }  // namespace
 
 void AppendGroupRecord(const GroupRecord& record, std::vector<std::uint8_t>& out) {
-  RecordWriter b;
+  WireWriter b;
   b.u32(record.step).u16(static_cast<std::uint16_t>(record.robots.size()));
   for (int r : record.robots) b.u16(static_cast<std::uint16_t>(r));
   b.u32(static_cast<std::uint32_t>(record.team.size()));
@@ -75,24 +69,23 @@ void AppendGroupRecord(const GroupRecord& record, std::vector<std::uint8_t>& out
 
 GroupRecord ReadGroupRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                             const std::string& what) {
-  const std::vector<std::uint8_t> body = RecordBody(bytes, offset, what);
-  RecordReader p(body, what);
+  ByteReader p = JournalRecordReader(bytes, offset, what);
   GroupRecord record;
-  record.step = p.u32();
-  const std::uint16_t n = p.u16();
+  record.step = p.u32("step");
+  const std::uint16_t n = p.u16("robot count");
   for (std::uint16_t i = 0; i < n; ++i) {
-    const int r = p.u16();
+    const int r = p.u16("robot");
     if (!record.robots.empty() && r <= record.robots.back()) {
       throw InvalidInputError(what + ": the robots of a group record are not increasing");
     }
     record.robots.push_back(r);
   }
-  const std::uint32_t m = Count(p, 2 * kKeyBytes + 1, body.size(), what);
+  const std::uint32_t m = p.count(2 * kKeyBytes + 1, "team pair");
   for (std::uint32_t i = 0; i < m; ++i) {
     TeamPair t;
     t.mine = ReadKey(p, what);
     t.other = ReadKey(p, what);
-    const std::uint8_t flags = p.u8();
+    const std::uint8_t flags = p.u8("flags");
     if (flags & ~(kMineIsAlpha | kHeld)) {
       throw InvalidInputError(what + ": unknown team pair flags " + std::to_string(flags));
     }
@@ -102,7 +95,7 @@ GroupRecord ReadGroupRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
     t.mine_is_alpha = flags & kMineIsAlpha;
     t.held = flags & kHeld;
     if (t.held) {
-      t.copy.step = static_cast<int>(p.u32());
+      t.copy.step = static_cast<int>(p.u32("held step"));
       if (t.copy.step < 0) throw InvalidInputError(what + ": a held copy's step exceeds 2^31");
       t.copy.pose = ReadPose(p, what);
     }
@@ -113,7 +106,7 @@ GroupRecord ReadGroupRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
 }
 
 void AppendSolveRecord(const SolveRecord& record, std::vector<std::uint8_t>& out) {
-  RecordWriter b;
+  WireWriter b;
   b.u32(record.step).u32(static_cast<std::uint32_t>(record.estimate.size()));
   for (const auto& [k, x] : record.estimate) {
     WriteKey(b, k);
@@ -140,11 +133,10 @@ void AppendSolveRecord(const SolveRecord& record, std::vector<std::uint8_t>& out
 
 SolveRecord ReadSolveRecord(const std::vector<std::uint8_t>& bytes, std::size_t offset,
                             const std::string& what) {
-  const std::vector<std::uint8_t> body = RecordBody(bytes, offset, what);
-  RecordReader p(body, what);
+  ByteReader p = JournalRecordReader(bytes, offset, what);
   SolveRecord record;
-  record.step = p.u32();
-  const std::uint32_t n = Count(p, kKeyBytes + kPoseBytes, body.size(), what);
+  record.step = p.u32("step");
+  const std::uint32_t n = p.count(kKeyBytes + kPoseBytes, "estimate");
   for (std::uint32_t i = 0; i < n; ++i) {
     const Key k = ReadKey(p, what);
     const SE3 x = ReadPose(p, what);
@@ -153,11 +145,11 @@ SolveRecord ReadSolveRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
     }
     record.estimate.emplace_hint(record.estimate.end(), k, x);
   }
-  const std::uint32_t m = Count(p, kKeyBytes + 4 + kPoseBytes, body.size(), what);
+  const std::uint32_t m = p.count(kKeyBytes + 4 + kPoseBytes, "held copy");
   for (std::uint32_t i = 0; i < m; ++i) {
     const Key k = ReadKey(p, what);
     HeldEstimate h;
-    h.step = static_cast<int>(p.u32());
+    h.step = static_cast<int>(p.u32("held step"));
     if (h.step < 0) throw InvalidInputError(what + ": a held copy's step exceeds 2^31");
     h.pose = ReadPose(p, what);
     if (!k.isObject()) throw InvalidInputError(what + ": a held copy is not a landmark");
@@ -166,23 +158,23 @@ SolveRecord ReadSolveRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
     }
     record.held.emplace_hint(record.held.end(), k, h);
   }
-  record.rotation_rounds = p.u32();
-  record.pose_rounds = p.u32();
-  record.refine_steps = p.u32();
-  record.protocol_steps = p.u32();
-  record.object_object = p.u32();
-  record.team_factors = p.u32();
-  const std::uint8_t status = p.u8();
+  record.rotation_rounds = p.u32("rotation rounds");
+  record.pose_rounds = p.u32("pose rounds");
+  record.refine_steps = p.u32("refine steps");
+  record.protocol_steps = p.u32("protocol steps");
+  record.object_object = p.u32("object object");
+  record.team_factors = p.u32("team factors");
+  const std::uint8_t status = p.u8("status");
   if (status > static_cast<std::uint8_t>(StageStatus::kNoDecreasingStep)) {
     throw InvalidInputError(what + ": unknown refine status " + std::to_string(status));
   }
   record.refine_status = static_cast<StageStatus>(status);
-  const std::uint8_t flags = p.u8();
+  const std::uint8_t flags = p.u8("flags");
   if (flags & ~kUnlinked) {
     throw InvalidInputError(what + ": unknown solve record flags " + std::to_string(flags));
   }
   record.unlinked = flags & kUnlinked;
-  const std::uint32_t k = Count(p, 2 * kKeyBytes, body.size(), what);
+  const std::uint32_t k = p.count(2 * kKeyBytes, "pair set aside");
   for (std::uint32_t i = 0; i < k; ++i) {
     const Key alpha = ReadKey(p, what);
     const Key beta = ReadKey(p, what);
@@ -191,9 +183,9 @@ SolveRecord ReadSolveRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
     }
     record.set_aside.emplace_back(alpha, beta);
   }
-  const std::uint32_t f = Count(p, 4, body.size(), what);
+  const std::uint32_t f = p.count(4, "rejected factor");
   for (std::uint32_t i = 0; i < f; ++i) {
-    const std::uint32_t index = p.u32();
+    const std::uint32_t index = p.u32("rejected factor");
     if (!record.rejected.empty() && index <= record.rejected.back()) {
       throw InvalidInputError(what + ": the rejected factors of a solve record are not "
                                      "increasing");
