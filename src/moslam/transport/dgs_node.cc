@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -377,24 +376,14 @@ class DgsNode::Impl final : public TeamChannel {
     result_.journal_truncated_bytes = journal_->truncatedBytes();
     const auto& records = journal_->records();
     if (records.empty()) {
-      Bytes b;
-      b.u8(static_cast<std::uint8_t>(RecordType::kHeader));
-      for (char c : kJournalMagic) b.u8(static_cast<std::uint8_t>(c));
-      b.u16(static_cast<std::uint16_t>(robot_)).u64(fingerprint);
-      journal_->append(b.data());
+      journal_->append(transport_detail::JournalHeader(kJournalMagic, robot_, fingerprint));
       return;
     }
     const std::string what = journal_->path();
     for (std::size_t i = 0; i < records.size(); ++i) {
-      ByteReader p = JournalRecordReader(records[i], 0, what);
-      const auto type = static_cast<RecordType>(p.u8("record type"));
       if (i == 0) {
-        char magic[8];
-        for (char& c : magic) c = static_cast<char>(p.u8("magic"));
-        const int robot = p.u16("robot");
-        const std::uint64_t fp = p.u64("fingerprint");
-        if (type != RecordType::kHeader || std::memcmp(magic, kJournalMagic, 8) != 0 ||
-            robot != robot_ || fp != fingerprint) {
+        if (!transport_detail::IsJournalHeader(records[i], kJournalMagic, robot_, fingerprint,
+                                               what)) {
           throw InvalidInputError(
               "state directory " + options_.state_dir +
               " holds the journal of another run (other robot, data or options, or an older "
@@ -402,6 +391,8 @@ class DgsNode::Impl final : public TeamChannel {
         }
         continue;
       }
+      ByteReader p = JournalRecordReader(records[i], 0, what);
+      const auto type = static_cast<RecordType>(p.u8("record type"));
       switch (type) {
         case RecordType::kStart:
           ++result_.incarnation;

@@ -26,6 +26,25 @@ inline ByteReader JournalRecordReader(const std::vector<std::uint8_t>& bytes, st
                     what + " (journal record)");
 }
 
+// The first record of a journal, the same in every journaled protocol: its type byte (1), the
+// protocol's 8-byte magic, the robot and the fingerprint of the run that wrote it.
+inline constexpr std::uint8_t kJournalHeaderRecord = 1;
+inline std::vector<std::uint8_t> JournalHeader(const char (&magic)[8], int robot,
+                                               std::uint64_t fingerprint) {
+  WireWriter w;
+  w.u8(kJournalHeaderRecord).bytes(magic, 8).u16(static_cast<std::uint16_t>(robot)).u64(fingerprint);
+  return w.take();
+}
+// Whether `record` is the header JournalHeader writes for these; throws InvalidInputError naming
+// `what` when it is shorter.
+inline bool IsJournalHeader(const std::vector<std::uint8_t>& record, const char (&magic)[8],
+                            int robot, std::uint64_t fingerprint, const std::string& what) {
+  ByteReader p = JournalRecordReader(record, 0, what);
+  const bool header = p.u8("record type") == kJournalHeaderRecord;
+  const bool ours = p.take(8, "magic") == std::string_view(magic, 8);
+  return header && ours && p.u16("robot") == robot && p.u64("fingerprint") == fingerprint;
+}
+
 // FNV-1a over what a run depends on: a journal is only replayed by the run that wrote it.
 class Fingerprint {
  public:

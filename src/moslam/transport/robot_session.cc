@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <iterator>
@@ -25,8 +24,8 @@
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/group_transport.h"
-#include "moslam/transport/journal.h"
 #include "moslam/transport/record_bytes.h"
+#include "moslam/transport/session_journal.h"
 #include "moslam/transport/solve_record.h"
 #include "moslam/transport/team_membership.h"
 
@@ -140,19 +139,10 @@ PoseGraph SessionSubgraph(const ObjectSlam& slam, const std::vector<SharedObject
 namespace {
 
 using Clock = std::chrono::steady_clock;
-// Version 2: an event record lists the pairs removed too (event_record.h).
-constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'R', 'D', 'V', '2'};
-constexpr std::uint8_t kHeaderRecord = 1;
-constexpr std::uint8_t kEventRecord = 2;
-constexpr std::uint8_t kGroupRecord = 3;  // a group formed (solve_record.h; batch: at the end)
-constexpr std::uint8_t kSolveRecord = 4;  // online: a group solve finished
-constexpr std::uint8_t kLeftRecord = 5;   // a partner found gone for good
-
 using transport_detail::Fingerprint;
 using transport_detail::GroupRecord;
 using transport_detail::LeftRecord;
 using transport_detail::SolveRecord;
-using Record = WireWriter;
 
 std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionOptions& options) {
   const MultiRobotSlamConfig& c = options.slam;
@@ -345,15 +335,21 @@ class RobotSession::Impl {
     membership.leave_timeout = options_.dgs.leave_timeout;
     membership.log = options_.log;
     membership.journal = [this](int robot, int step) {
-      record(kLeftRecord,
-             LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(step)},
-             transport_detail::AppendLeftRecord);
+      record(LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(step)});
     };
     membership_ = std::make_unique<TeamMembership>(robot_, n, transport_, std::move(membership));
     if (!options_.dgs.state_dir.empty()) std::filesystem::create_directories(options_.dgs.state_dir);
     if (!options_.dgs.state_dir.empty()) {
-      journal_ = std::make_unique<Journal>(
-          (std::filesystem::path(options_.dgs.state_dir) / "rendezvous.bin").string());
+      transport_detail::SessionJournalRun run;
+      run.robot = robot_;
+      run.fingerprint = SessionFingerprint(data_, options_);
+      run.num_robots = data_.num_robots;
+      run.num_steps = static_cast<std::uint32_t>(data_.numSteps());
+      run.num_events = data_.events.size();
+      run.online = options_.online;
+      journal_ = std::make_unique<transport_detail::SessionJournal>(
+          (std::filesystem::path(options_.dgs.state_dir) / "rendezvous.bin").string(), run,
+          options_.dgs.state_dir);
       restore();
     }
   }
@@ -416,7 +412,7 @@ class RobotSession::Impl {
           }
           if (std::optional<EventPairs> answer = awaitAnswer(e, slam)) {
             pairs = std::move(*answer);
-            record(index, pairs);
+            record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
           } else {
             rec.skipped = true;
           }
@@ -430,7 +426,7 @@ class RobotSession::Impl {
               AnswerObjectMap(*received, slam, beta_T_alpha, shared_, options_.slam.rendezvous);
           pairs = {answer.pairs, answer.removed};
           sendAnswer(e, pairs);
-          record(index, pairs);
+          record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
         } else {
           rec.skipped = true;
         }
@@ -558,8 +554,7 @@ class RobotSession::Impl {
       for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
       std::vector<TeamPair> none;
       formGroup(join, partners, everyone, solve, end, robots, none, &closure);
-      record(kGroupRecord, GroupRecord{static_cast<std::uint32_t>(end), closure, {}},
-             transport_detail::AppendGroupRecord);
+      record(GroupRecord{static_cast<std::uint32_t>(end), closure, {}});
       ++group_records_[end];
     }
     robots.clear();
@@ -743,7 +738,7 @@ class RobotSession::Impl {
       done.estimate = slam.estimate();
       done.set_aside = setAsideRecord();
       done.rejected = rejectedFactors(slam);
-      record(kSolveRecord, done, transport_detail::AppendSolveRecord);
+      record(done);
       if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
       finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
       return;
@@ -772,7 +767,7 @@ class RobotSession::Impl {
     done.refine_steps = static_cast<std::uint32_t>(solved.program.refine.iterations);
     done.protocol_steps = static_cast<std::uint32_t>(solved.program.channel_steps);
     done.refine_status = solved.program.refine.status;
-    record(kSolveRecord, done, transport_detail::AppendSolveRecord);
+    record(done);
     if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
     finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
   }
@@ -825,8 +820,7 @@ class RobotSession::Impl {
     }
     formGroup(join, partners, range, solve, t, robots, team);
     if (robots.size() < 2) return false;  // its partners in range have all left
-    record(kGroupRecord, GroupRecord{static_cast<std::uint32_t>(t), robots, team},
-           transport_detail::AppendGroupRecord);
+    record(GroupRecord{static_cast<std::uint32_t>(t), robots, team});
     ++group_records_[t];
     return true;
   }
@@ -1060,109 +1054,31 @@ class RobotSession::Impl {
   }
 
   // ---- journal ------------------------------------------------------------------------------
+  // Takes what the journal held when it was opened (session_journal.h): the answers, groups and
+  // solves of a process before this one, and the partners it found gone.
   void restore() {
-    const std::uint64_t fingerprint = SessionFingerprint(data_, options_);
-    const auto& records = journal_->records();
-    if (records.empty()) {
-      Record r;
-      r.u8(kHeaderRecord);
-      for (char c : kJournalMagic) r.u8(static_cast<std::uint8_t>(c));
-      r.u16(static_cast<std::uint16_t>(robot_)).u64(fingerprint);
-      journal_->append(r.data());
-      return;
-    }
-    const std::string what = journal_->path();
-    for (std::size_t i = 0; i < records.size(); ++i) {
-      ByteReader p = transport_detail::JournalRecordReader(records[i], 0, what);
-      const auto type = static_cast<std::uint8_t>(p.u8("record type"));
-      if (i == 0) {
-        char magic[8];
-        for (char& c : magic) c = static_cast<char>(p.u8("magic"));
-        const auto robot = static_cast<int>(p.u16("robot"));
-        const std::uint64_t fp = p.u64("fingerprint");
-        if (type != kHeaderRecord || std::memcmp(magic, kJournalMagic, 8) != 0 ||
-            robot != robot_ || fp != fingerprint) {
-          throw InvalidInputError("state directory " + options_.dgs.state_dir +
-                                  " holds the rendezvous journal of another run (other robot, "
-                                  "scenario or options): remove it or choose another --out");
-        }
-        continue;
-      }
-      if (type == kLeftRecord) {
-        const LeftRecord left = transport_detail::ReadLeftRecord(records[i], 1, what);
-        if (left.robot >= data_.num_robots) {
-          throw InvalidInputError(what + ": a departure of a robot not among its partners");
-        }
-        membership_->restore(left.robot, static_cast<int>(left.step));  // self: left the team
-        continue;
-      }
-      if (type == kGroupRecord || type == kSolveRecord) {
-        if (!options_.online && type == kSolveRecord) {
-          throw InvalidInputError(what + ": a group solve in a batch journal");
-        }
-        if (type == kGroupRecord) {
-          GroupRecord g = transport_detail::ReadGroupRecord(records[i], 1, what);
-          if (!options_.online && g.step != static_cast<std::uint32_t>(data_.numSteps())) {
-            throw InvalidInputError(what + ": a batch journal's group record is not of the end");
-          }
-          if (g.robots.empty() || !std::binary_search(g.robots.begin(), g.robots.end(), robot_) ||
-              g.robots.back() >= data_.num_robots) {
-            throw InvalidInputError(what + ": a group record of robots not in the team");
-          }
-          const int step = static_cast<int>(g.step);
-          journaled_groups_[step] = std::move(g);  // the last attempt's
-          ++group_records_[step];
-        } else {
-          SolveRecord solve = transport_detail::ReadSolveRecord(records[i], 1, what);
-          for (const auto& [k, x] : solve.estimate) {
-            if (k.robot != robot_) {
-              throw InvalidInputError(what + ": a solve record holds another robot's variable");
-            }
-          }
-          const int step = static_cast<int>(solve.step);
-          journaled_solves_[step] = std::move(solve);
-        }
-        continue;
-      }
-      if (type != kEventRecord) {
-        throw InvalidInputError(what + ": unknown rendezvous journal record type " +
-                                std::to_string(type));
-      }
-      EventRecord event = transport_detail::ReadEventRecord(records[i], 1, what);
-      if (event.event >= data_.events.size()) {
-        throw InvalidInputError(what + ": event out of range");
-      }
-      journaled_[event.event] = {std::move(event.pairs), std::move(event.removed)};
+    const transport_detail::SessionJournalContents& held = journal_->contents();
+    for (const auto& [index, event] : held.events) journaled_[index] = {event.pairs, event.removed};
+    journaled_groups_ = held.groups;
+    group_records_ = held.group_records;
+    journaled_solves_ = held.solves;
+    for (const LeftRecord& left : held.left) {
+      membership_->restore(left.robot, static_cast<int>(left.step));  // self: left the team
     }
     if (!journaled_.empty()) {
-      options_.log(fmt::format("restart: {} rendezvous taken from {}", journaled_.size(), what));
-    }
-    for (const auto& [step, solve] : journaled_solves_) {
-      if (!journaled_groups_.count(step)) {
-        throw InvalidInputError(what + ": the group solve of step " + std::to_string(step) +
-                                " has no group record");
-      }
+      options_.log(fmt::format("restart: {} rendezvous taken from {}", journaled_.size(),
+                               journal_->path()));
     }
     if (!journaled_solves_.empty()) {
       options_.log(fmt::format("restart: {} group solves taken from {}", journaled_solves_.size(),
-                               what));
+                               journal_->path()));
     }
   }
 
-  void record(std::size_t index, const EventPairs& pairs) {
-    record(kEventRecord,
-           transport_detail::EventRecord{static_cast<std::uint32_t>(index), pairs.pairs,
-                                         pairs.removed},
-           transport_detail::AppendEventRecord);
-  }
-
-  // Appends one record (its type byte, then `append`'s fields) to the journal, if there is one.
-  template <typename Fields, typename Append>
-  void record(std::uint8_t type, const Fields& fields, Append append) {
-    if (!journal_) return;
-    std::vector<std::uint8_t> r{type};
-    append(fields, r);
-    journal_->append(r);
+  // Appends one record to the journal, if there is one.
+  template <typename Record>
+  void record(const Record& r) {
+    if (journal_) journal_->append(r);
   }
 
   // ---- messages -----------------------------------------------------------------------------
@@ -1331,7 +1247,7 @@ class RobotSession::Impl {
   RobotSessionOptions options_;
   int robot_ = 0;
   bool ran_ = false;
-  std::unique_ptr<Journal> journal_;
+  std::unique_ptr<transport_detail::SessionJournal> journal_;
   std::map<std::size_t, EventPairs> journaled_;  // event index -> what it changed
   std::map<int, GroupRecord> journaled_groups_;  // by step: groups formed (batch: the end)
   std::map<int, int> group_records_;  // by step: group records journaled (one per attempt)
