@@ -5,9 +5,11 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <string>
 #include <system_error>
 #include <utility>
 
@@ -17,6 +19,37 @@
 extern "C" void openblas_set_num_threads(int) __attribute__((weak));
 
 namespace moslam::cli {
+
+namespace {
+
+// A check that the option's text is a finite number `accept` takes; else `need`.
+CLI::Validator NumberCheck(bool (*accept)(double), const char* need, const char* name) {
+  return CLI::Validator(
+      [accept, need](std::string& text) -> std::string {
+        double v = 0.0;
+        std::size_t used = 0;
+        try {
+          v = std::stod(text, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != text.size() || !std::isfinite(v) || !accept(v)) {
+          return std::string("must be ") + need + ", not " + text;
+        }
+        return {};
+      },
+      name, name);
+}
+
+}  // namespace
+
+CLI::Validator Positive() {
+  return NumberCheck([](double v) { return v > 0.0; }, "a positive number", "POSITIVE");
+}
+
+CLI::Validator NonNegative() {
+  return NumberCheck([](double v) { return v >= 0.0; }, "a number >= 0", "NONNEGATIVE");
+}
 
 Commands::Commands(CLI::App& app) : app_(app) { app_.require_subcommand(1); }
 

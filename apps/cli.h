@@ -57,6 +57,11 @@ std::string CommittedDetectorClasses();
 inline constexpr const char* kRobotExecutable = "moslam-robot";
 inline constexpr const char* kPerceptionExecutable = "moslam-perception";
 
+// Option checks whose errors say what the option needs ("--robots: must be a positive number, not
+// 0"); CLI11's PositiveNumber and NonNegativeNumber print their range as "0.000000 to 1797...".
+CLI::Validator Positive();
+CLI::Validator NonNegative();
+
 // Replaces the process with `executable` found beside the running one, with the same arguments.
 // Returns only on failure, by throwing moslam::Error naming the path it tried and the likely
 // cause.

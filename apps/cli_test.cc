@@ -128,6 +128,30 @@ TEST(Cli, UsageErrorsAndMissingFiles) {
   fs::remove(edges);
 }
 
+TEST(Cli, AFileOfVerticesAloneHasNothingToSolve) {
+  const fs::path vertices = fs::temp_directory_path() / "moslam_cli_vertices_only.g2o";
+  std::ofstream(vertices) << kV;
+  const CommandResult r = RunMoslam("solve " + vertices.string());
+  fs::remove(vertices);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("the graph has no factors"), std::string::npos) << r.out;
+}
+
+TEST(Cli, ANumberOutOfRangeSaysWhatTheOptionNeeds) {
+  const CommandResult zero = RunMoslam("simulate --robots 0");
+  EXPECT_NE(zero.exit_code, 0);
+  EXPECT_NE(zero.out.find("--robots: must be a positive number, not 0"), std::string::npos)
+      << zero.out;
+  const CommandResult negative = RunMoslam("solve x.g2o --max-iterations -1");
+  EXPECT_NE(negative.exit_code, 0);
+  EXPECT_NE(negative.out.find("--max-iterations: must be a number >= 0, not -1"),
+            std::string::npos)
+      << negative.out;
+  const CommandResult text = RunMoslam("simulate --runs 2x");
+  EXPECT_NE(text.exit_code, 0);
+  EXPECT_NE(text.out.find("must be a positive number, not 2x"), std::string::npos) << text.out;
+}
+
 TEST(Cli, WritesG2oAndTumThatReadBack) {
   const fs::path dir = fs::temp_directory_path() / "moslam_cli_out";
   fs::remove_all(dir);

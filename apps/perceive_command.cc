@@ -367,10 +367,10 @@ Runner RegisterPerceive(CLI::App& app) {
   sub->add_option("--templates", args->templates,
                   "folder of <label>.pcd templates replacing the built-in models");
   sub->add_option("--every", args->every, "perceive every K-th frame")
-      ->check(CLI::PositiveNumber)
+      ->check(Positive())
       ->capture_default_str();
   sub->add_option("--max-frames", args->max_frames, "stop after N perceived frames (0: all)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_option("--out", args->out, "write every frame's detections and poses (JSON)");
   sub->add_option("--annotate", args->annotate, "write annotated colour images to this folder");
   sub->add_option("--world", args->world,
@@ -385,14 +385,14 @@ Runner RegisterPerceive(CLI::App& app) {
   sub->add_option("--template-views", args->template_views,
                   "template features from this many rendered views of each built-in model (0: "
                   "from the whole model)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative())
       ->capture_default_str();
   sub->add_flag("!--no-depth-smoothing", args->depth_smoothing,
                 "register far segments as measured (default: their depths smoothed along the "
                 "pixels' rays where the sensor's noise is large, "
                 "pose_estimation/depth_smoothing.h)");
   sub->add_option("--threads", args->threads, "detections of a frame registered in parallel")
-      ->check(CLI::PositiveNumber)
+      ->check(Positive())
       ->capture_default_str();
   sub->add_flag("--json", args->json, "print the summary as one JSON object on the last line");
   return [args] { return RunPerceive(*args); };

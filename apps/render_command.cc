@@ -164,14 +164,14 @@ Runner RegisterRender(CLI::App& app) {
       ->check(CLI::IsMember({"yolo", "tum"}));
   sub->add_option("--frames-per-robot", a->frames_per_robot,
                   "views per robot evenly spread over its poses (0 = every pose)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_option("--first-index", a->first_index, "yolo: index of the first frame written")
       ->check(CLI::Range(0, 999999));
   sub->add_option("--min-pixels", a->min_pixels, "yolo: visible pixels needed for a label")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_option("--min-labels", a->min_labels,
                   "yolo: skip views with fewer labelled objects (1 drops bare walls/floor)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_option("--min-in-image", a->min_in_image,
                   "yolo: share of the projected extent box inside the image needed for a label")
       ->check(CLI::Range(0.0, 1.0));
@@ -182,7 +182,7 @@ Runner RegisterRender(CLI::App& app) {
   sub->add_option("--height-jitter", a->height_jitter, "m (default 0.05 for yolo, 0 for tum)")
       ->check(CLI::Range(0.0, 0.45));
   sub->add_option("--frame-period", a->frame_period, "tum: seconds between time steps")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_flag("--no-noise", a->no_noise, "no depth or colour noise");
   sub->add_flag("--no-walls", a->no_walls, "do not draw the rooms' walls");
   sub->add_flag("--plain-style", a->plain_style,

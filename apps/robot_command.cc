@@ -64,11 +64,11 @@ void AddSolveFlags(CLI::App* sub, SolveFlags& f) {
   sub->add_option("--leave-timeout", f.leave_timeout,
                   "Seconds a waited-for robot may be unreachable before it counts as gone (one "
                   "never heard from too: start every robot within this of its first rendezvous)")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_option("--join-timeout", f.join_timeout, "Seconds to wait for the team to form")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_option("--stall-timeout", f.stall_timeout, "Seconds without progress before failing")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
 }
 
 std::chrono::milliseconds Ms(double seconds) {
@@ -147,17 +147,17 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
                   "and keeps its own robot's measurements")
       ->check(CLI::IsMember({"chairs25", "house", "generated"}));
   if (with_robots) {
-    sub->add_option("--robots", f.spec.robots, "Robots of the scenario")->check(CLI::PositiveNumber);
+    sub->add_option("--robots", f.spec.robots, "Robots of the scenario")->check(Positive());
   }
   sub->add_option("--seed", f.spec.seed, "Seed of the world, trajectories and noise");
   sub->add_option("--sigma-rot", f.spec.sigma_rotation_deg, "Noise: rotation sigma (deg)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_option("--sigma-trans", f.spec.sigma_translation, "Noise: translation sigma (m)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_option("--poses", f.spec.poses_per_robot, "Poses per robot")->check(CLI::Range(2, 100000));
   sub->add_option("--rendezvous-timeout", f.rendezvous_timeout,
                   "Seconds to wait for the peer of a rendezvous")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_option("--initial-poses", f.initial_poses,
                   "known: the robots know one another's initial poses (the paper); unknown: a "
                   "rendezvous aligns the two object maps from the objects alone, and no process "
@@ -166,7 +166,7 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
   sub->add_option("--exclusion-radius", f.spec.exclusion_radius,
                   "A robot's landmark exclusion radius (m, 0: off): a detection that joins no "
                   "landmark but lies this close to one of its label is discarded (as simulate)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_flag("--leave-one-out-check", f.spec.leave_one_out_check,
                 "A robot re-tests each match of a pose at the pose localised on its other "
                 "matches, and refuses the ones that disagree (as simulate)");
@@ -1138,7 +1138,7 @@ Runner RegisterTeam(CLI::App& app) {
   AddScenarioFlags(sub, args->scenario, false);
   data->excludes(sub->get_option("--scenario"));
   sub->add_option("--robots", args->robots, "Number of robots (default: every file)")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_flag("--prepare", args->prepare_only,
                 "Only write the split data folder (single-file --data) and exit");
   sub->add_flag("--collect", args->collect_only,
@@ -1148,7 +1148,7 @@ Runner RegisterTeam(CLI::App& app) {
   sub->add_option("--out", args->out, "Directory for robot<R>/ state and results");
   AddSolveFlags(sub, args->solve);
   sub->add_option("--timeout", args->timeout, "Seconds before the robots are killed")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_flag("--online", args->online,
                 "With --scenario: the robots solve with the robots in range at every rendezvous "
                 "(moslam robot --online) and save their maps; compared with the in-process twin");

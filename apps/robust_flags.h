@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "cli.h"
 #include "moslam/distributed/robust_dgs.h"
 
 namespace moslam::cli {
@@ -65,12 +66,12 @@ inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
   sub->add_option("--gnc-threshold", args->gnc_threshold,
                   "--robust: r^T Omega r beyond which a factor is an outlier (0: 22.46, chi-square "
                   "6 dof at 0.999, for information that is the noise's)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative())
       ->capture_default_str();
   sub->add_option("--separator-support", args->separator_support,
                   "--robust: before GNC, keep of each robot pair's separators the largest "
                   "pairwise consistent set if it has at least this many (0: no check)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative())
       ->capture_default_str();
   AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
 }

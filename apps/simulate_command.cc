@@ -113,14 +113,14 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
   sub->add_option("--scenario", args->scenario, "chairs25 | house | generated")
       ->check(CLI::IsMember({"chairs25", "house", "generated"}));
   sub->add_option("--robots", args->robots, "number(s) of robots, one row each")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_option("--runs", args->runs, "Monte Carlo runs per row (seeds seed .. seed+runs-1)")
-      ->check(CLI::PositiveNumber);
+      ->check(Positive());
   sub->add_option("--seed", args->seed, "first seed");
   sub->add_option("--sigma-rot", args->sigma_rot, "rotation noise (deg), one per noise row")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_option("--sigma-trans", args->sigma_trans, "translation noise (m), one per noise row")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_option("--information", args->information,
                   "factor information: noise (1/sigma^2 of the simulated noise) or fixed (that of "
                   "5 deg / 0.2 m at every noise level; reproduces the paper's Table 2 trend)")
@@ -149,7 +149,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
   sub->add_option("--gnc-threshold", args->gnc_threshold,
                   "--robust: r^T Omega r beyond which an object-object factor is an outlier (0: "
                   "22.46, chi-square 6 dof at 0.999)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative())
       ->capture_default_str();
   AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
   sub->add_flag("--skip-unlinked", args->skip_unlinked,
@@ -181,7 +181,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
   sub->add_option("--template-views", args->template_views,
                   "rendered: template features from this many rendered views of each model "
                   "(0: from the whole model)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative())
       ->capture_default_str();
   sub->add_flag("!--no-depth-smoothing", args->depth_smoothing,
                 "rendered: register far segments as measured (default: their depths smoothed "
@@ -197,13 +197,13 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "(experiments/perception_cache.h)");
   sub->add_option("--perceive-every", args->perceive_every,
                   "rendered: perceive every K-th pose (the others have no object measurement)")
-      ->check(CLI::PositiveNumber)
+      ->check(Positive())
       ->capture_default_str();
   sub->add_option("--exclusion-radius", args->exclusion_radius,
                   "m: a detection matching no landmark within this distance of a landmark of its "
                   "label is discarded, not mapped again (0: off; default 0.5 with --perception "
                   "rendered, whose front-end confuses objects with their turns, else 0)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(NonNegative());
   sub->add_flag("--leave-one-out-check", args->leave_one_out_check,
                 "a robot refuses a match that disagrees with its pose localised on the pose's "
                 "other matches, and discards the detection (fewer wrong matches among objects "

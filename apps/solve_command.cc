@@ -186,10 +186,10 @@ Runner RegisterSolve(CLI::App& app) {
   sub->add_option("--method", args->method, "lm (Levenberg-Marquardt, starting almost undamped) or gn (plain Gauss-Newton)")
       ->check(CLI::IsMember({"gn", "lm"}))
       ->capture_default_str();
-  sub->add_option("--max-iterations", args->max_iterations)->check(CLI::NonNegativeNumber)
+  sub->add_option("--max-iterations", args->max_iterations)->check(NonNegative())
       ->capture_default_str();
   sub->add_option("--rel-tol", args->relative_tolerance, "stop when the cost drops by less than this fraction")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative())
       ->capture_default_str();
   AddG2oReadFlags(sub, &args->read);
   sub->add_option("--out", args->out, "write the estimate: a .g2o file, or a folder (ends with /)");

@@ -53,6 +53,11 @@ double PoseGraph::cost(const Values& values) const {
 }
 
 Key GaugeAnchor(const PoseGraph& graph) {
+  if (graph.factors().empty() && graph.priors().empty()) {
+    throw UnderdeterminedError(
+        "nothing to solve: the graph has no factors (vertices alone constrain nothing; does the "
+        "g2o file lack its EDGE_SE3:QUAT lines?)");
+  }
   for (const Key& k : graph.keys()) {
     if (k.robot == 0 && k.isPose()) return k;  // keys() is ordered: the first is the smallest
   }
