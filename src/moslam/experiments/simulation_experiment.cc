@@ -280,15 +280,9 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   SimulatedRun out;
   out.seed = config.seed + static_cast<unsigned>(run);
   const World world = MakeScenarioWorld(config.scenario, out.seed, config.robots);
-  SimulationConfig sim;
-  sim.trajectory.num_robots = config.robots;
-  sim.trajectory.poses_per_robot = config.poses_per_robot;
-  sim.trajectory.seed = out.seed;
-  sim.sensing.seed = out.seed;
-  for (NoiseModel* n : {&sim.sensing.odometry, &sim.sensing.objects}) {
-    n->sigma_rotation_deg = config.sigma_rotation_deg;
-    n->sigma_translation = config.sigma_translation;
-  }
+  const SimulationConfig sim =
+      NoiseSimulationConfig(config.robots, config.poses_per_robot, out.seed,
+                            config.sigma_rotation_deg, config.sigma_translation);
   out.data = Simulate(world, sim);
   if (config.perceive) config.perceive(out.data, metrics);
   out.slam = MultiRobotSlamConfigForNoise(sim.sensing);

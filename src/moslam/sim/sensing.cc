@@ -104,6 +104,20 @@ std::vector<RobotMeasurements> SimulateSensing(const World& world,
   return out;
 }
 
+SimulationConfig NoiseSimulationConfig(int robots, int poses_per_robot, unsigned seed,
+                                       double sigma_rotation_deg, double sigma_translation) {
+  SimulationConfig sim;
+  sim.trajectory.num_robots = robots;
+  sim.trajectory.poses_per_robot = poses_per_robot;
+  sim.trajectory.seed = seed;
+  sim.sensing.seed = seed;
+  for (NoiseModel* n : {&sim.sensing.odometry, &sim.sensing.objects}) {
+    n->sigma_rotation_deg = sigma_rotation_deg;
+    n->sigma_translation = sigma_translation;
+  }
+  return sim;
+}
+
 void SimulationConfig::validate() const {
   trajectory.validate();
   sensing.validate();

@@ -104,6 +104,13 @@ struct SimulationConfig {
   void validate() const;
 };
 
+// The simulation of the experiments and of the robot processes alike (so that both simulate the
+// same data by construction): `robots` robots of `poses_per_robot` poses, trajectories and
+// measurements drawn from `seed`, odometry and object measurements with the same noise (sigma of
+// the rotation in degrees, of the translation in metres); the rest at its defaults.
+SimulationConfig NoiseSimulationConfig(int robots, int poses_per_robot, unsigned seed,
+                                       double sigma_rotation_deg, double sigma_translation);
+
 struct SimulationData {
   World world;
   std::vector<Trajectory> trajectories;  // ground truth; trajectories[r][0]: known initial pose

@@ -441,3 +441,24 @@ TEST(Sensing, CoverageCountsThePosesWithoutMeasurementAndTheLongestStretchPerRob
 
 }  // namespace
 }  // namespace moslam
+
+namespace moslam {
+namespace {
+
+TEST(Sensing, NoiseSimulationConfigSetsTheTeamTheSeedAndOneNoiseForBothSensors) {
+  const SimulationConfig c = NoiseSimulationConfig(4, 30, 17, 2.5, 0.1);
+  EXPECT_EQ(c.trajectory.num_robots, 4);
+  EXPECT_EQ(c.trajectory.poses_per_robot, 30);
+  EXPECT_EQ(c.trajectory.seed, 17u);
+  EXPECT_EQ(c.sensing.seed, 17u);
+  for (const NoiseModel& n : {c.sensing.odometry, c.sensing.objects}) {
+    EXPECT_EQ(n.sigma_rotation_deg, 2.5);
+    EXPECT_EQ(n.sigma_translation, 0.1);
+  }
+  const SimulationConfig defaults;  // everything else as a default config has it
+  EXPECT_EQ(c.sensing.camera.max_range, defaults.sensing.camera.max_range);
+  EXPECT_NO_THROW(c.validate());
+}
+
+}  // namespace
+}  // namespace moslam

@@ -56,16 +56,8 @@ void ScenarioSpec::validate() const {
 namespace {
 
 SimulationConfig ScenarioSimulationConfig(const ScenarioSpec& spec) {
-  SimulationConfig sim;
-  sim.trajectory.num_robots = spec.robots;
-  sim.trajectory.poses_per_robot = spec.poses_per_robot;
-  sim.trajectory.seed = spec.seed;
-  sim.sensing.seed = spec.seed;
-  for (NoiseModel* n : {&sim.sensing.odometry, &sim.sensing.objects}) {
-    n->sigma_rotation_deg = spec.sigma_rotation_deg;
-    n->sigma_translation = spec.sigma_translation;
-  }
-  return sim;
+  return NoiseSimulationConfig(spec.robots, spec.poses_per_robot, spec.seed,
+                               spec.sigma_rotation_deg, spec.sigma_translation);
 }
 
 }  // namespace
