@@ -128,6 +128,18 @@ TEST(Cli, UsageErrorsAndMissingFiles) {
   fs::remove(edges);
 }
 
+TEST(Cli, ATwoDimensionalFileSolvesAndIsWrittenBackInTwoDimensions) {
+  const fs::path out = fs::temp_directory_path() / "moslam_cli_mit_solved.g2o";
+  const CommandResult r =
+      RunMoslam("solve " + std::string(MOSLAM_DATASETS_DIR) + "/pgo/MIT.g2o --out " + out.string());
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  std::ifstream in(out);
+  std::string tag;
+  in >> tag;
+  EXPECT_EQ(tag, "VERTEX_SE2");
+  fs::remove(out);
+}
+
 TEST(Cli, AFileOfVerticesAloneHasNothingToSolve) {
   const fs::path vertices = fs::temp_directory_path() / "moslam_cli_vertices_only.g2o";
   std::ofstream(vertices) << kV;

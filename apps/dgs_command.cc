@@ -58,17 +58,19 @@ double StageSeconds(const DgsResult& r, DgsStage stage) {
 }
 
 void WriteEstimate(const std::string& dir, const PoseGraph& graph, const Values& values,
-                   const G2oReadOptions& read) {
+                   const G2oReadOptions& read, bool planar) {
   if (dir.empty()) return;
   G2oWriteOptions w;
   w.scheme = read.scheme;
+  w.planar = planar;
   WriteG2oFolder(dir, graph, values, w);
   WriteTumTrajectories(dir, values);
 }
 
 // --robust: GNC-TLS by the robots (distributed/robust_dgs.h) beside the centralized GNC.
 int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& initial,
-                        const DgsOptions& dgs, std::chrono::steady_clock::time_point t_start) {
+                        bool planar, const DgsOptions& dgs,
+                        std::chrono::steady_clock::time_point t_start) {
   RobustDgsOptions options;
   options.dgs = dgs;
   a.robust_args.applyTo(&options);
@@ -83,7 +85,7 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
                              [&](const PoseGraph& g) { return ChordalInitialization(g, anchor_pose); },
                              robust, options);
   const RobustDgsResult r = RunRobustDgs(graph, initial, robust, options);
-  WriteEstimate(a.out, graph, r.values, a.read);
+  WriteEstimate(a.out, graph, r.values, a.read, planar);
   // The cost of the factors each solve kept (weight >= 0.5).
   auto keptCost = [&](const Values& values, const std::vector<double>& weights) {
     const std::vector<double> r2 = SquaredResiduals(graph, values);
@@ -183,6 +185,7 @@ int RunDgsCommand(const DgsArgs& a_in) {
   const auto t_start = std::chrono::steady_clock::now();
   const G2oReadOptions& read_options = a.read;
   const Dataset data = ReadG2o(a.input, read_options);
+  const bool planar = data.planar;  // --out writes SE2 lines back
   PoseGraph graph = data.graph;
   Values initial = data.initial;
   if (a.robots != 0) {
@@ -203,7 +206,7 @@ int RunDgsCommand(const DgsArgs& a_in) {
 
   const DgsOptions options =
       a.solver.options(a.order == "jacobi" ? SweepOrder::kJacobi : SweepOrder::kGaussSeidel);
-  if (a.robust) return RunRobustDgsCommand(a, graph, initial, options, t_start);
+  if (a.robust) return RunRobustDgsCommand(a, graph, initial, planar, options, t_start);
 
   // The reference: centralized Gauss-Newton from the chordal initialisation, in the same gauge
   // (the anchor at its initial value, as the distributed solve holds it).
@@ -256,7 +259,7 @@ int RunDgsCommand(const DgsArgs& a_in) {
   const double two_stage_cost = graph.cost(two_stage);
   if (a.solver.refine) driver.runRefineStage();
   const DgsResult r = driver.result();
-  WriteEstimate(a.out, graph, r.values, a.read);
+  WriteEstimate(a.out, graph, r.values, a.read, planar);
   const double final_cost = graph.cost(r.values);
   const TrajectoryErrors errors = CompareEstimates(r.values, central.values);
   const TrajectoryErrors two_stage_errors = CompareEstimates(two_stage, central.values);

@@ -109,6 +109,7 @@ int RunSolve(const SolveArgs& a) {
     G2oWriteOptions w;
     w.scheme = read_options.scheme;
     w.plain_keys = data.plain_keys;
+    w.planar = data.planar;
     if (std::filesystem::is_directory(a.out) || a.out.back() == '/') {
       WriteG2oFolder(a.out, data.graph, result.values, w);
     } else {

@@ -48,6 +48,7 @@ printf '# comment\n\nVERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nEDGE_SE3:QUAT 0 1 1 0 0 0 
   "$ident" "$ident" >"$corpus/edges"
 printf 'EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 5 0 0 1 0 0 1 0 1\n' >"$corpus/coupled"
 printf 'VERTEX_SE2 0 0 0 0\nFIX 0\n' >"$corpus/other_tags"
+printf 'VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0.5\nEDGE_SE2 0 1 1 0 0.5 10 0 0 10 0 100\n' >"$corpus/planar"
 
 dict="$work/g2o.dict"
 cat >"$dict" <<'DICT'

@@ -33,6 +33,11 @@ constexpr std::string_view kEdgeTag = "EDGE_SE3:QUAT";
 constexpr std::size_t kVertexFields = 8;      // id x y z qx qy qz qw
 constexpr std::size_t kEdgeFields = 9 + 21;   // i j x y z qx qy qz qw + upper triangle
 constexpr std::size_t kEdgeNumbers = 7 + 21;  // the doubles of an edge line
+// 2D files, read as planar SE(3) graphs (Dataset::planar).
+constexpr std::string_view kVertex2Tag = "VERTEX_SE2";
+constexpr std::string_view kEdge2Tag = "EDGE_SE2";
+constexpr std::size_t kVertex2Fields = 4;      // id x y theta
+constexpr std::size_t kEdge2Fields = 5 + 6;    // i j x y theta + upper triangle of (x, y, theta)
 
 // g2o orders a tangent vector (x, y, z, rx, ry, rz); moslam (rx, ry, rz, x, y, z).
 constexpr int MoslamIndex(int g2o_index) { return (g2o_index + 3) % 6; }
@@ -185,7 +190,18 @@ struct FileRecords {
   std::vector<EdgeRecord> edges;
   std::vector<RelativePoseFactor> factors;  // one per edge, in the same order
   bool plain_keys = true;
+  int dimension = 0;  // 2 or 3 after the first vertex or edge line; a file holds one kind
 };
+
+// Records that the line at `at` is of a `dimension`-D tag; a file mixing 2D and 3D lines fails.
+void NoteDimension(int dimension, const Location& at, FileRecords* out) {
+  if (out->dimension == 0) out->dimension = dimension;
+  if (out->dimension != dimension) {
+    Fail(at, "a " + std::to_string(dimension) + "D line in a file of " +
+                 std::to_string(out->dimension) +
+                 "D lines: a file holds SE2 or SE3:QUAT lines, not both");
+  }
+}
 
 void CheckFieldCount(const std::vector<std::string_view>& tokens, std::size_t expected,
                      const char* layout, const Location& at) {
@@ -198,22 +214,20 @@ void CheckFieldCount(const std::vector<std::string_view>& tokens, std::size_t ex
 
 [[noreturn]] void FailTag(std::string_view tag, const Location& at) {
   const std::string shown = "'" + Printable(tag) + "'";
-  if (tag.rfind("VERTEX_SE2", 0) == 0 || tag.rfind("EDGE_SE2", 0) == 0) {
-    Fail(at, "2D tag " + shown +
-                 " is not supported: moslam reads 3D pose graphs (VERTEX_SE3:QUAT, "
-                 "EDGE_SE3:QUAT) only");
-  }
   if (tag == "FIX") {
     Fail(at, "unknown tag " + shown +
                  ": moslam does not read FIX lines (the gauge is always the first pose of "
                  "robot 0); remove the line");
   }
-  Fail(at, "unknown tag " + shown + ": moslam reads VERTEX_SE3:QUAT and EDGE_SE3:QUAT lines only");
+  Fail(at, "unknown tag " + shown +
+               ": moslam reads VERTEX_SE3:QUAT and EDGE_SE3:QUAT lines, or VERTEX_SE2 and "
+               "EDGE_SE2 lines");
 }
 
 void ParseVertex(const std::vector<std::string_view>& tokens, const G2oReadOptions& options,
                  const Location& at, FileRecords* out) {
   CheckFieldCount(tokens, kVertexFields, "id x y z qx qy qz qw", at);
+  NoteDimension(3, at, out);
   const DecodedId id = Decode(tokens[1], options, at);
   std::array<double, 7> numbers{};
   const SE3 pose = ParsePose(tokens, 2, &numbers, at);
@@ -221,10 +235,73 @@ void ParseVertex(const std::vector<std::string_view>& tokens, const G2oReadOptio
   out->vertices.push_back({id, pose, at});
 }
 
+// x y theta (3 tokens) as the planar pose (Rz(theta), (x, y, 0)).
+SE3 ParsePlanarPose(const std::vector<std::string_view>& tokens, std::size_t first,
+                    std::array<double, 3>* numbers, const Location& at) {
+  static constexpr const char* kNames[3] = {"x", "y", "theta"};
+  std::array<double, 3>& v = *numbers;
+  for (std::size_t i = 0; i < 3; ++i) v[i] = ParseNumber(tokens[first + i], kNames[i], at);
+  return SE3(SO3::Exp(Vector3(0.0, 0.0, v[2])), Vector3(v[0], v[1], 0.0));
+}
+
+void ParseVertex2(const std::vector<std::string_view>& tokens, const G2oReadOptions& options,
+                  const Location& at, FileRecords* out) {
+  CheckFieldCount(tokens, kVertex2Fields, "id x y theta", at);
+  NoteDimension(2, at, out);
+  const DecodedId id = Decode(tokens[1], options, at);
+  std::array<double, 3> numbers{};
+  const SE3 pose = ParsePlanarPose(tokens, 2, &numbers, at);
+  out->plain_keys = out->plain_keys && (id.raw >> 56) == 0;
+  out->vertices.push_back({id, pose, at});
+}
+
+// An SE2 edge as a planar SE(3) factor: its 3x3 information on (x, y, theta) goes to (tx, ty, rz);
+// the out-of-plane directions, which a planar graph never moves along (a reflection z -> -z maps
+// the problem onto itself, so its gradient there is zero at every planar estimate), get the
+// information of their in-plane counterparts (rx, ry: theta's; tz: the mean of x's and y's), so
+// that the lifted system is as well conditioned as the planar one.
+void ParseEdge2(const std::vector<std::string_view>& tokens, const G2oReadOptions& options,
+                const Location& at, FileRecords* out) {
+  CheckFieldCount(tokens, kEdge2Fields,
+                  "i j x y theta and the 6 upper-triangular information entries", at);
+  NoteDimension(2, at, out);
+  const DecodedId a = Decode(tokens[1], options, at);
+  const DecodedId b = Decode(tokens[2], options, at);
+  std::array<double, 3> pose_numbers{};
+  const SE3 measured = ParsePlanarPose(tokens, 3, &pose_numbers, at);
+  std::array<double, kEdgeNumbers> numbers{};
+  std::copy(pose_numbers.begin(), pose_numbers.end(), numbers.begin());
+  static constexpr const char* kEntryNames[6] = {
+      "information entry I11", "information entry I12", "information entry I13",
+      "information entry I22", "information entry I23", "information entry I33"};
+  static constexpr int kMoslam[3] = {3, 4, 2};  // x, y, theta -> tx, ty, rz (rotation first)
+  Matrix6 information = Matrix6::Zero();
+  std::size_t k = 0;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = i; j < 3; ++j, ++k) {
+      const double v = ParseNumber(tokens[6 + k], kEntryNames[k], at);
+      numbers[3 + k] = v;
+      information(kMoslam[i], kMoslam[j]) = v;
+      information(kMoslam[j], kMoslam[i]) = v;
+    }
+  }
+  information(0, 0) = information(1, 1) = information(2, 2);
+  information(5, 5) = 0.5 * (information(3, 3) + information(4, 4));
+  try {
+    out->factors.emplace_back(a.key, b.key, measured, information);
+  } catch (const InvalidInputError& e) {
+    Fail(at, std::string("edge ") + std::to_string(a.raw) + " " + std::to_string(b.raw) + ": " +
+                 e.what());
+  }
+  out->plain_keys = out->plain_keys && (a.raw >> 56) == 0 && (b.raw >> 56) == 0;
+  out->edges.push_back({a, b, numbers, at, false});
+}
+
 void ParseEdge(const std::vector<std::string_view>& tokens, const G2oReadOptions& options,
                const Location& at, FileRecords* out) {
   CheckFieldCount(tokens, kEdgeFields,
                   "i j x y z qx qy qz qw and the 21 upper-triangular information entries", at);
+  NoteDimension(3, at, out);
   const DecodedId a = Decode(tokens[1], options, at);
   const DecodedId b = Decode(tokens[2], options, at);
   std::array<double, kEdgeNumbers> numbers{};
@@ -324,12 +401,16 @@ FileRecords ParseRecords(std::istream& in, const std::string* name, const G2oRea
       ParseVertex(tokens, options, at, &out);
     } else if (tokens[0] == kEdgeTag) {
       ParseEdge(tokens, options, at, &out);
+    } else if (tokens[0] == kVertex2Tag) {
+      ParseVertex2(tokens, options, at, &out);
+    } else if (tokens[0] == kEdge2Tag) {
+      ParseEdge2(tokens, options, at, &out);
     } else {
       FailTag(tokens[0], at);
     }
   }
   if (out.vertices.empty() && out.edges.empty()) {
-    Fail({name, 0}, "empty file: no VERTEX_SE3:QUAT or EDGE_SE3:QUAT line");
+    Fail({name, 0}, "empty file: no VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2 or EDGE_SE2 line");
   }
   return out;
 }
@@ -358,6 +439,14 @@ struct SignatureLess {
 Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>& names) {
   Dataset data;
   data.files = names;
+  data.planar = files.front().dimension == 2;
+  for (std::size_t f = 1; f < files.size(); ++f) {
+    if ((files[f].dimension == 2) != data.planar) {
+      Fail({&names[f], 0}, std::string("a ") + (data.planar ? "3D" : "2D") +
+                               " file in a dataset whose first file is " +
+                               (data.planar ? "2D" : "3D") + ": one dataset is 2D or 3D");
+    }
+  }
   std::map<Key, Location> defined;
   for (const FileRecords& file : files) {
     data.plain_keys = data.plain_keys && file.plain_keys;
@@ -445,16 +534,49 @@ void WritePose(std::ostream& os, const SE3& x) {
      << q[0];
 }
 
+// x y theta of a planar pose; throws InvalidInputError when `x` leaves the plane by more than
+// `kPlanarTolerance` (its z, or its rotation's axis off the vertical).
+constexpr double kPlanarTolerance = 1e-9;
+void WritePlanarPose(std::ostream& os, const SE3& x, const char* what) {
+  const Matrix3& R = x.rotation().matrix();
+  const Vector3& t = x.translation();
+  if (!(std::abs(t.z()) <= kPlanarTolerance && std::abs(R(2, 0)) <= kPlanarTolerance &&
+        std::abs(R(2, 1)) <= kPlanarTolerance && std::abs(R(0, 2)) <= kPlanarTolerance &&
+        std::abs(R(1, 2)) <= kPlanarTolerance)) {
+    throw InvalidInputError(std::string("G2oWriteOptions::planar: ") + what +
+                            " is not planar (z = " + std::to_string(t.z()) +
+                            ", or its rotation is not about the vertical): write it as SE3:QUAT");
+  }
+  os << t.x() << ' ' << t.y() << ' ' << std::atan2(R(1, 0), R(0, 0));
+}
+
 void WriteVertex(std::ostream& os, const Key& key, const SE3& x, const G2oWriteOptions& options) {
+  if (options.planar) {
+    os << kVertex2Tag << ' ' << FileId(key, options) << ' ';
+    WritePlanarPose(os, x, ("the pose of " + ToString(key)).c_str());
+    os << '\n';
+    return;
+  }
   os << kVertexTag << ' ' << FileId(key, options) << ' ';
   WritePose(os, x);
   os << '\n';
 }
 
 void WriteEdge(std::ostream& os, const RelativePoseFactor& f, const G2oWriteOptions& options) {
+  const Matrix6& information = f.information();
+  if (options.planar) {
+    os << kEdge2Tag << ' ' << FileId(f.a(), options) << ' ' << FileId(f.b(), options) << ' ';
+    WritePlanarPose(os, f.measured(), ("the measurement of " + ToString(f.a()) + " - " +
+                                       ToString(f.b())).c_str());
+    static constexpr int kMoslam[3] = {3, 4, 2};  // x, y, theta (ParseEdge2)
+    for (int i = 0; i < 3; ++i) {
+      for (int j = i; j < 3; ++j) os << ' ' << information(kMoslam[i], kMoslam[j]);
+    }
+    os << '\n';
+    return;
+  }
   os << kEdgeTag << ' ' << FileId(f.a(), options) << ' ' << FileId(f.b(), options) << ' ';
   WritePose(os, f.measured());
-  const Matrix6& information = f.information();
   for (int i = 0; i < 6; ++i) {
     for (int j = i; j < 6; ++j) os << ' ' << information(MoslamIndex(i), MoslamIndex(j));
   }

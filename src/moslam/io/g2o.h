@@ -5,9 +5,19 @@
 //                                        translation) on read and back on write, never rescaled)
 // Ids are GTSAM Symbol keys (graph/key.h). Quaternions are normalised on read.
 //
+// 2D files read as planar SE(3) graphs (Dataset::planar), the 3D code unchanged:
+//   VERTEX_SE2 id x y theta                -> (Rz(theta), (x, y, 0))
+//   EDGE_SE2 i j x y theta  I11 I12 I13 I22 I23 I33   (information on x, y, theta) -> the same
+//   measurement, that information on (tx, ty, rz), and the out-of-plane directions the information
+//   of their in-plane counterparts (rx, ry: theta's; tz: the mean of x's and y's). A planar graph
+//   started in the plane stays there (the problem is symmetric under z -> -z), so those entries
+//   only condition the system. The cost is moslam's, 1/2 r^T Omega r with the exact SE(3) Log
+//   (shared/CONVENTIONS.md), not g2o's SE2 error, whose translation part is not the Log's: the
+//   two agree to second order in the residuals. A file holds 2D or 3D lines, not both.
+//
 // Accepted: edges without vertices (initialise with the chordal relaxation), i > j, parallel
 // edges, blank lines and '#' comments. Rejected with G2oParseError (file, line, reason): unknown
-// tags (2D tags included: moslam is SE(3)), wrong field counts, non-numbers, NaN/Inf, information
+// tags, wrong field counts, non-numbers, NaN/Inf, information
 // that is not symmetric positive definite, an id whose Symbol character is not a robot letter, a
 // vertex defined twice, an empty file, and in a file that has vertices an edge to a vertex that
 // no file defines and no other edge connects (a dangling edge).
@@ -55,6 +65,7 @@ struct Dataset {
   PoseGraph graph;
   Values initial;                   // from VERTEX lines: may be empty (edge-only files) or partial
   bool plain_keys = true;           // every id read was a plain integer (character byte 0)
+  bool planar = false;              // read from VERTEX_SE2 / EDGE_SE2 lines
   std::vector<std::string> files;   // the files read, in order
   int repaired_information = 0;     // edges read with G2oReadOptions::drop_indefinite_coupling
 };
@@ -69,6 +80,9 @@ Dataset ReadG2o(const std::string& path, const G2oReadOptions& options = {});
 struct G2oWriteOptions {
   KeyScheme scheme = KeyScheme::kPosesOnly;
   bool plain_keys = false;  // write robot 0's poses as plain integers (single-robot files)
+  // Write VERTEX_SE2 / EDGE_SE2 lines (a Dataset read with `planar`): every pose and measurement
+  // must lie in the plane (z and the rotation's tilt within 1e-9), else InvalidInputError.
+  bool planar = false;
 };
 
 // Writes vertices for every variable in `values` and one edge per factor (priors are not

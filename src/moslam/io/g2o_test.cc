@@ -281,9 +281,74 @@ TEST(G2oReject, UnknownTag) {
 
 TEST(G2oReject, FixIsAnUnknownTag) { ExpectError(kV0 + kV1 + kE01 + "FIX 0\n", 4, "FIX lines"); }
 
-TEST(G2oReject, TwoDimensionalTags) {
-  ExpectError("VERTEX_SE2 0 0 0 0\n", 1, "2D");
-  ExpectError(kV0 + "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n", 2, "2D");
+TEST(G2oReject, ATwoDimensionalLineInAThreeDimensionalFileOrTheReverse) {
+  ExpectError(kV0 + "VERTEX_SE2 1 0 0 0\n", 2, "a 2D line in a file of 3D lines");
+  ExpectError("VERTEX_SE2 0 0 0 0\n" + kE01, 2, "a 3D line in a file of 2D lines");
+  ExpectError("VERTEX_SE2 0 0 0\n", 1, "needs 4 fields");
+  ExpectError("EDGE_SE2 0 1 1 0 0 1 0 0 1 0\n", 1, "needs 11 fields");
+  ExpectError("EDGE_SE2 0 1 1 0 0 1 0 0 -1 0 1\n", 1, "positive definite");
+  ExpectError("EDGE_SE2 0 1 1 0 nan 1 0 0 1 0 1\n", 1, "theta");
+}
+
+// A 2D file reads as the planar SE(3) graph written out by hand: SE2 poses lifted to (Rz(theta),
+// (x, y, 0)), the 3x3 information on (tx, ty, rz), rx and ry with theta's information and tz with
+// the mean of x's and y's.
+TEST(G2oPlanar, ATwoDimensionalFileIsItsLiftedGraph) {
+  const Dataset d = Parse(
+      "VERTEX_SE2 0 0 0 0\n"
+      "VERTEX_SE2 1 1.5 -0.5 2.0\n"
+      "EDGE_SE2 0 1 1.5 -0.5 2.0 40 1 2 50 3 600\n");
+  EXPECT_TRUE(d.planar);
+  EXPECT_TRUE(d.plain_keys);
+  ASSERT_EQ(d.initial.size(), 2u);
+  const SE3 x1(SO3::Exp(Vector3(0, 0, 2.0)), Vector3(1.5, -0.5, 0.0));
+  EXPECT_TRUE(d.initial.at(Key::Pose(0, 1)).rotation().matrix().isApprox(x1.rotation().matrix(),
+                                                                         1e-15));
+  EXPECT_EQ(d.initial.at(Key::Pose(0, 1)).translation(), x1.translation());
+  ASSERT_EQ(d.graph.factors().size(), 1u);
+  const RelativePoseFactor& f = d.graph.factors()[0];
+  EXPECT_TRUE(f.measured().rotation().matrix().isApprox(x1.rotation().matrix(), 1e-15));
+  Matrix6 expected = Matrix6::Zero();  // rotation first: rx ry rz tx ty tz
+  expected(3, 3) = 40;
+  expected(3, 4) = expected(4, 3) = 1;
+  expected(3, 2) = expected(2, 3) = 2;
+  expected(4, 4) = 50;
+  expected(4, 2) = expected(2, 4) = 3;
+  expected(2, 2) = expected(0, 0) = expected(1, 1) = 600;
+  expected(5, 5) = 45;
+  EXPECT_EQ(f.information(), expected);
+  EXPECT_FALSE(Parse(kV0 + kV1 + kE01).planar);
+}
+
+TEST(G2oPlanar, WritesTwoDimensionalLinesThatReadBackAndRefusesAPoseOffThePlane) {
+  const std::string text =
+      "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1.5 -0.5 2.0\nVERTEX_SE2 2 -3 0.25 -3.0\n"
+      "EDGE_SE2 0 1 1.5 -0.5 2.0 40 1 2 50 3 600\nEDGE_SE2 1 2 0.1 0.2 -2.5 10 0 0 10 0 100\n";
+  const Dataset d = Parse(text);
+  G2oWriteOptions planar;
+  planar.planar = true;
+  planar.plain_keys = true;
+  const fs::path path = ScratchDir() / "planar.g2o";
+  WriteG2oFile(path.string(), d.graph, d.initial, planar);
+  std::ifstream in(path);
+  std::string first;
+  in >> first;
+  EXPECT_EQ(first, "VERTEX_SE2");
+  const Dataset back = ReadG2oFile(path.string());
+  EXPECT_TRUE(back.planar);
+  ASSERT_EQ(back.initial.size(), d.initial.size());
+  for (const auto& [key, x] : d.initial) {
+    EXPECT_LT((back.initial.at(key).translation() - x.translation()).norm(), 1e-15);
+    EXPECT_LT((back.initial.at(key).rotation().matrix() - x.rotation().matrix()).norm(), 1e-15);
+  }
+  ASSERT_EQ(back.graph.factors().size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(back.graph.factors()[i].information(), d.graph.factors()[i].information());
+  }
+  Values tilted = d.initial;
+  tilted[Key::Pose(0, 2)] =
+      tilted[Key::Pose(0, 2)] * SE3(SO3::Exp(Vector3(1e-6, 0, 0)), Vector3::Zero());
+  EXPECT_THROW(WriteG2oFile(path.string(), d.graph, tilted, planar), InvalidInputError);
 }
 
 TEST(G2oReject, DanglingEdge) {
@@ -717,13 +782,29 @@ TEST(G2oDatasets, TinyGrid3DFirstEdgeAsInTheFile) {
   EXPECT_EQ(f.information(), expected);
 }
 
-TEST(G2oDatasets, RejectsTwoDimensionalPgoFiles) {
-  try {
-    ReadG2oFile(kPgo + "intel.g2o");
-    FAIL() << "expected G2oParseError";
-  } catch (const G2oParseError& e) {
-    EXPECT_EQ(e.line(), 1);
-    EXPECT_NE(e.reason().find("2D"), std::string::npos) << e.what();
+TEST(G2oDatasets, ReadsEveryTwoDimensionalPgoFile) {
+  // Vertex lines, edge lines and distinct ids from datasets/pgo/SOURCE.md.
+  struct Planar {
+    const char* name;
+    std::size_t vertices, edges, ids;
+  };
+  const Planar files[] = {
+      {"intel", 1728, 2512, 1728},          {"manhattan", 0, 5453, 3500},
+      {"city10000", 10000, 20687, 10000},   {"CSAIL", 0, 1172, 1045},
+      {"MIT", 808, 827, 808},               {"ais2klinik", 15115, 16727, 15115},
+      {"kitti_00", 0, 4677, 4541},          {"kitti_02", 0, 4703, 4661},
+      {"kitti_05", 0, 2826, 2761},          {"kitti_06", 0, 1150, 1101},
+      {"kitti_07", 0, 1106, 1101},          {"kitti_08", 0, 4070, 4071},
+      {"kitti_09", 0, 1592, 1591},          {"input_INTEL_g2o", 1228, 1483, 1228},
+      {"input_M3500_g2o", 3500, 5453, 3500},
+  };
+  for (const Planar& f : files) {
+    SCOPED_TRACE(f.name);
+    const Dataset d = ReadG2oFile(kPgo + f.name + ".g2o");
+    EXPECT_TRUE(d.planar);
+    EXPECT_EQ(d.initial.size(), f.vertices);
+    EXPECT_EQ(d.graph.factors().size(), f.edges);
+    EXPECT_EQ(d.graph.keys().size(), f.ids);
   }
 }
 
