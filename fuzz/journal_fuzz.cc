@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -29,7 +30,13 @@ void Require(bool ok) {
 }
 
 void Framing(const std::vector<std::uint8_t>& bytes) {
-  static const std::string path = "/tmp/moslam_journal_fuzz_" + std::to_string(::getpid());
+  // One scratch file per fuzzing process, removed when the process exits.
+  static const std::string path = [] {
+    std::string p = "/tmp/moslam_journal_fuzz_" + std::to_string(::getpid());
+    static std::string* to_remove = new std::string(p);
+    std::atexit([] { std::remove(to_remove->c_str()); });
+    return p;
+  }();
   {
     std::FILE* f = std::fopen(path.c_str(), "wb");
     Require(f != nullptr);
