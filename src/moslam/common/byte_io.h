@@ -132,9 +132,11 @@ class ByteReader {
     std::memcpy(&v, &bits, sizeof v);
     return v;
   }
-  // A varint of at most `max_bytes` bytes, in its one canonical form (no trailing zero group), so
-  // that every value has exactly one encoding and a decoded message re-encodes to its bytes.
+  // A varint of at most `max_bytes` bytes (kMaxVarintBytes at most), in its one canonical form (no
+  // trailing zero group), so that every value has exactly one encoding and a decoded message
+  // re-encodes to its bytes.
   std::uint64_t varint(const char* field, std::size_t max_bytes = kMaxVarintBytes) {
+    if (max_bytes > kMaxVarintBytes) max_bytes = kMaxVarintBytes;  // 64 bits at most
     std::uint64_t v = 0;
     for (std::size_t i = 0; i < max_bytes; ++i) {
       const std::uint8_t byte = u8(field);

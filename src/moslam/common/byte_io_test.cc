@@ -100,6 +100,9 @@ TEST(ByteIo, VarintsHaveOneEncodingAndABoundedLength) {
   beyond.push_back(0x02);  // the tenth group may hold only the 64th bit
   EXPECT_NE(read(beyond, 10).find("beyond 64 bits"), std::string::npos);
   EXPECT_NE(read({0x80}, 10).find("truncated in key"), std::string::npos);
+  std::vector<std::uint8_t> eleven(10, 0x80);
+  eleven.push_back(0x01);  // a longer cap than 64 bits allow is read as 10 bytes
+  EXPECT_NE(read(eleven, 11).find("longer than 10 bytes"), std::string::npos);
 }
 
 TEST(ByteIo, SealedBodyRefusesADamagedOrShortFile) {
