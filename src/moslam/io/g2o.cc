@@ -224,17 +224,6 @@ void CheckFieldCount(const std::vector<std::string_view>& tokens, std::size_t ex
                "EDGE_SE2 lines");
 }
 
-void ParseVertex(const std::vector<std::string_view>& tokens, const G2oReadOptions& options,
-                 const Location& at, FileRecords* out) {
-  CheckFieldCount(tokens, kVertexFields, "id x y z qx qy qz qw", at);
-  NoteDimension(3, at, out);
-  const DecodedId id = Decode(tokens[1], options, at);
-  std::array<double, 7> numbers{};
-  const SE3 pose = ParsePose(tokens, 2, &numbers, at);
-  out->plain_keys = out->plain_keys && (id.raw >> 56) == 0;
-  out->vertices.push_back({id, pose, at});
-}
-
 // x y theta (3 tokens) as the planar pose (Rz(theta), (x, y, 0)).
 SE3 ParsePlanarPose(const std::vector<std::string_view>& tokens, std::size_t first,
                     std::array<double, 3>* numbers, const Location& at) {
@@ -244,13 +233,18 @@ SE3 ParsePlanarPose(const std::vector<std::string_view>& tokens, std::size_t fir
   return SE3(SO3::Exp(Vector3(0.0, 0.0, v[2])), Vector3(v[0], v[1], 0.0));
 }
 
-void ParseVertex2(const std::vector<std::string_view>& tokens, const G2oReadOptions& options,
-                  const Location& at, FileRecords* out) {
-  CheckFieldCount(tokens, kVertex2Fields, "id x y theta", at);
-  NoteDimension(2, at, out);
+// A VERTEX_SE3:QUAT (dimension 3) or VERTEX_SE2 (2) line.
+void ParseVertex(const std::vector<std::string_view>& tokens, int dimension,
+                 const G2oReadOptions& options, const Location& at, FileRecords* out) {
+  const bool planar = dimension == 2;
+  CheckFieldCount(tokens, planar ? kVertex2Fields : kVertexFields,
+                  planar ? "id x y theta" : "id x y z qx qy qz qw", at);
+  NoteDimension(dimension, at, out);
   const DecodedId id = Decode(tokens[1], options, at);
-  std::array<double, 3> numbers{};
-  const SE3 pose = ParsePlanarPose(tokens, 2, &numbers, at);
+  std::array<double, 7> numbers{};
+  std::array<double, 3> planar_numbers{};
+  const SE3 pose = planar ? ParsePlanarPose(tokens, 2, &planar_numbers, at)
+                          : ParsePose(tokens, 2, &numbers, at);
   out->plain_keys = out->plain_keys && (id.raw >> 56) == 0;
   out->vertices.push_back({id, pose, at});
 }
@@ -398,11 +392,11 @@ FileRecords ParseRecords(std::istream& in, const std::string* name, const G2oRea
     const std::vector<std::string_view> tokens = Tokenize(text);
     if (tokens.empty()) continue;
     if (tokens[0] == kVertexTag) {
-      ParseVertex(tokens, options, at, &out);
+      ParseVertex(tokens, 3, options, at, &out);
     } else if (tokens[0] == kEdgeTag) {
       ParseEdge(tokens, options, at, &out);
     } else if (tokens[0] == kVertex2Tag) {
-      ParseVertex2(tokens, options, at, &out);
+      ParseVertex(tokens, 2, options, at, &out);
     } else if (tokens[0] == kEdge2Tag) {
       ParseEdge2(tokens, options, at, &out);
     } else {
