@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <exception>
@@ -26,14 +27,13 @@ namespace {
 CLI::Validator NumberCheck(bool (*accept)(double), const char* need, const char* name) {
   return CLI::Validator(
       [accept, need](std::string& text) -> std::string {
+        // Locale-independent and whole-token, as the g2o reader reads numbers.
+        const char* first = text.data();
+        const char* last = text.data() + text.size();
+        if (first != last && *first == '+') ++first;
         double v = 0.0;
-        std::size_t used = 0;
-        try {
-          v = std::stod(text, &used);
-        } catch (const std::exception&) {
-          used = 0;
-        }
-        if (used == 0 || used != text.size() || !std::isfinite(v) || !accept(v)) {
+        const auto [end, ec] = std::from_chars(first, last, v);
+        if (ec != std::errc() || end != last || !std::isfinite(v) || !accept(v)) {
           return std::string("must be ") + need + ", not " + text;
         }
         return {};

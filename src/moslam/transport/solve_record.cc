@@ -101,7 +101,7 @@ GroupRecord ReadGroupRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
     }
     record.team.push_back(t);
   }
-  if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a group record");
+  if (!p.atEnd()) p.fail("trailing bytes after a group record");
   return record;
 }
 
@@ -192,7 +192,7 @@ SolveRecord ReadSolveRecord(const std::vector<std::uint8_t>& bytes, std::size_t 
     }
     record.rejected.push_back(index);
   }
-  if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a solve record");
+  if (!p.atEnd()) p.fail("trailing bytes after a solve record");
   return record;
 }
 

@@ -70,7 +70,9 @@ StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t of
     got.reports[r] = rep;
   }
   const std::uint32_t messages = p.u32("message count");
-  for (std::uint32_t k = 0; k < messages; ++k) got.estimates.push_back(DecodeMessage(p.sized("estimates")));
+  for (std::uint32_t k = 0; k < messages; ++k) {
+    got.estimates.push_back(DecodeMessage(p.sized("estimates")));
+  }
   // A list of per-robot messages, each from a robot whose report announced it, once.
   const auto read_announced = [&](auto& into, const auto& decode, bool TeamReport::*announced,
                                   const char* kind) {
@@ -90,7 +92,7 @@ StepRecord ReadStepRecord(const std::vector<std::uint8_t>& bytes, std::size_t of
   read_announced(got.weights, DecodeWeightMessage, &TeamReport::weights, "unannounced weights");
   read_announced(got.covariances, DecodeCovarianceMessage, &TeamReport::covariance,
                  "an unannounced covariance");
-  if (!p.atEnd()) throw InvalidInputError(what + ": trailing bytes after a step record");
+  if (!p.atEnd()) p.fail("trailing bytes after a step record");
   return record;
 }
 
