@@ -25,6 +25,7 @@
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/group_transport.h"
 #include "moslam/transport/record_bytes.h"
+#include "moslam/transport/session_inbox.h"
 #include "moslam/transport/session_journal.h"
 #include "moslam/transport/solve_record.h"
 #include "moslam/transport/team_membership.h"
@@ -429,9 +430,7 @@ class RobotSession::Impl {
         if (options_.on_rendezvous) options_.on_rendezvous(rec);
       }
       // Lists of this step or earlier are no longer needed (the others' events included).
-      for (auto it = lists_.begin(); it != lists_.end();) {
-        it = it->first.second <= static_cast<std::uint32_t>(t) ? lists_.erase(it) : std::next(it);
-      }
+      inbox_.dropListsUpTo(static_cast<std::uint32_t>(t));
       if (options_.online) groupSolve(slam, t);
     }
     slam.optimize(options_.slam.final_iterations);
@@ -487,8 +486,7 @@ class RobotSession::Impl {
   // its team the closure the joining statuses formed (empty, for a robot linked to none: the
   // node forms it).
   void solveBatch(const std::vector<int>& closure) {
-    PrefetchedTransport dgs_transport(transport_, std::move(pending_));
-    pending_.clear();
+    PrefetchedTransport dgs_transport(transport_, inbox_.takePending());
     DgsNodeOptions node_options = options_.dgs;
     node_options.team = closure;
     if (node_options.gnc && node_options.robust.empty()) {
@@ -581,7 +579,7 @@ class RobotSession::Impl {
         BuildRobotGroupPart(slam, robots, shared_, {}, options_.slam.rendezvous.lambda());
     GroupTransport group_transport(
         transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
-        takePending(solve));
+        inbox_.takePending(solve));
     DgsNodeOptions node_options = options_.dgs;
     node_options.solve = solve;
     node_options.team = GroupIds(robots.size());
@@ -686,7 +684,7 @@ class RobotSession::Impl {
       part = BuildRobotGroupPart(slam, robots, shared_, team, options_.slam.rendezvous.lambda());
       GroupTransport group_transport(
           transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
-          takePending(solve));
+          inbox_.takePending(solve));
       DgsNodeOptions node_options = options_.dgs;
       node_options.solve = solve;
       node_options.team = GroupIds(robots.size());  // formed by the joining statuses
@@ -801,9 +799,7 @@ class RobotSession::Impl {
     std::sort(join.team.begin(), join.team.end(), TeamPairBefore);
     transport_.publish(join);
     // Drop what earlier solves left; wait for the joining statuses of the closure.
-    pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
-                                  [&](const Received& r) { return SolveBefore(SolveOf(r), solve); }),
-                   pending_.end());
+    inbox_.dropPendingBefore(solve, SolveBefore);
     if (const auto journaled = journaled_groups_.find(t);
         journaled != journaled_groups_.end() && attempt == journaledAttempt(t)) {
       robots = journaled->second.robots;  // restarted in the solve: its partners formed it
@@ -933,7 +929,7 @@ class RobotSession::Impl {
     std::map<int, std::vector<int>> heard;
     while (true) {
       heard.clear();
-      for (const Received& r : pending_) {
+      for (const Received& r : inbox_.pending()) {
         const auto* st = std::get_if<StatusPacket>(&r.packet);
         if (st && st->solve == solve && range.count(r.sender)) {
           // Its first status of the solve (in order per sender) is the one it joined with; the
@@ -1000,29 +996,6 @@ class RobotSession::Impl {
     WriteTumTrajectories(tmp.string(), slam.estimate());
     std::filesystem::remove_all(final_dir);
     std::filesystem::rename(tmp, final_dir);
-  }
-
-  // The packets of `solve` received so far, taken out of pending_ (for its GroupTransport).
-  std::vector<Received> takePending(std::uint32_t solve) {
-    std::vector<Received> mine;
-    for (auto it = pending_.begin(); it != pending_.end();) {
-      if (SolveOf(*it) == solve) {
-        mine.push_back(std::move(*it));
-        it = pending_.erase(it);
-      } else {
-        ++it;
-      }
-    }
-    return mine;
-  }
-
-  static std::uint32_t SolveOf(const Received& r) {
-    if (const auto* e = std::get_if<EstimatesPacket>(&r.packet)) return e->solve;
-    if (const auto* s = std::get_if<StatusPacket>(&r.packet)) return s->solve;
-    if (const auto* c = std::get_if<CoarsePacket>(&r.packet)) return c->solve;
-    if (const auto* w = std::get_if<WeightsPacket>(&r.packet)) return w->solve;
-    if (const auto* v = std::get_if<CovariancePacket>(&r.packet)) return v->solve;
-    return 0;
   }
 
   static TransportStats Difference(const TransportStats& a, const TransportStats& b) {
@@ -1098,14 +1071,7 @@ class RobotSession::Impl {
   void ingest(std::vector<Received> packets) {
     for (Received& r : packets) {
       membership_->onPacket(r);
-      if (auto* list = std::get_if<ObjectListPacket>(&r.packet)) {
-        lists_[std::make_pair(r.sender, list->step)].push_back(std::move(*list));
-      } else if (auto* answer = std::get_if<SharedObjectsPacket>(&r.packet)) {
-        answers_[std::make_pair(r.sender, answer->step)].push_back(std::move(*answer));
-      } else if (const auto* st = std::get_if<StatusPacket>(&r.packet);
-                 !st || st->solve != kPresenceSolve) {  // presence: the membership's alone
-        pending_.push_back(std::move(r));
-      }
+      inbox_.add(std::move(r));
     }
   }
 
@@ -1149,15 +1115,15 @@ class RobotSession::Impl {
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
   // None: alpha left for good.
   std::optional<ObjectMapMessage> awaitList(const RendezvousEvent& e) {
-    const auto key = std::make_pair(e.alpha, static_cast<std::uint32_t>(e.step));
+    std::deque<ObjectListPacket>& lists =
+        inbox_.lists(e.alpha, static_cast<std::uint32_t>(e.step));
     ObjectMapMessage received;
     const bool ready = waitFor(e, "object list", [&]() {
-      const auto it = lists_.find(key);
-      if (it == lists_.end() || it->second.empty()) return false;
+      if (lists.empty()) return false;
       ObjectMapMessage m;
       m.sender = e.alpha;
       try {
-        for (const ObjectObservation& o : it->second.front().objects) {
+        for (const ObjectObservation& o : lists.front().objects) {
           if (o.id > 0xFFFFFFFFu) throw InvalidInputError(fmt::format("object id {} exceeds 32 bits", o.id));
           m.objects.push_back({static_cast<std::uint32_t>(o.id), o.label, o.pose});
         }
@@ -1166,7 +1132,7 @@ class RobotSession::Impl {
       } catch (const InvalidInputError& err) {
         options_.log(fmt::format("rejected: object list of robot {} for step {}: {}", e.alpha,
                                  e.step, err.what()));
-        it->second.pop_front();  // a duplicate (restart) may follow
+        lists.pop_front();  // a duplicate (restart) may follow
         return false;
       }
     });
@@ -1179,7 +1145,8 @@ class RobotSession::Impl {
   // object already shared between the two, as AnswerObjectMap excludes them), removed pairs that
   // are not shared with beta. None: beta left for good.
   std::optional<EventPairs> awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
-    const auto key = std::make_pair(e.beta, static_cast<std::uint32_t>(e.step));
+    std::deque<SharedObjectsPacket>& answers =
+        inbox_.answers(e.beta, static_cast<std::uint32_t>(e.step));
     std::set<std::uint64_t> mine_taken, theirs_taken;
     std::set<std::pair<std::uint64_t, std::uint64_t>> before;  // (this robot's, beta's)
     for (const SharedObject& s : shared_) {
@@ -1195,9 +1162,8 @@ class RobotSession::Impl {
     const bool known = options_.slam.known_initial_poses;
     EventPairs pairs;
     const bool ready = waitFor(e, "shared-object answer", [&]() {
-      const auto it = answers_.find(key);
-      if (it == answers_.end() || it->second.empty()) return false;
-      const SharedObjectsPacket& answer = it->second.front();
+      if (answers.empty()) return false;
+      const SharedObjectsPacket& answer = answers.front();
       std::string why;
       for (const auto& [a, b] : answer.pairs) {
         if (a >= slam.landmarks().size()) {
@@ -1218,7 +1184,7 @@ class RobotSession::Impl {
       if (!why.empty()) {
         options_.log(fmt::format("rejected: shared objects of robot {} for step {}: {}", e.beta,
                                  e.step, why));
-        it->second.pop_front();
+        answers.pop_front();
         return false;
       }
       for (const auto& [a, b] : answer.pairs) {
@@ -1227,7 +1193,7 @@ class RobotSession::Impl {
       for (const auto& [a, b] : answer.removed) {
         pairs.removed.emplace_back(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
       }
-      answers_.erase(it);
+      answers.clear();
       return true;
     });
     if (!ready) return std::nullopt;
@@ -1246,10 +1212,7 @@ class RobotSession::Impl {
   std::map<int, SolveRecord> journaled_solves_;  // online, by step: group solves finished
   std::uint32_t revision_ = 0;
   std::vector<SharedObject> shared_;
-  // Received, by (sender, step), in arrival order (duplicates after a restart are identical).
-  std::map<std::pair<int, std::uint32_t>, std::deque<ObjectListPacket>> lists_;
-  std::map<std::pair<int, std::uint32_t>, std::deque<SharedObjectsPacket>> answers_;
-  std::vector<Received> pending_;  // DGS packets
+  transport_detail::SessionInbox inbox_;  // received, not used yet
   HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
   std::vector<SharedObject> set_aside_;  // online robust: its pairs set aside (online_team.h)
   std::unique_ptr<TeamMembership> membership_;  // which robots it still counts on
