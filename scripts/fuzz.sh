@@ -2,8 +2,9 @@
 # Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for a bounded time: the g2o
 # reader, the decoders of the messages robots send one another (fuzz/messages_fuzz.cc), the
 # journal a restarted robot replays (fuzz/journal_fuzz.cc), the
-# template cache decoder (fuzz/template_cache_fuzz.cc) and the perception cache decoder
-# (fuzz/perception_cache_fuzz.cc).
+# template cache decoder (fuzz/template_cache_fuzz.cc), the perception cache decoder
+# (fuzz/perception_cache_fuzz.cc) and the other text files a user hands moslam: worlds, TUM
+# trajectories and sequences, YOLO labels, a robot's g2o file (fuzz/text_files_fuzz.cc).
 # Usage: scripts/fuzz.sh [seconds per target, default 60]
 # Exits non-zero when the fuzzer finds a crash, a sanitizer report, a leak or a timeout; the input
 # that triggered it is saved under build-fuzz/artifacts/.
@@ -26,7 +27,7 @@ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_C_COMPILER="$CC_BIN" -DCMAKE_CXX_COMPILER="$CXX_BIN" \
   -DMOSLAM_BUILD_FUZZ=ON -DMOSLAM_BUILD_TESTS=OFF -DMOSLAM_BUILD_BENCH=OFF >/dev/null
 cmake --build "$build" --target g2o_reader_fuzz messages_fuzz template_cache_fuzz journal_fuzz \
-  perception_cache_fuzz
+  perception_cache_fuzz text_files_fuzz
 
 # Seed corpus, made fresh at every run from short snippets (datasets are never copied into the
 # repository).
@@ -200,4 +201,33 @@ cat >"$pdict" <<'DICT'
 "\xff\xff\xff\xff"
 DICT
 run_target perception_cache_fuzz "$pcorpus" "$pdict" 65536
+
+# Text files: the first byte picks the reader (text_files_fuzz.cc: 0 world, 1 TUM trajectory, 2
+# TUM sequence with bit 0x10 a camera file and 0x20 ground truth, its texts cut at NULs, 3 YOLO
+# labels, 4 a robot's g2o file).
+xcorpus="$work/text"
+mkdir -p "$xcorpus"
+printf '\x00{"format": "moslam-world", "version": 1, "name": "w", "classes": [{"label": "chair", "extent": [0.5, 0.5, 0.9]}], "objects": [{"id": 0, "label": "chair", "translation": [1, 2, 0], "rotation": [0, 0, 0, 1]}], "rooms": [{"name": "r", "min": [0, 0], "max": [4, 4]}], "navigation": {"nodes": [[1, 1], [3, 3]], "edges": [[0, 1]]}}' >"$xcorpus/world"
+printf '\x01# timestamp tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0.7071 0.7071\n' >"$xcorpus/trajectory"
+printf '\x34# fx fy cx cy width height depth_scale\n160 160 159.5 119.5 320 240 5000\0# rgb\n0.000000 rgb/0.000000.png\n0.100000 rgb/0.100000.png\n\x000.000000 depth/0.000000.png\n0.100000 depth/0.100000.png\n\x000.000000 0 0 0 0 0 0 1\n0.100000 0.1 0 0 0 0 0 1\n' >"$xcorpus/sequence"
+printf '\x03\x30 0.5 0.5 0.25 0.4\n1 0.1 0.9 0.05 0.05\n' >"$xcorpus/labels"
+printf '\x04VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nEDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\nEDGE_SE3:QUAT 0 7061644215716937730 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n' >"$xcorpus/robot_file"
+xdict="$work/text.dict"
+cat >"$xdict" <<'DICT'
+"\"format\""
+"\"moslam-world\""
+"\"rotation\""
+"\"translation\""
+"\"navigation\""
+"[0, 0, 0, 1]"
+"1e308"
+"-1e-320"
+"nan"
+"inf"
+"#"
+"\x00"
+"VERTEX_SE3:QUAT"
+"EDGE_SE3:QUAT"
+DICT
+run_target text_files_fuzz "$xcorpus" "$xdict" 4096
 echo "fuzz.sh: no crash in ${seconds}s per target"

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Configures and builds moslam, fuzzes the g2o reader, the message decoders, the journal and the template and
-# perception cache decoders for a bounded time each, then runs every test
+# Configures and builds moslam, fuzzes the g2o reader, the message decoders, the journal, the
+# template and perception cache decoders and the other text file readers for a bounded time each,
+# then runs every test
 # (ctest's summary is the last thing printed).
 #   BUILD_DIR (default build), MOSLAM_FUZZ_SECONDS (default 30; 0 skips the fuzz run).
 set -euo pipefail

@@ -19,6 +19,15 @@ GroundTruthBox YoloLabel::toPixels(int image_width, int image_height) const {
 std::vector<YoloLabel> ReadYoloLabels(const std::string& path, int num_classes) {
   std::ifstream in(path);
   if (!in) throw InvalidInputError("cannot read label file '" + path + "'");
+  std::stringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw InvalidInputError("read error in label file '" + path + "'");
+  return ParseYoloLabels(text.str(), path, num_classes);
+}
+
+std::vector<YoloLabel> ParseYoloLabels(const std::string& text, const std::string& path,
+                                       int num_classes) {
+  std::istringstream in(text);
   std::vector<YoloLabel> labels;
   std::string line;
   int line_no = 0;

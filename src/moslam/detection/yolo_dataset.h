@@ -43,6 +43,9 @@ struct YoloDataset {
 // (not five fields, a class id outside [0, num_classes), a value outside [0, 1], a non-positive
 // size).
 std::vector<YoloLabel> ReadYoloLabels(const std::string& path, int num_classes);
+// The same on a label file's text; `path` names it in the messages.
+std::vector<YoloLabel> ParseYoloLabels(const std::string& text, const std::string& path,
+                                       int num_classes);
 
 // Reads DIR (layout above). Throws InvalidInputError if DIR, classes.txt or images/ is missing,
 // images/ holds no image, or a label or ignore file is malformed.

@@ -88,6 +88,21 @@ TEST(YoloDataset, MalformedLabelNamesFileAndLine) {
   expect_error("0 0.5 0.5 0.1 0.1\n0 0.5 0.5 0.1 0.1 7\n", "expected");
 }
 
+TEST(YoloDataset, ParsesALabelFilesText) {
+  const std::vector<YoloLabel> labels =
+      ParseYoloLabels("1 0.5 0.25 0.1 0.2\n\n0 1 1 1 1\n", "x.txt", 2);
+  ASSERT_EQ(labels.size(), 2u);
+  EXPECT_EQ(labels[0].class_id, 1);
+  EXPECT_FLOAT_EQ(labels[0].cy, 0.25f);
+  EXPECT_EQ(labels[1].class_id, 0);
+  try {
+    ParseYoloLabels("0 0.5 0.5 0.1 0.1\n0 0.5 nan 0.1 0.1\n", "x.txt", 2);
+    ADD_FAILURE() << "accepted a NaN";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("x.txt:2:"), std::string::npos) << e.what();
+  }
+}
+
 TEST(YoloDataset, MissingPartsAreTypedErrors) {
   EXPECT_THROW(ReadYoloDataset("/nonexistent/moslam/dataset"), InvalidInputError);
   const fs::path root = MakeDataset("moslam_yolo_missing");

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -69,9 +70,19 @@ SO3 SO3::FromMatrixNormalized(const Matrix3& M) {
 }
 
 SO3 SO3::FromQuaternion(double qw, double qx, double qy, double qz) {
-  const double n = std::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
-  if (!std::isfinite(n) || n < 1e-12) {
+  const double largest = std::max({std::abs(qw), std::abs(qx), std::abs(qy), std::abs(qz)});
+  if (!std::isfinite(largest) || largest == 0.0) {  // NaN compares false: caught by isfinite
     throw std::invalid_argument("quaternion is zero or not finite");
+  }
+  double n = std::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
+  if (!std::isfinite(n) || n < 1e-100) {
+    // The squares overflow or underflow: scale by the largest component first. Only there, so
+    // that ordinary quaternions give the same bits as a plain normalisation.
+    qw /= largest;
+    qx /= largest;
+    qy /= largest;
+    qz /= largest;
+    n = std::sqrt(qw * qw + qx * qx + qy * qy + qz * qz);
   }
   return SO3(Eigen::Quaterniond(qw / n, qx / n, qy / n, qz / n).toRotationMatrix());
 }

@@ -22,8 +22,8 @@ class SO3 {
   explicit SO3(const Matrix3& R) : R_(R) {}
   // Nearest rotation (in Frobenius norm) to an arbitrary 3x3 matrix, via SVD.
   static SO3 FromMatrixNormalized(const Matrix3& M);
-  // From a quaternion (qw, qx, qy, qz); normalised first. Throws std::invalid_argument on a zero
-  // or non-finite quaternion.
+  // From a quaternion (qw, qx, qy, qz) of any finite non-zero norm (normalised first, without
+  // overflow or underflow). Throws std::invalid_argument on a zero or non-finite quaternion.
   static SO3 FromQuaternion(double qw, double qx, double qy, double qz);
 
   const Matrix3& matrix() const { return R_; }

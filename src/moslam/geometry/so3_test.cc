@@ -75,6 +75,16 @@ TEST(SO3, QuaternionRejectsZero) {
   EXPECT_THROW(SO3::FromQuaternion(NAN, 0, 0, 1), std::invalid_argument);
   const SO3 R = SO3::FromQuaternion(2.0, 0.0, 0.0, 0.0);  // normalised
   EXPECT_LT((R.matrix() - Matrix3::Identity()).norm(), 1e-15);
+  // Norms whose squares overflow or underflow (finite components): the same rotation.
+  const SO3 half_turn_z = SO3::FromQuaternion(0.0, 0.0, 0.0, 1.0);
+  for (const double scale : {1e200, 1e-200, 4e-320}) {
+    EXPECT_LT((SO3::FromQuaternion(0.0, 0.0, 0.0, scale).matrix() - half_turn_z.matrix()).norm(),
+              1e-15)
+        << scale;
+  }
+  const SO3 Q = SO3::FromQuaternion(1e300, 1e300, 0.0, 0.0);
+  EXPECT_LT((Q.matrix() - SO3::FromQuaternion(1.0, 1.0, 0.0, 0.0).matrix()).norm(), 1e-15);
+  EXPECT_THROW(SO3::FromQuaternion(1.0, INFINITY, 0, 0), std::invalid_argument);
 }
 
 }  // namespace

@@ -153,20 +153,11 @@ SE3 ParsePose(const std::vector<std::string_view>& tokens, std::size_t first,
   static constexpr const char* kNames[7] = {"x", "y", "z", "qx", "qy", "qz", "qw"};
   std::array<double, 7>& v = *numbers;
   for (std::size_t i = 0; i < 7; ++i) v[i] = ParseNumber(tokens[first + i], kNames[i], at);
-  double qx = v[3], qy = v[4], qz = v[5], qw = v[6];
-  const double largest = std::max({std::abs(qx), std::abs(qy), std::abs(qz), std::abs(qw)});
-  if (largest == 0.0) Fail(at, "quaternion (qx qy qz qw) is zero: it encodes no rotation");
-  // Rescale only where the norm would overflow or underflow, so ordinary files read exactly as
-  // every other reader reads them.
-  const double norm = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
-  if (!std::isfinite(norm) || norm < 1e-100) {
-    qx /= largest;
-    qy /= largest;
-    qz /= largest;
-    qw /= largest;
+  if (v[3] == 0.0 && v[4] == 0.0 && v[5] == 0.0 && v[6] == 0.0) {
+    Fail(at, "quaternion (qx qy qz qw) is zero: it encodes no rotation");
   }
-  try {
-    return SE3(SO3::FromQuaternion(qw, qx, qy, qz), Vector3(v[0], v[1], v[2]));
+  try {  // any finite non-zero norm is normalised, without overflow or underflow
+    return SE3(SO3::FromQuaternion(v[6], v[3], v[4], v[5]), Vector3(v[0], v[1], v[2]));
   } catch (const std::invalid_argument& e) {
     Fail(at, std::string("quaternion (qx qy qz qw) cannot be normalised: ") + e.what());
   }

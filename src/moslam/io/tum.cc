@@ -103,13 +103,11 @@ std::vector<std::string> WriteTumTrajectories(const std::string& dir, const Valu
   return written;
 }
 
-Values ReadTumTrajectory(const std::string& path, int robot) {
+Values ParseTumTrajectory(std::istream& in, const std::string& name, int robot) {
   if (robot < 0 || robot >= kMaxRobots) {
     throw InvalidInputError("ReadTumTrajectory: robot " + std::to_string(robot) +
                             " is out of range [0, " + std::to_string(kMaxRobots) + ")");
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InvalidInputError("cannot open '" + path + "': " + std::strerror(errno));
   Values values;
   std::string text;
   int line = 0;
@@ -119,28 +117,31 @@ Values ReadTumTrajectory(const std::string& path, int robot) {
     const std::vector<std::string_view> tokens = Tokenize(text);
     if (tokens.empty()) continue;
     if (tokens.size() != 8) {
-      Fail(path, line,
+      Fail(name, line,
            "expected 8 fields (timestamp tx ty tz qx qy qz qw), found " +
                std::to_string(tokens.size()));
     }
     double v[8];
-    for (std::size_t i = 0; i < 8; ++i) v[i] = ParseNumber(tokens[i], path, line);
-    const double largest =
-        std::max({std::abs(v[4]), std::abs(v[5]), std::abs(v[6]), std::abs(v[7])});
-    if (largest == 0.0) Fail(path, line, "quaternion (qx qy qz qw) is zero");
-    // Rescaled only where the norm would overflow or underflow.
-    const double norm = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
-    const double scale = (!std::isfinite(norm) || norm < 1e-100) ? largest : 1.0;
+    for (std::size_t i = 0; i < 8; ++i) v[i] = ParseNumber(tokens[i], name, line);
+    if (v[4] == 0.0 && v[5] == 0.0 && v[6] == 0.0 && v[7] == 0.0) {
+      Fail(name, line, "quaternion (qx qy qz qw) is zero");
+    }
     SO3 rotation;
-    try {
-      rotation = SO3::FromQuaternion(v[7] / scale, v[4] / scale, v[5] / scale, v[6] / scale);
+    try {  // any finite non-zero norm is normalised, without overflow or underflow
+      rotation = SO3::FromQuaternion(v[7], v[4], v[5], v[6]);
     } catch (const std::invalid_argument& e) {
-      Fail(path, line, std::string("quaternion cannot be normalised: ") + e.what());
+      Fail(name, line, std::string("quaternion cannot be normalised: ") + e.what());
     }
     values.emplace(Key::Pose(robot, index++), SE3(rotation, Vector3(v[1], v[2], v[3])));
   }
-  if (in.bad()) Fail(path, line, "read error after this line");
+  if (in.bad()) Fail(name, line, "read error after this line");
   return values;
+}
+
+Values ReadTumTrajectory(const std::string& path, int robot) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InvalidInputError("cannot open '" + path + "': " + std::strerror(errno));
+  return ParseTumTrajectory(in, path, robot);
 }
 
 }  // namespace moslam

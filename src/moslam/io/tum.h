@@ -1,6 +1,7 @@
 // TUM RGB-D trajectory files: one line per pose, "timestamp tx ty tz qx qy qz qw".
 #pragma once
 
+#include <istream>
 #include <string>
 
 #include "moslam/graph/pose_graph.h"
@@ -16,5 +17,7 @@ std::vector<std::string> WriteTumTrajectories(const std::string& dir, const Valu
 // Reads a TUM file (comments '#' allowed) into poses of `robot` indexed 0..n-1 in file order.
 // Throws InvalidInputError naming the line on malformed input.
 Values ReadTumTrajectory(const std::string& path, int robot = 0);
+// The same from a stream; `name` stands for the file in the messages.
+Values ParseTumTrajectory(std::istream& in, const std::string& name, int robot = 0);
 
 }  // namespace moslam

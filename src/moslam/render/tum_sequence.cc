@@ -21,19 +21,28 @@ struct Line {
   std::vector<std::string> tokens;
 };
 
-// Data lines of a text file (comments and blank lines skipped), split on whitespace.
-std::vector<Line> ReadDataLines(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw InvalidInputError(path + ": cannot open the file");
+// A whole text file; InvalidInputError naming it when it cannot be read.
+std::string ReadText(const fs::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw InvalidInputError(path.string() + ": cannot open the file");
+  std::stringstream text;
+  text << f.rdbuf();
+  if (f.bad()) throw InvalidInputError(path.string() + ": read error");
+  return text.str();
+}
+
+// Data lines of a text (comments and blank lines skipped), split on whitespace.
+std::vector<Line> DataLines(const std::string& text) {
+  std::istringstream f(text);
   std::vector<Line> out;
-  std::string text;
+  std::string row;
   int n = 0;
-  while (std::getline(f, text)) {
+  while (std::getline(f, row)) {
     ++n;
-    if (!text.empty() && text.back() == '\r') text.pop_back();
-    const auto first = text.find_first_not_of(" \t");
-    if (first == std::string::npos || text[first] == '#') continue;
-    std::istringstream s(text);
+    if (!row.empty() && row.back() == '\r') row.pop_back();
+    const auto first = row.find_first_not_of(" \t");
+    if (first == std::string::npos || row[first] == '#') continue;
+    std::istringstream s(row);
     Line l{n, {}};
     std::string tok;
     while (s >> tok) l.tokens.push_back(tok);
@@ -65,9 +74,9 @@ struct Stamped {
   std::string file;
 };
 
-std::vector<Stamped> ReadFileList(const std::string& path) {
+std::vector<Stamped> ParseFileList(const std::string& text, const std::string& path) {
   std::vector<Stamped> out;
-  for (const Line& l : ReadDataLines(path)) {
+  for (const Line& l : DataLines(text)) {
     if (l.tokens.size() != 2) {
       Fail(path, l.number,
            fmt::format("expected 'timestamp filename', got {} fields", l.tokens.size()));
@@ -82,10 +91,10 @@ struct StampedPose {
   SE3 pose;
 };
 
-std::vector<StampedPose> ReadGroundTruth(const std::string& path) {
+std::vector<StampedPose> ParseGroundTruth(const std::string& text, const std::string& path) {
   std::vector<StampedPose> out;
   static const char* kFields[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
-  for (const Line& l : ReadDataLines(path)) {
+  for (const Line& l : DataLines(text)) {
     if (l.tokens.size() != 8) {
       Fail(path, l.number,
            fmt::format("expected 'timestamp tx ty tz qx qy qz qw', got {} fields",
@@ -93,8 +102,10 @@ std::vector<StampedPose> ReadGroundTruth(const std::string& path) {
     }
     double v[8];
     for (std::size_t i = 0; i < 8; ++i) v[i] = Number(l.tokens[i], path, l.number, kFields[i]);
-    const double qn = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
-    if (qn < 1e-9) Fail(path, l.number, "the quaternion is zero");
+    if (v[4] == 0.0 && v[5] == 0.0 && v[6] == 0.0 && v[7] == 0.0) {
+      Fail(path, l.number, "the quaternion is zero");
+    }
+    // Finite and not zero: FromQuaternion normalises it whatever its norm.
     out.push_back({v[0], SE3(SO3::FromQuaternion(v[7], v[4], v[5], v[6]),
                              Vector3(v[1], v[2], v[3]))});
   }
@@ -196,16 +207,25 @@ void ParseTumCamera(const std::string& text, const std::string& where,
 
 TumSequence ReadTumSequence(const std::string& directory, const TumReadOptions& options) {
   options.validate();
+  const fs::path dir(directory);
+  if (!fs::is_directory(dir)) throw InvalidInputError(directory + ": not a directory");
+  TumSequenceText text;
+  if (fs::exists(dir / "camera.txt")) text.camera = ReadText(dir / "camera.txt");
+  text.rgb = ReadText(dir / "rgb.txt");
+  text.depth = ReadText(dir / "depth.txt");
+  if (fs::exists(dir / "groundtruth.txt")) text.groundtruth = ReadText(dir / "groundtruth.txt");
+  return ParseTumSequence(text, directory, options);
+}
+
+TumSequence ParseTumSequence(const TumSequenceText& text, const std::string& directory,
+                             const TumReadOptions& options) {
+  options.validate();
   TumSequence seq;
   seq.directory = directory;
   const fs::path dir(directory);
-  if (!fs::is_directory(dir)) throw InvalidInputError(directory + ": not a directory");
   const fs::path camera = dir / "camera.txt";
-  if (fs::exists(camera)) {
-    std::ifstream f(camera);
-    std::stringstream text;
-    text << f.rdbuf();
-    ParseTumCamera(text.str(), camera.string(), &seq.intrinsics, &seq.depth_scale);
+  if (text.camera) {
+    ParseTumCamera(*text.camera, camera.string(), &seq.intrinsics, &seq.depth_scale);
   } else if (options.intrinsics) {
     seq.intrinsics = *options.intrinsics;
     seq.depth_scale = options.depth_scale;
@@ -213,14 +233,16 @@ TumSequence ReadTumSequence(const std::string& directory, const TumReadOptions& 
     throw InvalidInputError(camera.string() +
                             ": missing, and no intrinsics were given (TumReadOptions::intrinsics)");
   }
-  const auto rgb = ReadFileList((dir / "rgb.txt").string());
-  const auto depth = ReadFileList((dir / "depth.txt").string());
+  const auto rgb = ParseFileList(text.rgb, (dir / "rgb.txt").string());
+  const auto depth = ParseFileList(text.depth, (dir / "depth.txt").string());
   std::vector<double> ta, tb;
   for (const auto& s : rgb) ta.push_back(s.t);
   for (const auto& s : depth) tb.push_back(s.t);
   const auto pairs = Associate(ta, tb, options.max_time_difference);
   std::vector<StampedPose> gt;
-  if (fs::exists(dir / "groundtruth.txt")) gt = ReadGroundTruth((dir / "groundtruth.txt").string());
+  if (text.groundtruth) {
+    gt = ParseGroundTruth(*text.groundtruth, (dir / "groundtruth.txt").string());
+  }
   std::vector<double> tg;
   for (const auto& g : gt) tg.push_back(g.t);
   for (const auto& [i, j] : pairs) {

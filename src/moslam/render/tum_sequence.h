@@ -57,6 +57,17 @@ struct TumReadOptions {
 // Throws InvalidInputError on a missing or malformed file.
 TumSequence ReadTumSequence(const std::string& directory, const TumReadOptions& options = {});
 
+// The text files of a sequence directory, as ReadTumSequence reads them.
+struct TumSequenceText {
+  std::optional<std::string> camera;       // camera.txt, when there is one
+  std::string rgb, depth;                  // rgb.txt, depth.txt
+  std::optional<std::string> groundtruth;  // groundtruth.txt, when there is one
+};
+// ReadTumSequence on texts already read: `directory` is where the frames' images are and names
+// the files in the messages. Throws InvalidInputError as ReadTumSequence.
+TumSequence ParseTumSequence(const TumSequenceText& text, const std::string& directory,
+                             const TumReadOptions& options = {});
+
 // Loads frame i (colour BGR CV_8UC3, depth CV_32FC1 metres, the intrinsics, the rgb timestamp).
 // Throws InvalidInputError when an image is missing, unreadable or of the wrong size or type.
 RgbdFrame LoadTumFrame(const TumSequence& sequence, std::size_t i);

@@ -88,6 +88,34 @@ TEST(TumSequence, AssociatesByNearestTimestamp) {
   EXPECT_EQ(ReadTumSequence(dir.string(), wide).frames.size(), 3u);
 }
 
+// The texts of a sequence parsed without its directory (what ReadTumSequence does once it has
+// read them); a ground-truth quaternion of any finite non-zero norm is normalised (one of 1e200
+// used to escape the reader as std::invalid_argument; seen while writing fuzz/text_files_fuzz.cc).
+TEST(TumSequence, ParsesTheTextsOfASequence) {
+  TumSequenceText text;
+  text.camera = "# fx fy cx cy width height depth_scale\n525 525 319.5 239.5 640 480 5000\n";
+  text.rgb = "1.000 rgb/1.png\n2.000 rgb/2.png\n";
+  text.depth = "1.005 depth/1.png\n2.000 depth/2.png\n";
+  text.groundtruth = "1.0 1 2 3 0 0 1e200 1e200\n2.0 4 5 6 0 0 0 1e-200\n";
+  const TumSequence s = ParseTumSequence(text, "/no/such/dir");
+  EXPECT_EQ(s.intrinsics.width, 640);
+  EXPECT_EQ(s.depth_scale, 5000.0);
+  ASSERT_EQ(s.frames.size(), 2u);
+  ASSERT_TRUE(s.frames[0].world_T_camera && s.frames[1].world_T_camera);
+  const Matrix3 quarter_turn = SO3::FromQuaternion(1.0, 0.0, 0.0, 1.0).matrix();
+  EXPECT_LT((s.frames[0].world_T_camera->rotation().matrix() - quarter_turn).norm(), 1e-15);
+  EXPECT_EQ(s.frames[0].world_T_camera->translation(), Vector3(1, 2, 3));
+  EXPECT_LT((s.frames[1].world_T_camera->rotation().matrix() - Matrix3::Identity()).norm(), 1e-15);
+  text.groundtruth = "1.0 1 2 3 0 0 0 0\n";
+  try {
+    ParseTumSequence(text, "/no/such/dir");
+    FAIL() << "no throw";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/no/such/dir/groundtruth.txt:1"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(TumSequence, MalformedLinesAreRejectedWithFileAndLine) {
   const std::string header = "# color images\n# file: 'x'\n# timestamp filename\n";
   const fs::path dir = HandWritten("bad", header + "1.0 rgb/1.png\n2.0x rgb/2.png\n",

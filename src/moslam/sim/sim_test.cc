@@ -180,6 +180,20 @@ TEST(World, JsonRoundTripIsExact) {
   ExpectSameWorld(house, LoadWorld(path));
 }
 
+// A rotation is read whatever the norm of its quaternion, if finite and not zero: one of 1e200
+// used to overflow to an infinite norm and escape the reader as std::invalid_argument
+// (seen while writing fuzz/text_files_fuzz.cc).
+TEST(World, QuaternionsOfAnyFiniteNormAreRead) {
+  using nlohmann::json;
+  json j = json::parse(WorldToJson(MakeHouseWorld()));
+  j["objects"][0]["rotation"] = {0.0, 0.0, 1e200, 1e200};
+  j["objects"][1]["rotation"] = {0.0, 0.0, 1e-200, 1e-200};
+  const World w = WorldFromJson(j.dump(), "scaled.json");
+  const Matrix3 quarter_turn = SO3::FromQuaternion(1.0, 0.0, 0.0, 1.0).matrix();
+  EXPECT_LT((w.objects[0].pose.rotation().matrix() - quarter_turn).norm(), 1e-15);
+  EXPECT_LT((w.objects[1].pose.rotation().matrix() - quarter_turn).norm(), 1e-15);
+}
+
 TEST(World, JsonRejectsBadFilesNamingTheProblem) {
   using nlohmann::json;
   const json good = json::parse(WorldToJson(MakeHouseWorld()));

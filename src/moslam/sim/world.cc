@@ -510,7 +510,8 @@ World WorldFromJson(const std::string& text, const std::string& name) {
     inst.label = rd.string(o["label"], at + ".label");
     const Eigen::VectorXd t = rd.vec(o["translation"], at + ".translation", 3);
     const Eigen::VectorXd q = rd.vec(o["rotation"], at + ".rotation", 4);
-    if (q.norm() < 1e-12) rd.fail(at + ".rotation", "zero quaternion");
+    // Any other finite quaternion is normalised, whatever its norm (SO3::FromQuaternion).
+    if ((q.array() == 0.0).all()) rd.fail(at + ".rotation", "zero quaternion");
     inst.pose = SE3(SO3::FromQuaternion(q[3], q[0], q[1], q[2]), t);
     w.objects.push_back(inst);
   }

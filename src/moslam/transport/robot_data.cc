@@ -11,6 +11,10 @@ namespace moslam {
 Dataset ReadRobotG2o(const std::string& path, const G2oReadOptions& options) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw G2oParseError(path, 0, "cannot open file");
+  return ParseRobotG2o(in, path, options);
+}
+
+Dataset ParseRobotG2o(std::istream& in, const std::string& path, const G2oReadOptions& options) {
   // Two views of the file with the same line numbers: the vertex lines only, the other lines
   // only (blank lines are accepted). An edge-only view has no dangling-edge check: separators
   // to other robots' variables are expected here.

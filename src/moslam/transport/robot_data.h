@@ -3,6 +3,7 @@
 // defined only in that robot's file).
 #pragma once
 
+#include <istream>
 #include <string>
 
 #include "moslam/io/g2o.h"
@@ -13,6 +14,9 @@ namespace moslam {
 // ReadG2oFile, an edge to a variable no vertex of this file defines is accepted (a separator);
 // every other rule of io/g2o.h applies, errors name the file and line. Throws G2oParseError.
 Dataset ReadRobotG2o(const std::string& path, const G2oReadOptions& options = {});
+// The same from a stream; `path` names the file in the messages.
+Dataset ParseRobotG2o(std::istream& in, const std::string& path,
+                      const G2oReadOptions& options = {});
 
 // "<folder>/<robot>.g2o". Throws InvalidInputError when the file does not exist.
 std::string RobotFile(const std::string& folder, int robot);
