@@ -618,7 +618,7 @@ void DgsDriver::refineCoarseCorrection(DgsStage stage, const CoarseSystem& coars
                                  : result_.pose.coarse_corrections);
 }
 
-DgsDriver::CgOutcome DgsDriver::solveByConjugateGradients(RefineRun& run, const CgGoal& goal) {
+CgOutcome DgsDriver::solveByConjugateGradients(RefineRun& run, const CgGoal& goal) {
   const DgsOptions::Refinement& opt = options_.refinement;
   const DgsStage stage = run.stage;
   CgOutcome outcome;
@@ -654,48 +654,38 @@ DgsDriver::CgOutcome DgsDriver::solveByConjugateGradients(RefineRun& run, const 
       if (live(r)) f(*agents_.at(r));
     }
   };
+  CgDecisions cg(goal);  // the coordinator's decisions (cg_decisions.h), broadcast
   precondition();
-  const double rz0 = gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
-                            [](RobotAgent& a) { return a.residualDot(); }, Reduce::kSum);
-  double rz = rz0;
-  if (!(rz0 > 0.0)) {  // the gradient is zero: delta = 0
-    broadcast(run, static_cast<std::uint32_t>(sweeps), true, 0.0);
-    outcome.converged = true;
-    return outcome;
-  }
-  broadcast(run, static_cast<std::uint32_t>(sweeps), false, 0.0);
-  all([](RobotAgent& a) { a.firstDirection(); });
-  while (true) {
-    // p.Hp summed; with a change goal also the largest ||p_r|| (the change is |alpha| ||p_r||).
-    double max_direction = 0.0;
-    const double pq = gather(
-        run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
-        [](RobotAgent& a) { return a.curvature(); }, Reduce::kSum, &max_direction,
-        [](RobotAgent& a) { return a.directionNorm(); });
-    if (!(pq > 0.0)) {  // no curvature left along p (rounding): keep delta
-      broadcast(run, static_cast<std::uint32_t>(sweeps), true, 0.0);
-      outcome.converged = true;
-      break;
+  const bool started =
+      cg.start(gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
+                      [](RobotAgent& a) { return a.residualDot(); }, Reduce::kSum));
+  broadcast(run, static_cast<std::uint32_t>(sweeps), !started, 0.0);
+  if (started) {
+    all([](RobotAgent& a) { a.firstDirection(); });
+    while (true) {
+      // p.Hp summed, and the largest ||p_r|| (a robot's change is |alpha| ||p_r||).
+      double max_direction = 0.0;
+      const double pq = gather(
+          run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
+          [](RobotAgent& a) { return a.curvature(); }, Reduce::kSum, &max_direction,
+          [](RobotAgent& a) { return a.directionNorm(); });
+      const std::optional<double> alpha = cg.stepLength(pq, max_direction);
+      broadcast(run, static_cast<std::uint32_t>(sweeps), !alpha, alpha.value_or(0.0));
+      if (!alpha) break;
+      all([a = *alpha](RobotAgent& agent) { agent.advance(a); });
+      run.current.max_change = cg.change();
+      precondition();
+      const CgDecisions::Next next =
+          cg.next(gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
+                         [](RobotAgent& a) { return a.residualDot(); }, Reduce::kSum),
+                  sweeps);
+      run.current.residual = next.relative;
+      broadcast(run, static_cast<std::uint32_t>(sweeps), next.stop, next.beta);
+      if (next.stop) break;
+      all([beta = next.beta](RobotAgent& a) { a.nextDirection(beta); });
     }
-    const double alpha = rz / pq;
-    broadcast(run, static_cast<std::uint32_t>(sweeps), false, alpha);
-    all([alpha](RobotAgent& a) { a.advance(alpha); });
-    const double change = std::abs(alpha) * max_direction;
-    run.current.max_change = change;
-    precondition();
-    const double rz_new = gather(run, ControlKind::kReport, static_cast<std::uint32_t>(sweeps),
-                                 [](RobotAgent& a) { return a.residualDot(); }, Reduce::kSum);
-    const double relative = std::sqrt(std::max(rz_new, 0.0) / rz0);
-    run.current.residual = relative;
-    outcome.converged = (goal.tolerance > 0.0 && relative <= goal.tolerance) ||
-                        (goal.eta_change > 0.0 && change <= goal.eta_change);
-    const bool stop = outcome.converged || sweeps + 2 > goal.max_sweeps;
-    const double beta = rz_new / rz;
-    broadcast(run, static_cast<std::uint32_t>(sweeps), stop, beta);
-    if (stop) break;
-    all([beta](RobotAgent& a) { a.nextDirection(beta); });
-    rz = rz_new;
   }
+  outcome.converged = cg.converged();
   return outcome;
 }
 

@@ -70,6 +70,7 @@
 #include <string>
 #include <vector>
 
+#include "moslam/distributed/cg_decisions.h"
 #include "moslam/distributed/dgs_types.h"
 #include "moslam/distributed/messages.h"
 #include "moslam/graph/pose_graph.h"
@@ -329,17 +330,6 @@ class DgsDriver {
     bool open = false;
     DgsIterationStats current, pending;
     std::chrono::steady_clock::time_point sweep_start;
-  };
-  // What conjugate gradients aim at: a relative preconditioned residual (0: none), a largest
-  // change of any robot in one iteration (0: none), within a number of sweeps.
-  struct CgGoal {
-    double tolerance = 0.0;
-    double eta_change = 0.0;
-    int max_sweeps = 1000;
-  };
-  struct CgOutcome {
-    int sweeps = 0;
-    bool converged = false;
   };
   int coordinator() const;  // the first live robot of the order, -1 if none
   void openSweep(RefineRun& run);

@@ -164,17 +164,7 @@ class Program {
     return true;
   }
 
-  // ---- conjugate gradients (pose stage, refinement steps) -----------------------------------
-  struct CgGoal {
-    double tolerance = 0.0;
-    double eta_change = 0.0;
-    int max_sweeps = 1000;
-  };
-  struct CgOutcome {
-    int sweeps = 0;
-    bool converged = false;
-  };
-
+  // ---- conjugate gradients (pose stage, refinement steps; cg_decisions.h) ---------------------
   CgOutcome solveByConjugateGradients(DgsStage stage, const CgGoal& goal) {
     const DgsOptions::Refinement& opt = options_.refinement;
     CgOutcome outcome;
@@ -201,37 +191,24 @@ class Program {
       mine.value[1] = value1;
       return step(stage, false, mine);
     };
+    CgDecisions cg(goal);
     precondition();
-    const double rz0 = TeamSum(reduce(agent_.residualDot(), 0.0), 0);
-    double rz = rz0;
-    if (!(rz0 > 0.0)) {  // the gradient is zero: delta = 0
-      outcome.converged = true;
-      return outcome;
-    }
-    agent_.firstDirection();
-    while (true) {
-      const double curvature = agent_.curvature();
-      const TeamStep got = reduce(curvature, agent_.directionNorm());
-      const double pq = TeamSum(got, 0);
-      const double max_direction = TeamMax(got, 1);
-      if (!(pq > 0.0)) {  // no curvature left along p (rounding): keep delta
-        outcome.converged = true;
-        break;
+    if (cg.start(TeamSum(reduce(agent_.residualDot(), 0.0), 0))) {
+      agent_.firstDirection();
+      while (true) {
+        const double curvature = agent_.curvature();
+        const TeamStep got = reduce(curvature, agent_.directionNorm());
+        const std::optional<double> alpha = cg.stepLength(TeamSum(got, 0), TeamMax(got, 1));
+        if (!alpha) break;
+        agent_.advance(*alpha);
+        precondition();
+        const double rz = TeamSum(reduce(agent_.residualDot(), 0.0), 0);
+        const CgDecisions::Next next = cg.next(rz, sweeps);
+        if (next.stop) break;
+        agent_.nextDirection(next.beta);
       }
-      const double alpha = rz / pq;
-      agent_.advance(alpha);
-      const double change = std::abs(alpha) * max_direction;
-      precondition();
-      const double rz_new = TeamSum(reduce(agent_.residualDot(), 0.0), 0);
-      const double relative = std::sqrt(std::max(rz_new, 0.0) / rz0);
-      outcome.converged = (goal.tolerance > 0.0 && relative <= goal.tolerance) ||
-                          (goal.eta_change > 0.0 && change <= goal.eta_change);
-      const bool stop = outcome.converged || sweeps + 2 > goal.max_sweeps;
-      const double beta = rz_new / rz;
-      if (stop) break;
-      agent_.nextDirection(beta);
-      rz = rz_new;
     }
+    outcome.converged = cg.converged();
     return outcome;
   }
 
