@@ -16,6 +16,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/distributed/robot_agent.h"
 #include "moslam/io/g2o.h"
+#include "moslam/transport/group_formation.h"
 #include "moslam/transport/journal.h"
 #include "moslam/transport/record_bytes.h"
 #include "moslam/transport/step_record.h"
@@ -582,14 +583,9 @@ class DgsNode::Impl final : public TeamChannel {
     while (true) {
       ingest(transport_.poll(std::chrono::milliseconds(50)));
       // The closure: robots heard from add their neighbours, until nothing changes.
-      for (bool grew = true; grew;) {
-        grew = false;
-        for (int r : std::vector<int>(known.begin(), known.end())) {
-          const auto it = latest_.find(r);
-          if (it == latest_.end()) continue;
-          for (int n : it->second.neighbours) grew = known.insert(n).second || grew;
-        }
-      }
+      std::map<int, std::vector<int>> lists;
+      for (const auto& [r, status] : latest_) lists.emplace(r, status.neighbours);
+      transport_detail::GrowClosure(known, lists);
       std::vector<int> missing;
       for (int r : known) {
         if (!heard_.count(r)) missing.push_back(r);

@@ -23,6 +23,7 @@
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/event_record.h"
+#include "moslam/transport/group_formation.h"
 #include "moslam/transport/group_transport.h"
 #include "moslam/transport/record_bytes.h"
 #include "moslam/transport/session_inbox.h"
@@ -923,34 +924,17 @@ class RobotSession::Impl {
     std::set<int> group{robot_};
     group.insert(partners.begin(), partners.end());
     const auto deadline = Clock::now() + options_.dgs.join_timeout;
-    std::map<int, std::vector<TeamPairEntry>> team_of;  // from each robot's joining status
-    team_of[robot_] = join.team;
     std::map<int, Clock::time_point> not_alive_since;
-    std::map<int, std::vector<int>> heard;
+    transport_detail::JoiningStatuses heard;
     while (true) {
-      heard.clear();
-      for (const Received& r : inbox_.pending()) {
-        const auto* st = std::get_if<StatusPacket>(&r.packet);
-        if (st && st->solve == solve && range.count(r.sender)) {
-          // Its first status of the solve (in order per sender) is the one it joined with; the
-          // later ones are its DgsNode's, whose neighbours are those of the group that formed
-          // (without the robots that left: a robot that read them instead formed another
-          // closure, and took the batch solve of the whole team while the others left it).
-          heard.try_emplace(r.sender, st->neighbours);
-          team_of.try_emplace(r.sender, st->team);
-        }
-      }
-      for (bool grew = true; grew;) {
-        grew = false;
-        for (int r : std::vector<int>(group.begin(), group.end())) {
-          const auto it = heard.find(r);
-          if (it == heard.end()) continue;
-          for (int n : it->second) grew = (range.count(n) && group.insert(n).second) || grew;
-        }
-      }
+      // The first status of each (not its DgsNode's later ones: a robot that read those formed
+      // another closure, and took the batch solve of the whole team while the others left it).
+      heard = transport_detail::ReadJoiningStatuses(inbox_.pending(), solve, range);
+      transport_detail::GrowClosure(group, heard.neighbours, &range);
       std::vector<int> missing;
       for (int r : group) {
-        if (r != robot_ && !heard.count(r) && !hasLeft(r, t) && !foundLeft(r, t, not_alive_since)) {
+        if (r != robot_ && !heard.neighbours.count(r) && !hasLeft(r, t) &&
+            !foundLeft(r, t, not_alive_since)) {
           missing.push_back(r);
         }
       }
@@ -966,20 +950,14 @@ class RobotSession::Impl {
     if (closure) closure->assign(group.begin(), group.end());
     std::vector<int> heard_members;
     for (int r : group) {
-      if (heard.count(r)) heard_members.push_back(r);
+      if (heard.neighbours.count(r)) heard_members.push_back(r);
     }
     membership_->applyGoneLists(heard_members, t);  // gone for one, gone for all (self: it leaves)
     for (int r : group) {  // without the robots that left
-      if (r == robot_ || (heard.count(r) && !hasLeft(r, t))) robots.push_back(r);
+      if (r == robot_ || (heard.neighbours.count(r) && !hasLeft(r, t))) robots.push_back(r);
     }
-    const std::set<int> members(robots.begin(), robots.end());
-    for (int r : robots) {
-      for (const TeamPairEntry& e : team_of.at(r)) {
-        if (members.count(e.other_robot)) continue;  // solved together, not held
-        team.push_back({Key::Object(r, e.mine), Key::Object(e.other_robot, e.other),
-                        e.mine_is_alpha, e.held, HeldEstimate{e.pose, static_cast<int>(e.step)}});
-      }
-    }
+    heard.team[robot_] = join.team;
+    team = transport_detail::GroupHeldPairs(robots, heard.team);
   }
 
   // The robot's map (its graph and estimate, g2o with objects, and TUM) in
