@@ -327,22 +327,16 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     stats.stage = stage;
     stats.iteration = it;
     runSweeps(stage, stats, false);
-    bool converged = true;
-    int live_robots = 0;
-    double max_bound = 0.0;
+    StageStopRule rule(options_.stopping, eta);
     for (int r : order_) {
       if (!live(r)) continue;
-      ++live_robots;
       const RobotAgent& a = *agents_.at(r);
       constexpr double kInf = std::numeric_limits<double>::infinity();
-      const double change = a.initialised() ? a.lastChange() : kInf;
-      const double bound = a.initialised() ? a.errorBound(options_.error_bound_window) : kInf;
-      const double measure = options_.stopping == StageStopping::kChange ? change : bound;
-      stats.max_change = std::max(stats.max_change, change);
-      max_bound = std::max(max_bound, bound);
-      converged = converged && a.initialised() && measure <= eta;
+      rule.add(a.initialised(), a.initialised() ? a.lastChange() : kInf,
+               a.initialised() ? a.errorBound(options_.error_bound_window) : kInf);
     }
-    const bool stop = converged && live_robots > 0;
+    stats.max_change = rule.maxChange();
+    const bool stop = rule.converged();
     // Two-level: the correction belongs to this sweep (its messages, bytes and time).
     if (!stop && options_.coarse_correction && coarseCorrection(stage, it, stats)) {
       ++report.coarse_corrections;
@@ -352,7 +346,7 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     if (progress_.on_sweep) progress_.on_sweep(stats);
     report.iterations = it;
     report.final_change = stats.max_change;
-    report.final_error_bound = max_bound;
+    report.final_error_bound = rule.maxBound();
     if (stop) {
       report.status = StageStatus::kConverged;
       break;

@@ -1,5 +1,6 @@
 #include "moslam/distributed/dgs_types.h"
 
+#include <algorithm>
 #include <string>
 
 #include "moslam/common/errors.h"
@@ -51,6 +52,14 @@ std::string ToString(SweepOrder order) {
 
 std::string ToString(StageStopping stopping) {
   return stopping == StageStopping::kChange ? "change" : "error-bound";
+}
+
+void StageStopRule::add(bool initialised, double change, double bound) {
+  ++robots_;
+  const double measure = stopping_ == StageStopping::kChange ? change : bound;
+  max_change_ = std::max(max_change_, change);
+  max_bound_ = std::max(max_bound_, bound);
+  converged_ = converged_ && initialised && measure <= eta_;
 }
 
 StageStopping StageStoppingFromString(const std::string& text) {

@@ -53,4 +53,24 @@ std::string ToString(StageStopping stopping);
 // "change" | "error-bound"; throws InvalidInputError otherwise.
 StageStopping StageStoppingFromString(const std::string& text);
 
+// The rule above over one sweep's live robots: each adds whether it has solved in the stage, its
+// change and its error bound (+infinity before it solved). The in-process driver and every robot
+// of a network team (robot_program.h) stop a stage with it.
+class StageStopRule {
+ public:
+  StageStopRule(StageStopping stopping, double eta) : stopping_(stopping), eta_(eta) {}
+  void add(bool initialised, double change, double bound);
+  // Every robot added has solved and its measure is at most eta; false when none was added.
+  bool converged() const { return robots_ > 0 && converged_; }
+  double maxChange() const { return max_change_; }
+  double maxBound() const { return max_bound_; }
+
+ private:
+  StageStopping stopping_;
+  double eta_;
+  int robots_ = 0;
+  bool converged_ = true;
+  double max_change_ = 0.0, max_bound_ = 0.0;
+};
+
 }  // namespace moslam

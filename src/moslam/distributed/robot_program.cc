@@ -125,22 +125,17 @@ class Program {
       TeamReport mine = progressReport();
       mine.coarse_ready = options_.coarse_correction && agent_.coarseReady(channel_.absent());
       const TeamStep got = step(stage, solved, mine);
-      bool converged = true;
-      double max_change = 0.0, max_bound = 0.0;
-      for (const auto& [r, rep] : got.reports) {
-        const double measure = options_.stopping == StageStopping::kChange ? rep.change : rep.bound;
-        max_change = std::max(max_change, rep.change);
-        max_bound = std::max(max_bound, rep.bound);
-        converged = converged && rep.initialised && measure <= eta;
-      }
+      StageStopRule rule(options_.stopping, eta);
+      for (const auto& [r, rep] : got.reports) rule.add(rep.initialised, rep.change, rep.bound);
+      const bool converged = rule.converged();
       bool all_ready = !got.reports.empty();
       for (const auto& [r, rep] : got.reports) all_ready = all_ready && rep.coarse_ready;
       if (!converged && options_.coarse_correction && all_ready) {
         if (coarseCorrection(stage, it)) ++report.coarse_corrections;
       }
       report.iterations = it;
-      report.final_change = max_change;
-      report.final_error_bound = max_bound;
+      report.final_change = rule.maxChange();
+      report.final_error_bound = rule.maxBound();
       if (converged) {
         report.status = StageStatus::kConverged;
         break;
