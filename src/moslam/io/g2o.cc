@@ -419,9 +419,13 @@ struct SignatureLess {
   }
 };
 
-// Merges the files of one dataset: duplicate vertices are rejected, the copy of an inter-robot
-// edge that another file already holds is dropped, dangling edges are rejected.
-Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>& names) {
+std::string RobotFileName(std::size_t index) { return std::to_string(index) + ".g2o"; }
+
+// Merges the files of one dataset (`folder`: a distributed-mapper folder's): duplicate vertices
+// are rejected, the copy of an inter-robot edge that another file already holds is dropped,
+// dangling edges are rejected.
+Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>& names,
+                 bool folder) {
   Dataset data;
   data.files = names;
   data.planar = files.front().dimension == 2;
@@ -477,9 +481,16 @@ Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>
     for (const EdgeRecord* e : kept) {
       for (const DecodedId* end : {&e->a, &e->b}) {
         if (defined.count(end->key) == 0 && degree[end->key] == 1) {
-          Fail(e->at, "dangling edge: " + Describe(*end) +
-                          " has no VERTEX_SE3:QUAT line in any file and no other edge connects "
-                          "it");
+          std::string why = "dangling edge: " + Describe(*end) +
+                            " has no VERTEX_SE3:QUAT line in any file and no other edge "
+                            "connects it";
+          const auto robot = static_cast<std::size_t>(end->key.robot);
+          if (folder && robot >= files.size()) {  // a separator to a robot without its file
+            why += " (the folder holds " + RobotFileName(0) +
+                   (files.size() > 1 ? " .. " + RobotFileName(files.size() - 1) : std::string()) +
+                   " only: is " + RobotFileName(robot) + " missing?)";
+          }
+          Fail(e->at, why);
         }
       }
     }
@@ -578,8 +589,6 @@ void WriteText(const std::string& path, const std::string& text) {
   if (!out) throw Error("failed to write '" + path + "' (disk full?)");
 }
 
-std::string RobotFileName(std::size_t index) { return std::to_string(index) + ".g2o"; }
-
 // The index of a per-robot file name "k.g2o" (no sign, no leading zero), or -1.
 long long RobotFileIndex(const std::string& name) {
   constexpr std::string_view kSuffix = ".g2o";
@@ -604,7 +613,7 @@ G2oParseError::G2oParseError(std::string file, int line, std::string reason)
 Dataset ParseG2o(std::istream& in, const std::string& name, const G2oReadOptions& options) {
   std::vector<FileRecords> files;
   files.push_back(ParseRecords(in, &name, options));
-  return Assemble(files, {name});
+  return Assemble(files, {name}, false);
 }
 
 Dataset ReadG2oFile(const std::string& path, const G2oReadOptions& options) {
@@ -650,7 +659,7 @@ Dataset ReadG2oFolder(const std::string& dir, const G2oReadOptions& options) {
     if (!in) throw G2oParseError(name, 0, std::string("cannot open: ") + std::strerror(errno));
     files.push_back(ParseRecords(in, &name, options));
   }
-  return Assemble(files, names);
+  return Assemble(files, names, true);
 }
 
 Dataset ReadG2o(const std::string& path, const G2oReadOptions& options) {

@@ -623,6 +623,17 @@ TEST(G2oFolder, DanglingRuleSpansTheFolder) {
     EXPECT_EQ(e.file(), (dir / "1.g2o").string());
     EXPECT_EQ(e.line(), 2);
     EXPECT_NE(e.reason().find("dangling"), std::string::npos) << e.what();
+    // Robot c (2) has no file in a folder of 0.g2o and 1.g2o: the likely cause is named.
+    EXPECT_NE(e.reason().find("is 2.g2o missing?"), std::string::npos) << e.what();
+  }
+  // A robot whose file is there but defines no such pose: no file is missing.
+  WriteTextFile(dir / "1.g2o", Vertex(1, 0) + Edge(Id(1, 0) + " " + Id(0, 9)));
+  try {
+    ReadG2oFolder(dir.string());
+    FAIL() << "expected G2oParseError";
+  } catch (const G2oParseError& e) {
+    EXPECT_NE(e.reason().find("dangling"), std::string::npos) << e.what();
+    EXPECT_EQ(e.reason().find("missing"), std::string::npos) << e.what();
   }
   WriteTextFile(dir / "1.g2o", Vertex(1, 0));
   EXPECT_EQ(ReadG2oFolder(dir.string()).graph.factors().size(), 1u);
