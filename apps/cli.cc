@@ -10,6 +10,7 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <system_error>
 #include <utility>
@@ -24,9 +25,10 @@ namespace moslam::cli {
 namespace {
 
 // A check that the option's text is a finite number `accept` takes; else `need`.
-CLI::Validator NumberCheck(bool (*accept)(double), const char* need, const char* name) {
+CLI::Validator NumberCheck(std::function<bool(double)> accept, std::string need,
+                           const std::string& name) {
   return CLI::Validator(
-      [accept, need](std::string& text) -> std::string {
+      [accept = std::move(accept), need = std::move(need)](std::string& text) -> std::string {
         // Locale-independent and whole-token, as the g2o reader reads numbers.
         const char* first = text.data();
         const char* last = text.data() + text.size();
@@ -49,6 +51,11 @@ CLI::Validator Positive() {
 
 CLI::Validator NonNegative() {
   return NumberCheck([](double v) { return v >= 0.0; }, "a number >= 0", "NONNEGATIVE");
+}
+
+CLI::Validator InRange(double lo, double hi) {
+  return NumberCheck([lo, hi](double v) { return v >= lo && v <= hi; },
+                     fmt::format("a number in [{}, {}]", lo, hi), fmt::format("[{} - {}]", lo, hi));
 }
 
 Commands::Commands(CLI::App& app) : app_(app) { app_.require_subcommand(1); }

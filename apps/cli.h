@@ -61,6 +61,9 @@ inline constexpr const char* kPerceptionExecutable = "moslam-perception";
 // 0"); CLI11's PositiveNumber and NonNegativeNumber print their range as "0.000000 to 1797...".
 CLI::Validator Positive();
 CLI::Validator NonNegative();
+// A real number in [lo, hi] ("--fraction: must be a number in [0, 0.999], not 1.5"); CLI11's Range
+// prints doubles as "0.000000 to 0.999000". Integer options keep CLI::Range.
+CLI::Validator InRange(double lo, double hi);
 
 // Replaces the process with `executable` found beside the running one, with the same arguments.
 // Returns only on failure, by throwing moslam::Error naming the path it tried and the likely

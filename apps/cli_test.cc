@@ -162,6 +162,11 @@ TEST(Cli, ANumberOutOfRangeSaysWhatTheOptionNeeds) {
   const CommandResult text = RunMoslam("simulate --runs 2x");
   EXPECT_NE(text.exit_code, 0);
   EXPECT_NE(text.out.find("must be a positive number, not 2x"), std::string::npos) << text.out;
+  const CommandResult fraction = RunMoslam("simulate --outliers 1.5");
+  EXPECT_NE(fraction.exit_code, 0);
+  EXPECT_NE(fraction.out.find("--outliers: must be a number in [0, 0.999], not 1.5"),
+            std::string::npos)
+      << fraction.out;
 }
 
 TEST(Cli, WritesG2oAndTumThatReadBack) {

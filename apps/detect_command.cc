@@ -252,7 +252,7 @@ Runner RegisterDetect(CLI::App& app) {
                 "keep the aspect ratio and pad (default: stretch, as moslam's model is trained)");
   AddDetectorFlags(sub, &args->detector);
   sub->add_option("--iou", args->iou, "IoU for a detection to match a ground-truth box")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(InRange(0.0, 1.0))
       ->capture_default_str();
   auto* data = sub->add_option("--data", args->data,
                                "evaluate on a dataset: DIR/classes.txt, images/, labels/ "

@@ -158,7 +158,7 @@ Runner RegisterRender(CLI::App& app) {
   sub->add_option("--seed", a->seed, "world, trajectories, jitter, colours and noise");
   sub->add_option("--width", a->width, "image width (pixels)")->check(CLI::Range(16, 4096));
   sub->add_option("--height", a->height, "image height (pixels)")->check(CLI::Range(16, 4096));
-  sub->add_option("--hfov", a->hfov, "horizontal field of view (deg)")->check(CLI::Range(10.0, 170.0));
+  sub->add_option("--hfov", a->hfov, "horizontal field of view (deg)")->check(InRange(10.0, 170.0));
   sub->add_option("--out", a->out, "output directory")->required();
   sub->add_option("--format", a->format, "yolo (detector dataset) | tum (RGB-D sequences)")
       ->check(CLI::IsMember({"yolo", "tum"}));
@@ -174,13 +174,13 @@ Runner RegisterRender(CLI::App& app) {
       ->check(NonNegative());
   sub->add_option("--min-in-image", a->min_in_image,
                   "yolo: share of the projected extent box inside the image needed for a label")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(InRange(0.0, 1.0));
   sub->add_option("--yaw-jitter", a->yaw_jitter, "deg (default 10 for yolo, 0 for tum)")
-      ->check(CLI::Range(0.0, 180.0));
+      ->check(InRange(0.0, 180.0));
   sub->add_option("--pitch-jitter", a->pitch_jitter, "deg (default 3 for yolo, 0 for tum)")
-      ->check(CLI::Range(0.0, 45.0));
+      ->check(InRange(0.0, 45.0));
   sub->add_option("--height-jitter", a->height_jitter, "m (default 0.05 for yolo, 0 for tum)")
-      ->check(CLI::Range(0.0, 0.45));
+      ->check(InRange(0.0, 0.45));
   sub->add_option("--frame-period", a->frame_period, "tum: seconds between time steps")
       ->check(Positive());
   sub->add_flag("--no-noise", a->no_noise, "no depth or colour noise");

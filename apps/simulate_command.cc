@@ -141,7 +141,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
       sub->add_option("--outliers", args->outliers,
                       "fraction of wrong object associations injected at every rendezvous (a "
                       "label-consistent wrong object), in [0, 1)")
-          ->check(CLI::Range(0.0, 0.999))
+          ->check(InRange(0.0, 0.999))
           ->capture_default_str();
   sub->add_flag("--robust", args->robust,
                 "also run the robust distributed solve (separator check, GNC-TLS by the robots) "

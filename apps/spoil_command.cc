@@ -57,7 +57,7 @@ Runner RegisterSpoil(CLI::App& app) {
   sub->add_option("input", args->input, "g2o file or distributed-mapper folder")->required();
   sub->add_option("--fraction", args->fraction,
                   "fraction of the separators of the result that are wrong, in [0, 1)")
-      ->check(CLI::Range(0.0, 0.999))
+      ->check(InRange(0.0, 0.999))
       ->capture_default_str();
   sub->add_option("--seed", args->seed, "random seed")->capture_default_str();
   sub->add_option("--out", args->out, "output folder (0.g2o .. N-1.g2o, outliers.txt)")
