@@ -28,6 +28,7 @@
 #include "moslam/transport/record_bytes.h"
 #include "moslam/transport/session_inbox.h"
 #include "moslam/transport/session_journal.h"
+#include "moslam/transport/session_pairs.h"
 #include "moslam/transport/solve_record.h"
 #include "moslam/transport/team_membership.h"
 
@@ -292,7 +293,10 @@ std::vector<int> GroupIds(std::size_t n) {
 class RobotSession::Impl {
  public:
   Impl(RobotScenarioData data, Transport& transport, RobotSessionOptions options)
-      : data_(std::move(data)), transport_(transport), options_(std::move(options)) {
+      : data_(std::move(data)),
+        transport_(transport),
+        options_(std::move(options)),
+        pairs_(data_.robot) {
     options_.validate();
     robot_ = data_.robot;
     if (transport_.self() != robot_) {
@@ -332,7 +336,8 @@ class RobotSession::Impl {
       record(LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(step)});
     };
     membership_ = std::make_unique<TeamMembership>(robot_, n, transport_, std::move(membership));
-    if (!options_.dgs.state_dir.empty()) std::filesystem::create_directories(options_.dgs.state_dir);
+    if (!options_.dgs.state_dir.empty())
+      std::filesystem::create_directories(options_.dgs.state_dir);
     if (!options_.dgs.state_dir.empty()) {
       transport_detail::SessionJournalRun run;
       run.robot = robot_;
@@ -416,8 +421,8 @@ class RobotSession::Impl {
             beta_T_alpha = BetaTAlpha(data_.initial_poses[static_cast<std::size_t>(e.alpha)],
                                       data_.initial_poses[static_cast<std::size_t>(e.beta)]);
           }
-          const SharedObjectsMessage answer =
-              AnswerObjectMap(*received, slam, beta_T_alpha, shared_, options_.slam.rendezvous);
+          const SharedObjectsMessage answer = AnswerObjectMap(
+              *received, slam, beta_T_alpha, pairs_.shared(), options_.slam.rendezvous);
           pairs = {answer.pairs, answer.removed};
           sendAnswer(e, pairs);
           record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
@@ -438,10 +443,10 @@ class RobotSession::Impl {
     if (options_.online) {
       result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
       result_.rendezvous_transport = transport_.stats();
-      result_.shared = shared_;
+      result_.shared = pairs_.shared();
       result_.initial = slam.estimate();
       result_.final_estimate = slam.estimate();
-      result_.set_aside = set_aside_;
+      result_.set_aside = pairs_.setAside();
       result_.poses = slam.numPoses();
       result_.landmarks = static_cast<int>(slam.landmarks().size());
       saveMap(slam, "final");
@@ -451,7 +456,7 @@ class RobotSession::Impl {
     }
     result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     result_.rendezvous_transport = transport_.stats();
-    result_.shared = shared_;
+    result_.shared = pairs_.shared();
     result_.initial = slam.estimate();
     result_.poses = slam.numPoses();
     result_.landmarks = static_cast<int>(slam.landmarks().size());
@@ -465,7 +470,8 @@ class RobotSession::Impl {
         if (departures) {
           solveWithoutTheRobotsThatLeft(slam, closure, robots, attempt);
         } else {
-          result_.subgraph = SessionSubgraph(slam, shared_, options_.slam.rendezvous.lambda());
+          result_.subgraph =
+              SessionSubgraph(slam, pairs_.shared(), options_.slam.rendezvous.lambda());
           solveBatch(closure);
         }
         break;
@@ -530,7 +536,7 @@ class RobotSession::Impl {
       closure = journaled->second.robots;
     } else {
       std::set<int> partners;
-      for (const SharedObject& o : shared_) {
+      for (const SharedObject& o : pairs_.shared()) {
         for (int r : {o.alpha_object.robot, o.beta_object.robot}) {
           if (r != robot_) partners.insert(r);
         }
@@ -577,7 +583,7 @@ class RobotSession::Impl {
     }
     const auto solve = AttemptSolve(static_cast<std::uint32_t>(data_.numSteps() + 1), attempt);
     RobotGroupPart part =
-        BuildRobotGroupPart(slam, robots, shared_, {}, options_.slam.rendezvous.lambda());
+        BuildRobotGroupPart(slam, robots, pairs_.shared(), {}, options_.slam.rendezvous.lambda());
     GroupTransport group_transport(
         transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
         inbox_.takePending(solve));
@@ -627,26 +633,17 @@ class RobotSession::Impl {
     std::filesystem::rename(dir / "result.g2o.tmp", dir / "result.g2o");
   }
 
-  // What event e changed, applied to the shared pairs as RunMultiRobotObjectSlam does (the
-  // removed pairs leave first, the new ones are appended), and counted in `rec`.
+  // What event e changed, applied to the shared pairs (SessionPairs::apply) and counted in
+  // `rec`.
   void applyPairs(const RendezvousEvent& e, const EventPairs& pairs, SessionRendezvous& rec) {
     SharedObjectsMessage answer;
     answer.sender = e.beta;
     answer.receiver = e.alpha;
     answer.pairs = pairs.pairs;
     answer.removed = pairs.removed;
-    if (!rec.alpha) rec.binary_bytes = static_cast<std::int64_t>(EncodeSharedObjects(answer).size());
-    for (const SharedObject& s : RemovedObjectsOf(answer)) {
-      if (!EraseShared(shared_, s)) {  // only a journal of another run gets here
-        throw InvalidInputError(fmt::format(
-            "robot {}: the rendezvous of step {} removes a pair never shared (journal of "
-            "another run?)", robot_, e.step));
-      }
-      EraseShared(set_aside_, s);  // gone, so no longer set aside either
-    }
-    const std::vector<SharedObject> added = SharedObjectsOf(answer);
-    shared_.insert(shared_.end(), added.begin(), added.end());
-    rec.new_shared = static_cast<int>(added.size());
+    if (!rec.alpha)
+      rec.binary_bytes = static_cast<std::int64_t>(EncodeSharedObjects(answer).size());
+    rec.new_shared = static_cast<int>(pairs_.apply(answer, e.step).size());
     rec.removed_shared = static_cast<int>(pairs.removed.size());
   }
 
@@ -682,7 +679,8 @@ class RobotSession::Impl {
       const auto solve = AttemptSolve(static_cast<std::uint32_t>(t + 1), attempt);
       std::vector<TeamPair> team;
       if (!joinGroup(t, range, solve, attempt, robots, team)) return;
-      part = BuildRobotGroupPart(slam, robots, shared_, team, options_.slam.rendezvous.lambda());
+      part = BuildRobotGroupPart(slam, robots, pairs_.shared(), team,
+                                 options_.slam.rendezvous.lambda());
       GroupTransport group_transport(
           transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
           inbox_.takePending(solve));
@@ -727,7 +725,7 @@ class RobotSession::Impl {
       // The check left some robot of the group unlinked: nothing changes (OnlineTeam alike).
       done.unlinked = true;
       done.estimate = slam.estimate();
-      done.set_aside = setAsideRecord();
+      done.set_aside = pairs_.setAsideKeys();
       done.rejected = rejectedFactors(slam);
       record(done);
       if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
@@ -771,7 +769,7 @@ class RobotSession::Impl {
     robots.clear();
     team.clear();
     std::set<int> partners;
-    for (const SharedObject& o : shared_) {
+    for (const SharedObject& o : pairs_.shared()) {
       const int a = o.alpha_object.robot, b = o.beta_object.robot;
       const int other = a == robot_ ? b : (b == robot_ ? a : robot_);
       if (other != robot_ && range.count(other) && !hasLeft(other, t)) partners.insert(other);
@@ -830,7 +828,8 @@ class RobotSession::Impl {
       if (options_.dgs.gnc && replayed) applyVerdicts(slam, done, t);
       for (const auto& [k, x] : done.held) held_[k] = x;
       slam.setEstimate(done.estimate);
-      slam.setTeamFactors(TeamFactors(robot_, accepted(), held_, options_.slam.rendezvous.lambda()));
+      slam.setTeamFactors(
+          TeamFactors(robot_, accepted(), held_, options_.slam.rendezvous.lambda()));
     }
     SessionSolve rec;
     rec.step = t;
@@ -844,7 +843,7 @@ class RobotSession::Impl {
     rec.protocol_steps = static_cast<int>(done.protocol_steps);
     rec.estimate = slam.estimate();
     rec.unlinked = done.unlinked;
-    rec.set_aside = static_cast<int>(set_aside_.size());
+    rec.set_aside = static_cast<int>(pairs_.setAside().size());
     rec.observation_outliers = static_cast<int>(done.rejected.size());
     rec.sent = sent;
     rec.replayed = replayed;
@@ -856,13 +855,7 @@ class RobotSession::Impl {
 
   // ---- robust group solves (dgs.gnc; OnlineTeam's verdicts, each robot on its own pairs) ----
   // Its shared pairs not set aside.
-  std::vector<SharedObject> accepted() const { return AcceptedPairs(shared_, set_aside_); }
-
-  std::vector<std::pair<Key, Key>> setAsideRecord() const {
-    std::vector<std::pair<Key, Key>> out;
-    for (const SharedObject& s : set_aside_) out.emplace_back(s.alpha_object, s.beta_object);
-    return out;
-  }
+  std::vector<SharedObject> accepted() const { return pairs_.accepted(); }
 
   // The factors of its own graph whose weight is not 1 (rejected by its last robust solve).
   static std::vector<std::uint32_t> rejectedFactors(const ObjectSlam& slam) {
@@ -880,7 +873,8 @@ class RobotSession::Impl {
   void judge(const ObjectSlam& slam, const std::vector<int>& robots, const RobotGroupPart& part,
              const RobustProgramResult& solved, SolveRecord& done) const {
     const JudgedPairs pairs = PairsJudged(part.subgraph, solved.weights, robots);
-    const PairVerdicts verdicts = JudgePairs(shared_, set_aside_, pairs.judged, pairs.rejected);
+    const PairVerdicts verdicts =
+        JudgePairs(pairs_.shared(), pairs_.setAside(), pairs.judged, pairs.rejected);
     for (const SharedObject& s : verdicts.set_aside) {
       done.set_aside.emplace_back(s.alpha_object, s.beta_object);
     }
@@ -890,18 +884,6 @@ class RobotSession::Impl {
   // The verdicts of a solve record (computed now or journaled) into its state: the pairs set
   // aside, and its own factors' weights (GNC's min_weight for the rejected ones).
   void applyVerdicts(ObjectSlam& slam, const SolveRecord& done, int t) {
-    std::vector<SharedObject> aside;
-    for (const auto& [alpha, beta] : done.set_aside) {
-      const auto it = std::find_if(shared_.begin(), shared_.end(), [&](const SharedObject& s) {
-        return s.alpha_object == alpha && s.beta_object == beta;
-      });
-      if (it == shared_.end()) {
-        throw InvalidInputError(fmt::format("robot {}: the solve of step {} sets aside a pair it "
-                                            "does not share (journal of another run?)",
-                                            robot_, t));
-      }
-      aside.push_back(*it);
-    }
     std::vector<double> w(slam.numFactors(), 1.0);
     for (std::uint32_t j : done.rejected) {
       if (j >= w.size()) {
@@ -911,16 +893,16 @@ class RobotSession::Impl {
       }
       w[j] = options_.dgs.gnc->min_weight;
     }
-    set_aside_ = std::move(aside);
+    pairs_.setAside(done.set_aside, t);
     slam.setFactorWeights(std::move(w));
   }
 
   // Waits for the joining statuses of the closure of `partners` within `range` (after publishing
   // `join`); the group's robots and its held factors from every member's status.
   // `closure` (optional): the robots of the closure, increasing, those that left included.
-  void formGroup(const StatusPacket& join, const std::set<int>& partners, const std::set<int>& range,
-                 std::uint32_t solve, int t, std::vector<int>& robots, std::vector<TeamPair>& team,
-                 std::vector<int>* closure = nullptr) {
+  void formGroup(const StatusPacket& join, const std::set<int>& partners,
+                 const std::set<int>& range, std::uint32_t solve, int t, std::vector<int>& robots,
+                 std::vector<TeamPair>& team, std::vector<int>* closure = nullptr) {
     std::set<int> group{robot_};
     group.insert(partners.begin(), partners.end());
     const auto deadline = Clock::now() + options_.dgs.join_timeout;
@@ -1102,7 +1084,8 @@ class RobotSession::Impl {
       m.sender = e.alpha;
       try {
         for (const ObjectObservation& o : lists.front().objects) {
-          if (o.id > 0xFFFFFFFFu) throw InvalidInputError(fmt::format("object id {} exceeds 32 bits", o.id));
+          if (o.id > 0xFFFFFFFFu)
+            throw InvalidInputError(fmt::format("object id {} exceeds 32 bits", o.id));
           m.objects.push_back({static_cast<std::uint32_t>(o.id), o.label, o.pose});
         }
         received = DecodeObjectMap(EncodeObjectMap(m));
@@ -1127,7 +1110,7 @@ class RobotSession::Impl {
         inbox_.answers(e.beta, static_cast<std::uint32_t>(e.step));
     std::set<std::uint64_t> mine_taken, theirs_taken;
     std::set<std::pair<std::uint64_t, std::uint64_t>> before;  // (this robot's, beta's)
-    for (const SharedObject& s : shared_) {
+    for (const SharedObject& s : pairs_.shared()) {
       for (const auto& [own, other] : {std::make_pair(s.alpha_object, s.beta_object),
                                        std::make_pair(s.beta_object, s.alpha_object)}) {
         if (own.robot == robot_ && other.robot == e.beta) {
@@ -1145,7 +1128,8 @@ class RobotSession::Impl {
       std::string why;
       for (const auto& [a, b] : answer.pairs) {
         if (a >= slam.landmarks().size()) {
-          why = fmt::format("names object {} of this robot, which has {}", a, slam.landmarks().size());
+          why = fmt::format("names object {} of this robot, which has {}", a,
+                            slam.landmarks().size());
         } else if (b > 0xFFFFFFFFu) {
           why = fmt::format("object id {} exceeds 32 bits", b);
         } else if (before.count({a, b}) ||
@@ -1189,15 +1173,15 @@ class RobotSession::Impl {
   std::map<int, int> group_records_;  // by step: group records journaled (one per attempt)
   std::map<int, SolveRecord> journaled_solves_;  // online, by step: group solves finished
   std::uint32_t revision_ = 0;
-  std::vector<SharedObject> shared_;
+  transport_detail::SessionPairs pairs_;  // its shared pairs, and those set aside (online robust)
   transport_detail::SessionInbox inbox_;  // received, not used yet
   HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
-  std::vector<SharedObject> set_aside_;  // online robust: its pairs set aside (online_team.h)
   std::unique_ptr<TeamMembership> membership_;  // which robots it still counts on
   RobotSessionResult result_;
 };
 
-RobotSession::RobotSession(RobotScenarioData data, Transport& transport, RobotSessionOptions options)
+RobotSession::RobotSession(RobotScenarioData data, Transport& transport,
+                           RobotSessionOptions options)
     : impl_(std::make_unique<Impl>(std::move(data), transport, std::move(options))) {}
 RobotSession::~RobotSession() = default;
 RobotSessionResult RobotSession::run() { return impl_->run(); }

@@ -1,0 +1,54 @@
+#include "moslam/transport/session_pairs.h"
+
+#include <gtest/gtest.h>
+
+#include "moslam/common/errors.h"
+
+namespace moslam::transport_detail {
+namespace {
+
+// Beta (robot 1) answers alpha (robot 0): pairs (alpha landmark, beta landmark).
+SharedObjectsMessage Answer(std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs,
+                            std::vector<std::pair<std::uint32_t, std::uint32_t>> removed = {}) {
+  SharedObjectsMessage m;
+  m.sender = 1;
+  m.receiver = 0;
+  m.pairs = std::move(pairs);
+  m.removed = std::move(removed);
+  return m;
+}
+
+TEST(SessionPairs, ARendezvousRemovesFirstThenAppendsAndUnsetsWhatLeaves) {
+  SessionPairs p(0);
+  EXPECT_EQ(p.apply(Answer({{1, 5}, {2, 6}, {3, 7}}), 10).size(), 3u);
+  p.setAside({{Key::Object(0, 2), Key::Object(1, 6)}, {Key::Object(0, 3), Key::Object(1, 7)}}, 10);
+  EXPECT_EQ(p.accepted().size(), 1u);
+  // The next rendezvous removes (2, 6), which was set aside, and adds (4, 8).
+  const std::vector<SharedObject> added = p.apply(Answer({{4, 8}}, {{2, 6}}), 20);
+  ASSERT_EQ(added.size(), 1u);
+  EXPECT_EQ(added[0].alpha_object, Key::Object(0, 4));
+  ASSERT_EQ(p.shared().size(), 3u);
+  EXPECT_EQ(p.shared()[2].beta_object, Key::Object(1, 8));  // appended
+  ASSERT_EQ(p.setAside().size(), 1u);                       // (2, 6) is no longer set aside
+  EXPECT_EQ(p.setAsideKeys()[0], std::make_pair(Key::Object(0, 3), Key::Object(1, 7)));
+  EXPECT_EQ(p.accepted().size(), 2u);
+}
+
+TEST(SessionPairs, AJournalOfAnotherRunIsRefusedAndChangesNothing) {
+  SessionPairs p(0);
+  p.apply(Answer({{1, 5}, {2, 6}}), 10);
+  p.setAside({{Key::Object(0, 1), Key::Object(1, 5)}}, 10);
+  try {
+    p.apply(Answer({{3, 7}}, {{2, 6}, {9, 9}}), 30);  // (9, 9) was never shared
+    FAIL() << "no throw";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("step 30"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(p.shared().size(), 2u);  // (2, 6) still there, (3, 7) not added
+  EXPECT_THROW(p.setAside({{Key::Object(0, 9), Key::Object(1, 9)}}, 40), InvalidInputError);
+  ASSERT_EQ(p.setAside().size(), 1u);
+  EXPECT_EQ(p.setAside()[0].alpha_object, Key::Object(0, 1));
+}
+
+}  // namespace
+}  // namespace moslam::transport_detail
