@@ -13,6 +13,8 @@
 #include <sstream>
 #include <string>
 
+#include "moslam/common/scratch_dir_testing.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -58,7 +60,7 @@ std::string Edge(const std::string& ij, const std::string& info = kI) {
 
 TEST_P(CliBadInput, ExitsNonZeroNamingFileAndLine) {
   const auto& [name, text] = GetParam();
-  const fs::path file = fs::temp_directory_path() / (std::string("moslam_cli_") + name + ".g2o");
+  const fs::path file = moslam::test::ScratchDir(name) / (std::string(name) + ".g2o");
   std::ofstream(file, std::ios::binary) << text;
   const CommandResult r = RunMoslam("solve " + file.string());
   EXPECT_EQ(r.exit_code, 1) << r.out;
@@ -119,7 +121,7 @@ TEST(Cli, UsageErrorsAndMissingFiles) {
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_NE(missing.out.find("/nonexistent/file.g2o"), std::string::npos);
   // An edge-only file has nothing for --init file, but solves from odometry or chordal.
-  const fs::path edges = fs::temp_directory_path() / "moslam_cli_edges_only.g2o";
+  const fs::path edges = moslam::test::ScratchDir("edges_only") / "edges_only.g2o";
   std::ofstream(edges) << Edge("0 1") << Edge("1 2") << Edge("2 0");
   const CommandResult no_vertices = RunMoslam("solve " + edges.string() + " --init file");
   EXPECT_EQ(no_vertices.exit_code, 1);
@@ -129,7 +131,7 @@ TEST(Cli, UsageErrorsAndMissingFiles) {
 }
 
 TEST(Cli, ATwoDimensionalFileSolvesAndIsWrittenBackInTwoDimensions) {
-  const fs::path out = fs::temp_directory_path() / "moslam_cli_mit_solved.g2o";
+  const fs::path out = moslam::test::ScratchDir("mit_solved") / "mit_solved.g2o";
   const CommandResult r =
       RunMoslam("solve " + std::string(MOSLAM_DATASETS_DIR) + "/pgo/MIT.g2o --out " + out.string());
   EXPECT_EQ(r.exit_code, 0) << r.out;
@@ -141,7 +143,7 @@ TEST(Cli, ATwoDimensionalFileSolvesAndIsWrittenBackInTwoDimensions) {
 }
 
 TEST(Cli, AFileOfVerticesAloneHasNothingToSolve) {
-  const fs::path vertices = fs::temp_directory_path() / "moslam_cli_vertices_only.g2o";
+  const fs::path vertices = moslam::test::ScratchDir("vertices_only") / "vertices_only.g2o";
   std::ofstream(vertices) << kV;
   const CommandResult r = RunMoslam("solve " + vertices.string());
   fs::remove(vertices);
@@ -170,7 +172,7 @@ TEST(Cli, ANumberOutOfRangeSaysWhatTheOptionNeeds) {
 }
 
 TEST(Cli, WritesG2oAndTumThatReadBack) {
-  const fs::path dir = fs::temp_directory_path() / "moslam_cli_out";
+  const fs::path dir = moslam::test::ScratchDir("out");
   fs::remove_all(dir);
   const CommandResult r = RunMoslam("solve " MOSLAM_DATASETS_DIR "/pgo/smallGrid3D.g2o --out " +
                           (dir / "out.g2o").string() + " --tum " + (dir / "tum").string() +
@@ -278,7 +280,7 @@ TEST(CliDgs, BadInputExitsOneWithAClearMessage) {
 // A two-robot folder with object landmarks (upper-case Symbol characters with --objects):
 // object-object edges link the robots; ATE*/ARE* are reported for the objects too.
 TEST(CliDgs, ObjectsAreReportedSeparately) {
-  const fs::path dir = fs::temp_directory_path() / "moslam_cli_dgs_objects";
+  const fs::path dir = moslam::test::ScratchDir("dgs_objects");
   fs::remove_all(dir);
   fs::create_directories(dir);
   auto key = [](char c, int index) {
@@ -324,7 +326,7 @@ TEST(CliDgs, ObjectsAreReportedSeparately) {
 // leaves out exactly the wrong ones, one of them agrees with enough kept ones to be re-tested
 // against the joint estimate and stays out; --no-retest-left-out skips the re-test.
 TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
-  const fs::path dir = fs::temp_directory_path() / "moslam_cli_dgs_spoiled";
+  const fs::path dir = moslam::test::ScratchDir("dgs_spoiled");
   fs::remove_all(dir);
   const CommandResult spoil =
       RunMoslam("spoil " + kBlocksWorld + "4robots --fraction 0.3 --seed 1 --out " + dir.string());
@@ -351,7 +353,7 @@ TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
 
 // `moslam simulate`: one small run end to end, the documented JSON, the Fig. 4 plot, bad input.
 TEST(CliSimulate, RunsEndToEndWithJsonAndPlot) {
-  const fs::path svg = fs::temp_directory_path() / "moslam_cli_simulate.svg";
+  const fs::path svg = moslam::test::ScratchDir("simulate") / "simulate.svg";
   fs::remove(svg);
   const CommandResult r = RunMoslam(
       "simulate --scenario chairs25 --robots 2 --runs 2 --poses 30 --seed 3 --table all --json "
@@ -478,7 +480,7 @@ TEST(CliSimulate, BadInputExitsOneWithAClearMessage) {
 // --detection-log: every detection of every run as a JSON line, with its ground-truth evaluation;
 // refused without rendered perception, whose detections it logs.
 TEST(CliSimulate, RenderedPerceptionLogsEveryDetection) {
-  const fs::path log = fs::temp_directory_path() / "moslam_cli_detections.jsonl";
+  const fs::path log = moslam::test::ScratchDir("detections") / "detections.jsonl";
   fs::remove(log);
   const CommandResult sampled = RunMoslam("simulate --robots 2 --runs 1 --detection-log " +
                                           log.string());
@@ -521,7 +523,7 @@ TEST(CliSimulate, RenderedPerceptionLogsEveryDetection) {
 // --perception-cache: the second run of a seed is replayed (perception_cached 1), with the same
 // numbers; refused with sampled measurements and beside --detection-log.
 TEST(CliSimulate, PerceptionCacheReplaysARenderedRun) {
-  const fs::path dir = fs::temp_directory_path() / "moslam_cli_perception_cache";
+  const fs::path dir = moslam::test::ScratchDir("perception_cache");
   fs::remove_all(dir);
   const std::string command =
       "simulate --scenario chairs25 --robots 1 --runs 1 --poses 3 --perception rendered "
@@ -592,7 +594,7 @@ TEST(CliExecutables, PerceptionAndRobotCommandsRunThroughMoslam) {
 // `perceive` takes the detector's operating point as `detect` does (apps/detector_flags.h) and
 // reports it in its summary; out-of-range values are refused before any work.
 TEST(CliPerceive, TakesTheDetectorsOperatingPoint) {
-  const fs::path dir = fs::temp_directory_path() / "moslam_cli_perceive";
+  const fs::path dir = moslam::test::ScratchDir("perceive");
   fs::remove_all(dir);
   const CommandResult render = RunMoslam("render --scenario chairs25 --robots 1 --poses 1 "
                                          "--format tum --out " + dir.string());
@@ -623,7 +625,7 @@ TEST(CliPerceive, TakesTheDetectorsOperatingPoint) {
 }
 
 TEST(CliExecutables, AMissingSiblingExecutableIsAClearError) {
-  const fs::path dir = fs::temp_directory_path() / "moslam_cli_alone";
+  const fs::path dir = moslam::test::ScratchDir("alone");
   fs::create_directories(dir);
   const fs::path alone = dir / "moslam";
   fs::copy_file(MOSLAM_BINARY, alone, fs::copy_options::overwrite_existing);

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 
 namespace moslam {
 namespace {
@@ -270,7 +271,7 @@ TEST(DetectorLoad, MissingOrUnreadableModelIsATypedError) {
   } catch (const InvalidInputError& e) {
     EXPECT_NE(std::string(e.what()).find("no_such_model.onnx"), std::string::npos);
   }
-  c.model_path = ::testing::TempDir() + "/moslam_not_a_model.onnx";
+  c.model_path = (test::ScratchDir() / "not_a_model.onnx").string();
   std::ofstream(c.model_path) << "this is not an ONNX protobuf\n";
   EXPECT_THROW(Detector{c}, InvalidInputError);
 }

@@ -7,14 +7,14 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 
 namespace moslam {
 namespace {
 namespace fs = std::filesystem;
 
 fs::path MakeDataset(const std::string& name) {
-  const fs::path root = fs::path(::testing::TempDir()) / name;
-  fs::remove_all(root);
+  const fs::path root = test::ScratchDir(name);
   fs::create_directories(root / "images");
   fs::create_directories(root / "labels");
   std::ofstream(root / "classes.txt") << "chair\ntable\n";

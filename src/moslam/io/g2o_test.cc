@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 
 namespace moslam {
 namespace {
@@ -66,14 +67,7 @@ std::string Edge(const std::string& ids, const std::string& info = kIdentityInfo
 }
 
 // A scratch folder under the build tree, fresh for each test.
-fs::path ScratchDir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(MOSLAM_BINARY_DIR) / "io_test_tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+using test::ScratchDir;
 
 bool BitEqual(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
 

@@ -10,20 +10,14 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 
 namespace moslam {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path ScratchDir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(MOSLAM_BINARY_DIR) / "io_test_tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+using test::ScratchDir;
 
 void WriteTextFile(const fs::path& path, const std::string& text) {
   std::ofstream out(path);

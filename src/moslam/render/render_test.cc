@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/render/dataset_export.h"
 #include "moslam/render/renderer.h"
 
@@ -309,9 +310,7 @@ TEST(YoloExport, WritesLabelsAndIgnoreFilesPerFrame) {
   vc.seed = 2;
   const ScenarioViews views = MakeScenarioViews(vc);
   const Renderer r(views.world, RenderConfig());
-  const std::filesystem::path dir =
-      std::filesystem::path(::testing::TempDir()) / "moslam_yolo_export_ignore";
-  std::filesystem::remove_all(dir);
+  const std::filesystem::path dir = test::ScratchDir();
   YoloLabelConfig lc;
   lc.min_visible_pixels = 5000;  // few labels, so most visible objects become ignore lines
   const YoloExportSummary s = ExportYoloDataset(r, views, dir.string(), 7, lc);

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/render/renderer.h"
 
 namespace moslam {
@@ -13,11 +14,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path FreshDir(const std::string& name) {
-  const fs::path d = fs::path(testing::TempDir()) / ("moslam_tum_" + name);
-  fs::remove_all(d);
-  return d;
-}
+fs::path FreshDir(const std::string& name) { return test::ScratchDir(name); }
 
 void WriteFile(const fs::path& p, const std::string& text) {
   std::ofstream f(p);

@@ -8,6 +8,7 @@
 #include <set>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/sim/robots.h"
 #include "moslam/sim/sensing.h"
 #include "moslam/sim/world.h"
@@ -174,7 +175,7 @@ TEST(World, JsonRoundTripIsExact) {
   for (const World& w : {MakeChairs25World(), MakeHouseWorld(), MakeGeneratedWorld()}) {
     ExpectSameWorld(w, WorldFromJson(WorldToJson(w), w.name));
   }
-  const std::string path = testing::TempDir() + "/moslam_world_roundtrip.json";
+  const std::string path = (test::ScratchDir() / "roundtrip.json").string();
   const World house = MakeHouseWorld();
   SaveWorld(path, house);
   ExpectSameWorld(house, LoadWorld(path));
