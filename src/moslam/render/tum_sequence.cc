@@ -128,7 +128,10 @@ std::vector<std::pair<std::size_t, std::size_t>> Associate(const std::vector<dou
     auto it = std::lower_bound(sorted_b.begin(), sorted_b.end(), a[i] - tolerance);
     for (; it != sorted_b.end() && *it <= a[i] + tolerance; ++it) {
       const auto j = order[static_cast<std::size_t>(it - sorted_b.begin())];
-      candidates.emplace_back(std::abs(a[i] - b[j]), i, j);
+      // The window's ends are rounded sums: the difference itself decides (0.1 - 0.08 is
+      // 0.020000000000000004 while 0.1 - 0.02 rounds to 0.08).
+      const double difference = std::abs(a[i] - b[j]);
+      if (difference <= tolerance) candidates.emplace_back(difference, i, j);
     }
   }
   std::sort(candidates.begin(), candidates.end());

@@ -83,6 +83,16 @@ TEST(TumSequence, AssociatesByNearestTimestamp) {
   TumReadOptions wide;
   wide.max_time_difference = 0.6;
   EXPECT_EQ(ReadTumSequence(dir.string(), wide).frames.size(), 3u);
+  // At the tolerance's edge the difference decides, not the rounded window: 0.1 - 0.08 is
+  // 0.020000000000000004 in doubles, beyond 0.02, though 0.1 - 0.02 rounds to 0.08 (the fuzzer's
+  // find, fuzz/text_files_fuzz.cc).
+  TumSequenceText edge;
+  edge.camera = "525 525 319.5 239.5 640 480 5000\n";
+  edge.rgb = "0.1 rgb/a.png\n";
+  edge.depth = "0.08 depth/a.png\n";
+  EXPECT_TRUE(ParseTumSequence(edge, dir.string()).frames.empty());
+  edge.depth = "0.0801 depth/a.png\n";
+  EXPECT_EQ(ParseTumSequence(edge, dir.string()).frames.size(), 1u);
 }
 
 // The texts of a sequence parsed without its directory (what ReadTumSequence does once it has
