@@ -1,5 +1,6 @@
-// Whole files for the caches on disk (the template cache, the perception cache): read at once,
-// and written so that a reader never sees half of one (the bytes go to a temporary file beside
+// Whole files: read at once (the caches on disk, the text files a user hands the library), and
+// the caches (the template cache, the perception cache) written so that a reader never sees half
+// of one (the bytes go to a temporary file beside
 // the target, renamed into place: atomic on one filesystem).
 #pragma once
 
@@ -12,6 +13,7 @@
 #include <string>
 #include <string_view>
 #include <system_error>
+#include <utility>
 
 #include "moslam/common/errors.h"
 
@@ -35,6 +37,15 @@ inline std::optional<std::string> ReadWholeFile(const std::string& path,
     return std::nullopt;
   }
   return bytes;
+}
+
+// The file's bytes; InvalidInputError naming the file when it is missing or cannot be read (the
+// text files a user hands the library: worlds, sequences, labels).
+inline std::string ReadWholeFileOrThrow(const std::string& path) {
+  std::string why;
+  std::optional<std::string> bytes = ReadWholeFile(path, &why);
+  if (!bytes) throw InvalidInputError(why.empty() ? path + ": no such file" : why);
+  return std::move(*bytes);
 }
 
 // The file decoded by `decode(bytes)`, or nullopt: no such file (`why_not` left empty), one that

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 
 namespace moslam {
 namespace fs = std::filesystem;
@@ -17,12 +18,7 @@ GroundTruthBox YoloLabel::toPixels(int image_width, int image_height) const {
 }
 
 std::vector<YoloLabel> ReadYoloLabels(const std::string& path, int num_classes) {
-  std::ifstream in(path);
-  if (!in) throw InvalidInputError("cannot read label file '" + path + "'");
-  std::stringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InvalidInputError("read error in label file '" + path + "'");
-  return ParseYoloLabels(text.str(), path, num_classes);
+  return ParseYoloLabels(ReadWholeFileOrThrow(path), path, num_classes);
 }
 
 std::vector<YoloLabel> ParseYoloLabels(const std::string& text, const std::string& path,

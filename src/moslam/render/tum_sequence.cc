@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 
 namespace moslam {
 namespace {
@@ -20,16 +21,6 @@ struct Line {
   int number;
   std::vector<std::string> tokens;
 };
-
-// A whole text file; InvalidInputError naming it when it cannot be read.
-std::string ReadText(const fs::path& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw InvalidInputError(path.string() + ": cannot open the file");
-  std::stringstream text;
-  text << f.rdbuf();
-  if (f.bad()) throw InvalidInputError(path.string() + ": read error");
-  return text.str();
-}
 
 // Data lines of a text (comments and blank lines skipped), split on whitespace.
 std::vector<Line> DataLines(const std::string& text) {
@@ -213,10 +204,11 @@ TumSequence ReadTumSequence(const std::string& directory, const TumReadOptions& 
   const fs::path dir(directory);
   if (!fs::is_directory(dir)) throw InvalidInputError(directory + ": not a directory");
   TumSequenceText text;
-  if (fs::exists(dir / "camera.txt")) text.camera = ReadText(dir / "camera.txt");
-  text.rgb = ReadText(dir / "rgb.txt");
-  text.depth = ReadText(dir / "depth.txt");
-  if (fs::exists(dir / "groundtruth.txt")) text.groundtruth = ReadText(dir / "groundtruth.txt");
+  auto read = [&dir](const char* name) { return ReadWholeFileOrThrow((dir / name).string()); };
+  if (fs::exists(dir / "camera.txt")) text.camera = read("camera.txt");
+  text.rgb = read("rgb.txt");
+  text.depth = read("depth.txt");
+  if (fs::exists(dir / "groundtruth.txt")) text.groundtruth = read("groundtruth.txt");
   return ParseTumSequence(text, directory, options);
 }
 

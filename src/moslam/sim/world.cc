@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 
 namespace moslam {
 namespace {
@@ -545,12 +546,6 @@ void SaveWorld(const std::string& path, const World& world) {
   if (!out) throw Error("error while writing world file '" + path + "'");
 }
 
-World LoadWorld(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InvalidInputError("cannot open world file '" + path + "'");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return WorldFromJson(ss.str(), path);
-}
+World LoadWorld(const std::string& path) { return WorldFromJson(ReadWholeFileOrThrow(path), path); }
 
 }  // namespace moslam
