@@ -481,9 +481,9 @@ Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>
     for (const EdgeRecord* e : kept) {
       for (const DecodedId* end : {&e->a, &e->b}) {
         if (defined.count(end->key) == 0 && degree[end->key] == 1) {
-          std::string why = "dangling edge: " + Describe(*end) +
-                            " has no VERTEX_SE3:QUAT line in any file and no other edge "
-                            "connects it";
+          std::string why = "dangling edge: " + Describe(*end) + " has no " +
+                            std::string(data.planar ? kVertex2Tag : kVertexTag) +
+                            " line in any file and no other edge connects it";
           const auto robot = static_cast<std::size_t>(end->key.robot);
           if (folder && robot >= files.size()) {  // a separator to a robot without its file
             why += " (the folder holds " + RobotFileName(0) +

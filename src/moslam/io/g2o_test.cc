@@ -349,6 +349,13 @@ TEST(G2oReject, DanglingEdge) {
   // Vertex 5 is defined nowhere and only this edge reaches it.
   const std::string reason = ExpectError(kV0 + kV1 + kE01 + Edge("1 5"), 4, "dangling edge");
   EXPECT_NE(reason.find("id 5"), std::string::npos);
+  EXPECT_NE(reason.find("no VERTEX_SE3:QUAT line"), std::string::npos) << reason;
+  // A 2D file names its own vertex tag.
+  const std::string planar = ExpectError(
+      "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n"
+      "EDGE_SE2 1 5 1 0 0 1 0 0 1 0 1\n",
+      4, "dangling edge");
+  EXPECT_NE(planar.find("no VERTEX_SE2 line"), std::string::npos) << planar;
 }
 
 TEST(G2oReject, EmptyFile) {

@@ -8,7 +8,6 @@
 #include <nlohmann/json.hpp>
 #include <random>
 #include <set>
-#include <sstream>
 
 #include "moslam/common/errors.h"
 #include "moslam/common/whole_file.h"
