@@ -29,6 +29,7 @@
 #include <string>
 #include <thread>
 
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
@@ -49,13 +50,7 @@ std::string BlocksWorld(int robots) {
          std::to_string(robots) + "robots";
 }
 
-fs::path FreshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("moslam_team_test_" + name + "_" +
-                                                    std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path FreshDir(const std::string& name) { return test::ScratchDir(name); }
 
 // A child process running the moslam binary; its stdout comes through a pipe, its stderr goes
 // to a file. A thread drains the pipe as the child writes: a child whose output nobody read

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 
 namespace moslam {
 namespace {
@@ -128,14 +129,8 @@ TEST(PerceptionCache, ImplausibleValuesWithAValidChecksumAreRejected) {
 class PerceptionCacheDir : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = (std::filesystem::temp_directory_path() /
-            ("moslam_perception_cache_" + std::to_string(::testing::UnitTest::GetInstance()
-                                                             ->random_seed()) +
-             "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name()))
-               .string();
-    std::filesystem::remove_all(dir_);
+    dir_ = (test::ScratchDir() / "cache").string();
   }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
   std::string dir_;
 };
 

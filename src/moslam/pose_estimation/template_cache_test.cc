@@ -5,9 +5,9 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/pose_estimation/test_shapes.h"
 
 namespace moslam {
@@ -105,9 +105,7 @@ TEST(TemplateCache, DamagedOrForeignBytesAreRejectedWithAReason) {
 
 TEST(TemplateCache, StoresLoadsAndReportsUnusableEntries) {
   const Built& b = TestBuilt();
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("moslam_template_cache_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
+  const std::filesystem::path dir = test::ScratchDir();
   const TemplateCache cache((dir / "nested").string());
   std::string why;
   why = "stale";

@@ -10,9 +10,8 @@
 #include <mutex>
 #include <thread>
 
-#include <unistd.h>
-
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/partition.h"
@@ -93,12 +92,7 @@ TeamResult RunTeam(InProcessNetwork& net, const Dataset& data,
   return team;
 }
 
-fs::path FreshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("moslam_node_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  return dir;
-}
+fs::path FreshDir(const std::string& name) { return test::ScratchDir(name); }
 
 // RunTeam with every robot journaling in dir/<robot>: robot `victim` is killed once right after
 // protocol step `round` (a step it computed, not one it replayed) and restarts from its journal.

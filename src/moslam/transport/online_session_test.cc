@@ -4,7 +4,6 @@
 // DDS: apps/team_test.cc.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -19,6 +18,7 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/online/online_team.h"
 #include "moslam/transport/dying_transport_test_util.h"
@@ -279,10 +279,7 @@ TEST(OnlineSession, RobustGroupSolvesEqualTheTwinsAndSurviveARestart) {
   const int victim = busiest.first, victim_solves = busiest.second;
   ASSERT_GE(victim_solves, 4);
 
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() /
-      ("moslam_robust_online_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
+  const std::filesystem::path dir = test::ScratchDir();
   // The second death right after a solve after which pairs of it stand aside or factors of it
   // are rejected.
   TwoCrashes crashes(
@@ -343,9 +340,7 @@ TEST(OnlineSession, ARobotKilledInAndBetweenGroupSolvesResumesFromItsJournal) {
   const int victim = busiest.first, victim_solves = busiest.second;
   ASSERT_GE(victim_solves, 4);
 
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("moslam_online_restart_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
+  const std::filesystem::path dir = test::ScratchDir();
   TwoCrashes crashes;  // the second right after its third solve
   std::vector<std::string> log;
   std::mutex log_mutex;
@@ -523,9 +518,7 @@ TEST(OnlineSession, ARobotBackAfterItWasFoundGoneContinuesAloneAndTheOthersMapAs
   twin_options.slam.leave_after[victim] = last_step;
   const OnlineRun twin = RunTwin(data, twin_options);
 
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("moslam_online_back_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
+  const std::filesystem::path dir = test::ScratchDir();
   std::mutex log_mutex;
   std::condition_variable logged;
   std::vector<std::pair<int, std::string>> log;

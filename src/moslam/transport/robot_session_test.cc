@@ -5,7 +5,6 @@
 // nothing. Between processes over DDS: apps/team_test.cc.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <condition_variable>
@@ -20,6 +19,7 @@
 #include <thread>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/online/group_solve.h"
@@ -415,9 +415,7 @@ void CrashAndRestartInTheRendezvousPhase(const ScenarioSpec& spec) {
   }
   const int victim = static_cast<int>(std::max_element(events.begin(), events.end()) - events.begin());
   ASSERT_GE(events[static_cast<std::size_t>(victim)], 3);
-  const fs::path dir = fs::temp_directory_path() /
-                       ("moslam_session_restart_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
-  fs::remove_all(dir);
+  const fs::path dir = test::ScratchDir();
 
   InProcessNetwork net;
   Log log;
@@ -526,8 +524,7 @@ TEST(RobotSession, TheOthersSolveTheBatchWithoutARobotThatLeavesForGood) {
   const SimulationData data = SimulateScenario(spec);
   std::map<int, std::vector<int>> steps_of = EventStepsOf(data);
   const int busiest = Busiest(steps_of);
-  const fs::path dir = fs::temp_directory_path() /
-                       ("moslam_batch_leave_" + std::to_string(::getpid()));
+  const fs::path dir = test::ScratchDir();
   for (const auto& [victim, crash] : {std::pair{0, false}, std::pair{busiest, false},
                                       std::pair{busiest, true}}) {
     SCOPED_TRACE("robot " + std::to_string(victim) + " leaves" + (crash ? ", another crashes" : ""));
@@ -666,8 +663,7 @@ TEST(RobotSession, ABatchRobotBackAfterItWasFoundGoneContinuesAlone) {
   const int partner = FirstPartnerAfter(data, victim, last_step);  // the first to wait for it
   ASSERT_GE(partner, 0);
   const LeaveTwin twin = BatchTwinWithoutTheVictim(spec, data, victim, last_step);
-  const fs::path dir = fs::temp_directory_path() /
-                       ("moslam_batch_back_" + std::to_string(::getpid()));
+  const fs::path dir = test::ScratchDir();
   fs::remove_all(dir);
   InProcessNetwork net;
   Log log;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 
 namespace moslam::transport_detail {
 namespace {
@@ -13,12 +14,7 @@ namespace {
 class SessionJournalTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("moslam_session_journal_" +
-            std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
+    dir_ = test::ScratchDir();
     run_.robot = 1;
     run_.fingerprint = 0xF00D;
     run_.num_robots = 3;

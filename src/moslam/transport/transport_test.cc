@@ -11,6 +11,7 @@
 #include <limits>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/journal.h"
@@ -516,12 +517,8 @@ TEST(CheckPacket, ValidatesTeamPairs) {
 class JournalTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    path_ = std::filesystem::temp_directory_path() /
-            ("moslam_journal_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-             "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".bin");
-    std::filesystem::remove(path_);
+    path_ = test::ScratchDir() / "journal.bin";
   }
-  void TearDown() override { std::filesystem::remove(path_); }
   std::filesystem::path path_;
 };
 
