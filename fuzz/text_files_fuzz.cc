@@ -3,21 +3,24 @@
 // text files of a TUM RGB-D sequence (`moslam perceive`: camera.txt, rgb.txt, depth.txt,
 // groundtruth.txt; render/tum_sequence.h), a YOLO label file (`moslam detect --data`,
 // detection/yolo_dataset.h) and one robot's file of a distributed-mapper folder with its
-// separators (`moslam robot`, transport/robot_data.h). The first byte picks the reader, the rest
+// separators (`moslam robot`, transport/robot_data.h), a detector's class names file (`moslam
+// detect --classes`, detection/detector.h). The first byte picks the reader, the rest
 // is its input; a sequence's four texts are the input cut at its first three NUL bytes. A reader
 // may only reject input with a moslam::Error; any other exception, a crash, a sanitizer report or
 // a hang is a bug. What is accepted must hold what the reader promises (finite poses, rotations
 // orthonormal, label boxes of positive size within [0, 1], a world that validates and reads back
-// from its own JSON).
+// from its own JSON, class names distinct, trimmed and printable).
 #include <Eigen/LU>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "moslam/common/errors.h"
+#include "moslam/detection/detector.h"
 #include "moslam/detection/yolo_dataset.h"
 #include "moslam/io/tum.h"
 #include "moslam/render/tum_sequence.h"
@@ -53,7 +56,7 @@ std::vector<std::string> Split(const std::string& input, std::size_t parts) {
 
 void Read(std::uint8_t which, const std::string& input) {
   using namespace moslam;
-  switch (which % 5) {
+  switch (which % 6) {
     case 0: {
       const World w = WorldFromJson(input, "fuzz.json");
       ValidateWorld(w, "accepted world");
@@ -109,6 +112,20 @@ void Read(std::uint8_t which, const std::string& input) {
         Require(factor.sqrtInformation().allFinite());
       }
       for (const auto& [key, pose] : d.initial) RequireRigid(pose);
+      break;
+    }
+    case 5: {
+      const std::vector<std::string> names = ParseClassNames(input, "fuzz.names");
+      Require(!names.empty());
+      std::set<std::string> distinct;
+      for (const std::string& name : names) {
+        Require(!name.empty() && distinct.insert(name).second);
+        for (char c : name) {
+          const auto u = static_cast<unsigned char>(c);
+          Require(u >= 0x20 && u != 0x7f);
+        }
+        Require(name.front() != ' ' && name.back() != ' ');
+      }
       break;
     }
   }

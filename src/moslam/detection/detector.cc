@@ -4,12 +4,14 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <opencv2/dnn.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 
 namespace moslam {
 namespace {
@@ -109,6 +111,13 @@ void DetectorConfig::validate() const {
     if (class_names[i].empty()) {
       throw InvalidInputError("DetectorConfig.class_names[" + std::to_string(i) + "] is empty");
     }
+    const auto earlier = std::find(class_names.begin(), class_names.begin() + i, class_names[i]);
+    if (earlier != class_names.begin() + i) {
+      throw InvalidInputError(
+          "DetectorConfig.class_names[" + std::to_string(i) + "] '" + class_names[i] +
+          "' repeats class_names[" + std::to_string(earlier - class_names.begin()) +
+          "] (each class needs a name of its own)");
+    }
   }
   if (input_width <= 0) throw InvalidInputError("DetectorConfig.input_width must be positive");
   if (input_height <= 0) throw InvalidInputError("DetectorConfig.input_height must be positive");
@@ -123,19 +132,46 @@ void DetectorConfig::validate() const {
   }
 }
 
-std::vector<std::string> ReadClassNames(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InvalidInputError("cannot read class names file '" + path + "'");
+std::vector<std::string> ParseClassNames(const std::string& text, const std::string& origin) {
   std::vector<std::string> names;
+  std::map<std::string, int> line_of;  // a name -> the line that gave it
+  std::istringstream in(text);
   std::string line;
-  while (std::getline(in, line)) {
+  for (int number = 1; std::getline(in, line); ++number) {
     const auto first = line.find_first_not_of(" \t\r\n");
     if (first == std::string::npos) continue;
     const auto last = line.find_last_not_of(" \t\r\n");
-    names.push_back(line.substr(first, last - first + 1));
+    std::string name = line.substr(first, last - first + 1);
+    const auto control = std::find_if(name.begin(), name.end(), [](char c) {
+      const auto u = static_cast<unsigned char>(c);
+      return u < 0x20 || u == 0x7f;
+    });
+    if (control != name.end()) {
+      throw InvalidInputError("class names '" + origin + "', line " + std::to_string(number) +
+                              ": the name holds control character " +
+                              std::to_string(static_cast<unsigned char>(*control)) +
+                              " (a binary file?)");
+    }
+    const auto [it, added] = line_of.emplace(name, number);
+    if (!added) {
+      throw InvalidInputError("class names '" + origin + "', line " + std::to_string(number) +
+                              ": '" + name + "' repeats line " + std::to_string(it->second) +
+                              " (each class needs a name of its own)");
+    }
+    names.push_back(std::move(name));
   }
-  if (names.empty()) throw InvalidInputError("class names file '" + path + "' holds no name");
+  if (names.empty()) throw InvalidInputError("class names '" + origin + "' hold no name");
   return names;
+}
+
+std::vector<std::string> ReadClassNames(const std::string& path) {
+  std::string why;
+  const std::optional<std::string> text = ReadWholeFile(path, &why);
+  if (!text) {
+    throw InvalidInputError("cannot read class names file '" + path + "' (" +
+                            (why.empty() ? "no such file" : why) + ")");
+  }
+  return ParseClassNames(*text, path);
 }
 
 struct Detector::Impl {

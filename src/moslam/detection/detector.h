@@ -102,8 +102,12 @@ struct DetectorConfig {
   void validate() const;
 };
 
-// Reads class names (one per line, surrounding whitespace trimmed, blank lines skipped). Throws
-// InvalidInputError naming the file if it cannot be read or holds no name.
+// Class names from the text of a class names file (`origin` names it in errors): one per line,
+// surrounding whitespace trimmed, blank lines skipped. Throws InvalidInputError naming the origin
+// (and the line) when it holds no name, a name holds a control character, or a name repeats an
+// earlier one (each class one name: a detection's label must say which class it is).
+std::vector<std::string> ParseClassNames(const std::string& text, const std::string& origin);
+// ParseClassNames of the file's text; InvalidInputError naming the file if it cannot be read.
 std::vector<std::string> ReadClassNames(const std::string& path);
 
 class Detector {

@@ -239,6 +239,8 @@ TEST(DetectorConfigTest, ValidateNamesTheBadField) {
   expect_bad([](DetectorConfig& c) { c.class_names.clear(); }, "class_names");
   expect_bad([](DetectorConfig& c) { c.class_names_file = "x.txt"; }, "class_names_file");
   expect_bad([](DetectorConfig& c) { c.class_names[1].clear(); }, "class_names[1]");
+  expect_bad([](DetectorConfig& c) { c.class_names[1] = c.class_names[0]; },
+             "class_names[1] 'chair' repeats class_names[0]");
   expect_bad([](DetectorConfig& c) { c.input_width = 0; }, "input_width");
   expect_bad([](DetectorConfig& c) { c.input_height = -8; }, "input_height");
   expect_bad([](DetectorConfig& c) { c.confidence_threshold = 1.5f; }, "confidence_threshold");
@@ -260,6 +262,27 @@ TEST(DetectorLoad, ClassNamesFromFile) {
   EXPECT_EQ(detector.classNames(), (std::vector<std::string>{"chair", "table"}));
   c.class_names_file = kTestData + "/no_such_classes.txt";
   EXPECT_THROW(Detector{c}, InvalidInputError);
+}
+
+TEST(ClassNames, TrimmedOnePerLineBlankLinesSkipped) {
+  EXPECT_EQ(ParseClassNames("chair\r\n\n  \t\n\tdining table  \nsofa", "t.txt"),
+            (std::vector<std::string>{"chair", "dining table", "sofa"}));
+}
+
+TEST(ClassNames, EmptyRepeatedOrBinaryNamesAreRefusedWithTheirLine) {
+  const auto refused = [](const std::string& text, const std::string& expected) {
+    try {
+      ParseClassNames(text, "names.txt");
+      ADD_FAILURE() << "no exception for " << expected;
+    } catch (const InvalidInputError& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  };
+  refused("", "'names.txt' hold no name");
+  refused(" \n\r\n\t", "hold no name");
+  refused("chair\ntable\n\nchair\n", "line 4: 'chair' repeats line 1");
+  refused(std::string("chair\nta\0ble\n", 13), "line 2: the name holds control character 0");
+  refused("chair\nta\x1b[1mble\n", "line 2: the name holds control character 27");
 }
 
 TEST(DetectorLoad, MissingOrUnreadableModelIsATypedError) {
