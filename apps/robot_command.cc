@@ -48,6 +48,8 @@ nlohmann::json SolveJson(const SessionSolve& s) {
           {"dds_estimate_bytes", s.sent.estimates_bytes},
           {"dds_status_bytes", s.sent.status_bytes},
           {"dds_coarse_bytes", s.sent.coarse_bytes},
+          {"dds_weights_bytes", s.sent.weights_bytes},
+          {"dds_covariances_bytes", s.sent.covariances_bytes},
           {"dds_sent_bytes", s.sent.sent_bytes},
           {"replayed", s.replayed},
           {"unlinked", s.unlinked},  // --robust: the check left the group unlinked: not solved

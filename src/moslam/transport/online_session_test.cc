@@ -294,6 +294,19 @@ TEST(OnlineSession, RobustGroupSolvesEqualTheTwinsAndSurviveARestart) {
   std::size_t solves = 0;
   const double largest_difference = CompareWithTwin(results, twin, &solves);
   EXPECT_LE(largest_difference, 1e-9);
+  // Each solve's traffic counts the robust solve's own: the weights and the check's covariances.
+  std::int64_t weights = 0, covariances = 0;
+  for (const RobotSessionResult& result : results) {
+    for (const SessionSolve& s : result.solves) {
+      weights += s.sent.weights_bytes;
+      covariances += s.sent.covariances_bytes;
+      EXPECT_LE(s.sent.estimates_bytes + s.sent.status_bytes + s.sent.coarse_bytes +
+                    s.sent.weights_bytes + s.sent.covariances_bytes,
+                s.sent.sent_bytes);
+    }
+  }
+  EXPECT_GT(weights, 0);
+  EXPECT_GT(covariances, 0);
   // The verdicts: the pairs set aside (each robot's are the twin's that involve it) and the
   // weights of every robot's own factors.
   std::set<std::pair<Key, Key>> twin_aside;

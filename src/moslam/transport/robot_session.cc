@@ -729,7 +729,7 @@ class RobotSession::Impl {
       done.rejected = rejectedFactors(slam);
       record(done);
       if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
-      finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
+      finishSolve(slam, t, robots, done, transport_.stats() - before, t0, false);
       return;
     }
     if (solved.robust) {  // the verdicts first: the held copies are of the accepted pairs
@@ -758,7 +758,7 @@ class RobotSession::Impl {
     done.refine_status = solved.program.refine.status;
     record(done);
     if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
-    finishSolve(slam, t, robots, done, Difference(transport_.stats(), before), t0, false);
+    finishSolve(slam, t, robots, done, transport_.stats() - before, t0, false);
   }
 
   // Attempt `attempt` (solve `solve`) of the group solve of step t: publishes the robot's joining
@@ -956,26 +956,6 @@ class RobotSession::Impl {
     WriteTumTrajectories(tmp.string(), slam.estimate());
     std::filesystem::remove_all(final_dir);
     std::filesystem::rename(tmp, final_dir);
-  }
-
-  static TransportStats Difference(const TransportStats& a, const TransportStats& b) {
-    TransportStats d;
-    d.sent_samples = a.sent_samples - b.sent_samples;
-    d.sent_bytes = a.sent_bytes - b.sent_bytes;
-    d.received_samples = a.received_samples - b.received_samples;
-    d.received_bytes = a.received_bytes - b.received_bytes;
-    d.rejected = a.rejected - b.rejected;
-    d.estimates_sent = a.estimates_sent - b.estimates_sent;
-    d.estimates_bytes = a.estimates_bytes - b.estimates_bytes;
-    d.status_sent = a.status_sent - b.status_sent;
-    d.status_bytes = a.status_bytes - b.status_bytes;
-    d.coarse_sent = a.coarse_sent - b.coarse_sent;
-    d.coarse_bytes = a.coarse_bytes - b.coarse_bytes;
-    d.weights_sent = a.weights_sent - b.weights_sent;
-    d.weights_bytes = a.weights_bytes - b.weights_bytes;
-    d.objects_sent = a.objects_sent - b.objects_sent;
-    d.objects_bytes = a.objects_bytes - b.objects_bytes;
-    return d;
   }
 
   // ---- journal ------------------------------------------------------------------------------

@@ -34,6 +34,30 @@ std::string CheckEstimates(const EstimatesPacket& p, int sender, int self) {
 
 }  // namespace
 
+TransportStats operator-(const TransportStats& later, const TransportStats& earlier) {
+  static_assert(sizeof(TransportStats) == 17 * sizeof(std::int64_t),
+                "TransportStats has a new counter: subtract it here");
+  TransportStats d;
+  d.sent_samples = later.sent_samples - earlier.sent_samples;
+  d.sent_bytes = later.sent_bytes - earlier.sent_bytes;
+  d.received_samples = later.received_samples - earlier.received_samples;
+  d.received_bytes = later.received_bytes - earlier.received_bytes;
+  d.rejected = later.rejected - earlier.rejected;
+  d.estimates_sent = later.estimates_sent - earlier.estimates_sent;
+  d.estimates_bytes = later.estimates_bytes - earlier.estimates_bytes;
+  d.status_sent = later.status_sent - earlier.status_sent;
+  d.status_bytes = later.status_bytes - earlier.status_bytes;
+  d.coarse_sent = later.coarse_sent - earlier.coarse_sent;
+  d.coarse_bytes = later.coarse_bytes - earlier.coarse_bytes;
+  d.weights_sent = later.weights_sent - earlier.weights_sent;
+  d.weights_bytes = later.weights_bytes - earlier.weights_bytes;
+  d.covariances_sent = later.covariances_sent - earlier.covariances_sent;
+  d.covariances_bytes = later.covariances_bytes - earlier.covariances_bytes;
+  d.objects_sent = later.objects_sent - earlier.objects_sent;
+  d.objects_bytes = later.objects_bytes - earlier.objects_bytes;
+  return d;
+}
+
 bool TeamPairBefore(const TeamPairEntry& a, const TeamPairEntry& b) {
   return std::make_tuple(a.mine, a.other_robot, a.other) <
          std::make_tuple(b.mine, b.other_robot, b.other);

@@ -197,6 +197,9 @@ struct TransportStats {
   std::int64_t objects_bytes = 0;
 };
 
+// Field by field: what was counted between two readings of the same transport (later - earlier).
+TransportStats operator-(const TransportStats& later, const TransportStats& earlier);
+
 struct TransportOptions {
   // Where rejections and connection events are reported; default: one line on stderr.
   std::function<void(const std::string&)> log;

@@ -57,6 +57,32 @@ std::vector<Received> PollFor(Transport& t, std::size_t n) {
   return all;
 }
 
+TEST(TransportStats, TheDifferenceOfTwoReadingsSubtractsEveryCounter) {
+  TransportStats later, earlier;
+  std::int64_t* const fields[] = {
+      &later.sent_samples,     &later.sent_bytes,       &later.received_samples,
+      &later.received_bytes,   &later.rejected,         &later.estimates_sent,
+      &later.estimates_bytes,  &later.status_sent,      &later.status_bytes,
+      &later.coarse_sent,      &later.coarse_bytes,     &later.weights_sent,
+      &later.weights_bytes,    &later.covariances_sent, &later.covariances_bytes,
+      &later.objects_sent,     &later.objects_bytes};
+  static_assert(sizeof(fields) / sizeof(fields[0]) * sizeof(std::int64_t) ==
+                sizeof(TransportStats));
+  for (std::size_t i = 0; i < std::size(fields); ++i) *fields[i] = 1000 + 7 * static_cast<int>(i);
+  earlier = later;
+  for (std::size_t i = 0; i < std::size(fields); ++i) *fields[i] += static_cast<int>(i) + 1;
+  const TransportStats d = later - earlier;
+  const std::int64_t* const got[] = {
+      &d.sent_samples,   &d.sent_bytes,      &d.received_samples,  &d.received_bytes,
+      &d.rejected,       &d.estimates_sent,  &d.estimates_bytes,   &d.status_sent,
+      &d.status_bytes,   &d.coarse_sent,     &d.coarse_bytes,      &d.weights_sent,
+      &d.weights_bytes,  &d.covariances_sent, &d.covariances_bytes, &d.objects_sent,
+      &d.objects_bytes};
+  for (std::size_t i = 0; i < std::size(got); ++i) {
+    EXPECT_EQ(*got[i], static_cast<std::int64_t>(i) + 1) << "counter " << i;
+  }
+}
+
 TEST(InProcessTransport, DeliversEstimatesToTheReceiverAndStatusToEveryone) {
   InProcessNetwork net;
   auto t0 = net.connect(0), t1 = net.connect(1), t2 = net.connect(2);
