@@ -1081,48 +1081,17 @@ class RobotSession::Impl {
     return received;
   }
 
-  // Beta's answer to this robot's list of the event's step. Rejected: new pairs naming landmarks
-  // this robot does not have or repeating a pair shared with beta (with known initial poses: any
-  // object already shared between the two, as AnswerObjectMap excludes them), removed pairs that
-  // are not shared with beta. None: beta left for good.
+  // Beta's answer to this robot's list of the event's step; one SessionPairs::checkAnswer refuses
+  // is logged and dropped (a later one may follow). None: beta left for good.
   std::optional<EventPairs> awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
     std::deque<SharedObjectsPacket>& answers =
         inbox_.answers(e.beta, static_cast<std::uint32_t>(e.step));
-    std::set<std::uint64_t> mine_taken, theirs_taken;
-    std::set<std::pair<std::uint64_t, std::uint64_t>> before;  // (this robot's, beta's)
-    for (const SharedObject& s : pairs_.shared()) {
-      for (const auto& [own, other] : {std::make_pair(s.alpha_object, s.beta_object),
-                                       std::make_pair(s.beta_object, s.alpha_object)}) {
-        if (own.robot == robot_ && other.robot == e.beta) {
-          mine_taken.insert(own.index);
-          theirs_taken.insert(other.index);
-          before.emplace(own.index, other.index);
-        }
-      }
-    }
-    const bool known = options_.slam.known_initial_poses;
     EventPairs pairs;
     const bool ready = waitFor(e, "shared-object answer", [&]() {
       if (answers.empty()) return false;
       const SharedObjectsPacket& answer = answers.front();
-      std::string why;
-      for (const auto& [a, b] : answer.pairs) {
-        if (a >= slam.landmarks().size()) {
-          why = fmt::format("names object {} of this robot, which has {}", a,
-                            slam.landmarks().size());
-        } else if (b > 0xFFFFFFFFu) {
-          why = fmt::format("object id {} exceeds 32 bits", b);
-        } else if (before.count({a, b}) ||
-                   (known && (mine_taken.count(a) || theirs_taken.count(b)))) {
-          why = fmt::format("pair ({}, {}) uses an object already shared between the two", a, b);
-        }
-        if (!why.empty()) break;
-      }
-      for (const auto& [a, b] : answer.removed) {
-        if (why.empty() && !before.count({a, b})) {
-          why = fmt::format("removes pair ({}, {}), which the two do not share", a, b);
-        }
-      }
+      const std::string why = pairs_.checkAnswer(answer, slam.landmarks().size(),
+                                                 options_.slam.known_initial_poses);
       if (!why.empty()) {
         options_.log(fmt::format("rejected: shared objects of robot {} for step {}: {}", e.beta,
                                  e.step, why));

@@ -4,11 +4,14 @@
 // (online_team.h). Each robot knows its own pairs only. Internal to the transport module.
 #pragma once
 
+#include <cstddef>
+#include <string>
 #include <utility>
 #include <vector>
 
 #include "moslam/graph/key.h"
 #include "moslam/slam/rendezvous.h"
+#include "moslam/transport/transport.h"
 
 namespace moslam::transport_detail {
 
@@ -21,6 +24,14 @@ class SessionPairs {
   // InvalidInputError, naming the step, when a removed pair was never shared (a journal of
   // another run); the pairs are then unchanged.
   std::vector<SharedObject> apply(const SharedObjectsMessage& answer, int step);
+
+  // Why beta's answer to this robot's (alpha's) object list cannot be applied, or empty when it
+  // can: a new pair naming a landmark this robot does not have (it has `own_landmarks`) or an id
+  // beyond 32 bits, or repeating a pair shared with beta (with known initial poses: using an
+  // object already shared between the two, as AnswerObjectMap excludes them); a removed pair
+  // that the two do not share. Anything received from the network is checked before apply().
+  std::string checkAnswer(const SharedObjectsPacket& answer, std::size_t own_landmarks,
+                          bool known_initial_poses) const;
 
   const std::vector<SharedObject>& shared() const { return shared_; }
   const std::vector<SharedObject>& setAside() const { return set_aside_; }

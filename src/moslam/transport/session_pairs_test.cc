@@ -50,5 +50,43 @@ TEST(SessionPairs, AJournalOfAnotherRunIsRefusedAndChangesNothing) {
   EXPECT_EQ(p.setAside()[0].alpha_object, Key::Object(0, 1));
 }
 
+// What robot 0 (alpha, 4 landmarks) receives from robot 1 (beta).
+SharedObjectsPacket Received(std::vector<std::pair<std::uint64_t, std::uint64_t>> pairs,
+                             std::vector<std::pair<std::uint64_t, std::uint64_t>> removed = {}) {
+  SharedObjectsPacket p;
+  p.sender = 1;
+  p.receiver = 0;
+  p.pairs = std::move(pairs);
+  p.removed = std::move(removed);
+  return p;
+}
+
+TEST(SessionPairs, AnAnswerFromTheNetworkIsCheckedAgainstThePairsTheTwoShare) {
+  SessionPairs p(0);
+  p.apply(Answer({{1, 5}}), 10);
+  SharedObjectsMessage with_two;  // robot 2 answered robot 0 before: pair (2 of robot 0, 9)
+  with_two.sender = 2;
+  with_two.receiver = 0;
+  with_two.pairs = {{2, 9}};
+  p.apply(with_two, 12);
+  const auto why = [&](const SharedObjectsPacket& answer, bool known) {
+    return p.checkAnswer(answer, 4, known);
+  };
+  EXPECT_EQ(why(Received({{0, 6}, {3, 7}}, {{1, 5}}), true), "");
+  EXPECT_EQ(why(Received({{2, 9}}), true), "");  // shared with robot 2, not with robot 1
+  EXPECT_EQ(why(Received({{4, 6}}), false), "names object 4 of this robot, which has 4");
+  EXPECT_EQ(why(Received({{0, 1ull << 32}}), false), "object id 4294967296 exceeds 32 bits");
+  EXPECT_EQ(why(Received({{1, 5}}), false),
+            "pair (1, 5) uses an object already shared between the two");
+  // Known initial poses: an object shared with beta is not paired again, with another partner
+  // either; unknown: a rendezvous may pair it anew (the consistency check removes the old pair).
+  EXPECT_NE(why(Received({{1, 6}}), true), "");
+  EXPECT_NE(why(Received({{0, 5}}), true), "");
+  EXPECT_EQ(why(Received({{1, 6}}), false), "");
+  EXPECT_EQ(why(Received({}, {{2, 9}}), true),
+            "removes pair (2, 9), which the two do not share");
+  EXPECT_EQ(why(Received({}, {{5, 1}}), true), "removes pair (5, 1), which the two do not share");
+}
+
 }  // namespace
 }  // namespace moslam::transport_detail
