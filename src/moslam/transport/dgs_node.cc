@@ -90,23 +90,14 @@ std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initia
                              const DgsOptions& o, const std::optional<GncOptions>& gnc,
                              const std::vector<bool>& robust,
                              const std::optional<SeparatorConsistencyOptions>& check,
-                             const std::vector<bool>& checked) {
+                             const std::vector<bool>& checked, bool retest_left_out,
+                             bool retest_groups) {
   Fingerprint f;
   f.add(static_cast<std::uint64_t>(robot));
-  f.add(static_cast<std::uint64_t>(gnc.has_value()));
+  transport_detail::AddRobustOptions(f, gnc, check, retest_left_out, retest_groups);
   if (gnc) {
-    for (double v : {gnc->threshold, gnc->mu_step, gnc->weight_tolerance, gnc->min_weight}) {
-      f.add(v);
-    }
-    f.add(static_cast<std::uint64_t>(gnc->max_iterations));
     for (bool b : robust) f.add(static_cast<std::uint64_t>(b));
-    f.add(static_cast<std::uint64_t>(check.has_value()));
     if (check) {
-      f.add(check->threshold);
-      for (int v : {check->min_support, check->linked_min_support,
-                    static_cast<int>(check->map_uncertainty)}) {
-        f.add(static_cast<std::uint64_t>(v));
-      }
       f.add(static_cast<std::uint64_t>(checked.size()));
       for (bool b : checked) f.add(static_cast<std::uint64_t>(b));
     }
@@ -371,7 +362,8 @@ class DgsNode::Impl final : public TeamChannel {
   void loadJournal() {
     const std::uint64_t fingerprint =
         RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_,
-                       options_.separator_check, options_.checked) ^
+                       options_.separator_check, options_.checked, options_.retest_left_out,
+                       options_.retest_groups) ^
         options_.solve;
     if (!journal_) return;
     result_.journal_truncated_bytes = journal_->truncatedBytes();

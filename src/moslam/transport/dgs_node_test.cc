@@ -6,6 +6,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -542,6 +543,30 @@ TEST(DgsNode, RefusesTheJournalOfAnotherRun) {
   o.solver.eta_pose = Options().solver.eta_pose;
   EXPECT_THROW(DgsNode(0, parts[0].graph, data.initial, *net.connect(0), o), InvalidInputError);
   EXPECT_NO_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o));
+  // The robust solve's options are the run's too: each change makes the journal another run's.
+  const RobustDgsOptions robust;
+  DgsNodeOptions r = Options();
+  r.gnc = robust.gnc;
+  r.separator_check = robust.consistency;
+  const std::vector<std::pair<const char*, std::function<void(DgsNodeOptions&)>>> changes = {
+      {"least squares", [](DgsNodeOptions& x) { x.gnc.reset(); }},
+      {"GNC threshold", [](DgsNodeOptions& x) { x.gnc->threshold = 9.0; }},
+      {"no check", [](DgsNodeOptions& x) { x.separator_check.reset(); }},
+      {"check threshold", [](DgsNodeOptions& x) { x.separator_check->threshold = 9.0; }},
+      {"one-to-one", [](DgsNodeOptions& x) { x.separator_check->one_to_one_objects = false; }},
+      {"no re-test", [](DgsNodeOptions& x) { x.retest_left_out = false; }},
+      {"no group re-test", [](DgsNodeOptions& x) { x.retest_groups = false; }},
+  };
+  for (const auto& [what, change] : changes) {
+    const fs::path robust_dir = FreshDir("foreign_robust");
+    r.state_dir = robust_dir.string();
+    { DgsNode node(1, parts[1].graph, data.initial, *t, r); }
+    DgsNodeOptions changed = r;
+    change(changed);
+    EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, changed), InvalidInputError)
+        << what;
+    EXPECT_NO_THROW(DgsNode(1, parts[1].graph, data.initial, *t, r)) << what;
+  }
   fs::remove_all(dir);
 }
 

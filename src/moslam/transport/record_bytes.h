@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -10,8 +11,10 @@
 #include "moslam/common/errors.h"
 #include "moslam/common/fnv.h"
 #include "moslam/distributed/dgs_driver.h"
+#include "moslam/distributed/separator_consistency.h"
 #include "moslam/geometry/se3.h"
 #include "moslam/graph/key.h"
+#include "moslam/robust/gnc.h"
 
 namespace moslam::transport_detail {
 
@@ -88,6 +91,27 @@ inline void AddSolverOptions(Fingerprint& f, const DgsOptions& o) {
                 static_cast<int>(o.refinement.preconditioner), o.refinement.max_iterations,
                 o.refinement.max_sweeps}) {
     f.add(static_cast<std::uint64_t>(v));
+  }
+}
+
+// The robust solve's options a distributed solve's result depends on (dgs_node.h, robust_program.h):
+// GNC, the separator check before it and the re-tests of its rejects; none without gnc.
+inline void AddRobustOptions(Fingerprint& f, const std::optional<GncOptions>& gnc,
+                             const std::optional<SeparatorConsistencyOptions>& check,
+                             bool retest_left_out, bool retest_groups) {
+  f.add(static_cast<std::uint64_t>(gnc.has_value()));
+  if (!gnc) return;
+  for (double v : {gnc->threshold, gnc->mu_step, gnc->weight_tolerance, gnc->min_weight}) f.add(v);
+  f.add(static_cast<std::uint64_t>(gnc->max_iterations));
+  f.add(static_cast<std::uint64_t>(check.has_value()));
+  if (check) {
+    f.add(check->threshold);
+    for (int v : {check->min_support, check->linked_min_support,
+                  static_cast<int>(check->map_uncertainty),
+                  static_cast<int>(check->one_to_one_objects), static_cast<int>(retest_left_out),
+                  static_cast<int>(retest_groups)}) {
+      f.add(static_cast<std::uint64_t>(v));
+    }
   }
 }
 
