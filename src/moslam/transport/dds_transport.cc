@@ -4,6 +4,9 @@
 #include <fmt/core.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -49,7 +52,54 @@ std::string SharedObjectsTopicName(int robot) {
 
 int DiscoveryPort(int domain, int index) { return 7400 + 250 * domain + 10 + 2 * index; }
 
+namespace {
+
+// Letters, digits and the punctuation of interface names and IPv4/IPv6 addresses.
+bool NameOrAddress(const std::string& s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == ':' || ch == '-' ||
+           ch == '_' || ch == '%' || ch == '[' || ch == ']';
+  });
+}
+
+}  // namespace
+
+void CycloneConfig::validate() const {
+  if (interfaces.empty()) throw InvalidInputError("CycloneConfig.interfaces is empty");
+  for (std::size_t i = 0; i < interfaces.size(); ++i) {
+    if (!NameOrAddress(interfaces[i])) {
+      throw InvalidInputError(fmt::format(
+          "CycloneConfig.interfaces[{}] '{}' is not an interface name or address", i,
+          interfaces[i]));
+    }
+  }
+  for (std::size_t i = 0; i < peers.size(); ++i) {
+    const std::string& p = peers[i];
+    const std::size_t colon = p.rfind(':');
+    int port = 0;
+    bool ok = colon != std::string::npos && NameOrAddress(p.substr(0, colon));
+    if (ok) {
+      const char* first = p.data() + colon + 1;
+      const char* last = p.data() + p.size();
+      const auto [end, error] = std::from_chars(first, last, port);
+      ok = first != last && error == std::errc() && end == last && port >= 1 && port <= 65535;
+    }
+    if (!ok) {
+      throw InvalidInputError(fmt::format(
+          "CycloneConfig.peers[{}] '{}' is not \"address:port\" (port in [1, 65535])", i, p));
+    }
+  }
+  if (max_participant_index < 0) {
+    throw InvalidInputError("CycloneConfig.max_participant_index must be >= 0");
+  }
+  if (spdp_interval.count() <= 0) {
+    throw InvalidInputError("CycloneConfig.spdp_interval must be positive");
+  }
+  if (lease.count() <= 0) throw InvalidInputError("CycloneConfig.lease must be positive");
+}
+
 std::string CycloneConfigXml(const CycloneConfig& c) {
+  c.validate();
   std::string xml = "<CycloneDDS><Domain id=\"any\"><General><Interfaces>";
   for (const std::string& i : c.interfaces) xml += "<NetworkInterface name=\"" + i + "\"/>";
   xml += "</Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery>";

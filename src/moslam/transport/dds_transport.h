@@ -84,12 +84,17 @@ std::string CovarianceTopicName(int robot);
 int DiscoveryPort(int domain, int index);
 
 struct CycloneConfig {
-  std::vector<std::string> interfaces{"lo"};
-  std::vector<std::string> peers;  // "address:port"
+  std::vector<std::string> interfaces{"lo"};  // names or addresses, at least one
+  std::vector<std::string> peers;  // "address:port" (IPv6: "[address]:port")
   int max_participant_index = 9;
   std::chrono::milliseconds spdp_interval{1000};  // discovery announcements
   std::chrono::milliseconds lease{5000};          // participant lease
+  // Throws InvalidInputError naming the first bad field: no interface, an interface or peer
+  // address with characters no name or address has (they go into XML as they are), a peer
+  // without a port in [1, 65535], a negative participant index, intervals that are not positive.
+  void validate() const;
 };
+// The configuration as Cyclone DDS reads it (validated first).
 std::string CycloneConfigXml(const CycloneConfig& config);
 
 // Loopback only, no multicast, participant indices 0..participants-1 (plus `spare` more for

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 
 #include "moslam/transport/dds_entities.h"
@@ -385,6 +386,39 @@ TEST(DdsConfig, LoopbackConfigurationListsEveryPeerWithItsPort) {
   }
   EXPECT_EQ(xml.find("127.0.0.1:" + std::to_string(7400 + 250 * 5 + 10 + 2 * 4)),
             std::string::npos);
+}
+
+TEST(DdsConfig, AConfigurationThatWouldNotReadAsMeantIsRefusedNamingTheField) {
+  CycloneConfig good;
+  good.interfaces = {"lo", "eth0", "192.168.1.7", "fe80::1%eth0"};
+  good.peers = {"127.0.0.1:7410", "robot-3.local:7412", "[fe80::1]:7414"};
+  EXPECT_NO_THROW(good.validate());
+  const auto refused = [&](const std::function<void(CycloneConfig&)>& change,
+                           const std::string& field) {
+    CycloneConfig c = good;
+    change(c);
+    try {
+      CycloneConfigXml(c);
+      ADD_FAILURE() << "no exception for " << field;
+    } catch (const InvalidInputError& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  refused([](CycloneConfig& c) { c.interfaces.clear(); }, "interfaces is empty");
+  refused([](CycloneConfig& c) { c.interfaces[1] = "lo\"/><Peers"; }, "interfaces[1]");
+  refused([](CycloneConfig& c) { c.interfaces[0] = ""; }, "interfaces[0]");
+  refused([](CycloneConfig& c) { c.peers[0] = "127.0.0.1"; }, "peers[0]");
+  refused([](CycloneConfig& c) { c.peers[1] = "host:0"; }, "peers[1]");
+  refused([](CycloneConfig& c) { c.peers[1] = "host:65536"; }, "peers[1]");
+  refused([](CycloneConfig& c) { c.peers[2] = "a b:7410"; }, "peers[2]");
+  refused([](CycloneConfig& c) { c.peers[2] = ":7410"; }, "peers[2]");
+  refused([](CycloneConfig& c) { c.max_participant_index = -1; }, "max_participant_index");
+  refused([](CycloneConfig& c) { c.spdp_interval = std::chrono::milliseconds(0); },
+          "spdp_interval");
+  refused([](CycloneConfig& c) { c.lease = std::chrono::milliseconds(-5); }, "lease");
+  // Participants whose discovery ports pass 65535 (domain 232 leaves room for 62).
+  EXPECT_NO_THROW(LoopbackConfigXml(232, 60, 2));
+  EXPECT_THROW(LoopbackConfigXml(232, 62, 2), InvalidInputError);
 }
 
 }  // namespace
