@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/number_text.h"
 #include "moslam/common/whole_file.h"
 
 namespace moslam {
@@ -31,10 +32,17 @@ std::vector<YoloLabel> ParseYoloLabels(const std::string& text, const std::strin
     if (line.find_first_not_of(" \t\r\n") == std::string::npos) continue;
     const std::string where = path + ":" + std::to_string(line_no) + ": ";
     std::istringstream s(line);
+    std::vector<std::string> tokens;
+    for (std::string token; s >> token;) tokens.push_back(token);
     double id = 0.0;
     YoloLabel l;
-    std::string extra;
-    if (!(s >> id >> l.cx >> l.cy >> l.w >> l.h) || (s >> extra)) {
+    const bool numbers =
+        tokens.size() == 5 && ParseNumberToken(tokens[0], id) == NumberStatus::kOk &&
+        ParseNumberToken(tokens[1], l.cx) == NumberStatus::kOk &&
+        ParseNumberToken(tokens[2], l.cy) == NumberStatus::kOk &&
+        ParseNumberToken(tokens[3], l.w) == NumberStatus::kOk &&
+        ParseNumberToken(tokens[4], l.h) == NumberStatus::kOk;
+    if (!numbers) {
       throw InvalidInputError(where + "expected 'class_id cx cy w h', got '" + line + "'");
     }
     if (id != std::floor(id) || id < 0.0 || id >= num_classes) {

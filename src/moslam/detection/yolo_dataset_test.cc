@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <locale>
 #include <opencv2/imgcodecs.hpp>
 
 #include "moslam/common/errors.h"
@@ -101,6 +102,28 @@ TEST(YoloDataset, ParsesALabelFilesText) {
   } catch (const InvalidInputError& e) {
     EXPECT_NE(std::string(e.what()).find("x.txt:2:"), std::string::npos) << e.what();
   }
+}
+
+// A process whose global locale writes numbers with a decimal comma (an application embedding
+// moslam may set one): label files, written as "0.5", read the same.
+struct CommaDecimal : std::numpunct<char> {
+  char do_decimal_point() const override { return ','; }
+};
+
+TEST(YoloDataset, LabelsReadTheSameUnderALocaleWithADecimalComma) {
+  const std::locale before = std::locale::global(std::locale(std::locale::classic(),
+                                                             new CommaDecimal));
+  std::vector<YoloLabel> labels;
+  std::string error;
+  try {
+    labels = ParseYoloLabels("1 0.5 0.25 0.1 0.2\n", "x.txt", 2);
+  } catch (const InvalidInputError& e) {
+    error = e.what();
+  }
+  std::locale::global(before);
+  ASSERT_EQ(labels.size(), 1u) << error;
+  EXPECT_FLOAT_EQ(labels[0].cx, 0.5f);
+  EXPECT_FLOAT_EQ(labels[0].h, 0.2f);
 }
 
 TEST(YoloDataset, MissingPartsAreTypedErrors) {

@@ -23,6 +23,8 @@
 #include <unordered_map>
 #include <utility>
 
+#include "moslam/common/number_text.h"
+
 namespace moslam {
 namespace {
 
@@ -97,23 +99,18 @@ struct Location {
 
 // A whole token as a finite double (locale-independent; "1.5abc", hex, NaN and Inf rejected).
 double ParseNumber(std::string_view token, const char* what, const Location& at) {
-  std::string_view digits = token;
-  if (digits.size() > 1 && digits[0] == '+' && digits[1] != '-' && digits[1] != '+') {
-    digits.remove_prefix(1);  // from_chars does not take a leading '+'
-  }
   double value = 0.0;
-  const char* end = digits.data() + digits.size();
-  const auto [ptr, ec] = std::from_chars(digits.data(), end, value);
-  if (ec == std::errc::result_out_of_range) {
-    Fail(at, std::string(what) + " '" + Printable(token) + "' is out of the range of a double");
+  switch (ParseNumberToken(token, value)) {
+    case NumberStatus::kOk:
+      return value;
+    case NumberStatus::kOutOfRange:
+      Fail(at, std::string(what) + " '" + Printable(token) + "' is out of the range of a double");
+    case NumberStatus::kNotANumber:
+      Fail(at, std::string(what) + " '" + Printable(token) + "' is not a number");
+    case NumberStatus::kNotFinite:
+      break;
   }
-  if (ec != std::errc() || ptr != end) {
-    Fail(at, std::string(what) + " '" + Printable(token) + "' is not a number");
-  }
-  if (!std::isfinite(value)) {
-    Fail(at, std::string(what) + " is " + Printable(token) + ": NaN and Inf are not allowed");
-  }
-  return value;
+  Fail(at, std::string(what) + " is " + Printable(token) + ": NaN and Inf are not allowed");
 }
 
 // A whole token as an unsigned 64-bit id.

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/number_text.h"
 
 namespace moslam {
 namespace {
@@ -42,22 +43,21 @@ std::vector<std::string_view> Tokenize(std::string_view line) {
   return tokens;
 }
 
-// A whole token as a finite double, locale-independent.
+// A whole token as a finite double, locale-independent (common/number_text.h).
 double ParseNumber(std::string_view token, const std::string& path, int line) {
-  std::string_view digits = token;
-  if (digits.size() > 1 && digits[0] == '+' && digits[1] != '-' && digits[1] != '+') {
-    digits.remove_prefix(1);
-  }
   double value = 0.0;
-  const char* end = digits.data() + digits.size();
-  const auto [ptr, ec] = std::from_chars(digits.data(), end, value);
   const std::string shown(token.substr(0, 40));
-  if (ec == std::errc::result_out_of_range) {
-    Fail(path, line, "'" + shown + "' is out of the range of a double");
+  switch (ParseNumberToken(token, value)) {
+    case NumberStatus::kOk:
+      return value;
+    case NumberStatus::kOutOfRange:
+      Fail(path, line, "'" + shown + "' is out of the range of a double");
+    case NumberStatus::kNotANumber:
+      Fail(path, line, "'" + shown + "' is not a number");
+    case NumberStatus::kNotFinite:
+      break;
   }
-  if (ec != std::errc() || ptr != end) Fail(path, line, "'" + shown + "' is not a number");
-  if (!std::isfinite(value)) Fail(path, line, "'" + shown + "': NaN and Inf are not allowed");
-  return value;
+  Fail(path, line, "'" + shown + "': NaN and Inf are not allowed");
 }
 
 void WriteTrajectory(const std::string& path,

@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/number_text.h"
 #include "moslam/common/whole_file.h"
 
 namespace moslam {
@@ -47,14 +48,8 @@ std::vector<Line> DataLines(const std::string& text) {
 }
 
 double Number(const std::string& tok, const std::string& path, int line, const char* field) {
-  std::size_t used = 0;
   double v = 0.0;
-  try {
-    v = std::stod(tok, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != tok.size() || !std::isfinite(v)) {
+  if (ParseNumberToken(tok, v) != NumberStatus::kOk) {
     Fail(path, line, fmt::format("{} '{}' is not a finite number", field, tok));
   }
   return v;
