@@ -139,13 +139,7 @@ nlohmann::json RendezvousJson(const RobotSessionResult& r) {
 
 // What a scenario robot's summary says in both modes: its map and its rendezvous.
 void AddSessionSummary(const ScenarioSpec& spec, const RobotSessionResult& r, nlohmann::json& j) {
-  j["scenario"] = spec.scenario;
-  j["seed"] = spec.seed;
-  j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
-  j["exclusion_radius"] = spec.exclusion_radius;
-  j["leave_one_out_check"] = spec.leave_one_out_check;
-  j["loop_closure"] = spec.loop_closure;
-  j["rendezvous_constellation"] = spec.rendezvous_constellation;
+  j.update(ScenarioJson(spec));
   j["poses"] = r.poses;
   j["landmarks"] = r.landmarks;
   j["shared"] = SharedJson(r.shared);

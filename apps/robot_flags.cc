@@ -151,6 +151,18 @@ std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
   return a;
 }
 
+nlohmann::json ScenarioJson(const ScenarioSpec& spec) {
+  nlohmann::json j;
+  j["scenario"] = spec.scenario;
+  j["seed"] = spec.seed;
+  j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
+  j["exclusion_radius"] = spec.exclusion_radius;
+  j["leave_one_out_check"] = spec.leave_one_out_check;
+  j["loop_closure"] = spec.loop_closure;
+  j["rendezvous_constellation"] = spec.rendezvous_constellation;
+  return j;
+}
+
 G2oReadOptions WithObjects() {
   G2oReadOptions o;
   o.scheme = KeyScheme::kWithObjects;

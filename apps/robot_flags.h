@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -62,5 +63,8 @@ void CheckScenarioFlags(const char* who, bool online, const ScenarioSpec& spec);
 std::vector<std::string> ScenarioArgs(const ScenarioFlags& f);
 // g2o reading with object keys (the scenario's maps).
 G2oReadOptions WithObjects();
+// What the JSON summaries of a scenario run say of it: scenario, seed, initial poses and the
+// robots' association options.
+nlohmann::json ScenarioJson(const ScenarioSpec& spec);
 
 }  // namespace moslam::cli

@@ -363,13 +363,8 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
   const std::map<int, int>& exit_codes = run.exit_codes;
   const double seconds = run.seconds;
 
-  nlohmann::json j;
-  j["scenario"] = spec.scenario;
+  nlohmann::json j = ScenarioJson(spec);
   j["robots"] = n;
-  j["seed"] = spec.seed;
-  j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
-  j["exclusion_radius"] = spec.exclusion_radius;
-  j["leave_one_out_check"] = spec.leave_one_out_check;
   j["poses_per_robot"] = spec.poses_per_robot;
   j["online"] = true;
   j["out"] = out.string();
@@ -533,15 +528,8 @@ int RunScenarioTeam(const TeamArgs& a) {
     for (const auto& e : s["rendezvous"]) events += e["alpha"].get<int>() == r ? 1 : 0;
   }
 
-  nlohmann::json j;
-  j["scenario"] = spec.scenario;
+  nlohmann::json j = ScenarioJson(spec);
   j["robots"] = n;
-  j["seed"] = spec.seed;
-  j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
-  j["exclusion_radius"] = spec.exclusion_radius;
-  j["leave_one_out_check"] = spec.leave_one_out_check;
-  j["loop_closure"] = spec.loop_closure;
-  j["rendezvous_constellation"] = spec.rendezvous_constellation;
   j["poses_per_robot"] = spec.poses_per_robot;
   j["domain"] = a.domain;
   j["out"] = out.string();

@@ -7,15 +7,20 @@
 namespace moslam::transport_detail {
 namespace {
 
-// Beta (robot 1) answers alpha (robot 0): pairs (alpha landmark, beta landmark).
-SharedObjectsMessage Answer(std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs,
-                            std::vector<std::pair<std::uint32_t, std::uint32_t>> removed = {}) {
-  SharedObjectsMessage m;
+// Beta (robot 1) answers alpha (robot 0): pairs (alpha landmark, beta landmark), as a decoded
+// message (SharedObjectsMessage) or as received from the network (SharedObjectsPacket).
+template <typename Message>
+Message FromBeta(decltype(Message::pairs) pairs, decltype(Message::removed) removed = {}) {
+  Message m;
   m.sender = 1;
   m.receiver = 0;
   m.pairs = std::move(pairs);
   m.removed = std::move(removed);
   return m;
+}
+SharedObjectsMessage Answer(decltype(SharedObjectsMessage::pairs) pairs,
+                            decltype(SharedObjectsMessage::removed) removed = {}) {
+  return FromBeta<SharedObjectsMessage>(std::move(pairs), std::move(removed));
 }
 
 TEST(SessionPairs, ARendezvousRemovesFirstThenAppendsAndUnsetsWhatLeaves) {
@@ -51,14 +56,9 @@ TEST(SessionPairs, AJournalOfAnotherRunIsRefusedAndChangesNothing) {
 }
 
 // What robot 0 (alpha, 4 landmarks) receives from robot 1 (beta).
-SharedObjectsPacket Received(std::vector<std::pair<std::uint64_t, std::uint64_t>> pairs,
-                             std::vector<std::pair<std::uint64_t, std::uint64_t>> removed = {}) {
-  SharedObjectsPacket p;
-  p.sender = 1;
-  p.receiver = 0;
-  p.pairs = std::move(pairs);
-  p.removed = std::move(removed);
-  return p;
+SharedObjectsPacket Received(decltype(SharedObjectsPacket::pairs) pairs,
+                             decltype(SharedObjectsPacket::removed) removed = {}) {
+  return FromBeta<SharedObjectsPacket>(std::move(pairs), std::move(removed));
 }
 
 TEST(SessionPairs, AnAnswerFromTheNetworkIsCheckedAgainstThePairsTheTwoShare) {
