@@ -14,24 +14,19 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
-#include "moslam/graph/robot_groups.h"
 #include "moslam/io/g2o.h"
-#include "moslam/io/tum.h"
 #include "moslam/online/group_solve.h"
-#include "moslam/online/online_team.h"
 #include "moslam/robust/gnc.h"
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/event_record.h"
-#include "moslam/transport/group_formation.h"
 #include "moslam/transport/group_transport.h"
-#include "moslam/transport/record_bytes.h"
-#include "moslam/transport/session_inbox.h"
-#include "moslam/transport/session_journal.h"
+#include "moslam/transport/online_group_solves.h"
+#include "moslam/transport/session_channel.h"
 #include "moslam/transport/session_fingerprint.h"
+#include "moslam/transport/session_journal.h"
 #include "moslam/transport/session_pairs.h"
 #include "moslam/transport/solve_record.h"
-#include "moslam/transport/team_membership.h"
 
 namespace moslam {
 
@@ -135,9 +130,9 @@ PoseGraph SessionSubgraph(const ObjectSlam& slam, const std::vector<SharedObject
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using transport_detail::AttemptSolve;
+using transport_detail::GroupIds;
 using transport_detail::GroupRecord;
-using transport_detail::LeftRecord;
-using transport_detail::SolveRecord;
 
 // Hands the packets received during the rendezvous phase (DGS statuses and estimates of robots
 // that finished it first) to the DGS node before anything new.
@@ -178,28 +173,6 @@ struct EventPairs {
   Pairs pairs;
   Pairs removed;
 };
-
-// A solve formed again without robots that left before its first step (DgsNode's
-// TeamChangedError): attempt a of solve s is s + a * 2^24 (solves of steps < 2^24).
-constexpr std::uint32_t kAttemptShift = 24;
-std::uint32_t AttemptSolve(std::uint32_t solve, int attempt) {
-  return solve + (static_cast<std::uint32_t>(attempt) << kAttemptShift);
-}
-// Whether packets of solve `a` are of a solve before `b` (of an earlier step, or an earlier
-// attempt of the same step); presence statuses are of none.
-bool SolveBefore(std::uint32_t a, std::uint32_t b) {
-  if (a == kPresenceSolve) return false;
-  constexpr std::uint32_t step_mask = (1u << kAttemptShift) - 1;
-  const std::uint32_t sa = a & step_mask, sb = b & step_mask;
-  return sa < sb || (sa == sb && (a >> kAttemptShift) < (b >> kAttemptShift));
-}
-
-// The ids 0..n-1 of a group's robots as its DgsNode sees them (GroupTransport).
-std::vector<int> GroupIds(std::size_t n) {
-  std::vector<int> ids(n);
-  for (std::size_t i = 0; i < n; ++i) ids[i] = static_cast<int>(i);
-  return ids;
-}
 
 }  // namespace
 
@@ -242,16 +215,9 @@ class RobotSession::Impl {
         std::fflush(stderr);
       };
     }
-    TeamMembership::Options membership;
-    membership.leave_timeout = options_.dgs.leave_timeout;
-    membership.log = options_.log;
-    membership.journal = [this](int robot, int step) {
-      record(LeftRecord{static_cast<std::uint16_t>(robot), static_cast<std::uint32_t>(step)});
-    };
-    membership_ = std::make_unique<TeamMembership>(robot_, n, transport_, std::move(membership));
-    if (!options_.dgs.state_dir.empty())
-      std::filesystem::create_directories(options_.dgs.state_dir);
+    std::unique_ptr<transport_detail::SessionJournal> journal;
     if (!options_.dgs.state_dir.empty()) {
+      std::filesystem::create_directories(options_.dgs.state_dir);
       transport_detail::SessionJournalRun run;
       run.robot = robot_;
       run.fingerprint = transport_detail::SessionFingerprint(data_, options_);
@@ -259,10 +225,22 @@ class RobotSession::Impl {
       run.num_steps = static_cast<std::uint32_t>(data_.numSteps());
       run.num_events = data_.events.size();
       run.online = options_.online;
-      journal_ = std::make_unique<transport_detail::SessionJournal>(
+      journal = std::make_unique<transport_detail::SessionJournal>(
           (std::filesystem::path(options_.dgs.state_dir) / "rendezvous.bin").string(), run,
           options_.dgs.state_dir);
-      restore();
+    }
+    transport_detail::SessionChannel::Options channel;
+    channel.join_timeout = options_.dgs.join_timeout;
+    channel.leave_timeout = options_.dgs.leave_timeout;
+    channel.log = options_.log;
+    channel_ = std::make_unique<transport_detail::SessionChannel>(
+        robot_, n, transport_, std::move(channel), std::move(journal));
+    for (const auto& [index, event] : channel_->journaled().events) {
+      journaled_[index] = {event.pairs, event.removed};
+    }
+    if (options_.online) {
+      online_ = std::make_unique<transport_detail::OnlineGroupSolves>(*channel_, pairs_,
+                                                                      data_.events, options_);
     }
   }
 
@@ -273,7 +251,7 @@ class RobotSession::Impl {
     std::set<int> everyone;
     for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
     transport_.setKnownRobots(everyone);
-    membership_->publishPresence();  // liveliness before the first solve
+    channel_->membership().publishPresence();  // liveliness before the first solve
 
     ObjectSlam slam(robot_, options_.slam.slam);
     const RobotMeasurements& m = data_.measurements;
@@ -291,7 +269,7 @@ class RobotSession::Impl {
         if (e.alpha == robot_ || e.beta == robot_) mine.push_back(next);
       }
       if (mine.empty()) continue;
-      membership_->noteAlive();
+      channel_->membership().noteAlive();
       // As RunMultiRobotObjectSlam: both robots refresh before an event (the later events of
       // the same step find nothing new).
       slam.refresh(options_.slam.slam.iterations_per_update);
@@ -324,7 +302,7 @@ class RobotSession::Impl {
           }
           if (std::optional<EventPairs> answer = awaitAnswer(e, slam)) {
             pairs = std::move(*answer);
-            record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
+            channel_->record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
           } else {
             rec.skipped = true;
           }
@@ -338,7 +316,7 @@ class RobotSession::Impl {
               *received, slam, beta_T_alpha, pairs_.shared(), options_.slam.rendezvous);
           pairs = {answer.pairs, answer.removed};
           sendAnswer(e, pairs);
-          record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
+          channel_->record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
         } else {
           rec.skipped = true;
         }
@@ -349,8 +327,13 @@ class RobotSession::Impl {
         if (options_.on_rendezvous) options_.on_rendezvous(rec);
       }
       // Lists of this step or earlier are no longer needed (the others' events included).
-      inbox_.dropListsUpTo(static_cast<std::uint32_t>(t));
-      if (options_.online) groupSolve(slam, t);
+      channel_->inbox().dropListsUpTo(static_cast<std::uint32_t>(t));
+      if (online_) {
+        if (std::optional<SessionSolve> solved = online_->solve(slam, t)) {
+          result_.solves.push_back(std::move(*solved));
+          if (options_.on_solve) options_.on_solve(result_.solves.back());
+        }
+      }
     }
     slam.optimize(options_.slam.final_iterations);
     if (options_.online) {
@@ -362,7 +345,7 @@ class RobotSession::Impl {
       result_.set_aside = pairs_.setAside();
       result_.poses = slam.numPoses();
       result_.landmarks = static_cast<int>(slam.landmarks().size());
-      saveMap(slam, "final");
+      transport_detail::SaveSessionMap(options_.dgs.state_dir, slam, "final");
       result_.seconds = result_.slam_seconds;
       noteLeftTeam();
       return result_;
@@ -376,7 +359,7 @@ class RobotSession::Impl {
     // A robot of the team that leaves before its first step stops the solve (DgsNode's
     // TeamChangedError); the team is formed again without it, as when it had left before.
     const int end = data_.numSteps();
-    for (int attempt = journaledAttempt(end);; ++attempt) {
+    for (int attempt = channel_->journaledAttempt(end);; ++attempt) {
       std::vector<int> closure, robots;
       const bool departures = batchGroup(closure, robots, attempt);
       try {
@@ -406,7 +389,7 @@ class RobotSession::Impl {
   // its team the closure the joining statuses formed (empty, for a robot linked to none: the
   // node forms it).
   void solveBatch(const std::vector<int>& closure) {
-    PrefetchedTransport dgs_transport(transport_, inbox_.takePending());
+    PrefetchedTransport dgs_transport(transport_, channel_->inbox().takePending());
     DgsNodeOptions node_options = options_.dgs;
     node_options.team = closure;
     if (node_options.gnc && node_options.robust.empty()) {
@@ -431,22 +414,21 @@ class RobotSession::Impl {
   // ---- batch: robots that left for good ---------------------------------------------------
   // Before the batch solve every robot with shared pairs publishes a joining status of solve
   // 1 + T (T: its number of steps) listing every robot it shares pairs with, gone or not, and
-  // waits for those of the closure (formGroup): a robot that left for good publishes none and is
-  // found gone (or was, at a rendezvous), so every robot of the closure finds the same
-  // departures. Returns whether some robot of `closure` (increasing, this robot among them) left;
+  // waits for those of the closure (SessionChannel::formGroup): a robot that left for good
+  // publishes none and is found gone (or was, at a rendezvous), so every robot of the closure
+  // finds the same departures. Returns whether some robot of `closure` (increasing, this robot among them) left;
   // `robots`: the closure without them. The closure is journaled (a group record of step T), so a
   // robot restarted in the solve takes the same way.
   // Attempt a > 0 (the team formed again: run()) uses solve AttemptSolve(1 + T, a).
   bool batchGroup(std::vector<int>& closure, std::vector<int>& robots, int attempt) {
     const int end = data_.numSteps();
-    if (membership_->out()) {  // it left the team: its own map is its result
+    if (channel_->membership().out()) {  // it left the team: its own map is its result
       closure = robots = {robot_};
       return true;
     }
     const auto solve = AttemptSolve(static_cast<std::uint32_t>(end + 1), attempt);
-    if (const auto journaled = journaled_groups_.find(end);
-        journaled != journaled_groups_.end() && attempt == journaledAttempt(end)) {
-      closure = journaled->second.robots;
+    if (const transport_detail::GroupRecord* journaled = channel_->journaledGroup(end, attempt)) {
+      closure = journaled->robots;
     } else {
       std::set<int> partners;
       for (const SharedObject& o : pairs_.shared()) {
@@ -463,9 +445,8 @@ class RobotSession::Impl {
       std::set<int> everyone;
       for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
       std::vector<TeamPair> none;
-      formGroup(join, partners, everyone, solve, end, robots, none, &closure);
-      record(GroupRecord{static_cast<std::uint32_t>(end), closure, {}});
-      ++group_records_[end];
+      channel_->formGroup(join, partners, everyone, solve, end, robots, none, &closure);
+      channel_->recordGroup(GroupRecord{static_cast<std::uint32_t>(end), closure, {}});
     }
     robots.clear();
     for (int r : closure) {
@@ -498,8 +479,8 @@ class RobotSession::Impl {
     RobotGroupPart part =
         BuildRobotGroupPart(slam, robots, pairs_.shared(), {}, options_.slam.rendezvous.lambda());
     GroupTransport group_transport(
-        transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
-        inbox_.takePending(solve));
+        transport_, robots, solve, [this](Received r) { channel_->ingest({std::move(r)}); },
+        channel_->inbox().takePending(solve));
     DgsNodeOptions node_options = options_.dgs;
     node_options.solve = solve;
     node_options.team = GroupIds(robots.size());
@@ -560,345 +541,6 @@ class RobotSession::Impl {
     rec.removed_shared = static_cast<int>(pairs.removed.size());
   }
 
-  // ---- online mapping ---------------------------------------------------------------------
-  // The group solve of step t (RobotSessionOptions::online; OnlineTeam::onRendezvous is the
-  // in-process twin): the robots connected to this one through the step's events, split by the
-  // shared pairs among them. Each robot knows only its own pairs, so the split is found as the
-  // DgsNode forms a team: every robot publishes a joining status of solve 1 + t listing its
-  // partners in range, and the group is the closure of those lists.
-  void groupSolve(ObjectSlam& slam, int t) {
-    const auto t0 = Clock::now();
-    if (replaySolve(slam, t)) return;
-    const TransportStats before = transport_.stats();
-    std::vector<int> in_range;
-    std::vector<std::pair<int, int>> links;
-    for (const RendezvousEvent& e : data_.events) {
-      if (e.step != t) continue;
-      in_range.insert(in_range.end(), {e.alpha, e.beta});
-      links.emplace_back(e.alpha, e.beta);
-    }
-    std::set<int> range;
-    for (const std::vector<int>& g : ConnectedRobots(in_range, links)) {
-      if (std::binary_search(g.begin(), g.end(), robot_)) range.insert(g.begin(), g.end());
-    }
-    // A member that leaves before its first step stops the solve (DgsNode's TeamChangedError):
-    // found gone, the group is formed again without it, as if it had left before (attempt a of
-    // the solve: AttemptSolve).
-    std::vector<int> robots;
-    std::optional<RobotGroupPart> part;
-    std::optional<DgsNodeResult> result;
-    std::filesystem::path solve_dir;
-    for (int attempt = journaledAttempt(t); !result; ++attempt) {
-      const auto solve = AttemptSolve(static_cast<std::uint32_t>(t + 1), attempt);
-      std::vector<TeamPair> team;
-      if (!joinGroup(t, range, solve, attempt, robots, team)) return;
-      part = BuildRobotGroupPart(slam, robots, pairs_.shared(), team,
-                                 options_.slam.rendezvous.lambda());
-      GroupTransport group_transport(
-          transport_, robots, solve, [this](Received r) { ingest({std::move(r)}); },
-          inbox_.takePending(solve));
-      DgsNodeOptions node_options = options_.dgs;
-      node_options.solve = solve;
-      node_options.team = GroupIds(robots.size());  // formed by the joining statuses
-      // Its own journal, so that a robot restarted in the solve resumes it (dgs_node.h).
-      solve_dir = options_.dgs.state_dir.empty()
-                      ? std::filesystem::path()
-                      : std::filesystem::path(options_.dgs.state_dir) / "solves" /
-                            (attempt == 0 ? fmt::format("step_{:04d}", t)
-                                          : fmt::format("step_{:04d}_attempt_{}", t, attempt));
-      node_options.state_dir = solve_dir.string();
-      if (node_options.gnc) {  // OnlineTeam's robust group solve
-        RobustGroupMasks masks = RobustGroupFactors(part->subgraph, part->team);
-        node_options.robust = std::move(masks.robust);
-        if (node_options.separator_check) node_options.checked = std::move(masks.checked);
-      }
-      node_options.log = [this, t, robots](const std::string& text) {
-        options_.log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t,
-                                 fmt::join(robots, ","), robots.size() - 1, text));
-      };
-      DgsNode node(part->local, part->subgraph, part->initial, group_transport, node_options);
-      try {
-        result = node.run();
-      } catch (const TeamChangedError& e) {
-        for (int local : e.robots()) {
-          markLeft(robots.at(static_cast<std::size_t>(local)), t,
-                   fmt::format("it joined the group solve of step {} and left before its first "
-                               "step",
-                               t));
-        }
-        if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
-      }
-    }
-    const DgsNodeResult& solved = *result;
-    SolveRecord done;
-    done.step = static_cast<std::uint32_t>(t);
-    done.object_object = static_cast<std::uint32_t>(part->object_object);
-    done.team_factors = static_cast<std::uint32_t>(part->team_factors);
-    if (solved.robust && solved.robust->unlinked) {
-      // The check left some robot of the group unlinked: nothing changes (OnlineTeam alike).
-      done.unlinked = true;
-      done.estimate = slam.estimate();
-      done.set_aside = pairs_.setAsideKeys();
-      done.rejected = rejectedFactors(slam);
-      record(done);
-      if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
-      finishSolve(slam, t, robots, done, transport_.stats() - before, t0, false);
-      return;
-    }
-    if (solved.robust) {  // the verdicts first: the held copies are of the accepted pairs
-      judge(slam, robots, *part, *solved.robust, done);
-      applyVerdicts(slam, done, t);
-    }
-    Values solution = solved.estimate;
-    solution.insert(solved.neighbours.begin(), solved.neighbours.end());
-    // Members that left during the solve (the node's rule) are gone for good for this robot too:
-    // their later rendezvous skipped, no later solve includes them; of their landmarks it takes
-    // what the solution holds (what they sent before they left), and keeps its copies of the rest.
-    std::set<int> left_solve;
-    for (int local : solved.left) {
-      const int r = robots.at(static_cast<std::size_t>(local));
-      left_solve.insert(r);
-      if (hasLeft(r, t)) continue;
-      markLeft(r, t, fmt::format("left during the group solve of step {}", t));
-    }
-    GroupUpdate update = RobotGroupUpdate(robots, robot_, solution, accepted(), t, left_solve);
-    done.estimate = update.estimate;
-    done.held = update.held;
-    done.rotation_rounds = static_cast<std::uint32_t>(solved.rotation_rounds);
-    done.pose_rounds = static_cast<std::uint32_t>(solved.pose_rounds);
-    done.refine_steps = static_cast<std::uint32_t>(solved.program.refine.iterations);
-    done.protocol_steps = static_cast<std::uint32_t>(solved.program.channel_steps);
-    done.refine_status = solved.program.refine.status;
-    record(done);
-    if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
-    finishSolve(slam, t, robots, done, transport_.stats() - before, t0, false);
-  }
-
-  // Attempt `attempt` (solve `solve`) of the group solve of step t: publishes the robot's joining
-  // status and forms the group with its partners in `range` (or takes the group journaled for
-  // this attempt: restarted in the solve); false when it has no partner left to solve with.
-  bool joinGroup(int t, const std::set<int>& range, std::uint32_t solve, int attempt,
-                 std::vector<int>& robots, std::vector<TeamPair>& team) {
-    robots.clear();
-    team.clear();
-    std::set<int> partners;
-    for (const SharedObject& o : pairs_.shared()) {
-      const int a = o.alpha_object.robot, b = o.beta_object.robot;
-      const int other = a == robot_ ? b : (b == robot_ ? a : robot_);
-      if (other != robot_ && range.count(other) && !hasLeft(other, t)) partners.insert(other);
-    }
-    if (partners.empty()) return false;  // linked to no robot in range: nothing to solve together
-    StatusPacket join;
-    join.robot = robot_;
-    join.solve = solve;
-    join.neighbours.assign(partners.begin(), partners.end());
-    // All its pairs with other robots, and its copies of their landmarks: formGroup keeps those
-    // with robots outside the group it forms (GroupTeamFactors picks among the members' copies),
-    // so the pairs with a partner found gone while the group forms are held ones.
-    for (const TeamPair& p : RobotTeamPairs(robot_, accepted(), held_, {robot_})) {
-      TeamPairEntry e;
-      e.mine = p.mine.index;
-      e.other_robot = p.other.robot;
-      e.other = p.other.index;
-      e.mine_is_alpha = p.mine_is_alpha;
-      if (p.held) {
-        e.held = true;
-        e.step = static_cast<std::uint32_t>(p.copy.step);
-        e.pose = p.copy.pose;
-      }
-      join.team.push_back(e);
-    }
-    std::sort(join.team.begin(), join.team.end(), TeamPairBefore);
-    transport_.publish(join);
-    // Drop what earlier solves left; wait for the joining statuses of the closure.
-    inbox_.dropPendingBefore(solve, SolveBefore);
-    if (const auto journaled = journaled_groups_.find(t);
-        journaled != journaled_groups_.end() && attempt == journaledAttempt(t)) {
-      robots = journaled->second.robots;  // restarted in the solve: its partners formed it
-      team = journaled->second.team;
-      return true;
-    }
-    formGroup(join, partners, range, solve, t, robots, team);
-    if (robots.size() < 2) return false;  // its partners in range have all left
-    record(GroupRecord{static_cast<std::uint32_t>(t), robots, team});
-    ++group_records_[t];
-    return true;
-  }
-
-  // A group solve of step t taken from the journal (restart): the robot's map and held copies
-  // after it, as computed then; nothing is sent. False when the journal does not hold it.
-  bool replaySolve(ObjectSlam& slam, int t) {
-    const auto solve = journaled_solves_.find(t);
-    if (solve == journaled_solves_.end()) return false;
-    finishSolve(slam, t, journaled_groups_.at(t).robots, solve->second, TransportStats{},
-                Clock::now(), true);
-    return true;
-  }
-
-  void finishSolve(ObjectSlam& slam, int t, const std::vector<int>& robots, const SolveRecord& done,
-                   const TransportStats& sent, Clock::time_point t0, bool replayed) {
-    if (!done.unlinked) {
-      if (options_.dgs.gnc && replayed) applyVerdicts(slam, done, t);
-      for (const auto& [k, x] : done.held) held_[k] = x;
-      slam.setEstimate(done.estimate);
-      slam.setTeamFactors(
-          TeamFactors(robot_, accepted(), held_, options_.slam.rendezvous.lambda()));
-    }
-    SessionSolve rec;
-    rec.step = t;
-    rec.robots = robots;
-    rec.object_object = static_cast<int>(done.object_object);
-    rec.team_factors = static_cast<int>(done.team_factors);
-    rec.rotation_rounds = static_cast<int>(done.rotation_rounds);
-    rec.pose_rounds = static_cast<int>(done.pose_rounds);
-    rec.refine_steps = static_cast<int>(done.refine_steps);
-    rec.refine_status = done.refine_status;
-    rec.protocol_steps = static_cast<int>(done.protocol_steps);
-    rec.estimate = slam.estimate();
-    rec.unlinked = done.unlinked;
-    rec.set_aside = static_cast<int>(pairs_.setAside().size());
-    rec.observation_outliers = static_cast<int>(done.rejected.size());
-    rec.sent = sent;
-    rec.replayed = replayed;
-    rec.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    saveMap(slam, fmt::format("step_{:04d}", t));
-    result_.solves.push_back(rec);
-    if (options_.on_solve) options_.on_solve(result_.solves.back());
-  }
-
-  // ---- robust group solves (dgs.gnc; OnlineTeam's verdicts, each robot on its own pairs) ----
-  // Its shared pairs not set aside.
-  std::vector<SharedObject> accepted() const { return pairs_.accepted(); }
-
-  // The factors of its own graph whose weight is not 1 (rejected by its last robust solve).
-  static std::vector<std::uint32_t> rejectedFactors(const ObjectSlam& slam) {
-    std::vector<std::uint32_t> out;
-    const std::vector<double>& w = slam.factorWeights();
-    for (std::size_t j = 0; j < w.size(); ++j) {
-      if (w[j] != 1.0) out.push_back(static_cast<std::uint32_t>(j));
-    }
-    return out;
-  }
-
-  // The solve's verdicts into `done`: its pairs with the group's robots judged (a separator's
-  // weight is its lower robot's, the same on both sides), the pairs set aside after it, and the
-  // factors of its own graph rejected.
-  void judge(const ObjectSlam& slam, const std::vector<int>& robots, const RobotGroupPart& part,
-             const RobustProgramResult& solved, SolveRecord& done) const {
-    const JudgedPairs pairs = PairsJudged(part.subgraph, solved.weights, robots);
-    const PairVerdicts verdicts =
-        JudgePairs(pairs_.shared(), pairs_.setAside(), pairs.judged, pairs.rejected);
-    for (const SharedObject& s : verdicts.set_aside) {
-      done.set_aside.emplace_back(s.alpha_object, s.beta_object);
-    }
-    done.rejected = RejectedOwnFactors(solved.weights, part.own_first, slam.numFactors());
-  }
-
-  // The verdicts of a solve record (computed now or journaled) into its state: the pairs set
-  // aside, and its own factors' weights (GNC's min_weight for the rejected ones).
-  void applyVerdicts(ObjectSlam& slam, const SolveRecord& done, int t) {
-    std::vector<double> w(slam.numFactors(), 1.0);
-    for (std::uint32_t j : done.rejected) {
-      if (j >= w.size()) {
-        throw InvalidInputError(fmt::format("robot {}: the solve of step {} rejects factor {} of "
-                                            "its {} (journal of another run?)",
-                                            robot_, t, j, w.size()));
-      }
-      w[j] = options_.dgs.gnc->min_weight;
-    }
-    pairs_.setAside(done.set_aside, t);
-    slam.setFactorWeights(std::move(w));
-  }
-
-  // Waits for the joining statuses of the closure of `partners` within `range` (after publishing
-  // `join`); the group's robots and its held factors from every member's status.
-  // `closure` (optional): the robots of the closure, increasing, those that left included.
-  void formGroup(const StatusPacket& join, const std::set<int>& partners,
-                 const std::set<int>& range, std::uint32_t solve, int t, std::vector<int>& robots,
-                 std::vector<TeamPair>& team, std::vector<int>* closure = nullptr) {
-    std::set<int> group{robot_};
-    group.insert(partners.begin(), partners.end());
-    const auto deadline = Clock::now() + options_.dgs.join_timeout;
-    std::map<int, Clock::time_point> not_alive_since;
-    transport_detail::JoiningStatuses heard;
-    while (true) {
-      // The first status of each (not its DgsNode's later ones: a robot that read those formed
-      // another closure, and took the batch solve of the whole team while the others left it).
-      heard = transport_detail::ReadJoiningStatuses(inbox_.pending(), solve, range);
-      transport_detail::GrowClosure(group, heard.neighbours, &range);
-      std::vector<int> missing;
-      for (int r : group) {
-        if (r != robot_ && !heard.neighbours.count(r) && !hasLeft(r, t) &&
-            !foundLeft(r, t, not_alive_since)) {
-          missing.push_back(r);
-        }
-      }
-      if (missing.empty()) break;
-      if (Clock::now() > deadline) {
-        throw Error(fmt::format("robot {}: the group solve of step {} did not form within {} ms: "
-                                "no status from robot(s) {}",
-                                robot_, t, options_.dgs.join_timeout.count(),
-                                fmt::join(missing, ", ")));
-      }
-      ingest(transport_.poll(std::chrono::milliseconds(50)));
-    }
-    if (closure) closure->assign(group.begin(), group.end());
-    std::vector<int> heard_members;
-    for (int r : group) {
-      if (heard.neighbours.count(r)) heard_members.push_back(r);
-    }
-    membership_->applyGoneLists(heard_members, t);  // gone for one, gone for all (self: it leaves)
-    for (int r : group) {  // without the robots that left
-      if (r == robot_ || (heard.neighbours.count(r) && !hasLeft(r, t))) robots.push_back(r);
-    }
-    heard.team[robot_] = join.team;
-    team = transport_detail::GroupHeldPairs(robots, heard.team);
-  }
-
-  // The robot's map (its graph and estimate, g2o with objects, and TUM) in
-  // <state_dir>/maps/<name>/, written to a temporary folder first.
-  void saveMap(const ObjectSlam& slam, const std::string& name) const {
-    if (options_.dgs.state_dir.empty()) return;
-    const std::filesystem::path dir = std::filesystem::path(options_.dgs.state_dir) / "maps";
-    const std::filesystem::path tmp = dir / (name + ".tmp"), final_dir = dir / name;
-    std::filesystem::remove_all(tmp);
-    std::filesystem::create_directories(tmp);
-    G2oWriteOptions write;
-    write.scheme = KeyScheme::kWithObjects;
-    WriteG2oFile((tmp / "map.g2o").string(), slam.graph(), slam.estimate(), write);
-    WriteTumTrajectories(tmp.string(), slam.estimate());
-    std::filesystem::remove_all(final_dir);
-    std::filesystem::rename(tmp, final_dir);
-  }
-
-  // ---- journal ------------------------------------------------------------------------------
-  // Takes what the journal held when it was opened (session_journal.h): the answers, groups and
-  // solves of a process before this one, and the partners it found gone.
-  void restore() {
-    const transport_detail::SessionJournalContents& held = journal_->contents();
-    for (const auto& [index, event] : held.events) journaled_[index] = {event.pairs, event.removed};
-    journaled_groups_ = held.groups;
-    group_records_ = held.group_records;
-    journaled_solves_ = held.solves;
-    for (const LeftRecord& left : held.left) {
-      membership_->restore(left.robot, static_cast<int>(left.step));  // self: left the team
-    }
-    if (!journaled_.empty()) {
-      options_.log(fmt::format("restart: {} rendezvous taken from {}", journaled_.size(),
-                               journal_->path()));
-    }
-    if (!journaled_solves_.empty()) {
-      options_.log(fmt::format("restart: {} group solves taken from {}", journaled_solves_.size(),
-                               journal_->path()));
-    }
-  }
-
-  // Appends one record to the journal, if there is one.
-  template <typename Record>
-  void record(const Record& r) {
-    if (journal_) journal_->append(r);
-  }
-
   // ---- messages -----------------------------------------------------------------------------
   void publishList(const ObjectSlam& slam, int step) {
     ObjectListPacket p;
@@ -921,13 +563,6 @@ class RobotSession::Impl {
     transport_.send(p);
   }
 
-  void ingest(std::vector<Received> packets) {
-    for (Received& r : packets) {
-      membership_->onPacket(r);
-      inbox_.add(std::move(r));
-    }
-  }
-
   // Polls until `ready()` (true) or until the peer is found gone for good (false:
   // foundLeft); throws at the rendezvous timeout.
   template <typename Ready>
@@ -943,33 +578,27 @@ class RobotSession::Impl {
                                 robot_, what, e.alpha == robot_ ? e.beta : e.alpha, e.step,
                                 options_.rendezvous_timeout.count()));
       }
-      ingest(transport_.poll(std::chrono::milliseconds(100)));
+      channel_->ingest(transport_.poll(std::chrono::milliseconds(100)));
     }
     return true;
   }
 
-  // The attempt of the solve of step t whose group the journal holds last (0: none).
-  int journaledAttempt(int t) const {
-    const auto it = group_records_.find(t);
-    return it == group_records_.end() ? 0 : it->second - 1;
-  }
-
   // ---- robots that leave for good (team_membership.h) ---------------------------------------
   void noteLeftTeam() {
-    result_.left_team = membership_->out();
-    result_.left_team_step = membership_->outStep();
+    result_.left_team = channel_->membership().out();
+    result_.left_team_step = channel_->membership().outStep();
   }
-  bool hasLeft(int robot, int t) const { return membership_->hasLeft(robot, t); }
+  bool hasLeft(int robot, int t) const { return channel_->hasLeft(robot, t); }
   bool foundLeft(int robot, int t, std::map<int, Clock::time_point>& not_alive_since) {
-    return membership_->foundLeft(robot, t, not_alive_since);
+    return channel_->foundLeft(robot, t, not_alive_since);
   }
-  void markLeft(int robot, int t, const std::string& why) { membership_->markLeft(robot, t, why); }
+  void markLeft(int robot, int t, const std::string& why) { channel_->markLeft(robot, t, why); }
 
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
   // None: alpha left for good.
   std::optional<ObjectMapMessage> awaitList(const RendezvousEvent& e) {
     std::deque<ObjectListPacket>& lists =
-        inbox_.lists(e.alpha, static_cast<std::uint32_t>(e.step));
+        channel_->inbox().lists(e.alpha, static_cast<std::uint32_t>(e.step));
     ObjectMapMessage received;
     const bool ready = waitFor(e, "object list", [&]() {
       if (lists.empty()) return false;
@@ -998,7 +627,7 @@ class RobotSession::Impl {
   // is logged and dropped (a later one may follow). None: beta left for good.
   std::optional<EventPairs> awaitAnswer(const RendezvousEvent& e, const ObjectSlam& slam) {
     std::deque<SharedObjectsPacket>& answers =
-        inbox_.answers(e.beta, static_cast<std::uint32_t>(e.step));
+        channel_->inbox().answers(e.beta, static_cast<std::uint32_t>(e.step));
     EventPairs pairs;
     const bool ready = waitFor(e, "shared-object answer", [&]() {
       if (answers.empty()) return false;
@@ -1029,16 +658,11 @@ class RobotSession::Impl {
   RobotSessionOptions options_;
   int robot_ = 0;
   bool ran_ = false;
-  std::unique_ptr<transport_detail::SessionJournal> journal_;
-  std::map<std::size_t, EventPairs> journaled_;  // event index -> what it changed
-  std::map<int, GroupRecord> journaled_groups_;  // by step: groups formed (batch: the end)
-  std::map<int, int> group_records_;  // by step: group records journaled (one per attempt)
-  std::map<int, SolveRecord> journaled_solves_;  // online, by step: group solves finished
+  std::map<std::size_t, EventPairs> journaled_;  // event index -> what it changed (restart)
   std::uint32_t revision_ = 0;
   transport_detail::SessionPairs pairs_;  // its shared pairs, and those set aside (online robust)
-  transport_detail::SessionInbox inbox_;  // received, not used yet
-  HeldEstimates held_;             // online: the partner landmarks it holds (online/group_solve.h)
-  std::unique_ptr<TeamMembership> membership_;  // which robots it still counts on
+  std::unique_ptr<transport_detail::SessionChannel> channel_;  // transport, inbox, journal, team
+  std::unique_ptr<transport_detail::OnlineGroupSolves> online_;  // online: the group solves
   RobotSessionResult result_;
 };
 

@@ -42,7 +42,8 @@ void SessionJournal::read(const SessionJournalRun& run, const std::string& state
   if (!IsJournalHeader(records.front(), kJournalMagic, run.robot, run.fingerprint, what)) {
     throw InvalidInputError("state directory " + state_dir +
                             " holds the rendezvous journal of another run (other robot, "
-                            "scenario or options): remove it or choose another --out");
+                            "scenario or options, or an older moslam): remove it or choose "
+                            "another --out");
   }
   for (std::size_t i = 1; i < records.size(); ++i) {
     const std::vector<std::uint8_t>& record = records[i];
