@@ -122,6 +122,8 @@ const std::vector<std::pair<const char*, double RunMetrics::*>>& Fields() {
       {"free_are_poses", &RunMetrics::free_are_poses},
       {"robust_vs_free_ate", &RunMetrics::robust_vs_free_ate},
       {"robust_vs_free_are", &RunMetrics::robust_vs_free_are},
+      {"robust_vs_ls_ate", &RunMetrics::robust_vs_ls_ate},
+      {"robust_vs_ls_are", &RunMetrics::robust_vs_ls_are},
       {"robust_bytes", &RunMetrics::robust_bytes},
       {"robust_extra_bytes", &RunMetrics::robust_extra_bytes},
       {"robust_rounds", &RunMetrics::robust_rounds},
@@ -511,6 +513,9 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
     m.ls_are_poses = ls_gt.aligned.poses.are_deg;
     m.robust_ate_poses = robust_gt.aligned.poses.ate;
     m.robust_are_poses = robust_gt.aligned.poses.are_deg;
+    const TrajectoryErrors vs_ls = CompareEstimates(r.values, ls);  // same gauge, no alignment
+    m.robust_vs_ls_ate = vs_ls.poses.ate;
+    m.robust_vs_ls_are = vs_ls.poses.are_deg;
     if (!free.empty()) {
       const GroundTruthErrors free_gt = CompareToGroundTruthOrNan(free, truth);
       m.free_ate_poses = free_gt.aligned.poses.ate;

@@ -173,13 +173,16 @@ struct RunMetrics {
   // the JSON and on `moslam simulate`'s stderr); ground-truth errors of the least-squares DGS
   // (refined), of the robust DGS and of the outlier-free solve (every wrong factor of the three
   // kinds removed), the robust estimate against the outlier-free one (same gauge, no alignment),
-  // and the robust solve's traffic (all of it; the weights and its checks alone).
+  // the robust estimate against the least-squares one (the "the same estimate to 1e-6 m"
+  // with no outlier), and the robust solve's traffic (all of it; the weights and its checks
+  // alone).
   double injected = 0, wrong_factors = 0, outlier_precision = 0, outlier_recall = 0;
   double wrong_observations = 0, observation_precision = 0, observation_recall = 0;
   double wrong_loop_closure_factors = 0, loop_closure_precision = 0, loop_closure_recall = 0;
   double ls_ate_poses = 0, ls_are_poses = 0, robust_ate_poses = 0, robust_are_poses = 0;
   double free_ate_poses = 0, free_are_poses = 0;
   double robust_vs_free_ate = 0, robust_vs_free_are = 0;
+  double robust_vs_ls_ate = 0, robust_vs_ls_are = 0;
   double robust_bytes = 0, robust_extra_bytes = 0, robust_rounds = 0;
   // Table 3, per robot (bytes), averaged over the robots.
   double memory_pcd = 0, memory_obj_formula = 0, memory_obj_measured = 0;

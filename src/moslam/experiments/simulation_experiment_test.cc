@@ -71,6 +71,25 @@ TEST(SimulationExperiment, RobustSolveRejectsInjectedWrongAssociations) {
   EXPECT_GT(m.robust_extra_bytes, 0.0);
 }
 
+// No wrong association anywhere (generated: the robots' own maps hold none; no injected pair):
+// the robust solve is the least-squares one. Every weight stays 1 and the separator check keeps
+// every pair, so the robots run the least-squares solve itself (0 m apart, not merely within its
+// tolerance); the outlier-free centralized solve is within the distributed solve's tolerance.
+TEST(SimulationExperiment, RobustSolveWithoutOutliersIsTheLeastSquaresSolve) {
+  ExperimentConfig c;
+  c.scenario = "generated";
+  c.robots = 4;
+  c.robust = true;
+  for (const bool known : {true, false}) {
+    c.known_initial_poses = known;
+    const RunMetrics m = RunSimulationOnce(c, 0);
+    EXPECT_EQ(m.wrong_factors, 0.0) << known;
+    EXPECT_EQ(m.wrong_observations, 0.0) << known;
+    EXPECT_LE(m.robust_vs_ls_ate, 1e-6) << known;
+    EXPECT_LE(m.robust_vs_free_ate, 1e-5) << known;
+  }
+}
+
 // 70 % wrong associations on generated (4 robots, seed 2): some landmark ends with every factor
 // rejected (its observations and shared pairs). The robust estimate keeps it (at the rounds'
 // estimate; the polish of the inliers alone left it out, and the comparison threw).
