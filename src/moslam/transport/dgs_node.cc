@@ -17,7 +17,7 @@
 #include "moslam/distributed/robot_agent.h"
 #include "moslam/io/g2o.h"
 #include "moslam/transport/group_formation.h"
-#include "moslam/transport/journal.h"
+#include "moslam/transport/node_journal.h"
 #include "moslam/transport/record_bytes.h"
 #include "moslam/transport/step_record.h"
 
@@ -68,23 +68,7 @@ DgsOptions DriverOptions(const DgsNodeOptions& o) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr char kJournalMagic[8] = {'M', 'O', 'S', 'L', 'J', 'N', 'L', '4'};
-
-enum class RecordType : std::uint8_t {
-  kHeader = 1,  // magic, robot, fingerprint
-  kStart = 2,   // a process start
-  kTeam = 3,    // the team's robots
-  kStep = 4,    // a completed channel step: its number, stage and what it returned
-  kLeft = 5,    // a robot left: robot, step
-  kDone = 7,    // finished
-};
-
 using transport_detail::Fingerprint;
-using Bytes = WireWriter;
-using transport_detail::JournalRecordReader;
-using transport_detail::AppendStepRecord;
-using transport_detail::ReadStepRecord;
-using transport_detail::StepRecord;
 
 std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initial,
                              const DgsOptions& o, const std::optional<GncOptions>& gnc,
@@ -204,10 +188,18 @@ class DgsNode::Impl final : public TeamChannel {
     }
     if (!options_.state_dir.empty()) {
       std::filesystem::create_directories(options_.state_dir);
-      journal_ = std::make_unique<Journal>(
-          (std::filesystem::path(options_.state_dir) / "journal.bin").string());
+      const std::uint64_t fingerprint =
+          RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_,
+                         options_.separator_check, options_.checked, options_.retest_left_out,
+                         options_.retest_groups) ^
+          options_.solve;
+      journal_ = std::make_unique<transport_detail::NodeJournal>(
+          (std::filesystem::path(options_.state_dir) / "journal.bin").string(), robot_,
+          fingerprint, options_.state_dir);
+      result_.journal_truncated_bytes = journal_->truncatedBytes();
+      result_.incarnation = journal_->starts();
+      team_ = journal_->team();
     }
-    loadJournal();
   }
 
   DgsNodeResult run() {
@@ -215,7 +207,7 @@ class DgsNode::Impl final : public TeamChannel {
     ran_ = true;
     const auto t0 = Clock::now();
     try {
-      if (journal_) journal_->append(Bytes().u8(static_cast<std::uint8_t>(RecordType::kStart)).data());
+      if (journal_) journal_->recordStart();
       if (team_.empty()) formTeam();
       transport_.setKnownRobots(team_);
       transport_.publish(baseStatus());  // alive for the others while it replays
@@ -234,7 +226,7 @@ class DgsNode::Impl final : public TeamChannel {
       result_.pose_rounds = p.pose.iterations;
       result_.rotation_converged = p.rotation.status == StageStatus::kConverged;
       result_.pose_converged = p.pose.status == StageStatus::kConverged;
-      if (!journal_done_) record(Bytes().u8(static_cast<std::uint8_t>(RecordType::kDone)).data());
+      if (journal_ && !journal_done_) journal_->recordDone();
       done_ = true;
       saveResult();
       transport_.publish(baseStatus());
@@ -357,101 +349,20 @@ class DgsNode::Impl final : public TeamChannel {
   }
 
   // ---- persistence ----------------------------------------------------------------------
-  // Checks the header, reads the team and the starts; the steps, leaves and the end are replayed
-  // as the program asks for them.
-  void loadJournal() {
-    const std::uint64_t fingerprint =
-        RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_,
-                       options_.separator_check, options_.checked, options_.retest_left_out,
-                       options_.retest_groups) ^
-        options_.solve;
-    if (!journal_) return;
-    result_.journal_truncated_bytes = journal_->truncatedBytes();
-    const auto& records = journal_->records();
-    if (records.empty()) {
-      journal_->append(transport_detail::JournalHeader(kJournalMagic, robot_, fingerprint));
-      return;
-    }
-    const std::string what = journal_->path();
-    for (std::size_t i = 0; i < records.size(); ++i) {
-      if (i == 0) {
-        if (!transport_detail::IsJournalHeader(records[i], kJournalMagic, robot_, fingerprint,
-                                               what)) {
-          throw InvalidInputError(
-              "state directory " + options_.state_dir +
-              " holds the journal of another run (other robot, data or options, or an older "
-              "moslam): remove it or choose another --out");
-        }
-        continue;
-      }
-      ByteReader p = JournalRecordReader(records[i], 0, what);
-      const auto type = static_cast<RecordType>(p.u8("record type"));
-      switch (type) {
-        case RecordType::kStart:
-          ++result_.incarnation;
-          break;
-        case RecordType::kTeam: {
-          const int n = p.u16("team size");
-          for (int k = 0; k < n; ++k) team_.insert(p.u16("team robot"));
-          break;
-        }
-        case RecordType::kStep:
-        case RecordType::kLeft:
-        case RecordType::kDone:
-          replay_.push_back(i);
-          break;
-        default:
-          throw InvalidInputError(what + ": unknown journal record type " +
-                                  std::to_string(static_cast<int>(type)));
-      }
-    }
-  }
-
-  void record(const std::vector<std::uint8_t>& payload) {
-    if (journal_) journal_->append(payload);
-  }
-
-  // Applies the leaves and the end recorded before the next step; returns that step if the
-  // journal holds it.
+  // Step s as the journal holds it (after the departures and the end journaled before it), if it
+  // does: a restarted node replays what it computed before.
   std::optional<TeamStep> replayStep(std::uint32_t s, DgsStage stage) {
-    const std::string what = journal_ ? journal_->path() : std::string();
-    while (next_replay_ < replay_.size()) {
-      ByteReader p = JournalRecordReader(journal_->records()[replay_[next_replay_]], 0, what);
-      const auto type = static_cast<RecordType>(p.u8("record type"));
-      if (type == RecordType::kLeft) {
-        left_.insert(p.u16("robot"));
-        (void)p.u32("step");
-        ++next_replay_;
-        continue;
-      }
-      if (type == RecordType::kDone) {
-        journal_done_ = true;
-        ++next_replay_;
-        continue;
-      }
-      ++next_replay_;
-      StepRecord rec = ReadStepRecord(journal_->records()[replay_[next_replay_ - 1]], 1, what);
-      if (rec.step != s || rec.stage != stage) {
-        throw InvalidInputError(fmt::format(
-            "{}: journal step {} ({}) where the program takes step {} ({}): damaged journal",
-            what, rec.step, ToString(rec.stage), s, ToString(stage)));
-      }
-      TeamStep got = std::move(rec.result);
-      return got;
-    }
-    return std::nullopt;
+    if (!journal_) return std::nullopt;
+    return journal_->replay(s, stage, left_, journal_done_);
   }
 
   void finishReplay() {
-    if (next_replay_ >= replay_.size()) return;
+    if (!journal_ || !journal_->replaying()) return;
     replayStep(step_ + 1, DgsStage::kRotation);  // leaves and the end only; a step throws
   }
 
   void recordStep(std::uint32_t s, DgsStage stage, const TeamStep& got) {
-    if (!journal_) return;
-    std::vector<std::uint8_t> bytes = {static_cast<std::uint8_t>(RecordType::kStep)};
-    AppendStepRecord({s, stage, got}, bytes);
-    record(bytes);
+    if (journal_) journal_->recordStep(s, stage, got);
   }
 
   void snapshot(bool force) {
@@ -606,10 +517,7 @@ class DgsNode::Impl final : public TeamChannel {
                                           fmt::join(neighbours_, ", ")));
     }
     team_ = known;
-    Bytes b;
-    b.u8(static_cast<std::uint8_t>(RecordType::kTeam)).u16(static_cast<std::uint16_t>(team_.size()));
-    for (int r : team_) b.u16(static_cast<std::uint16_t>(r));
-    record(b.data());
+    if (journal_) journal_->recordTeam(team_);
     log(fmt::format("team of {}: robots {}", team_.size(), fmt::join(team_, ", ")));
   }
 
@@ -766,11 +674,7 @@ class DgsNode::Impl final : public TeamChannel {
           }
           log(fmt::format("robot {} left (step {}): continuing without it", r, s));
           left_.insert(r);
-          record(Bytes()
-                     .u8(static_cast<std::uint8_t>(RecordType::kLeft))
-                     .u16(static_cast<std::uint16_t>(r))
-                     .u32(s)
-                     .data());
+          if (journal_) journal_->recordLeft(r, s);
         }
       }
       if (!never_stepped.empty()) {
@@ -855,7 +759,7 @@ class DgsNode::Impl final : public TeamChannel {
   std::set<int> neighbours_;           // of the subgraph (the team's; the packets it accepts)
   std::set<int> step_neighbours_;      // of the agent at work (status, what a step waits for)
   std::set<Key> neighbour_keys_;
-  std::unique_ptr<Journal> journal_;
+  std::unique_ptr<transport_detail::NodeJournal> journal_;  // none without a state_dir
   G2oWriteOptions g2o_options_;
 
   std::set<int> team_, left_, heard_;
@@ -863,8 +767,6 @@ class DgsNode::Impl final : public TeamChannel {
   bool done_ = false;
   bool journal_done_ = false;
   bool ran_ = false;
-  std::vector<std::size_t> replay_;  // journal records still to replay (steps, leaves, end)
-  std::size_t next_replay_ = 0;
   std::optional<Sent> last_sent_;    // the last replayed step's packets, re-sent once live
   std::optional<DgsStage> snapshot_stage_;
   std::optional<DgsStage> round_stage_;  // on_round: the stage of the last step, steps in it
