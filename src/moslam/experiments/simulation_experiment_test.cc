@@ -252,6 +252,10 @@ TEST(SimulationExperiment, TableFormattingAndJson) {
   EXPECT_DOUBLE_EQ(j["rows"][0]["mean"]["cost_eta1"].get<double>(), 166.64);
   EXPECT_TRUE(j["rows"][0]["mean"]["refined_cost"].is_null());
   EXPECT_EQ(j["rows"][0]["runs"].size(), 2u);
+  // Every metric (RunMetrics holds doubles only) reaches the JSON and the mean: a field left out
+  // of the list would be neither averaged nor reported.
+  EXPECT_EQ(j["rows"][0]["runs"][0].size() * sizeof(double), sizeof(RunMetrics));
+  EXPECT_EQ(j["rows"][0]["mean"].size() * sizeof(double), sizeof(RunMetrics));
 }
 
 TEST(SimulationExperiment, RejectsBadConfig) {

@@ -145,6 +145,8 @@ std::vector<GatedPair> MatchWithinGate(const std::vector<LandmarkCandidate>& que
 }
 
 AssociationStats& AssociationStats::operator+=(const AssociationStats& o) {
+  static_assert(sizeof(AssociationStats) == 10 * sizeof(int),
+                "AssociationStats has a new count: add it here");
   detections += o.detections;
   associated += o.associated;
   correct += o.correct;
