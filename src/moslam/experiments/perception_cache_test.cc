@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -161,6 +163,28 @@ ExperimentConfig Tiny() {
   c.seed = 3;
   c.poses_per_robot = 40;
   return c;
+}
+
+// Every perception metric of RunMetrics is cached (perception_cached says whether the run was
+// replayed, so it is not): one left out would come back from a replayed run as not measured.
+TEST(PerceptionCache, CachesEveryPerceptionMetric) {
+  ExperimentResult r;
+  r.config = Tiny();
+  r.runs = {RunMetrics{}};
+  r.mean = r.runs[0];
+  const nlohmann::json j = nlohmann::json::parse(ResultsToJson({r}));
+  std::vector<std::string> perception;
+  for (const auto& [name, value] : j["rows"][0]["runs"][0].items()) {
+    if (name.rfind("perception_", 0) == 0 && name != "perception_cached") {
+      perception.push_back(name);
+    }
+  }
+  EXPECT_EQ(perception.size(), kPerceptionMetrics.size());
+  for (double RunMetrics::*field : kPerceptionMetrics) r.runs[0].*field = 7.0;
+  const nlohmann::json m = nlohmann::json::parse(ResultsToJson({r}));
+  for (const std::string& name : perception) {
+    EXPECT_EQ(m["rows"][0]["runs"][0][name], 7.0) << name << " is not cached";
+  }
 }
 
 // A stand-in for the front-end: keeps every other pose's detections, counts its calls.
