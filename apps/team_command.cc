@@ -1,10 +1,7 @@
 // `moslam team`: starts N robot processes (`moslam robot`) on loopback and collects their
 // results.
-#include <fcntl.h>
 #include <fmt/core.h>
 #include <fmt/ranges.h>
-#include <signal.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -15,8 +12,8 @@
 #include <optional>
 #include <nlohmann/json.hpp>
 #include <set>
-#include <thread>
 
+#include "child_processes.h"
 #include "commands.h"
 #include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_driver.h"
@@ -55,25 +52,6 @@ struct TeamArgs {
   bool json = false;
 };
 
-pid_t Spawn(const std::vector<std::string>& args, const fs::path& log) {
-  const pid_t pid = fork();
-  if (pid < 0) throw Error("team: fork failed");
-  if (pid == 0) {
-    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd >= 0) {
-      ::dup2(fd, 1);
-      ::dup2(fd, 2);
-      ::close(fd);
-    }
-    std::vector<char*> argv;
-    for (const std::string& s : args) argv.push_back(const_cast<char*>(s.c_str()));
-    argv.push_back(nullptr);
-    ::execv("/proc/self/exe", argv.data());
-    ::_exit(127);
-  }
-  return pid;
-}
-
 // Starts one process per argv (robot r: argvs[r], log in <out>/robot<r>/log.txt) on loopback
 // (LoopbackConfigXml), waits for them all (killing them at the timeout: exit code -1) and returns
 // their exit codes. `collect_only`: starts nothing, robot r counts as successful when
@@ -90,36 +68,13 @@ std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>
   }
   const std::string config = LoopbackConfigXml(domain, n);
   ::setenv("CYCLONEDDS_URI", config.c_str(), 1);
-  const auto t0 = Clock::now();
   std::map<pid_t, int> children;
   for (int r = 0; r < n; ++r) {
     const fs::path dir = out / fmt::format("robot{}", r);
     fs::create_directories(dir);
-    children[Spawn(argvs[static_cast<std::size_t>(r)], dir / "log.txt")] = r;
+    children[SpawnSelf(argvs[static_cast<std::size_t>(r)], dir / "log.txt")] = r;
   }
-  const auto deadline = t0 + Ms(timeout);
-  while (exit_codes.size() < children.size()) {
-    int status = 0;
-    const pid_t pid = ::waitpid(-1, &status, WNOHANG);
-    if (pid > 0 && children.count(pid)) {
-      exit_codes[children[pid]] = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      continue;
-    }
-    if (Clock::now() > deadline) {
-      for (const auto& [p, r] : children) {
-        if (!exit_codes.count(r)) ::kill(p, SIGKILL);
-      }
-      for (const auto& [p, r] : children) {
-        if (!exit_codes.count(r)) {
-          ::waitpid(p, &status, 0);
-          exit_codes[r] = -1;
-        }
-      }
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  return exit_codes;
+  return WaitForChildren(children, Ms(timeout));
 }
 
 // What `team` reads back from the robot folders <out>/robot<R>/ after the processes ended.
