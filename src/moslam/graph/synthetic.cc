@@ -3,16 +3,29 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "moslam/common/errors.h"
 
 namespace moslam {
 
+void SyntheticGraphOptions::validate() const {
+  const auto require = [](bool ok, const char* what) {
+    if (!ok) throw InvalidInputError(std::string("SyntheticGraphOptions.") + what);
+  };
+  require(num_robots >= 1 && num_robots <= kMaxRobots, "num_robots must be in [1, kMaxRobots]");
+  require(poses_per_robot >= 2, "poses_per_robot must be >= 2");
+  require(sigma_rotation >= 0.0 && std::isfinite(sigma_rotation),
+          "sigma_rotation must be finite and >= 0");
+  require(sigma_translation >= 0.0 && std::isfinite(sigma_translation),
+          "sigma_translation must be finite and >= 0");
+  require(loop_closure_radius >= 0.0 && std::isfinite(loop_closure_radius),
+          "loop_closure_radius must be finite and >= 0");
+  require(max_loop_closures_per_pose >= 0, "max_loop_closures_per_pose must be >= 0");
+}
+
 SyntheticGraph MakeSyntheticGraph(const SyntheticGraphOptions& o) {
-  if (o.num_robots < 1 || o.num_robots > kMaxRobots || o.poses_per_robot < 2 ||
-      o.sigma_rotation < 0.0 || o.sigma_translation < 0.0) {
-    throw InvalidInputError("MakeSyntheticGraph: options out of range");
-  }
+  o.validate();
   std::mt19937 rng(o.seed);
   std::normal_distribution<double> n01;
   std::uniform_real_distribution<double> u01(0.0, 1.0);

@@ -14,6 +14,8 @@ struct SyntheticGraphOptions {
   double loop_closure_radius = 1.5;  // m: poses closer than this (ground truth) get an edge
   int max_loop_closures_per_pose = 2;
   unsigned seed = 1;
+  // Throws InvalidInputError naming the first bad field.
+  void validate() const;
 };
 
 struct SyntheticGraph {
@@ -22,7 +24,7 @@ struct SyntheticGraph {
 };
 
 // Information matrices are diag(1/sigma^2) (with a floor so noise-free graphs stay SPD).
-// Throws InvalidInputError on out-of-range options.
+// Throws InvalidInputError on out-of-range options (validate()).
 SyntheticGraph MakeSyntheticGraph(const SyntheticGraphOptions& options);
 
 }  // namespace moslam
