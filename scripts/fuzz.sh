@@ -4,7 +4,8 @@
 # journal a restarted robot replays (fuzz/journal_fuzz.cc), the
 # template cache decoder (fuzz/template_cache_fuzz.cc), the perception cache decoder
 # (fuzz/perception_cache_fuzz.cc) and the other text files a user hands moslam: worlds, TUM
-# trajectories and sequences, YOLO labels, a robot's g2o file, class names (fuzz/text_files_fuzz.cc).
+# trajectories and sequences, YOLO labels, a robot's g2o file, class names
+# (fuzz/text_files_fuzz.cc).
 # Usage: scripts/fuzz.sh [seconds per target, default 60]
 # Exits non-zero when the fuzzer finds a crash, a sanitizer report, a leak or a timeout; the input
 # that triggered it is saved under build-fuzz/artifacts/.

@@ -29,7 +29,6 @@ class NodeJournal {
   int starts() const { return starts_; }               // process starts journaled before
   const std::set<int>& team() const { return team_; }  // empty: no team journaled
   std::int64_t truncatedBytes() const { return journal_.truncatedBytes(); }
-  const std::string& path() const { return journal_.path(); }
 
   // The journaled step `s` of `stage`, after the departures and the end journaled before it
   // (added to `left`; `done` set); none when the journal holds no more steps. Throws

@@ -283,7 +283,7 @@ class RobotSession::Impl {
         const int peer = rec.alpha ? e.beta : e.alpha;
         EventPairs pairs;
         const auto journaled = journaled_.find(index);
-        const bool peer_left = journaled == journaled_.end() && hasLeft(peer, t);
+        const bool peer_left = journaled == journaled_.end() && channel_->hasLeft(peer, t);
         if (rec.alpha && !peer_left) {
           const ObjectMapMessage map = MakeObjectMapMessage(slam);
           rec.objects_sent = static_cast<int>(map.objects.size());
@@ -302,7 +302,8 @@ class RobotSession::Impl {
           }
           if (std::optional<EventPairs> answer = awaitAnswer(e, slam)) {
             pairs = std::move(*answer);
-            channel_->record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
+            channel_->record(
+                EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
           } else {
             rec.skipped = true;
           }
@@ -316,7 +317,8 @@ class RobotSession::Impl {
               *received, slam, beta_T_alpha, pairs_.shared(), options_.slam.rendezvous);
           pairs = {answer.pairs, answer.removed};
           sendAnswer(e, pairs);
-          channel_->record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
+          channel_->record(
+              EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
         } else {
           rec.skipped = true;
         }
@@ -373,8 +375,8 @@ class RobotSession::Impl {
         break;
       } catch (const TeamChangedError& e) {
         for (int r : e.robots()) {
-          markLeft(departures ? robots.at(static_cast<std::size_t>(r)) : r, end,
-                   "it joined the batch solve and left before its first step");
+          channel_->markLeft(departures ? robots.at(static_cast<std::size_t>(r)) : r, end,
+                             "it joined the batch solve and left before its first step");
         }
         result_.subgraph = PoseGraph();
       }
@@ -416,8 +418,8 @@ class RobotSession::Impl {
   // 1 + T (T: its number of steps) listing every robot it shares pairs with, gone or not, and
   // waits for those of the closure (SessionChannel::formGroup): a robot that left for good
   // publishes none and is found gone (or was, at a rendezvous), so every robot of the closure
-  // finds the same departures. Returns whether some robot of `closure` (increasing, this robot among them) left;
-  // `robots`: the closure without them. The closure is journaled (a group record of step T), so a
+  // finds the same departures. Returns whether some robot of `closure` (increasing, this robot
+  // among them) left; `robots`: the closure without them. The closure is journaled (a group record of step T), so a
   // robot restarted in the solve takes the same way.
   // Attempt a > 0 (the team formed again: run()) uses solve AttemptSolve(1 + T, a).
   bool batchGroup(std::vector<int>& closure, std::vector<int>& robots, int attempt) {
@@ -450,7 +452,7 @@ class RobotSession::Impl {
     }
     robots.clear();
     for (int r : closure) {
-      if (r == robot_ || !hasLeft(r, end)) robots.push_back(r);
+      if (r == robot_ || !channel_->hasLeft(r, end)) robots.push_back(r);
     }
     return robots.size() != closure.size();
   }
@@ -571,7 +573,7 @@ class RobotSession::Impl {
     const auto deadline = Clock::now() + options_.rendezvous_timeout;
     std::map<int, Clock::time_point> not_alive_since;
     while (!ready()) {
-      if (foundLeft(peer, e.step, not_alive_since)) return false;
+      if (channel_->foundLeft(peer, e.step, not_alive_since)) return false;
       if (Clock::now() > deadline) {
         throw Error(fmt::format("robot {}: no {} from robot {} for the rendezvous of step {} "
                                 "within {} ms (not started, gone, or out of reach)",
@@ -588,11 +590,6 @@ class RobotSession::Impl {
     result_.left_team = channel_->membership().out();
     result_.left_team_step = channel_->membership().outStep();
   }
-  bool hasLeft(int robot, int t) const { return channel_->hasLeft(robot, t); }
-  bool foundLeft(int robot, int t, std::map<int, Clock::time_point>& not_alive_since) {
-    return channel_->foundLeft(robot, t, not_alive_since);
-  }
-  void markLeft(int robot, int t, const std::string& why) { channel_->markLeft(robot, t, why); }
 
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
   // None: alpha left for good.

@@ -51,7 +51,6 @@ class SessionChannel {
   Transport& transport() { return transport_; }
   SessionInbox& inbox() { return inbox_; }
   TeamMembership& membership() { return *membership_; }
-  const Options& options() const { return options_; }
 
   // Received packets: their senders were alive (membership), the packets wait in the inbox.
   void ingest(std::vector<Received> packets);
