@@ -6,6 +6,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <string>
 #include <string_view>
 #include <system_error>
 #include <type_traits>
@@ -31,6 +32,22 @@ NumberStatus ParseNumberToken(std::string_view token, T& value) {
   }
   value = parsed;
   return NumberStatus::kOk;
+}
+
+// What a reader says of a token ParseNumberToken refused ("'1.5abc' is not a number"); `type`
+// names the type asked for ("a double").
+inline std::string NumberStatusReason(NumberStatus status, const char* type) {
+  switch (status) {
+    case NumberStatus::kOk:
+      return "is a number";
+    case NumberStatus::kNotANumber:
+      return "is not a number";
+    case NumberStatus::kOutOfRange:
+      return std::string("is out of the range of ") + type;
+    case NumberStatus::kNotFinite:
+      break;
+  }
+  return "is not finite (NaN and Inf are not allowed)";
 }
 
 }  // namespace moslam

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <string>
 
 namespace moslam {
 namespace {
@@ -40,6 +41,11 @@ TEST(NumberText, EverythingElseIsRefusedAndLeavesTheValue) {
   EXPECT_EQ(i, 5);
   float f = 1.0f;
   EXPECT_EQ(ParseNumberToken("1e39", f), NumberStatus::kOutOfRange);
+  EXPECT_EQ(NumberStatusReason(NumberStatus::kNotANumber, "a double"), "is not a number");
+  EXPECT_EQ(NumberStatusReason(NumberStatus::kOutOfRange, "a float"),
+            "is out of the range of a float");
+  EXPECT_NE(NumberStatusReason(NumberStatus::kNotFinite, "a double").find("NaN and Inf"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -100,17 +100,11 @@ struct Location {
 // A whole token as a finite double (locale-independent; "1.5abc", hex, NaN and Inf rejected).
 double ParseNumber(std::string_view token, const char* what, const Location& at) {
   double value = 0.0;
-  switch (ParseNumberToken(token, value)) {
-    case NumberStatus::kOk:
-      return value;
-    case NumberStatus::kOutOfRange:
-      Fail(at, std::string(what) + " '" + Printable(token) + "' is out of the range of a double");
-    case NumberStatus::kNotANumber:
-      Fail(at, std::string(what) + " '" + Printable(token) + "' is not a number");
-    case NumberStatus::kNotFinite:
-      break;
+  const NumberStatus status = ParseNumberToken(token, value);
+  if (status != NumberStatus::kOk) {
+    Fail(at, std::string(what) + " '" + Printable(token) + "' " + NumberStatusReason(status, "a double"));
   }
-  Fail(at, std::string(what) + " is " + Printable(token) + ": NaN and Inf are not allowed");
+  return value;
 }
 
 // A whole token as an unsigned 64-bit id.

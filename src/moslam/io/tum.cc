@@ -46,18 +46,11 @@ std::vector<std::string_view> Tokenize(std::string_view line) {
 // A whole token as a finite double, locale-independent (common/number_text.h).
 double ParseNumber(std::string_view token, const std::string& path, int line) {
   double value = 0.0;
-  const std::string shown(token.substr(0, 40));
-  switch (ParseNumberToken(token, value)) {
-    case NumberStatus::kOk:
-      return value;
-    case NumberStatus::kOutOfRange:
-      Fail(path, line, "'" + shown + "' is out of the range of a double");
-    case NumberStatus::kNotANumber:
-      Fail(path, line, "'" + shown + "' is not a number");
-    case NumberStatus::kNotFinite:
-      break;
+  const NumberStatus status = ParseNumberToken(token, value);
+  if (status != NumberStatus::kOk) {
+    Fail(path, line, "'" + std::string(token.substr(0, 40)) + "' " + NumberStatusReason(status, "a double"));
   }
-  Fail(path, line, "'" + shown + "': NaN and Inf are not allowed");
+  return value;
 }
 
 void WriteTrajectory(const std::string& path,
