@@ -2,14 +2,14 @@
 // of `moslam robot` (AddSolveFlags, AddScenarioFlags): every flag the parser knows is forwarded,
 // and the forwarded command line parses back to itself. A flag added to the parser and not to the
 // forwarding would let the robots run with its default while the team's reference uses the value.
+#include "robot_flags.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <set>
 #include <string>
 #include <vector>
-
-#include "robot_flags.h"
 
 namespace moslam::cli {
 namespace {
