@@ -51,17 +51,17 @@ SessionChannel::SessionChannel(int robot, int num_robots, Transport& transport, 
   if (!journal_) return;
   // What the journal held when it was opened (session_journal.h): the answers, groups and
   // solves of a process before this one, and the partners it found gone.
-  held_ = journal_->contents();
-  group_records_ = held_.group_records;
-  for (const LeftRecord& left : held_.left) {
+  const SessionJournalContents& held = journal_->contents();
+  group_records_ = held.group_records;
+  for (const LeftRecord& left : held.left) {
     membership_->restore(left.robot, static_cast<int>(left.step));  // self: left the team
   }
-  if (!held_.events.empty()) {
+  if (!held.events.empty()) {
     options_.log(
-        fmt::format("restart: {} rendezvous taken from {}", held_.events.size(), journal_->path()));
+        fmt::format("restart: {} rendezvous taken from {}", held.events.size(), journal_->path()));
   }
-  if (!held_.solves.empty()) {
-    options_.log(fmt::format("restart: {} group solves taken from {}", held_.solves.size(),
+  if (!held.solves.empty()) {
+    options_.log(fmt::format("restart: {} group solves taken from {}", held.solves.size(),
                              journal_->path()));
   }
 }
@@ -73,14 +73,20 @@ void SessionChannel::ingest(std::vector<Received> packets) {
   }
 }
 
+const SessionJournalContents& SessionChannel::journaled() const {
+  static const SessionJournalContents kNone;  // no journal: nothing held
+  return journal_ ? journal_->contents() : kNone;
+}
+
 int SessionChannel::journaledAttempt(int t) const {
   const auto it = group_records_.find(t);
   return it == group_records_.end() ? 0 : it->second - 1;
 }
 
 const GroupRecord* SessionChannel::journaledGroup(int t, int attempt) const {
-  const auto it = held_.groups.find(t);
-  if (it == held_.groups.end() || attempt != journaledAttempt(t)) return nullptr;
+  const std::map<int, GroupRecord>& groups = journaled().groups;
+  const auto it = groups.find(t);
+  if (it == groups.end() || attempt != journaledAttempt(t)) return nullptr;
   return &it->second;
 }
 

@@ -61,7 +61,7 @@ class SessionChannel {
   }
 
   // What the journal held when the session started (empty without one).
-  const SessionJournalContents& journaled() const { return held_; }
+  const SessionJournalContents& journaled() const;
   // The attempt of the solve of step t whose group the journal holds last (0: none).
   int journaledAttempt(int t) const;
   // The group of attempt `attempt` of the solve of step t, when the journal held it: a session
@@ -90,7 +90,6 @@ class SessionChannel {
   Transport& transport_;
   Options options_;
   std::unique_ptr<SessionJournal> journal_;
-  SessionJournalContents held_;
   std::map<int, int> group_records_;  // by step: group records journaled (one per attempt)
   SessionInbox inbox_;
   std::unique_ptr<TeamMembership> membership_;
