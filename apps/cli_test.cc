@@ -555,6 +555,39 @@ TEST(CliSimulate, PerceptionCacheReplaysARenderedRun) {
   fs::remove_all(dir);
 }
 
+// --perception visible: the objects the rendered frames show, measured with the paper's noise (the
+// ideal front-end, render/visible_sensing.h), with the robots of sampled measurements; no
+// perception table (it has no detections); its options refused without it.
+TEST(CliSimulate, VisiblePerceptionMeasuresWhatTheFramesShow) {
+  const std::string command =
+      "simulate --scenario house --robots 1 --runs 1 --poses 20 --table association --json";
+  const CommandResult sampled = RunMoslam(command);
+  ASSERT_EQ(sampled.exit_code, 0) << sampled.out;
+  const CommandResult visible = RunMoslam(command + " --perception visible");
+  ASSERT_EQ(visible.exit_code, 0) << visible.out;
+  const auto a = nlohmann::json::parse(LastLine(sampled.out))["rows"][0];
+  const auto b = nlohmann::json::parse(LastLine(visible.out))["rows"][0];
+  EXPECT_EQ(a["config"]["perception"], "sampled");
+  EXPECT_EQ(b["config"]["perception"], "visible");
+  EXPECT_EQ(b["config"]["loop_closure"], false);
+  EXPECT_EQ(b["config"]["exclusion_radius"], 0.0);
+  EXPECT_EQ(b["runs"][0]["perception_frames"], 20.0);
+  // house has walls: the frames show fewer objects than the sampled camera measures through them.
+  const double sampled_per_pose = a["runs"][0]["measurements_per_pose"].get<double>();
+  const double visible_per_pose = b["runs"][0]["measurements_per_pose"].get<double>();
+  EXPECT_GT(visible_per_pose, 0.0);
+  EXPECT_LT(visible_per_pose, sampled_per_pose);
+  EXPECT_NE(visible.out.find("object measurements of the 20 frames"), std::string::npos)
+      << visible.out;
+  const CommandResult table = RunMoslam(command + " --perception visible --table perception");
+  EXPECT_EQ(table.exit_code, 1) << table.out;
+  EXPECT_NE(table.out.find("--perception visible has none"), std::string::npos) << table.out;
+  const CommandResult scaled = RunMoslam(command + " --visible-noise 1 0.01");
+  EXPECT_EQ(scaled.exit_code, 1) << scaled.out;
+  EXPECT_NE(scaled.out.find("--visible-noise and --visible-keep need"), std::string::npos)
+      << scaled.out;
+}
+
 // The pose-graph executable loads nothing of the perception or middleware stacks (apps/cli.h):
 // its shared libraries, as the dynamic loader resolves them.
 TEST(CliExecutables, PoseGraphCommandsLoadNoPerceptionOrDdsLibrary) {

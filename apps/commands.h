@@ -72,6 +72,11 @@ struct RenderedPerceptionArgs {
   bool depth_smoothing = true;  // DepthSmoothingConfig::enabled (pose_estimation/depth_smoothing.h)
   std::string detection_log;    // JSON lines, one per detection ("" = none; --detection-log)
   std::string perception_cache;  // folder of perceived runs ("" = none; --perception-cache)
+  // --perception visible: the ideal front-end (render/visible_sensing.h) instead of this one; the
+  // options above but `every` do not apply.
+  bool visible = false;
+  double visible_sigma_rotation_deg = 5.0, visible_sigma_translation = 0.2;  // --visible-noise
+  double visible_keep = 1.0;                                                  // --visible-keep
 };
 
 // Where built templates are cached unless --template-cache says otherwise:

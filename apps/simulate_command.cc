@@ -4,7 +4,7 @@
 //                   [--sigma-rot 1 5 --sigma-trans 0.1 0.1] [--information noise|fixed]
 //                   [--dgs two-level|one-level]
 //                   [--table accuracy|association|memory|scale|perception|all ...] [--json]
-//                   [--plot FILE.svg] [--perception sampled|rendered [--model M.onnx]
+//                   [--plot FILE.svg] [--perception sampled|visible|rendered [--model M.onnx]
 //                   [--classes classes.txt] [--templates DIR] [--perceive-every K]
 //                   [--detection-log FILE.jsonl]]
 //                   [--exclusion-radius M] [--leave-one-out-check]
@@ -19,6 +19,10 @@
 // their loops by object constellations unless --no-loop-closure (kRenderedLoopClosure), and
 // each rendezvous refines the known-initial-pose transform by the constellation of both object
 // maps unless --no-rendezvous-constellation (kRenderedRendezvousConstellation).
+// --perception visible: the ideal front-end on the same rendered frames (render/visible_sensing.h):
+// every object each frame shows at least 30 % of within the depth range, measured with Gaussian
+// noise (--visible-noise, the paper's by default), a random share of them with --visible-keep;
+// the robots as with sampled measurements (the paper's rules) unless told otherwise.
 // One row per (robots, noise pair): --robots and the noise pairs (--sigma-rot[i], --sigma-trans[i])
 // are crossed. Prints Markdown tables; with --json the last line is one JSON object
 // (ResultsToJson). --plot writes the Fig. 4 style SVG of run 0 of the first row.
@@ -93,6 +97,8 @@ struct SimulateArgs {
   std::string templates;
   std::string template_cache = DefaultTemplateCacheDir();
   int perceive_every = 1;
+  std::vector<double> visible_noise = {5.0, 0.2};  // deg, m
+  double visible_keep = 1.0;
   int template_views = 8;  // TemplateViews::views (perception/view_template.h)
   bool depth_smoothing = true;
   std::string detection_log;
@@ -166,9 +172,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
   sub->add_flag("--json", args->json, "print the results as one JSON object on the last line");
   sub->add_option("--plot", args->plot, "write an SVG of run 0 of the first row (Fig. 4)");
   sub->add_option("--perception", args->perception,
-                  "object measurements: sampled (Gaussian noise) or rendered (the front-end on "
-                  "rendered RGB-D frames)")
-      ->check(CLI::IsMember({"sampled", "rendered"}))
+                  "object measurements: sampled (Gaussian noise), visible (the sampled ones of "
+                  "the objects the rendered frames show: an ideal front-end) or rendered (the "
+                  "front-end on rendered RGB-D frames)")
+      ->check(CLI::IsMember({"sampled", "visible", "rendered"}))
       ->capture_default_str();
   sub->add_option("--model", args->model, "rendered: detector ONNX model")->capture_default_str();
   sub->add_option("--classes", args->classes, "rendered: detector class names, one per line")
@@ -195,8 +202,21 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "world and trajectories and by the front-end (its executable, detector, "
                   "templates, options): a run perceived before is replayed, not perceived again "
                   "(experiments/perception_cache.h)");
+  sub->add_option("--visible-noise", args->visible_noise,
+                  "visible: the measurements' noise, sigma of the rotation (deg) and of the "
+                  "translation (m), its own (the rows' --sigma-rot/--sigma-trans set the "
+                  "odometry's)")
+      ->expected(2)
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  sub->add_option("--visible-keep", args->visible_keep,
+                  "visible: keep each measurement of an object seen enough with this probability "
+                  "(a front-end accepting that share of the views, at random)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   sub->add_option("--perceive-every", args->perceive_every,
-                  "rendered: perceive every K-th pose (the others have no object measurement)")
+                  "rendered, visible: perceive every K-th pose (the others have no object "
+                  "measurement)")
       ->check(Positive())
       ->capture_default_str();
   sub->add_option("--exclusion-radius", args->exclusion_radius,
@@ -255,15 +275,29 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
     if (a.rendezvous_constellation.value_or(false) && a.initial_poses == "unknown") {
       throw InvalidInputError(std::string("simulate: ") + kConstellationNeedsKnownPoses);
     }
-    if (rendered) perceive = make_perception(
+    const bool on_frames = a.perception != "sampled";
+    if (a.perception != "visible" &&
+        (a.visible_noise != std::vector<double>{5.0, 0.2} || a.visible_keep != 1.0)) {
+      throw InvalidInputError(
+          "simulate: --visible-noise and --visible-keep need --perception visible");
+    }
+    if (a.perception == "visible" &&
+        std::find(a.table.begin(), a.table.end(), "perception") != a.table.end()) {
+      throw InvalidInputError("simulate: --table perception describes the front-end's detections; "
+                              "--perception visible has none (its measurements per pose are in "
+                              "--json)");
+    }
+    if (on_frames) perceive = make_perception(
           {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
-           a.template_views, a.depth_smoothing, a.detection_log, a.perception_cache});
+           a.template_views, a.depth_smoothing, a.detection_log, a.perception_cache,
+           a.perception == "visible", a.visible_noise[0], a.visible_noise[1],
+           a.visible_keep});
     if (a.online) {
-      if (rendered || a.information != "noise" || a.loop_closure.value_or(false) ||
+      if (on_frames || a.information != "noise" || a.loop_closure.value_or(false) ||
           a.rendezvous_constellation.value_or(false)) {
         throw InvalidInputError(
-            "simulate --online: perception rendered, --information fixed, --loop-closure and "
-            "--rendezvous-constellation are not part of the online mission");
+            "simulate --online: perception rendered or visible, --information fixed, "
+            "--loop-closure and --rendezvous-constellation are not part of the online mission");
       }
       std::vector<OnlineExperimentResult> results;
       for (int robots : a.robots) {
@@ -324,6 +358,7 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
         c.retest_groups = a.retest_groups;
         c.skip_unlinked = a.skip_unlinked;
         c.perceive = perceive;
+        c.perception = a.perception;
         c.exclusion_radius = a.exclusion_radius.value_or(rendered ? kRenderedExclusionRadius : 0.0);
         c.leave_one_out_check = a.leave_one_out_check;
         c.loop_closure = a.loop_closure.value_or(rendered && kRenderedLoopClosure);

@@ -22,6 +22,7 @@
 #include "moslam/common/fnv.h"
 #include "moslam/experiments/perception_cache.h"
 #include "moslam/perception/rendered_sensing.h"
+#include "moslam/render/visible_sensing.h"
 #include "moslam/sim/sensing.h"
 
 namespace moslam::cli {
@@ -104,6 +105,24 @@ std::uint64_t FrontEndDigest(const RenderedPerceptionArgs& args) {
 }  // namespace
 
 ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& args) {
+  if (args.visible) {
+    VisibleSensingConfig config;
+    config.every = args.every;
+    config.noise.sigma_rotation_deg = args.visible_sigma_rotation_deg;
+    config.noise.sigma_translation = args.visible_sigma_translation;
+    config.keep_probability = args.visible_keep;
+    config.validate();
+    return [config](SimulationData& data, RunMetrics& m) {
+      const VisibleSensingStats v = MeasureVisibleObjects(data, config);
+      m.perception_frames = v.frames;
+      m.perception_ms_render = v.render_ms / std::max(1, v.frames);
+      fmt::print(stderr,
+                 "visible, {} ({} robots): {} object measurements of the {} frames, of {} objects "
+                 "seen >= {:.0f} % within {} m (sampled: {})\n",
+                 data.world.name, data.numRobots(), v.measured, v.frames, v.seen_enough,
+                 100.0 * config.min_visible_fraction, config.render.max_depth, v.replaced);
+    };
+  }
   pcl::console::setVerbosityLevel(pcl::console::L_ERROR);  // SAC-IA's per-sample warnings
   auto config = std::make_shared<RenderedSensingConfig>();
   config->perception.detector.model_path = args.model;

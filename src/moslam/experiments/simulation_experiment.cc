@@ -770,7 +770,7 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"poses_per_robot", c.poses_per_robot},
                              {"refine", c.refine},
                              {"dgs", c.two_level_dgs ? "two-level" : "one-level"},
-                             {"perception", c.perceive ? "rendered" : "sampled"},
+                             {"perception", c.perceive ? c.perception : "sampled"},
                              {"points_per_frame", c.point_cloud.points_per_frame},
                              {"bytes_per_point", c.point_cloud.bytes_per_point},
                              {"points_per_object", c.point_cloud.points_per_object},

@@ -127,6 +127,9 @@ struct ExperimentConfig {
   // rendered`); this library does not depend on it.
   using Perceive = std::function<void(SimulationData& data, RunMetrics& metrics)>;
   Perceive perceive;
+  // The name the results give the measurements when `perceive` is set (`moslam simulate
+  // --perception`: rendered, visible); without it, they are sampled.
+  std::string perception = "rendered";
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };
