@@ -397,6 +397,7 @@ TEST(CliSimulate, LoopClosureIsOffWithSampledMeasurementsUnlessAskedFor) {
   const auto config = nlohmann::json::parse(LastLine(paper.out))["rows"][0]["config"];
   EXPECT_EQ(config["loop_closure"], false);
   EXPECT_EQ(config["exclusion_radius"], 0.0);
+  EXPECT_EQ(config["ambiguity_ratio"], 0.0);
   const CommandResult asked = RunMoslam(run + " --loop-closure");
   ASSERT_EQ(asked.exit_code, 0) << asked.out;
   EXPECT_EQ(nlohmann::json::parse(LastLine(asked.out))["rows"][0]["config"]["loop_closure"], true);
@@ -492,10 +493,11 @@ TEST(CliSimulate, RenderedPerceptionLogsEveryDetection) {
       "--template-cache none --table perception --json --detection-log " + log.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto row = nlohmann::json::parse(LastLine(r.out))["rows"][0];
-  // Rendered perception's defaults: the exclusion radius, the robots' loop closure and the
-  // rendezvous' refinement by the constellation.
+  // Rendered perception's defaults: the exclusion radius, the ambiguity test, the robots' loop
+  // closure and the rendezvous' refinement by the constellation.
   EXPECT_EQ(row["config"]["perception"], "rendered");
   EXPECT_EQ(row["config"]["exclusion_radius"], 0.5);
+  EXPECT_EQ(row["config"]["ambiguity_ratio"], 0.6);
   EXPECT_EQ(row["config"]["loop_closure"], true);
   EXPECT_EQ(row["config"]["rendezvous_constellation"], true);
   const auto run = row["runs"][0];
@@ -571,6 +573,7 @@ TEST(CliSimulate, VisiblePerceptionMeasuresWhatTheFramesShow) {
   EXPECT_EQ(b["config"]["perception"], "visible");
   EXPECT_EQ(b["config"]["loop_closure"], false);
   EXPECT_EQ(b["config"]["exclusion_radius"], 0.0);
+  EXPECT_EQ(b["config"]["ambiguity_ratio"], 0.0);
   EXPECT_EQ(b["runs"][0]["perception_frames"], 20.0);
   // house has walls: the frames show fewer objects than the sampled camera measures through them.
   const double sampled_per_pose = a["runs"][0]["measurements_per_pose"].get<double>();

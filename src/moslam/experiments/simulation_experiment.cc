@@ -264,6 +264,9 @@ void ExperimentConfig::validate() const {
   if (!(exclusion_radius >= 0.0) || !std::isfinite(exclusion_radius)) {
     throw InvalidInputError("experiment: exclusion_radius must be finite and >= 0");
   }
+  if (!(ambiguity_ratio >= 0.0 && ambiguity_ratio < 1.0)) {
+    throw InvalidInputError("experiment: ambiguity_ratio must be in [0, 1) (0: off)");
+  }
   if (poses_per_robot < 2) {
     throw InvalidInputError("experiment: poses_per_robot must be at least 2, got " +
                             std::to_string(poses_per_robot));
@@ -291,6 +294,7 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   out.slam.known_initial_poses = config.known_initial_poses;
   out.slam.slam.exclusion_radius = config.exclusion_radius;
   out.slam.slam.leave_one_out_check = config.leave_one_out_check;
+  out.slam.slam.ambiguity_ratio = config.ambiguity_ratio;
   out.slam.slam.loop_closure = config.loop_closure;
   out.slam.rendezvous.refine_by_constellation = config.rendezvous_constellation;
   out.slam.outlier_fraction = config.outlier_fraction;
@@ -780,6 +784,7 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"robust", c.robust},
                              {"exclusion_radius", c.exclusion_radius},
                              {"leave_one_out_check", c.leave_one_out_check},
+                             {"ambiguity_ratio", c.ambiguity_ratio},
                              {"loop_closure", c.loop_closure},
                              {"rendezvous_constellation", c.rendezvous_constellation},
                              {"skipped_runs", r.skipped}};

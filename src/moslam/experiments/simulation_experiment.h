@@ -104,6 +104,9 @@ struct ExperimentConfig {
   // The robots' leave-one-out check of their matches (ObjectSlamConfig::leave_one_out_check;
   // `moslam simulate --leave-one-out-check`).
   bool leave_one_out_check = false;
+  // The robots' refusal of ambiguous matches (ObjectSlamConfig::ambiguity_ratio; 0: off, the
+  // paper's rule). `moslam simulate` sets kRenderedAmbiguityRatio with --perception rendered.
+  double ambiguity_ratio = 0.0;
   // The robots' loop closure by object constellations (ObjectSlamConfig::loop_closure). Off
   // here (the paper's rule); `moslam simulate` turns it on with --perception rendered unless
   // --no-loop-closure.

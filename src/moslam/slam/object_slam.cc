@@ -172,6 +172,9 @@ void ObjectSlamConfig::validate() const {
   if (!(exclusion_radius >= 0.0 && std::isfinite(exclusion_radius))) {
     throw InvalidInputError("ObjectSlamConfig: exclusion_radius must be finite and >= 0");
   }
+  if (!(ambiguity_ratio >= 0.0 && ambiguity_ratio < 1.0)) {
+    throw InvalidInputError("ObjectSlamConfig: ambiguity_ratio must be in [0, 1) (0: off)");
+  }
   if (!(leave_one_out_rival_radii > 0.0 && std::isfinite(leave_one_out_rival_radii))) {
     throw InvalidInputError("ObjectSlamConfig: leave_one_out_rival_radii must be finite and > 0");
   }
@@ -320,7 +323,40 @@ void ObjectSlam::addDetections(const std::vector<ObjectDetection>& detections,
   if (odometry != nullptr && config_.leave_one_out_check && !config_.ground_truth_association) {
     refused = refuseInconsistent(x, *odometry, detections, assigned);
   }
+  if (config_.ambiguity_ratio > 0.0 && !config_.ground_truth_association) {
+    const std::vector<bool> ambiguous = refuseAmbiguous(x, detections, assigned);
+    for (std::size_t d = 0; d < detections.size(); ++d) refused[d] = refused[d] || ambiguous[d];
+  }
   record(detections, assigned, refused, x);
+}
+
+std::vector<bool> ObjectSlam::refuseAmbiguous(
+    const SE3& x, const std::vector<ObjectDetection>& detections,
+    std::vector<std::optional<std::size_t>>& assigned) const {
+  std::vector<bool> refused(detections.size(), false);
+  std::vector<bool> taken(landmarks_.size(), false);
+  for (const auto& a : assigned) {
+    if (a) taken[*a] = true;
+  }
+  const AssociationGate& gate = config_.association;
+  const double ratio2 = config_.ambiguity_ratio * config_.ambiguity_ratio;
+  for (std::size_t d = 0; d < detections.size(); ++d) {
+    if (!assigned[d]) continue;
+    const SE3 predicted = x * detections[d].measurement;
+    const double score = gate.score(predicted, landmarkPose(*assigned[d]));
+    for (std::size_t k = 0; k < landmarks_.size(); ++k) {
+      if (taken[k] || landmarks_[k].label != detections[d].label) continue;
+      double rival = 0.0;
+      if (gate.accepts(predicted, landmarkPose(k), &rival) && score > ratio2 * rival) {
+        refused[d] = true;
+        break;
+      }
+    }
+  }
+  for (std::size_t d = 0; d < detections.size(); ++d) {
+    if (refused[d]) assigned[d].reset();
+  }
+  return refused;
 }
 
 std::vector<bool> ObjectSlam::refuseInconsistent(

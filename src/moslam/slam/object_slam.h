@@ -16,6 +16,8 @@
 //      object-pose factors (previous pose and landmarks held), and step 2 is redone from there;
 //      with `leave_one_out_check` (an addition too), each match of a pose with two or more is
 //      then tested against x_i localised on the others (below) and refused when it disagrees;
+//      with `ambiguity_ratio` (an addition too), a match nearly as near another landmark of its
+//      label that no detection of the pose took is refused (ObjectSlamConfig::ambiguity_ratio);
 //   4. adds one object-pose factor x_i -> o_k per detection (measurement z, its information);
 //   5. every `update_every` poses, runs at most `iterations_per_update` Gauss-Newton iterations on
 //      its whole graph from the current estimate (cheap: the graph is one robot's).
@@ -180,7 +182,8 @@ struct AssociationStats {
   int new_landmarks = 0;
   int duplicate_landmarks = 0; // new landmarks for an object that already had one
   int discarded = 0;           // detections discarded (ObjectSlamConfig::exclusion_radius)
-  int refused = 0;             // matches refused by the leave-one-out check (detections discarded)
+  int refused = 0;             // matches refused by the leave-one-out check or as ambiguous
+                               // (ObjectSlamConfig::ambiguity_ratio; detections discarded)
   int associable = 0;          // detections whose object already had a landmark
   int loop_closures = 0;       // object-object factors of loop closures (landmark pairs)
   int wrong_loop_closures = 0; // ... whose landmarks were created for two world objects
@@ -212,6 +215,12 @@ struct ObjectSlamConfig {
   // radius()) of the match's localised prediction; 3 was chosen on chairs25 and generated, seeds
   // 11-20 (2: chairs25's wrong observations 3.6 / 4.2 -> 6.1 / 6.7 per run at 4 / 6 robots).
   double leave_one_out_rival_radii = 3.0;
+  // Ambiguous matches refused (0: off): a match whose prediction is nearly as near another
+  // landmark of its label, one the pose's other detections did not take, is refused and its
+  // detection discarded: sqrt(score / rival score) > ambiguity_ratio (AssociationGate::score,
+  // the rival within the gate). Two objects of one label side by side, seen one at a time, are
+  // told apart by the prediction only when the pose's drift is well below half their spacing.
+  double ambiguity_ratio = 0.0;
   // Simulation only, for ablations: a detection joins the landmark created for its true object
   // (ObjectDetection::object_id, required >= 0), else creates it; neither the gate, the
   // exclusion radius nor the leave-one-out check is used.
@@ -296,6 +305,10 @@ class ObjectSlam {
   bool excluded(const ObjectDetection& detection, const SE3& x) const;
   // The leave-one-out check of `assigned` at pose x (ObjectSlamConfig::leave_one_out_check):
   // which detections' matches it refuses (their entries of `assigned` reset).
+  // The ambiguity test of `assigned` at pose x (ObjectSlamConfig::ambiguity_ratio): which
+  // detections' matches it refuses (their entries of `assigned` reset).
+  std::vector<bool> refuseAmbiguous(const SE3& x, const std::vector<ObjectDetection>& detections,
+                                    std::vector<std::optional<std::size_t>>& assigned) const;
   std::vector<bool> refuseInconsistent(const SE3& x, const RelativePoseFactor& odometry,
                                        const std::vector<ObjectDetection>& detections,
                                        std::vector<std::optional<std::size_t>>& assigned) const;
