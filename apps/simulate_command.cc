@@ -180,9 +180,9 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
   sub->add_flag("--json", args->json, "print the results as one JSON object on the last line");
   sub->add_option("--plot", args->plot, "write an SVG of run 0 of the first row (Fig. 4)");
   sub->add_option("--perception", args->perception,
-                  "object measurements: sampled (Gaussian noise), visible (the sampled ones of "
-                  "the objects the rendered frames show: an ideal front-end) or rendered (the "
-                  "front-end on rendered RGB-D frames)")
+                  "object measurements: sampled (Gaussian noise), visible (every object the "
+                  "rendered frames show, with Gaussian noise: an ideal front-end) or rendered "
+                  "(the front-end on rendered RGB-D frames)")
       ->check(CLI::IsMember({"sampled", "visible", "rendered"}))
       ->capture_default_str();
   sub->add_option("--model", args->model, "rendered: detector ONNX model")->capture_default_str();
