@@ -87,8 +87,8 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
     m.detections.assign(trajectory.size(), {});
     for (std::size_t i = 0; i < trajectory.size(); i += static_cast<std::size_t>(config.every)) {
       const auto t0 = std::chrono::steady_clock::now();
-      const std::uint64_t key = static_cast<std::uint64_t>(r) * 1000000u + i;
-      const RenderedFrame frame = renderer.render(trajectory[i], key, static_cast<double>(i));
+      const RenderedFrame frame =
+          renderer.render(trajectory[i], SimulationFrameKey(r, i), static_cast<double>(i));
       stats.render_ms += std::chrono::duration<double, std::milli>(
                              std::chrono::steady_clock::now() - t0)
                              .count();

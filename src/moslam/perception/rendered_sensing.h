@@ -2,7 +2,7 @@
 // (`moslam simulate --perception rendered`), instead of sampled with Gaussian noise.
 //
 // For every robot and every `every`-th pose, the renderer (render/renderer.h) draws the RGB-D
-// frame its camera sees (frame key robot * 1e6 + pose: seeded, reproducible) and
+// frame its camera sees (SimulationFrameKey(robot, pose): seeded, reproducible) and
 // ObjectPerception (object_perception.h) turns it into object-pose measurements, which replace
 // the sampled detections of that pose (other poses get none). Odometry stays as simulated.
 //

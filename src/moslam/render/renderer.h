@@ -20,6 +20,7 @@
 //   colour: N(0, colour_noise_sigma^2) added per channel (8-bit units), saturated.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
@@ -93,6 +94,13 @@ struct RenderedFrame {
   std::vector<VisibleObject> objects;  // objects with at least one visible pixel, by id
   SE3 world_T_camera;
 };
+
+// The frame key (Renderer::render) of robot `robot`'s pose `pose` in a simulation: the frames the
+// front-end perceives (perception/rendered_sensing.h) and the ideal front-end measures
+// (render/visible_sensing.h) are the same frames by this key.
+inline std::uint64_t SimulationFrameKey(int robot, std::size_t pose) {
+  return static_cast<std::uint64_t>(robot) * 1000000u + pose;
+}
 
 class Renderer {
  public:

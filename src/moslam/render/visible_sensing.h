@@ -44,7 +44,7 @@ struct VisibleSensingStats {
 };
 
 // Replaces data.measurements[r].detections by the ideal front-end's on the frames of every
-// `every`-th pose (frame key robot * 1e6 + pose, the frames of perception/rendered_sensing.h),
+// `every`-th pose (SimulationFrameKey: the frames of perception/rendered_sensing.h),
 // in the order of the frame's objects; object_id is the world object's. Throws InvalidInputError
 // on a bad config or data without measurements.
 VisibleSensingStats MeasureVisibleObjects(SimulationData& data, const VisibleSensingConfig& config);
