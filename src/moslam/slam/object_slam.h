@@ -303,12 +303,12 @@ class ObjectSlam {
                     std::size_t except = kDiscarded) const;
   // Whether the detection, seen from x, falls within exclusion_radius of a landmark of its label.
   bool excluded(const ObjectDetection& detection, const SE3& x) const;
-  // The leave-one-out check of `assigned` at pose x (ObjectSlamConfig::leave_one_out_check):
-  // which detections' matches it refuses (their entries of `assigned` reset).
   // The ambiguity test of `assigned` at pose x (ObjectSlamConfig::ambiguity_ratio): which
   // detections' matches it refuses (their entries of `assigned` reset).
   std::vector<bool> refuseAmbiguous(const SE3& x, const std::vector<ObjectDetection>& detections,
                                     std::vector<std::optional<std::size_t>>& assigned) const;
+  // The leave-one-out check of `assigned` at pose x (ObjectSlamConfig::leave_one_out_check):
+  // which detections' matches it refuses (their entries of `assigned` reset).
   std::vector<bool> refuseInconsistent(const SE3& x, const RelativePoseFactor& odometry,
                                        const std::vector<ObjectDetection>& detections,
                                        std::vector<std::optional<std::size_t>>& assigned) const;
