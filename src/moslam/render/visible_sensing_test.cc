@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 
 namespace moslam {
 namespace {
@@ -164,27 +165,22 @@ TEST(VisibleSensing, AKeepProbabilityMeasuresThatShareOfTheViewsWithTheSameNoise
 TEST(VisibleSensing, BadInputIsRefusedNamingIt) {
   SimulationData data = StandingStill(2);
   const auto refused = [&](const VisibleSensingConfig& c, const std::string& field) {
-    try {
-      MeasureVisibleObjects(data, c);
-      ADD_FAILURE() << "no throw for " << field;
-    } catch (const InvalidInputError& e) {
-      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
-    }
+    return test::ThrowsNaming([&] { MeasureVisibleObjects(data, c); }, field);
   };
   VisibleSensingConfig c = ExactFrames();
   c.every = 0;
-  refused(c, "every");
+  EXPECT_TRUE(refused(c, "every"));
   c = ExactFrames();
   c.min_visible_fraction = 1.5;
-  refused(c, "min_visible_fraction");
+  EXPECT_TRUE(refused(c, "min_visible_fraction"));
   c = ExactFrames();
   c.keep_probability = 0.0;
-  refused(c, "keep_probability");
+  EXPECT_TRUE(refused(c, "keep_probability"));
   c = ExactFrames();
   c.information_sigma_floor = 0.0;
-  refused(c, "information_sigma_floor");
+  EXPECT_TRUE(refused(c, "information_sigma_floor"));
   data.measurements.clear();
-  refused(ExactFrames(), "1 robots");
+  EXPECT_TRUE(refused(ExactFrames(), "1 robots"));
 }
 
 }  // namespace
