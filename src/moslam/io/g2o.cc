@@ -665,7 +665,28 @@ void WriteG2oFile(const std::string& path, const PoseGraph& graph, const Values&
   SetUpStream(os);
   for (const auto& [key, pose] : values) WriteVertex(os, key, pose, options);
   for (const RelativePoseFactor& f : graph.factors()) WriteEdge(os, f, options);
-  WriteText(path, os.str());
+  if (!options.atomic) {
+    WriteText(path, os.str());
+    return;
+  }
+  const std::string tmp = path + ".tmp";
+  const auto remove_tmp = [&tmp] {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+  };
+  try {
+    WriteText(tmp, os.str());
+  } catch (const Error&) {
+    remove_tmp();
+    throw;
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    remove_tmp();
+    throw Error("cannot move '" + tmp + "' over '" + path + "': " + ec.message() + " (is '" + path +
+                "' a directory?)");
+  }
 }
 
 void WriteG2oFolder(const std::string& dir, const PoseGraph& graph, const Values& values,

@@ -83,11 +83,15 @@ struct G2oWriteOptions {
   // Write VERTEX_SE2 / EDGE_SE2 lines (a Dataset read with `planar`): every pose and measurement
   // must lie in the plane (z and the rotation's tilt within 1e-9), else InvalidInputError.
   bool planar = false;
+  // Write `path` whole or not at all: the text goes to `path` + ".tmp", which is then renamed over
+  // `path`, so a reader (or a process restarted after a crash) sees the old file or the new one,
+  // never half of one. On failure the temporary file is removed and `path` is left as it was.
+  bool atomic = false;
 };
 
 // Writes vertices for every variable in `values` and one edge per factor (priors are not
 // written: g2o has no standard prior tag). Full double precision, so a round trip is exact.
-// Throws moslam::Error when the file cannot be written.
+// Throws moslam::Error when the file cannot be written (or, with `atomic`, renamed into place).
 void WriteG2oFile(const std::string& path, const PoseGraph& graph, const Values& values,
                   const G2oWriteOptions& options = {});
 // Writes 0.g2o .. N-1.g2o into `dir` (created if missing): each robot's vertices and its

@@ -18,6 +18,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/throws_naming_testing.h"
 
 namespace moslam {
 namespace {
@@ -547,12 +548,46 @@ TEST(G2oWrite, ObjectsNeedTheObjectScheme) {
 
 TEST(G2oWrite, FailureNamesThePath) {
   const std::string path = (ScratchDir() / "no_such_dir" / "x.g2o").string();
-  try {
-    WriteG2oFile(path, PoseGraph(), Values{{Key::Pose(0, 0), SE3()}});
-    FAIL() << "expected moslam::Error";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
-  }
+  EXPECT_TRUE(test::ThrowsNaming<Error>(
+      [&] {
+        WriteG2oFile(path, PoseGraph(), Values{{Key::Pose(0, 0), SE3()}});
+      },
+      path));
+}
+
+TEST(G2oWrite, AtomicWriteReplacesTheFileWholeAndLeavesNoTemporary) {
+  const fs::path dir = ScratchDir() / "atomic";
+  fs::create_directories(dir);
+  const fs::path path = dir / "map.g2o";
+  G2oWriteOptions atomic;
+  atomic.atomic = true;
+  const Values one{{Key::Pose(0, 0), SE3()}};
+  const Values two{{Key::Pose(0, 0), SE3()}, {Key::Pose(0, 1), SE3()}};
+  WriteG2oFile(path.string(), PoseGraph(), one, atomic);
+  // A reader that opened the old file keeps reading the old file whole: the new one is another
+  // file moved into place, not the old one truncated and written again.
+  std::ifstream reader(path);
+  WriteG2oFile(path.string(), PoseGraph(), two, atomic);
+  std::stringstream old_text;
+  old_text << reader.rdbuf();
+  EXPECT_EQ(ParseG2o(old_text, "old").initial.size(), 1u);
+  EXPECT_EQ(ReadG2oFile(path.string()).initial.size(), 2u);
+  EXPECT_FALSE(fs::exists(path.string() + ".tmp"));
+}
+
+TEST(G2oWrite, AtomicWriteThatCannotRenameThrowsAndRemovesItsTemporary) {
+  // A non-empty directory where the file should go: the text is written, the rename fails.
+  const fs::path path = ScratchDir() / "atomic_over_dir.g2o";
+  fs::create_directories(path / "inside");
+  G2oWriteOptions atomic;
+  atomic.atomic = true;
+  EXPECT_TRUE(test::ThrowsNaming<Error>(
+      [&] {
+        WriteG2oFile(path.string(), PoseGraph(), Values{{Key::Pose(0, 0), SE3()}}, atomic);
+      },
+      "cannot move '" + path.string() + ".tmp' over '" + path.string() + "'"));
+  EXPECT_FALSE(fs::exists(path.string() + ".tmp"));
+  EXPECT_TRUE(fs::is_directory(path / "inside"));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -183,6 +183,7 @@ class DgsNode::Impl final : public TeamChannel {
     }
     neighbour_keys_ = agent_->neighbourVariables();
     // Snapshots of a graph with object landmarks use the g2o key scheme with objects.
+    g2o_options_.atomic = true;
     for (const Key& k : subgraph_.keys()) {
       if (k.isObject()) g2o_options_.scheme = KeyScheme::kWithObjects;
     }
@@ -394,10 +395,8 @@ class DgsNode::Impl final : public TeamChannel {
 
   // `name` in the state directory, written whole or not at all.
   void write(const std::string& name, const Values& values) const {
-    const std::filesystem::path dir(options_.state_dir);
-    const auto tmp = dir / (name + ".tmp");
-    WriteG2oFile(tmp.string(), subgraph_, values, g2o_options_);
-    std::filesystem::rename(tmp, dir / name);
+    WriteG2oFile((std::filesystem::path(options_.state_dir) / name).string(), subgraph_, values,
+                 g2o_options_);
   }
 
   // ---- protocol ---------------------------------------------------------------------------
@@ -760,7 +759,7 @@ class DgsNode::Impl final : public TeamChannel {
   std::set<int> step_neighbours_;      // of the agent at work (status, what a step waits for)
   std::set<Key> neighbour_keys_;
   std::unique_ptr<transport_detail::NodeJournal> journal_;  // none without a state_dir
-  G2oWriteOptions g2o_options_;
+  G2oWriteOptions g2o_options_;  // snapshots: written whole or not at all (atomic)
 
   std::set<int> team_, left_, heard_;
   std::uint32_t step_ = 0;

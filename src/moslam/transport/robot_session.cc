@@ -525,8 +525,8 @@ class RobotSession::Impl {
     const std::filesystem::path dir(options_.dgs.state_dir);
     G2oWriteOptions write;
     write.scheme = KeyScheme::kWithObjects;
-    WriteG2oFile((dir / "result.g2o.tmp").string(), result_.subgraph, result_.dgs.estimate, write);
-    std::filesystem::rename(dir / "result.g2o.tmp", dir / "result.g2o");
+    write.atomic = true;
+    WriteG2oFile((dir / "result.g2o").string(), result_.subgraph, result_.dgs.estimate, write);
   }
 
   // What event e changed, applied to the shared pairs (SessionPairs::apply) and counted in
