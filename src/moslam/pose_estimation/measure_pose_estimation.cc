@@ -5,21 +5,25 @@
 // same class model. --dining sets four chairs around it as around house's kitchen table; the
 // chairs' pixels are left out of its segment with --claim-others-truth (by their ground-truth
 // instance ids: what instance masks would give) or --claim-others-segments (the chairs' own
-// segments in their true boxes). Prints per-view status, inliers, pose error against ground
-// truth and per-stage times (wall clock; the process CPU time is printed too because the machine
-// may be shared). Not a test: a measurement tool.
+// segments in their true boxes) or --claim-others-registered (the pixels within --claim-radius
+// of the chairs' templates where their registrations, each in its true box, put them). Prints
+// per-view status, inliers, pose error against ground truth and per-stage times (wall clock; the
+// process CPU time is printed too because the machine may be shared). Not a test: a measurement
+// tool.
 //
 //   measure_pose_estimation --label chair --views 20 [--min-distance 1.5 --max-distance 3]
-//     [--dining] [--claim-others-truth | --claim-others-segments]
+//     [--dining] [--claim-others-truth | --claim-others-segments | --claim-others-registered]
 //     [--voxel 0.015 --keypoint-voxel 0.03 --feature-radius 0.05 --normal-radius 0.03
 //     --sac-iterations 500 --seed 1]
 #include <CLI/CLI.hpp>
+#include <pcl/kdtree/kdtree_flann.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <map>
 #include <random>
 #include <vector>
 
@@ -86,6 +90,12 @@ int main(int argc, char** argv) {
   bool dining = false;
   bool claim_truth = false;
   bool claim_segments = false;
+  bool claim_registered = false;
+  double claim_radius = 0.04;
+  app.add_flag("--claim-others-registered", claim_registered,
+               "leave out the pixels within --claim-radius of the other objects' templates at "
+               "their registered poses (each segmented in its true box and registered)");
+  app.add_option("--claim-radius", claim_radius, "m, with --claim-others-registered");
   app.add_flag("--claim-others-segments", claim_segments,
                "leave the other objects' segments (in their true boxes) out of the segment");
   app.add_flag("--claim-others-truth", claim_truth,
@@ -94,6 +104,10 @@ int main(int argc, char** argv) {
                "four chairs around the object, as house's kitchen table (sim/world.cc)");
   app.add_flag("--diagnose", diagnose, "also run GICP from the true pose");
   CLI11_PARSE(app, argc, argv);
+  if (!(claim_radius > 0.0)) {
+    std::fprintf(stderr, "--claim-radius must be positive\n");
+    return 2;
+  }
 
   World world;
   world.name = "measure";
@@ -125,6 +139,19 @@ int main(int argc, char** argv) {
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
                                                         t_template).count());
 
+  std::map<std::string, ObjectTemplate> other_templates;
+  auto other_template = [&](const std::string& l) -> const ObjectTemplate& {
+    auto it = other_templates.find(l);
+    if (it == other_templates.end()) {
+      it = other_templates
+               .emplace(l, MakeObjectTemplate(l,
+                                              SampleMeshSurface(MakeObjectMesh(*world.findClass(l)),
+                                                                template_spacing, 1u),
+                                              config.features))
+               .first;
+    }
+    return it->second;
+  };
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> yaw_dist(-kPi, kPi),
       dist_dist(min_distance, max_distance), side_dist(-0.3, 0.3);
@@ -158,6 +185,36 @@ int main(int argc, char** argv) {
         if (other.id == 0) continue;
         const SegmentationResult o = SegmentObject(prepared, cv::Rect2f(other.box), seg_config);
         claimed.insert(claimed.end(), o.indices.begin(), o.indices.end());
+      }
+    }
+    int others_accepted = 0;
+    if (claim_registered) {
+      const OrganizedCloud& cloud = *prepared.cloud;
+      for (const VisibleObject& other : f.objects) {
+        if (other.id == 0) continue;
+        const ObjectTemplate& ot = other_template(other.label);
+        const SegmentationResult o = SegmentObject(prepared, cv::Rect2f(other.box), seg_config);
+        if (o.status != SegmentationStatus::kOk) continue;
+        const RegistrationResult orr = RegisterTemplate(*o.segment, ot, config);
+        if (!orr.accepted()) continue;
+        ++others_accepted;
+        pcl::PointCloud<pcl::PointXYZ>::Ptr placed(new pcl::PointCloud<pcl::PointXYZ>);
+        for (const auto& q : ot.cloud->points) {
+          const Vector3 c = orr.camera_T_object.transformFrom(Vector3(q.x, q.y, q.z));
+          placed->push_back(pcl::PointXYZ(static_cast<float>(c.x()), static_cast<float>(c.y()),
+                                          static_cast<float>(c.z())));
+        }
+        pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+        tree.setInputCloud(placed);
+        std::vector<int> nn(1);
+        std::vector<float> d2(1);
+        for (std::size_t i = 0; i < cloud.size(); ++i) {
+          const auto& p = cloud.points[i];
+          if (!std::isfinite(p.z)) continue;
+          if (tree.nearestKSearch(pcl::PointXYZ(p.x, p.y, p.z), 1, nn, d2) == 1 &&
+              d2[0] < claim_radius * claim_radius)
+            claimed.push_back(static_cast<int>(i));
+        }
       }
     }
     if (claim_truth) {
@@ -208,6 +265,7 @@ int main(int argc, char** argv) {
       std::printf("  error rotation axis (object frame) %.2f %.2f %.2f\n", axis.x(), axis.y(),
                   axis.z());
     }
+    if (claim_registered) std::printf("  others accepted %d\n", others_accepted);
     std::printf("  hypothesis %d of %d, score %.2f, geometric %.2f, colour %.2f, refined "
                 "inliers %d\n",
                 r.hypothesis, r.hypotheses, r.score, r.geometric_agreement, r.colour_agreement,
