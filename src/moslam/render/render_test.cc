@@ -11,6 +11,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/render/dataset_export.h"
 #include "moslam/render/renderer.h"
 
@@ -53,12 +54,7 @@ TEST(Intrinsics, FromHorizontalFovAndValidate) {
   EXPECT_THROW(PinholeIntrinsics::FromHorizontalFov(320, 240, 180.0), InvalidInputError);
   PinholeIntrinsics bad = k;
   bad.fy = -1.0;
-  try {
-    bad.validate();
-    FAIL() << "no throw";
-  } catch (const InvalidInputError& e) {
-    EXPECT_NE(std::string(e.what()).find("fy"), std::string::npos);
-  }
+  EXPECT_TRUE(test::ThrowsNaming([&] { bad.validate(); }, "fy"));
 }
 
 TEST(Intrinsics, BodyFromCameraAxes) {
@@ -72,12 +68,7 @@ TEST(Intrinsics, BodyFromCameraAxes) {
 TEST(RenderConfig, ValidateNamesTheField) {
   RenderConfig c;
   c.max_depth = 0.1;
-  try {
-    c.validate();
-    FAIL() << "no throw";
-  } catch (const InvalidInputError& e) {
-    EXPECT_NE(std::string(e.what()).find("max_depth"), std::string::npos);
-  }
+  EXPECT_TRUE(test::ThrowsNaming([&] { c.validate(); }, "max_depth"));
   c = RenderConfig();
   c.colour_noise_sigma = -1.0;
   EXPECT_THROW(c.validate(), InvalidInputError);

@@ -8,6 +8,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/throws_naming_testing.h"
 
 namespace moslam::transport_detail {
 namespace {
@@ -65,14 +66,12 @@ TEST(NodeJournal, AnotherRunsJournalOrAStepOutOfOrderIsRefused) {
     first.recordStep(1, DgsStage::kRotation, StepWith(0.5));
   }
   for (const auto& [robot, fingerprint] : {std::pair{1, 43ull}, std::pair{2, 42ull}}) {
-    try {
-      NodeJournal other(path, robot, fingerprint, "the/state/dir");
-      ADD_FAILURE() << "accepted robot " << robot << " run " << fingerprint;
-    } catch (const InvalidInputError& e) {
-      EXPECT_NE(std::string(e.what()).find("the/state/dir holds the journal of another run"),
-                std::string::npos)
-          << e.what();
-    }
+    EXPECT_TRUE(test::ThrowsNaming(
+        [&, robot = robot, fingerprint = fingerprint] {
+          NodeJournal other(path, robot, fingerprint, "the/state/dir");
+        },
+        "the/state/dir holds the journal of another run"))
+        << "robot " << robot << " run " << fingerprint;
   }
   NodeJournal again(path, 1, 42, dir.string());
   std::set<int> left;
