@@ -131,9 +131,14 @@ int main(int argc, char** argv) {
     }
   }
 
+  // The template of a class, sampled from its model (the measured class's and its neighbours').
+  const auto make_template = [&](const ObjectClass& c) {
+    return MakeObjectTemplate(c.label,
+                              SampleMeshSurface(MakeObjectMesh(c), template_spacing, 1u),
+                              config.features);
+  };
   const auto t_template = std::chrono::steady_clock::now();
-  const ObjectTemplate tmpl = MakeObjectTemplate(
-      label, SampleMeshSurface(MakeObjectMesh(*cls), template_spacing, 1u), config.features);
+  const ObjectTemplate tmpl = make_template(*cls);
   std::printf("template %s: %zu points, %zu keypoints, built in %.0f ms\n", label.c_str(),
               tmpl.size(), tmpl.keypoints->size(),
               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
@@ -143,12 +148,7 @@ int main(int argc, char** argv) {
   auto other_template = [&](const std::string& l) -> const ObjectTemplate& {
     auto it = other_templates.find(l);
     if (it == other_templates.end()) {
-      it = other_templates
-               .emplace(l, MakeObjectTemplate(l,
-                                              SampleMeshSurface(MakeObjectMesh(*world.findClass(l)),
-                                                                template_spacing, 1u),
-                                              config.features))
-               .first;
+      it = other_templates.emplace(l, make_template(*world.findClass(l))).first;
     }
     return it->second;
   };
