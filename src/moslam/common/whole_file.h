@@ -1,11 +1,16 @@
 // Whole files: read at once (the caches on disk, the text files a user hands the library), and
 // the caches (the template cache, the perception cache) written so that a reader never sees half
 // of one (the bytes go to a temporary file beside
-// the target, renamed into place: atomic on one filesystem).
+// the target, renamed into place: atomic on one filesystem); folders written whole (a robot's
+// map) put in place of their last version, in one step where the filesystem can (ReplaceDirectory).
 #pragma once
 
+#include <fcntl.h>  // AT_FDCWD
+#include <stdio.h>  // renameat2, RENAME_EXCHANGE (glibc >= 2.28, _GNU_SOURCE as g++ defines it)
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -89,6 +94,74 @@ inline void WriteWholeFile(const std::string& path, std::string_view bytes,
     std::filesystem::remove(tmp, ec);
     throw InvalidInputError(who + ": cannot rename into '" + path + "'");
   }
+}
+
+// Folders written whole (a robot's map: its g2o and TUM files) put in place of the last version.
+// `staged` is the new folder, complete; `target` the one it replaces (or nothing yet).
+
+namespace whole_file_detail {
+
+inline std::string DescribeReplace(const std::string& who, const std::filesystem::path& staged,
+                                   const std::filesystem::path& target) {
+  return who + ": cannot put '" + staged.string() + "' in place of '" + target.string() + "'";
+}
+
+// The portable way: the old folder renamed aside to `target`.old, the new one renamed into place,
+// the old one removed. Between the two renames `target` is absent, but a crash there leaves both
+// folders on disk (the old one as .old). When the second rename fails the old folder is put back.
+inline void ReplaceDirectoryByRenames(const std::filesystem::path& staged,
+                                      const std::filesystem::path& target, const std::string& who) {
+  std::error_code ec;
+  const std::filesystem::path aside = target.string() + ".old";
+  std::filesystem::remove_all(aside, ec);
+  std::filesystem::rename(target, aside, ec);
+  if (ec) throw InvalidInputError(DescribeReplace(who, staged, target) + ": " + ec.message());
+  std::filesystem::rename(staged, target, ec);
+  if (ec) {
+    const std::string why = ec.message();
+    std::error_code back;
+    std::filesystem::rename(aside, target, back);
+    throw InvalidInputError(DescribeReplace(who, staged, target) + ": " + why +
+                            (back ? " (the old folder is left at '" + aside.string() + "')" : ""));
+  }
+  std::filesystem::remove_all(aside, ec);  // a leftover is removed by the next replacement
+}
+
+}  // namespace whole_file_detail
+
+// Puts the folder `staged` in place of `target`, so that a reader of `target` finds the old
+// version or the new one, whole, never a mix. When `target` exists, Linux's
+// renameat2(RENAME_EXCHANGE) swaps the two folders in one step (`target` is never absent, a crash
+// keeps one complete version in place) and the old one, now at `staged`, is removed; on a
+// filesystem that cannot exchange, whole_file_detail::ReplaceDirectoryByRenames. Throws
+// InvalidInputError, prefixed with `who` and naming both paths, when `staged` is not a folder or a
+// rename fails; `target` is then unchanged.
+inline void ReplaceDirectory(const std::filesystem::path& staged,
+                             const std::filesystem::path& target, const std::string& who) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(staged, ec)) {
+    throw InvalidInputError(whole_file_detail::DescribeReplace(who, staged, target) +
+                            ": the new folder does not exist");
+  }
+  if (!std::filesystem::exists(target, ec)) {
+    std::filesystem::rename(staged, target, ec);
+    if (ec) {
+      throw InvalidInputError(whole_file_detail::DescribeReplace(who, staged, target) + ": " +
+                              ec.message());
+    }
+    return;
+  }
+  if (::renameat2(AT_FDCWD, staged.c_str(), AT_FDCWD, target.c_str(), RENAME_EXCHANGE) == 0) {
+    std::filesystem::remove_all(staged, ec);  // the old version; a leftover is harmless
+    return;
+  }
+  const int err = errno;
+  if (err == EINVAL || err == ENOSYS || err == ENOTSUP) {  // no exchange on this filesystem
+    whole_file_detail::ReplaceDirectoryByRenames(staged, target, who);
+    return;
+  }
+  throw InvalidInputError(whole_file_detail::DescribeReplace(who, staged, target) + ": " +
+                          std::strerror(err));
 }
 
 }  // namespace moslam

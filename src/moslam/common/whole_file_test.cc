@@ -2,9 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <filesystem>
 #include <string>
+#include <vector>
 
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/throws_naming_testing.h"
 
 namespace moslam {
 namespace {
@@ -21,6 +25,71 @@ TEST(WholeFile, ReadsWhatWasWrittenAndNamesAMissingFile) {
   } catch (const InvalidInputError& e) {
     EXPECT_EQ(std::string(e.what()), missing + ": no such file");
   }
+}
+
+// A folder holding one file, `name`, with `text` in it.
+std::filesystem::path FolderWith(const std::filesystem::path& dir, const std::string& name,
+                                 const std::string& text) {
+  std::filesystem::create_directories(dir);
+  WriteWholeFile((dir / name).string(), text, "test");
+  return dir;
+}
+
+std::vector<std::string> Entries(const std::filesystem::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    names.push_back(e.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+TEST(ReplaceDirectory, PutsTheNewFolderInPlaceOfTheOldAndLeavesNothingElse) {
+  const std::filesystem::path dir = test::ScratchDir();
+  FolderWith(dir / "map", "old.g2o", "old");
+  FolderWith(dir / "map.tmp", "new.g2o", "new");
+  ReplaceDirectory(dir / "map.tmp", dir / "map", "test");
+  EXPECT_EQ(Entries(dir), std::vector<std::string>{"map"});
+  EXPECT_EQ(Entries(dir / "map"), std::vector<std::string>{"new.g2o"});
+  EXPECT_EQ(ReadWholeFileOrThrow((dir / "map" / "new.g2o").string()), "new");
+}
+
+TEST(ReplaceDirectory, RenamesWhenThereIsNoOldFolder) {
+  const std::filesystem::path dir = test::ScratchDir();
+  FolderWith(dir / "map.tmp", "new.g2o", "new");
+  ReplaceDirectory(dir / "map.tmp", dir / "map", "test");
+  EXPECT_EQ(Entries(dir), std::vector<std::string>{"map"});
+  EXPECT_EQ(Entries(dir / "map"), std::vector<std::string>{"new.g2o"});
+}
+
+TEST(ReplaceDirectory, AMissingNewFolderIsAnErrorNamingBothAndTheOldIsKept) {
+  const std::filesystem::path dir = test::ScratchDir();
+  FolderWith(dir / "map", "old.g2o", "old");
+  EXPECT_TRUE(test::ThrowsNaming<InvalidInputError>(
+      [&] { ReplaceDirectory(dir / "map.tmp", dir / "map", "the map 'final'"); },
+      "the map 'final': cannot put '" + (dir / "map.tmp").string() + "' in place of '" +
+          (dir / "map").string() + "': the new folder does not exist"));
+  EXPECT_EQ(Entries(dir / "map"), std::vector<std::string>{"old.g2o"});
+}
+
+TEST(ReplaceDirectory, TheRenamesOfFilesystemsWithoutExchangeDoTheSame) {
+  const std::filesystem::path dir = test::ScratchDir();
+  FolderWith(dir / "map", "old.g2o", "old");
+  FolderWith(dir / "map.old", "older.g2o", "a crash's leftover");
+  FolderWith(dir / "map.tmp", "new.g2o", "new");
+  whole_file_detail::ReplaceDirectoryByRenames(dir / "map.tmp", dir / "map", "test");
+  EXPECT_EQ(Entries(dir), std::vector<std::string>{"map"});
+  EXPECT_EQ(Entries(dir / "map"), std::vector<std::string>{"new.g2o"});
+}
+
+TEST(ReplaceDirectory, TheRenamesPutTheOldFolderBackWhenTheNewCannotBeMoved) {
+  const std::filesystem::path dir = test::ScratchDir();
+  FolderWith(dir / "map", "old.g2o", "old");
+  EXPECT_TRUE(test::ThrowsNaming<InvalidInputError>(
+      [&] { whole_file_detail::ReplaceDirectoryByRenames(dir / "map.tmp", dir / "map", "test"); },
+      "test: cannot put '" + (dir / "map.tmp").string() + "'"));
+  EXPECT_EQ(Entries(dir), std::vector<std::string>{"map"});
+  EXPECT_EQ(Entries(dir / "map"), std::vector<std::string>{"old.g2o"});
 }
 
 }  // namespace

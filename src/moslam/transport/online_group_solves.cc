@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/graph/robot_groups.h"
 #include "moslam/io/g2o.h"
 #include "moslam/io/tum.h"
@@ -282,8 +283,7 @@ void SaveSessionMap(const std::string& state_dir, const ObjectSlam& slam, const 
   write.scheme = KeyScheme::kWithObjects;
   WriteG2oFile((tmp / "map.g2o").string(), slam.graph(), slam.estimate(), write);
   WriteTumTrajectories(tmp.string(), slam.estimate());
-  std::filesystem::remove_all(final_dir);
-  std::filesystem::rename(tmp, final_dir);
+  ReplaceDirectory(tmp, final_dir, fmt::format("the map '{}'", name));
 }
 
 }  // namespace moslam::transport_detail

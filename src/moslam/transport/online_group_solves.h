@@ -52,7 +52,8 @@ class OnlineGroupSolves {
 };
 
 // The robot's map (its graph and estimate, g2o with objects, and TUM) in
-// <state_dir>/maps/<name>/, written to a temporary folder first; nothing without a state_dir.
+// <state_dir>/maps/<name>/, written to a temporary folder first and swapped in place of the last
+// version in one step (ReplaceDirectory, common/whole_file.h); nothing without a state_dir.
 void SaveSessionMap(const std::string& state_dir, const ObjectSlam& slam, const std::string& name);
 
 }  // namespace moslam::transport_detail
