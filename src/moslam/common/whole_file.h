@@ -135,7 +135,8 @@ inline void ReplaceDirectoryByRenames(const std::filesystem::path& staged,
 // keeps one complete version in place) and the old one, now at `staged`, is removed; on a
 // filesystem that cannot exchange, whole_file_detail::ReplaceDirectoryByRenames. Throws
 // InvalidInputError, prefixed with `who` and naming both paths, when `staged` is not a folder or a
-// rename fails; `target` is then unchanged.
+// rename fails; `target` is then unchanged, unless the fallback could not put the old folder back
+// (the message then says where it is).
 inline void ReplaceDirectory(const std::filesystem::path& staged,
                              const std::filesystem::path& target, const std::string& who) {
   std::error_code ec;
