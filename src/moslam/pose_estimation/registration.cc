@@ -18,7 +18,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
-#include <optional>
 #include <random>
 #include <string>
 #include <utility>
@@ -26,10 +25,21 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/pose_estimation/feature_index.h"
+#include "moslam/pose_estimation/pose_hypotheses.h"
+#include "moslam/pose_estimation/pose_score.h"
 #include "moslam/render/rgbd.h"
 
 namespace moslam {
 namespace {
+
+using pose_detail::Centroid;
+using pose_detail::FrontFaces;
+using pose_detail::PoseScore;
+using pose_detail::ScorePose;
+using pose_detail::ShapeAgrees;
+using pose_detail::SymmetryHypotheses;
+using pose_detail::UprightHypotheses;
+using pose_detail::WidenedByDepthNoise;
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDegToRad = kPi / 180.0;
@@ -42,13 +52,6 @@ bool PositiveFinite(double x) { return std::isfinite(x) && x > 0.0; }
 
 void Require(bool ok, const std::string& field, const std::string& what) {
   if (!ok) throw InvalidInputError(field + " " + what);
-}
-
-// A distance threshold at no depth noise, widened by `sigmas` of the sensor's depth noise at
-// depth z: sqrt(d0^2 + (sigmas sigma(z))^2) (the agreement, inlier and consensus radii).
-double WidenedByDepthNoise(double d0, double z, double sigmas, const AxialDepthNoise& noise) {
-  const double widen = sigmas * noise.sigma(z);
-  return std::sqrt(d0 * d0 + widen * widen);
 }
 
 // The consensus' inlier distance: sac_max_correspondence_distance widened at the median depth of
@@ -81,13 +84,6 @@ FeatureCloud::Ptr Subsample(const FeatureCloud::Ptr& cloud, int max_points) {
   out->reserve(cap);
   for (std::size_t j = 0; j < cap; ++j) out->push_back((*cloud)[j * n / cap]);
   return out;
-}
-
-// Mean of the points (zero for an empty cloud).
-Eigen::Vector3f Centroid(const FeatureCloud& cloud) {
-  Eigen::Vector3f c = Eigen::Vector3f::Zero();
-  for (const auto& p : cloud.points) c += p.getVector3fMap();
-  return c / static_cast<float>(std::max<std::size_t>(1, cloud.size()));
 }
 
 SE3 ToSE3(const Eigen::Matrix4f& T) {
@@ -549,22 +545,6 @@ struct GicpOutcome {
   FeatureCloud::Ptr target;  // the front-facing template points GICP aligned to
 };
 
-// The template points whose outward normal faces the camera at object_T_camera (back faces
-// removed, so thin parts do not attract the segment to their hidden side); the whole template if
-// fewer than min_segment_points face it.
-FeatureCloud::Ptr FrontFaces(const ObjectTemplate& tmpl, const Eigen::Matrix4f& object_T_camera,
-                             const RegistrationConfig& config) {
-  const Eigen::Vector3f camera_in_object = object_T_camera.topRightCorner<3, 1>();
-  auto target = std::make_shared<FeatureCloud>();
-  for (const auto& q : tmpl.cloud->points) {
-    if (q.getNormalVector3fMap().dot(camera_in_object - q.getVector3fMap()) > 0.0f) {
-      target->push_back(q);
-    }
-  }
-  if (static_cast<int>(target->size()) < config.min_segment_points) return tmpl.cloud;
-  return target;
-}
-
 // The segment as GICP sees it: at most gicp_max_source_points (an evenly strided subset), with its
 // covariances computed once for every hypothesis.
 struct GicpSource {
@@ -598,177 +578,6 @@ GicpOutcome RunGicp(const GicpSource& source, const ObjectTemplate& tmpl,
   out.object_T_camera = gicp.getFinalTransformation();
   out.ok = gicp.hasConverged() && out.object_T_camera.allFinite();
   if (out.ok) out.fitness = gicp.getFitnessScore(config.gicp_max_correspondence_distance);
-  return out;
-}
-
-// Shading-invariant colour: (c + k) / (r + g + b + 3k), k = chroma_dark_offset (pulls dark,
-// noisy colours towards grey).
-Eigen::Vector3f Chroma(const FeaturePoint& p, float k) {
-  const Eigen::Vector3f c(static_cast<float>(p.r) + k, static_cast<float>(p.g) + k,
-                          static_cast<float>(p.b) + k);
-  return c / c.sum();
-}
-
-struct PoseScore {
-  double geometric = 0.0;  // fraction of segment points with a template point within reach
-  double colour = 0.0;     // of those, the fraction whose colour agrees
-  double score = 0.0;      // fraction of segment points agreeing in both
-  double covered = 0.0;    // geometric points / covered points (with_covered only, else 0)
-};
-
-// The template points' rays: normalised image coordinates (x/z, y/z) of the points in front of
-// the camera, for "does the template cover this pixel" (AGREEMENT RULE's covered(i)).
-class TemplateRays {
- public:
-  TemplateRays(const FeatureCloud& target, const Eigen::Affine3f& camera_T_object)
-      : rays_(std::make_shared<pcl::PointCloud<pcl::PointXYZ>>()) {
-    for (const auto& q : target.points) {
-      const Eigen::Vector3f c = camera_T_object * q.getVector3fMap();
-      if (c.z() > 0.0f) rays_->push_back(pcl::PointXYZ(c.x() / c.z(), c.y() / c.z(), 0.0f));
-    }
-    if (!rays_->empty()) tree_.setInputCloud(rays_);
-  }
-  // Whether a template point lies within `reach` (normalised units) of the ray through p.
-  bool covers(const FeaturePoint& p, float reach) {
-    if (rays_->empty() || !(p.z > 0.0f)) return false;
-    return tree_.radiusSearch(pcl::PointXYZ(p.x / p.z, p.y / p.z, 0.0f), reach, idx_, sq_, 1) > 0;
-  }
-
- private:
-  pcl::PointCloud<pcl::PointXYZ>::Ptr rays_;
-  pcl::KdTreeFLANN<pcl::PointXYZ> tree_;
-  std::vector<int> idx_;
-  std::vector<float> sq_;
-};
-
-// The agreement rule of registration.h, segment points mapped by object_T_camera, against the
-// template points facing the camera at that pose.
-PoseScore ScorePose(const FeatureCloud& source, const ObjectTemplate& tmpl,
-                    const Eigen::Matrix4f& object_T_camera, const RegistrationConfig& config,
-                    bool with_covered = false) {
-  const FeatureCloud::Ptr target = FrontFaces(tmpl, object_T_camera, config);
-  pcl::KdTreeFLANN<FeaturePoint> tree;
-  tree.setInputCloud(target);
-  const auto k = static_cast<float>(config.chroma_dark_offset);
-  const auto tol_sq = static_cast<float>(config.colour_tolerance * config.colour_tolerance);
-  const Eigen::Affine3f T(object_T_camera);
-  std::vector<int> idx;
-  std::vector<float> sq;
-  int geometric = 0, both = 0, covered = 0;
-  std::optional<TemplateRays> rays;
-  if (with_covered) rays.emplace(*target, T.inverse());
-  for (const auto& sp : source.points) {
-    FeaturePoint y;
-    y.getVector3fMap() = T * sp.getVector3fMap();
-    const auto radius = static_cast<float>(WidenedByDepthNoise(
-        config.score_distance, sp.z, config.score_depth_sigmas, config.depth_noise));
-    if (tree.radiusSearch(y, radius, idx, sq) <= 0) {
-      if (rays && rays->covers(sp, static_cast<float>(config.score_distance) / sp.z)) ++covered;
-      continue;
-    }
-    ++geometric;
-    ++covered;
-    const Eigen::Vector3f cs = Chroma(sp, k);
-    for (int j : idx) {
-      if ((Chroma((*target)[static_cast<std::size_t>(j)], k) - cs).squaredNorm() <= tol_sq) {
-        ++both;
-        break;
-      }
-    }
-  }
-  PoseScore s;
-  const double n = static_cast<double>(std::max<std::size_t>(1, source.size()));
-  s.geometric = geometric / n;
-  s.colour = geometric > 0 ? static_cast<double>(both) / geometric : 0.0;
-  s.score = both / n;
-  s.covered = covered > 0 ? static_cast<double>(geometric) / covered : 0.0;
-  return s;
-}
-
-// SHAPE RULE of registration.h.
-bool ShapeAgrees(const PoseScore& s, const RegistrationConfig& config) {
-  return s.geometric >= config.min_geometric_agreement ||
-         (s.covered >= config.min_covered_agreement &&
-          s.geometric >= config.min_geometric_agreement_covered);
-}
-
-// The symmetry hypotheses of registration.h: `initial` itself, then for each turn by
-// 2 pi j / symmetry_turns (j = 1 .. turns - 1) about the object's z axis: through the object
-// origin; through the vertical line of the segment's centroid (object frame); and the latter
-// shifted horizontally so that the segment's centroid lands on the centroid of the template
-// points facing the camera at that pose.
-std::vector<Eigen::Matrix4f> Hypotheses(const FeatureCloud& source, const ObjectTemplate& tmpl,
-                                        const Eigen::Matrix4f& initial,
-                                        const RegistrationConfig& config) {
-  std::vector<Eigen::Matrix4f> out{initial};
-  const Eigen::Vector3f centroid = Centroid(source);
-  const Eigen::Vector3f horizontal(1.0f, 1.0f, 0.0f);
-  const Eigen::Vector3f c = (Eigen::Affine3f(initial) * centroid).cwiseProduct(horizontal);
-  for (int j = 1; j < config.symmetry_turns; ++j) {
-    const float angle = static_cast<float>(2.0 * kPi * j / config.symmetry_turns);
-    const Eigen::Matrix3f R = Eigen::AngleAxisf(angle, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-    for (const Eigen::Vector3f& pivot : {Eigen::Vector3f::Zero().eval(), c}) {
-      Eigen::Matrix4f turn = Eigen::Matrix4f::Identity();
-      turn.topLeftCorner<3, 3>() = R;
-      turn.topRightCorner<3, 1>() = pivot - R * pivot;
-      out.push_back(turn * initial);
-    }
-    Eigen::Matrix4f recentred = out.back();
-    const Eigen::Vector3f front_centroid = Centroid(*FrontFaces(tmpl, recentred, config));
-    recentred.topRightCorner<3, 1>() += (front_centroid - c).cwiseProduct(horizontal);
-    out.push_back(recentred);
-  }
-  return out;
-}
-
-// The upright hypotheses of registration.h: the object standing on a floor whose up direction in
-// the camera frame is config.camera_up; yaw along the principal horizontal axis of the segment and
-// its quarter turns; the template's camera-facing points centred on the segment. Empty when the
-// template's horizontal extent is below upright_min_extent or upright_yaws is 0.
-std::vector<Eigen::Matrix4f> UprightHypotheses(const FeatureCloud& source,
-                                               const ObjectTemplate& tmpl,
-                                               const RegistrationConfig& config) {
-  std::vector<Eigen::Matrix4f> out;
-  if (config.upright_yaws <= 0 || source.empty()) return out;
-  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
-  for (const auto& q : tmpl.cloud->points) {
-    lo = lo.cwiseMin(q.getVector3fMap());
-    hi = hi.cwiseMax(q.getVector3fMap());
-  }
-  if (std::max(hi.x() - lo.x(), hi.y() - lo.y()) < config.upright_min_extent) return out;
-  const Eigen::Vector3f template_centroid = Centroid(*tmpl.cloud);
-  // Level frame in the camera frame: z up, x the camera's forward axis made horizontal.
-  const Eigen::Vector3f up = config.camera_up.cast<float>().normalized();
-  Eigen::Vector3f forward = Eigen::Vector3f::UnitZ() - up * up.z();
-  if (forward.norm() < 1e-3f) forward = Eigen::Vector3f::UnitX() - up * up.x();
-  forward.normalize();
-  Eigen::Matrix3f level;  // columns: the level frame's axes in the camera frame
-  level << forward, up.cross(forward), up;
-  const Eigen::Vector3f centroid = Centroid(source);
-  Eigen::Matrix2f scatter = Eigen::Matrix2f::Zero();
-  for (const auto& p : source.points) {
-    const Eigen::Vector2f h = (level.transpose() * (p.getVector3fMap() - centroid)).head<2>();
-    scatter += h * h.transpose();
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2f> eig(scatter);
-  const Eigen::Vector2f axis = eig.eigenvectors().col(1);  // largest eigenvalue
-  const float yaw0 = std::atan2(axis.y(), axis.x());
-  for (int k = 0; k < config.upright_yaws; ++k) {
-    const float yaw = yaw0 + static_cast<float>(2.0 * kPi * k / config.upright_yaws);
-    const Eigen::Matrix3f R =  // camera_R_object
-        level * Eigen::AngleAxisf(yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-    Eigen::Matrix4f camera_T_object = Eigen::Matrix4f::Identity();
-    camera_T_object.topLeftCorner<3, 3>() = R;
-    camera_T_object.topRightCorner<3, 1>() = centroid - R * template_centroid;
-    // Centre the points facing the camera from there on the segment (twice: the visible set
-    // depends on where the object is).
-    for (int pass = 0; pass < 2; ++pass) {
-      const Eigen::Matrix4f object_T_camera = camera_T_object.inverse();
-      camera_T_object.topRightCorner<3, 1>() =
-          centroid - R * Centroid(*FrontFaces(tmpl, object_T_camera, config));
-    }
-    out.push_back(camera_T_object.inverse());
-  }
   return out;
 }
 
@@ -903,7 +712,7 @@ RegistrationResult RefinePose(const OrganizedCloud& segment, const ObjectTemplat
     return result;
   }
   const Eigen::Matrix4f initial = initial_camera_T_object.inverse().matrix().cast<float>();
-  RefineAndInform(source, tmpl, Hypotheses(*source, tmpl, initial, config), config, result);
+  RefineAndInform(source, tmpl, SymmetryHypotheses(*source, tmpl, initial, config), config, result);
   return result;
 }
 
@@ -1039,7 +848,9 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   // gate, information matrix; the inlier gate again at the refined pose.
   RegistrationResult refined = result;
   std::vector<Eigen::Matrix4f> hypotheses;
-  if (!consensus_failed) hypotheses = Hypotheses(*source, tmpl, object_T_camera_sac, config);
+  if (!consensus_failed) {
+    hypotheses = SymmetryHypotheses(*source, tmpl, object_T_camera_sac, config);
+  }
   hypotheses.insert(hypotheses.end(), upright.begin(), upright.end());
   RefineAndInform(source, tmpl, hypotheses, config, refined);
   if (refined.status == RegistrationStatus::kGicpFailed) {
