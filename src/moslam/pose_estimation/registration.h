@@ -6,8 +6,9 @@
 // (p_camera = camera_T_object * p_object). The robot's object-pose measurement x_i^-1 o_k is
 // BodyFromCamera() * camera_T_object (ObjectMeasurementInBody).
 //
-// The hypotheses below are pose_hypotheses.h, the AGREEMENT and SHAPE RULES pose_score.h; this
-// file runs the stages (registration.cc: every PFHRGB, consensus and GICP instantiation).
+// The hypotheses below are pose_hypotheses.h, the AGREEMENT and SHAPE RULES pose_score.h, the
+// information matrix pose_information.h; this file runs the stages (registration.cc: every
+// PFHRGB, consensus and GICP instantiation).
 //
 // Stages (times in RegistrationResult::times):
 //   prepare : voxel the segment (FeatureConfig::voxel_size), normals (normal_radius, flipped
