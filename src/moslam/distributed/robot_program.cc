@@ -24,6 +24,12 @@ double TeamMax(const TeamStep& step, int i) {
   return m;
 }
 
+std::map<int, double> TeamValues(const TeamStep& step, int i) {
+  std::map<int, double> out;
+  for (const auto& [r, report] : step.reports) out[r] = report.value[i];
+  return out;
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;

@@ -67,6 +67,8 @@ struct TeamStep {
 // below) of report.value[i] over the step's reports: what every robot computes alike.
 double TeamSum(const TeamStep& step, int i);
 double TeamMax(const TeamStep& step, int i);
+// Every live robot's report.value[i] in the step, by robot id.
+std::map<int, double> TeamValues(const TeamStep& step, int i);
 
 class TeamChannel {
  public:

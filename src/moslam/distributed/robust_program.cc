@@ -9,6 +9,8 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
+#include "moslam/distributed/program_link.h"
+#include "moslam/distributed/separator_check_program.h"
 
 namespace moslam {
 
@@ -171,26 +173,10 @@ class RobustProgram {
   TeamStep step(const TeamReport& report, const std::vector<WeightMessage>& weights = {},
                 const std::vector<OutgoingMessage>& estimates = {},
                 const std::vector<CovarianceMessage>& covariances = {}) {
-    ++out_.channel_steps;
-    return channel_.step(DgsStage::kRefine, estimates, report, nullptr, weights, covariances);
+    return link_.step(report, weights, estimates, covariances);
   }
 
-  TeamStep reduce(double value) {
-    TeamReport mine;
-    mine.value[0] = value;
-    return step(mine);
-  }
-
-  WeightMessage weightMessage(int other, std::uint32_t round, std::vector<double> weights) {
-    WeightMessage m;
-    m.sender = p_.robot;
-    m.receiver = other;
-    m.round = round;
-    m.weights = std::move(weights);
-    out_.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
-    ++out_.weight_messages;
-    return m;
-  }
+  TeamStep reduce(double value) { return link_.reduce(value); }
 
   // Sends every neighbour the weights of the robust separators of `x` this robot owns toward it
   // (in graph order; none toward a lower robot), with `value` in the report, and takes the
@@ -203,7 +189,7 @@ class RobustProgram {
       if (other > p_.robot) {
         for (std::size_t i : list) mine.push_back(weights[i]);
       }
-      send.push_back(weightMessage(other, round, std::move(mine)));
+      send.push_back(link_.weightMessage(other, round, std::move(mine)));
     }
     TeamReport report;
     report.weights = true;
@@ -224,201 +210,16 @@ class RobustProgram {
     return got;
   }
 
-  // ---- the separator check (C1-C4 of the header) ------------------------------------------
-  std::vector<RelativePoseFactor> separatorsWith(int other) const {
-    std::vector<RelativePoseFactor> out;
-    for (std::size_t i : pairs_.at(other)) out.push_back(p_.subgraph.factors()[i]);
-    return out;
-  }
-
-  // A message of 6-vectors (stage kPose) to `other`, with no variable yet.
-  OutgoingMessage emptyMessageTo(int other) const {
-    OutgoingMessage o;
-    o.to = other;
-    o.message.stage = DgsStage::kPose;
-    o.message.sender = p_.robot;
-    return o;
-  }
-
-  // The kept flag of every factor of the subgraph.
+  // The separator check (C1-C4 of the header): the kept flag of every factor of the subgraph.
   std::vector<bool> checkSeparators() {
     (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
-    std::vector<std::size_t> seen;
-    const PoseGraph checked_graph =
-        p_.checked.empty() ? p_.subgraph : SubGraph(p_.subgraph, p_.checked, &seen);
-    std::vector<bool> checked_robust = p_.robust;
-    if (!p_.checked.empty()) {
-      checked_robust.clear();
-      for (std::size_t i : seen) checked_robust.push_back(p_.robust[i]);
-    }
-    const SeparatorCheckMap map(checked_graph, p_.robot, checked_robust, options_.gnc,
-                                consistency_.map_uncertainty);
-    // C1: the map's estimates and covariances toward lower neighbours.
-    std::vector<OutgoingMessage> estimates;
-    std::vector<CovarianceMessage> covariances;
-    for (const auto& [other, list] : pairs_) {
-      OutgoingMessage o = emptyMessageTo(other);
-      CovarianceMessage c;
-      c.sender = p_.robot;
-      c.receiver = other;
-      const std::vector<Key> mine = SeparatorVariables(separatorsWith(other), p_.robot);
-      // (No checked separator with it: a neighbour only through factors the check does not see.)
-      if (other < p_.robot && !list.empty() && map.hasAll(mine)) {
-        o.message = map.estimates(mine);
-        c.covariance = map.covariance(mine);
-        countCheck(EncodeMessage(o.message).size());
-        if (consistency_.map_uncertainty) countCheck(EncodeCovarianceMessage(c).size());
-      }
-      estimates.push_back(std::move(o));
-      if (consistency_.map_uncertainty) covariances.push_back(std::move(c));
-    }
-    TeamReport report;
-    report.sent = true;
-    report.covariance = consistency_.map_uncertainty;
-    const TeamStep c1 = step(report, {}, estimates, covariances);
-    // C2: the largest consistent set of each pair it checks (toward higher neighbours).
-    struct Verdict {
-      bool checked = false, confirmed = false;
-      int largest = 0;                // its largest consistent set
-      std::vector<std::size_t> kept;  // PairConsistency::kept: positions in pairs_[other]
-      std::vector<int> support;       // per position: the members of kept it agrees with
-      std::vector<std::size_t> runner_up;  // PairConsistency::runner_up
-    };
-    std::map<int, Verdict> verdicts;
-    for (const auto& [other, list] : pairs_) {
-      if (other < p_.robot) continue;
-      Verdict& v = verdicts[other];
-      const Message* theirs = nullptr;
-      for (const Message& m : c1.estimates) {
-        if (m.sender == other) theirs = &m;
-      }
-      const std::vector<RelativePoseFactor> separators = separatorsWith(other);
-      // A variable a robot's own factors do not reach: nothing to check with (all kept).
-      if (!theirs || theirs->keys.empty() ||
-          !map.hasAll(SeparatorVariables(separators, p_.robot))) {
-        continue;
-      }
-      Eigen::MatrixXd covariance;
-      if (consistency_.map_uncertainty) {
-        const auto it = c1.covariances.find(other);
-        if (it == c1.covariances.end()) {
-          throw InvalidInputError("robust program: robot " + std::to_string(other) +
-                                  " sent its map's estimates without their covariance");
-        }
-        covariance = it->second.covariance;
-      }
-      v.checked = true;
-      PairConsistency check =
-          ConsistentSeparators(separators, map, *theirs, covariance, consistency_);
-      v.largest = check.largest;
-      v.kept = std::move(check.kept);
-      v.support = std::move(check.support);
-      v.runner_up = std::move(check.runner_up);
-      v.confirmed = v.largest >= consistency_.min_support;
-    }
-    const auto verdictWeights = [&](int other, bool final) {
-      std::vector<double> out;
-      const Verdict& v = verdicts.at(other);
-      for (std::size_t j = 0; j < pairs_.at(other).size(); ++j) {
-        const bool in_kept = std::binary_search(v.kept.begin(), v.kept.end(), j);
-        out.push_back(!v.checked || ((v.confirmed || final) && in_kept) ? 1.0 : 0.0);
-      }
-      out.push_back(v.confirmed ? 1.0 : 0.0);
-      return out;
-    };
-    std::map<int, bool> confirmed;  // per neighbour: their pair confirms itself
-    std::map<int, std::vector<double>> kept_by_other;  // verdicts received from lower neighbours
-    const auto exchangeVerdicts = [&](bool final, double label, double rejected) {
-      std::vector<WeightMessage> send;
-      for (const auto& [other, list] : pairs_) {
-        send.push_back(weightMessage(other, 0, other > p_.robot ? verdictWeights(other, final)
-                                                                : std::vector<double>()));
-      }
-      TeamReport r;
-      r.weights = true;
-      r.value[0] = label;
-      r.value[1] = rejected;
-      TeamStep got = step(r, send);
-      for (const auto& [other, m] : got.weights) {
-        if (other > p_.robot || !pairs_.count(other)) continue;
-        if (m.weights.size() != pairs_.at(other).size() + 1) {
-          throw InvalidInputError("robust program: robot " + std::to_string(other) +
-                                  " sent a separator check verdict of " +
-                                  std::to_string(m.weights.size()) + " entries for the " +
-                                  std::to_string(pairs_.at(other).size()) +
-                                  " separators robot " + std::to_string(p_.robot) +
-                                  " shares with it (their subgraphs disagree)");
-        }
-        confirmed[other] = m.weights.back() == 1.0;
-        kept_by_other[other] = m.weights;
-      }
-      return got;
-    };
-    for (const auto& [other, v] : verdicts) confirmed[other] = v.confirmed;
-    double label = p_.robot;
-    TeamStep got = exchangeVerdicts(false, label, 0.0);
-    // C3: the lowest robot id linked through confirmed pairs, flooded until no report changes.
-    std::map<int, double> previous = Labels(got);
-    while (true) {
-      for (const auto& [other, yes] : confirmed) {
-        const auto it = previous.find(other);
-        if (yes && it != previous.end()) label = std::min(label, it->second);
-      }
-      const std::map<int, double> labels = Labels(reduce(label));
-      if (labels == previous) break;
-      previous = labels;
-    }
-    // C4: pairs below min_support keep their largest sets when linked through confirmed pairs.
-    for (auto& [other, v] : verdicts) {
-      if (!v.checked || v.confirmed) continue;
-      const auto it = previous.find(other);
-      const bool linked = it != previous.end() && it->second == label;
-      if (!linked || v.largest < consistency_.linked_min_support) {
-        v.kept.clear();
-      } else {
-        out_.check_deferred += static_cast<int>(v.kept.size());
-      }
-    }
-    // The separators it leaves out (of the pairs it checks), summed over the team in that step.
-    double rejected = 0.0;
-    for (const auto& [other, v] : verdicts) {
-      if (v.checked) rejected += static_cast<double>(pairs_.at(other).size() - v.kept.size());
-    }
-    check_rejected_by_team_ = TeamSum(exchangeVerdicts(true, label, rejected), 1);
-    // The support of the separators it checked (against what the pair keeps, when it is kept).
-    for (const auto& [other, v] : verdicts) {
-      if (!v.checked) continue;
-      const std::vector<std::size_t>& list = pairs_.at(other);
-      for (std::size_t j = 0; j < list.size(); ++j) {
-        support_[list[j]] = v.kept.empty() ? 0 : v.support[j];
-      }
-      if (!v.kept.empty()) {
-        for (std::size_t j : v.runner_up) runner_up_.insert(list[j]);
-      }
-    }
-    std::vector<bool> kept(p_.subgraph.factors().size(), true);
-    for (const auto& [other, list] : pairs_) {
-      const auto theirs = kept_by_other.find(other);
-      if (other < p_.robot && theirs == kept_by_other.end()) continue;
-      const std::vector<double> verdict =
-          other > p_.robot ? verdictWeights(other, true) : theirs->second;
-      for (std::size_t j = 0; j < list.size(); ++j) {
-        kept[list[j]] = verdict[j] == 1.0;
-        if (other > p_.robot && !kept[list[j]]) ++out_.check_rejected;
-      }
-    }
-    return kept;
-  }
-
-  static std::map<int, double> Labels(const TeamStep& got) {
-    std::map<int, double> out;
-    for (const auto& [r, report] : got.reports) out[r] = report.value[0];
-    return out;
-  }
-
-  void countCheck(std::size_t bytes) {
-    ++out_.check_messages;
-    out_.check_bytes += static_cast<std::int64_t>(bytes);
+    SeparatorCheckVerdict v = RunSeparatorCheck(p_, pairs_, consistency_, options_.gnc, link_);
+    out_.check_rejected += v.rejected;
+    out_.check_deferred += v.deferred;
+    check_rejected_by_team_ = v.rejected_by_team;
+    support_ = std::move(v.support);
+    runner_up_ = std::move(v.runner_up);
+    return std::move(v.kept);
   }
 
   // After GNC: the higher robot of each pair sends the lower its estimates of its variables in
@@ -435,7 +236,7 @@ class RobustProgram {
     (void)make_agent_(p_.subgraph, values_);  // every neighbour reached (see AgentFactory)
     std::vector<OutgoingMessage> estimates;
     for (const auto& [other, list] : shared_) {
-      OutgoingMessage o = emptyMessageTo(other);
+      OutgoingMessage o = link_.emptyMessageTo(other);
       if (other < p_.robot) {
         std::set<Key> keys;
         for (std::size_t i : list) {
@@ -444,7 +245,7 @@ class RobustProgram {
           if (select(i, mine)) keys.insert(mine);
         }
         for (const Key& k : keys) o.message.appendPose(k, values_.at(k));
-        if (!keys.empty()) countCheck(EncodeMessage(o.message).size());
+        if (!keys.empty()) link_.countCheck(EncodeMessage(o.message).size());
       }
       estimates.push_back(std::move(o));
     }
@@ -535,7 +336,7 @@ class RobustProgram {
     bool reached = p_.robot == 0 || !p_.subgraph.priors().empty();
     std::map<int, double> previous;
     while (true) {
-      const std::map<int, double> flags = Labels(reduce(reached ? 1.0 : 0.0));
+      const std::map<int, double> flags = TeamValues(reduce(reached ? 1.0 : 0.0), 0);
       if (flags == previous) {
         for (const auto& [r, f] : flags) {
           if (f == 0.0) return false;
@@ -760,6 +561,7 @@ class RobustProgram {
   std::set<std::size_t> runner_up_;     // the separators it checked in their pair's runner-up set
   double inlier_cost_ = 0.0;            // F of the inliers' solve, when kept
   RobustProgramResult out_;
+  ProgramLink link_{p_.robot, channel_, out_};  // counts into out_
 };
 
 }  // namespace
