@@ -18,8 +18,6 @@ class ProgramLink {
   ProgramLink(int robot, TeamChannel& channel, RobustProgramResult& counts)
       : robot_(robot), channel_(channel), counts_(counts) {}
 
-  int robot() const { return robot_; }
-
   // One refinement-stage step of the channel.
   TeamStep step(const TeamReport& report, const std::vector<WeightMessage>& weights = {},
                 const std::vector<OutgoingMessage>& estimates = {},

@@ -116,7 +116,7 @@ class RobustProgram {
     std::vector<double> r2 = SquaredResiduals(gnc.graph, values_);
     double max_r2 = 0.0;
     for (std::size_t i : gnc.owned) max_r2 = std::max(max_r2, r2[i]);
-    const bool started = schedule.start(TeamMax(reduce(max_r2), 0));
+    const bool started = schedule.start(TeamMax(link_.reduce(max_r2), 0));
     if (started) {
       for (std::uint32_t k = 1;; ++k) {
         double undecided = 0.0;
@@ -170,14 +170,6 @@ class RobustProgram {
     for (const auto& [k, x] : agent.neighbourEstimates()) values_[k] = x;
   }
 
-  TeamStep step(const TeamReport& report, const std::vector<WeightMessage>& weights = {},
-                const std::vector<OutgoingMessage>& estimates = {},
-                const std::vector<CovarianceMessage>& covariances = {}) {
-    return link_.step(report, weights, estimates, covariances);
-  }
-
-  TeamStep reduce(double value) { return link_.reduce(value); }
-
   // Sends every neighbour the weights of the robust separators of `x` this robot owns toward it
   // (in graph order; none toward a lower robot), with `value` in the report, and takes the
   // weights of the separators its lower neighbours own from theirs.
@@ -194,7 +186,7 @@ class RobustProgram {
     TeamReport report;
     report.weights = true;
     report.value[0] = value;
-    TeamStep got = step(report, send);
+    TeamStep got = link_.step(report, send);
     for (const auto& [other, m] : got.weights) {
       const auto it = x.separators.find(other);
       if (other > p_.robot || it == x.separators.end()) continue;
@@ -251,7 +243,7 @@ class RobustProgram {
     }
     TeamReport report;
     report.sent = true;
-    const TeamStep got = step(report, {}, estimates);
+    const TeamStep got = link_.step(report, {}, estimates);
     std::set<Key> received;
     for (const Message& m : got.estimates) {
       if (m.sender < p_.robot) continue;
@@ -302,7 +294,7 @@ class RobustProgram {
     TeamReport costs;
     costs.value[0] = before;
     costs.value[1] = ownedCost(inlier_graph);
-    const TeamStep got = step(costs);
+    const TeamStep got = link_.step(costs);
     if (KeepInlierSolve(TeamSum(got, 0), TeamSum(got, 1))) {
       out_.polished = true;
       inlier_cost_ = TeamSum(got, 1);
@@ -336,7 +328,7 @@ class RobustProgram {
     bool reached = p_.robot == 0 || !p_.subgraph.priors().empty();
     std::map<int, double> previous;
     while (true) {
-      const std::map<int, double> flags = TeamValues(reduce(reached ? 1.0 : 0.0), 0);
+      const std::map<int, double> flags = TeamValues(link_.reduce(reached ? 1.0 : 0.0), 0);
       if (flags == previous) {
         for (const auto& [r, f] : flags) {
           if (f == 0.0) return false;
@@ -404,7 +396,7 @@ class RobustProgram {
       TeamReport offer;
       offer.value[0] = next < mine.size() ? 1.0 : 0.0;
       offer.value[1] = next < mine.size() ? mine[next].first : 0.0;
-      const TeamStep offers = step(offer);
+      const TeamStep offers = link_.step(offer);
       int chosen = -1;
       double best = 0.0;
       for (const auto& [r, o] : offers.reports) {  // robot id order: ties to the lower
@@ -431,7 +423,7 @@ class RobustProgram {
       }
       TeamReport offer;
       offer.value[0] = static_cast<double>(left.size());
-      const TeamStep offers = step(offer);
+      const TeamStep offers = link_.step(offer);
       int chosen = -1;
       for (const auto& [r, o] : offers.reports) {  // robot id order: the lowest offering
         if (o.value[0] > 0.0) {
@@ -465,7 +457,7 @@ class RobustProgram {
     solve(trial);
     TeamReport cost;
     cost.value[0] = ownedCost(trial);
-    const double f1 = TeamSum(step(cost), 0);
+    const double f1 = TeamSum(link_.step(cost), 0);
     if (std::isfinite(f1) && 2.0 * (f1 - *f0) <= options_.gnc.threshold2()) {
       *f0 = f1;
       return static_cast<int>(candidate.size());
@@ -524,7 +516,7 @@ class RobustProgram {
     TeamReport cost;
     cost.value[0] = before;
     cost.value[1] = ownedTruncatedCost(sub, sub_robust);
-    const TeamStep got = step(cost);
+    const TeamStep got = link_.step(cost);
     const double after = TeamSum(got, 1);
     if (std::isfinite(after) && after < TeamSum(got, 0)) return true;
     out_.weights = weights;

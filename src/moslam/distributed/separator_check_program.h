@@ -20,9 +20,10 @@ struct SeparatorCheckVerdict {
   std::map<std::size_t, int> support;  // per separator it checked: the check's support
   std::set<std::size_t> runner_up;     // the separators it checked in their pair's runner-up set
   double rejected_by_team = 0.0;       // separators the check left out, over the team
-  int rejected =
-      0;  // separators to higher robots it left out (RobustProgramResult::check_rejected)
-  int deferred = 0;  // ... of pairs too small to confirm themselves, kept for GNC (check_deferred)
+  // The separators to higher robots it left out (RobustProgramResult::check_rejected), and of
+  // those, the ones of pairs too small to confirm themselves kept for GNC (check_deferred).
+  int rejected = 0;
+  int deferred = 0;
 };
 
 // `pairs`: per neighbour, the indices of the checked separators with it (every neighbour has an
