@@ -1,6 +1,7 @@
 // The robust program's steps over the team channel, counted in its result (robust_program.h):
 // every step, the weight messages and their bytes, the separator check's messages and bytes.
-// Internal to robust_program.cc and separator_check_program.cc.
+// Internal to the robust program (robust_program.cc, robust_robot.cc, retest_program.cc,
+// separator_check_program.cc).
 #pragma once
 
 #include <cstdint>

@@ -13,10 +13,10 @@
 //   3. a GNC round: it sets the weights it owns, sends each neighbour a WeightMessage (the weights
 //      of the robust separators it owns toward that neighbour, in the order both subgraphs hold
 //      them: empty toward a robot of lower id or without robust separators) and reports how
-//      many of its weights are undecided, in one channel step; it takes the weights of the separators its lower neighbours own from
-//      their messages, solves the weighted subgraph (WeightedGraph) with RunRobotProgram from its
-//      current estimate and copies, and recomputes r2; the schedule stops when the team's
-//      undecided count was 0 (or after max_iterations);
+//      many of its weights are undecided, in one channel step; it takes the weights of the
+//      separators its lower neighbours own from their messages, solves the weighted subgraph
+//      (WeightedGraph) with RunRobotProgram from its current estimate and copies, and recomputes
+//      r2; the schedule stops when the team's undecided count was 0 (or after max_iterations);
 //   4. as RunRobustDgs: the rejected factors it owns whose r2 is within c2 come back (one step:
 //      their weights to the neighbours, and the team's count of readmitted and not-one weights);
 //      if some weight is not 1, the inliers alone (SubGraph of weight >= 0.5) are solved once
@@ -78,6 +78,9 @@
 // to be reached from robot 0: the two differ only for landmarks that no inlier observation holds
 // and that only inlier separators to such landmarks of other robots reach (then the agent of that
 // robot fails).
+// The code by job: robust_program.cc the check's call, GNC, the readmission and the inliers'
+// solve; separator_check_program.h the check (C1-C4); retest_program.h the re-tests (step 5);
+// robust_robot.h the robot's estimate and weights and the team steps all of them share.
 #pragma once
 
 #include <algorithm>
