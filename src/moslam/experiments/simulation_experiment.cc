@@ -328,6 +328,145 @@ bool WrongPair(const std::map<Key, int>& objects, const Key& a, const Key& b) {
   return ta < 0 || ta != tb;
 }
 
+namespace {
+
+// The robust solve's columns of one run (config.robust): the robust DGS, the least-squares DGS and
+// the outlier-free centralized solve against the ground truth and one another, and the
+// precision and recall of the rejections of each kind of robust factor.
+void RobustMetrics(const ExperimentConfig& config, unsigned seed, const JointProblem& joint,
+                   const MultiRobotSlamResult& slam, const Values& truth, RunMetrics& m) {
+  // Robust: the factors that touch an object (ObjectFactors, as the robot processes), of three
+  // kinds. The object-object factors between robots and those of a robot's own loop closures,
+  // wrong when their landmarks are other world objects; the object-pose factors, wrong when the
+  // detection is of another object than its landmark's (a wrong association inside the robot's
+  // own map, as the intra-association errors of Table 2). A landmark stands for the world object
+  // most of its observations are of (ties: the one that created it): a wrong association inside
+  // a map can outnumber the right ones.
+  const std::size_t nf = joint.graph.factors().size();
+  const std::map<Key, int> truth_of = LandmarkObjects(joint, slam.robots);
+  const std::vector<bool> robust = ObjectFactors(joint.graph);
+  enum class Kind { kOther, kSeparator, kObservation, kLoopClosure };
+  std::vector<Kind> kind(nf, Kind::kOther);
+  std::vector<bool> wrong(nf, false);
+  std::vector<RelativePoseFactor> right;
+  for (std::size_t i = 0; i < nf; ++i) {
+    const RelativePoseFactor& f = joint.graph.factors()[i];
+    if (f.a().isObject() && f.b().isObject()) {
+      kind[i] = f.a().robot != f.b().robot ? Kind::kSeparator : Kind::kLoopClosure;
+      wrong[i] = WrongPair(truth_of, f.a(), f.b());
+    } else if (joint.factor_objects[i] != ObjectSlam::kNoObservation) {
+      kind[i] = Kind::kObservation;
+      wrong[i] = joint.factor_objects[i] < 0 || joint.factor_objects[i] != truth_of.at(f.b());
+    }
+    if (!wrong[i]) right.push_back(f);
+  }
+  m.injected = slam.injected;
+  RobustDgsOptions options;
+  options.dgs.coarse_correction = config.two_level_dgs;
+  options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+  options.gnc.threshold = config.gnc_threshold;
+  options.retest_left_out = config.retest_left_out;
+  options.retest_groups = config.retest_groups;
+  RobustDgsResult r;
+  try {
+    r = RunRobustDgs(joint.graph, joint.initial, robust, options);
+  } catch (const UnderdeterminedError& e) {
+    // The separator check refused every link of a robot: unlinked for the robust solve.
+    throw UnlinkedRobotError(fmt::format("experiment {} with {} robots, seed {}: {}",
+                                         config.scenario, config.robots, seed, e.what()));
+  }
+  // Precision and recall of the rejections, each kind apart.
+  auto score = [&](Kind k, double* count, double* precision, double* recall) {
+    int flagged = 0, flagged_wrong = 0, wrong_count = 0;
+    for (std::size_t i = 0; i < nf; ++i) {
+      if (!robust[i] || kind[i] != k) continue;
+      wrong_count += wrong[i] ? 1 : 0;
+      if (r.weights[i] < 0.5) {
+        ++flagged;
+        flagged_wrong += wrong[i] ? 1 : 0;
+      }
+    }
+    *count = wrong_count;
+    *precision = flagged > 0 ? static_cast<double>(flagged_wrong) / flagged : 1.0;
+    *recall = wrong_count > 0 ? static_cast<double>(flagged_wrong) / wrong_count : 1.0;
+  };
+  score(Kind::kSeparator, &m.wrong_factors, &m.outlier_precision, &m.outlier_recall);
+  score(Kind::kObservation, &m.wrong_observations, &m.observation_precision, &m.observation_recall);
+  score(Kind::kLoopClosure, &m.wrong_loop_closure_factors, &m.loop_closure_precision,
+        &m.loop_closure_recall);
+  m.robust_bytes = static_cast<double>(r.bytes());
+  m.robust_extra_bytes =
+      static_cast<double>(r.weight_bytes + r.control_bytes + r.consistency_bytes);
+  m.robust_rounds = r.iterations;
+  // The least-squares DGS, refined (the same solver with every weight 1).
+  DgsOptions ls_options = options.dgs;
+  ls_options.refine = true;
+  const Values ls = RunDgs(joint.graph, joint.initial, ls_options).values;
+  // The outlier-free solve, centralized from the same start as the robots'.
+  PoseGraph free_graph(std::move(right));
+  Values free = joint.initial;
+  try {
+    // Landmarks only wrong observations saw are not in it: they keep their initial estimate.
+    for (const auto& [k, x] :
+         Optimize(free_graph, CentralizedTwoStage(free_graph, joint.initial).values).values) {
+      free[k] = x;
+    }
+  } catch (const UnderdeterminedError&) {
+    // Only wrong pairs linked some robot: no outlier-free reference for this run.
+    free.clear();
+  }
+  const GroundTruthErrors ls_gt = CompareToGroundTruthOrNan(ls, truth);
+  const GroundTruthErrors robust_gt = CompareToGroundTruthOrNan(r.values, truth);
+  m.ls_ate_poses = ls_gt.aligned.poses.ate;
+  m.ls_are_poses = ls_gt.aligned.poses.are_deg;
+  m.robust_ate_poses = robust_gt.aligned.poses.ate;
+  m.robust_are_poses = robust_gt.aligned.poses.are_deg;
+  const TrajectoryErrors vs_ls = CompareEstimates(r.values, ls);  // same gauge, no alignment
+  m.robust_vs_ls_ate = vs_ls.poses.ate;
+  m.robust_vs_ls_are = vs_ls.poses.are_deg;
+  if (!free.empty()) {
+    const GroundTruthErrors free_gt = CompareToGroundTruthOrNan(free, truth);
+    m.free_ate_poses = free_gt.aligned.poses.ate;
+    m.free_are_poses = free_gt.aligned.poses.are_deg;
+    const TrajectoryErrors d = CompareEstimates(r.values, free);
+    m.robust_vs_free_ate = d.poses.ate;
+    m.robust_vs_free_are = d.poses.are_deg;
+  } else {
+    m.free_ate_poses = m.free_are_poses = std::nan("");
+    m.robust_vs_free_ate = m.robust_vs_free_are = std::nan("");
+  }
+}
+
+// Table 3's columns, per robot: the memory and the rendezvous traffic of point clouds against
+// objects (the paper's formula and the bytes measured).
+void MemoryAndCommunication(const ExperimentConfig& config, const MultiRobotSlamResult& slam,
+                            RunMetrics& m) {
+  const PointCloudModel& pc = config.point_cloud;
+  const double kc = pc.points_per_frame * pc.bytes_per_point;
+  std::vector<double> sent(static_cast<std::size_t>(config.robots), 0.0);
+  std::vector<double> meetings(static_cast<std::size_t>(config.robots), 0.0);
+  for (const RendezvousRecord& r : slam.rendezvous) {
+    sent[static_cast<std::size_t>(r.event.alpha)] += static_cast<double>(r.bytes_alpha_to_beta);
+    sent[static_cast<std::size_t>(r.event.beta)] += static_cast<double>(r.bytes_beta_to_alpha);
+    meetings[static_cast<std::size_t>(r.event.alpha)] += 1.0;
+    meetings[static_cast<std::size_t>(r.event.beta)] += 1.0;
+  }
+  const double n = config.robots;
+  for (std::size_t r = 0; r < slam.robots.size(); ++r) {
+    const ObjectSlam& robot = slam.robots[r];
+    const double objects = static_cast<double>(robot.landmarks().size());
+    m.memory_pcd += robot.numPoses() * kc / n;
+    m.memory_obj_formula += objects * pc.points_per_object * pc.bytes_per_point / n;
+    m.memory_obj_measured +=
+        static_cast<double>(EncodeObjectMap(MakeObjectMapMessage(robot)).size()) / n;
+    m.comm_pcd += meetings[r] * kc / n;
+    m.comm_obj_formula += objects * pc.bytes_per_object / n;
+    m.comm_obj_measured += sent[r] / n;
+  }
+}
+
+}  // namespace
+
 RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimates* estimates) {
   const auto t0 = Clock::now();
   RunMetrics m;
@@ -429,134 +568,10 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.dgs_are_poses = dgs_gt.aligned.poses.are_deg;
   m.dgs_are_landmarks = dgs_gt.aligned.objects.are_deg;
 
-  if (config.robust) {
-    // Robust: the factors that touch an object (ObjectFactors, as the robot processes), of three
-    // kinds. The object-object factors between robots and those of a robot's own loop closures,
-    // wrong when their landmarks are other world objects; the object-pose factors, wrong when the
-    // detection is of another object than its landmark's (a wrong association inside the robot's
-    // own map, as the intra-association errors of Table 2). A landmark stands for the world object
-    // most of its observations are of (ties: the one that created it): a wrong association inside
-    // a map can outnumber the right ones.
-    const std::size_t nf = joint.graph.factors().size();
-    const std::map<Key, int> truth_of = LandmarkObjects(joint, slam.robots);
-    const std::vector<bool> robust = ObjectFactors(joint.graph);
-    enum class Kind { kOther, kSeparator, kObservation, kLoopClosure };
-    std::vector<Kind> kind(nf, Kind::kOther);
-    std::vector<bool> wrong(nf, false);
-    std::vector<RelativePoseFactor> right;
-    for (std::size_t i = 0; i < nf; ++i) {
-      const RelativePoseFactor& f = joint.graph.factors()[i];
-      if (f.a().isObject() && f.b().isObject()) {
-        kind[i] = f.a().robot != f.b().robot ? Kind::kSeparator : Kind::kLoopClosure;
-        wrong[i] = WrongPair(truth_of, f.a(), f.b());
-      } else if (joint.factor_objects[i] != ObjectSlam::kNoObservation) {
-        kind[i] = Kind::kObservation;
-        wrong[i] = joint.factor_objects[i] < 0 || joint.factor_objects[i] != truth_of.at(f.b());
-      }
-      if (!wrong[i]) right.push_back(f);
-    }
-    m.injected = slam.injected;
-    RobustDgsOptions options;
-    options.dgs.coarse_correction = config.two_level_dgs;
-    options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
-    options.gnc.threshold = config.gnc_threshold;
-    options.retest_left_out = config.retest_left_out;
-    options.retest_groups = config.retest_groups;
-    RobustDgsResult r;
-    try {
-      r = RunRobustDgs(joint.graph, joint.initial, robust, options);
-    } catch (const UnderdeterminedError& e) {
-      // The separator check refused every link of a robot: unlinked for the robust solve.
-      throw UnlinkedRobotError(fmt::format("experiment {} with {} robots, seed {}: {}",
-                                           config.scenario, config.robots, seed, e.what()));
-    }
-    // Precision and recall of the rejections, each kind apart.
-    auto score = [&](Kind k, double* count, double* precision, double* recall) {
-      int flagged = 0, flagged_wrong = 0, wrong_count = 0;
-      for (std::size_t i = 0; i < nf; ++i) {
-        if (!robust[i] || kind[i] != k) continue;
-        wrong_count += wrong[i] ? 1 : 0;
-        if (r.weights[i] < 0.5) {
-          ++flagged;
-          flagged_wrong += wrong[i] ? 1 : 0;
-        }
-      }
-      *count = wrong_count;
-      *precision = flagged > 0 ? static_cast<double>(flagged_wrong) / flagged : 1.0;
-      *recall = wrong_count > 0 ? static_cast<double>(flagged_wrong) / wrong_count : 1.0;
-    };
-    score(Kind::kSeparator, &m.wrong_factors, &m.outlier_precision, &m.outlier_recall);
-    score(Kind::kObservation, &m.wrong_observations, &m.observation_precision,
-          &m.observation_recall);
-    score(Kind::kLoopClosure, &m.wrong_loop_closure_factors, &m.loop_closure_precision,
-          &m.loop_closure_recall);
-    m.robust_bytes = static_cast<double>(r.bytes());
-    m.robust_extra_bytes =
-        static_cast<double>(r.weight_bytes + r.control_bytes + r.consistency_bytes);
-    m.robust_rounds = r.iterations;
-    // The least-squares DGS, refined (the same solver with every weight 1).
-    DgsOptions ls_options = options.dgs;
-    ls_options.refine = true;
-    const Values ls = RunDgs(joint.graph, joint.initial, ls_options).values;
-    // The outlier-free solve, centralized from the same start as the robots'.
-    PoseGraph free_graph(std::move(right));
-    Values free = joint.initial;
-    try {
-      // Landmarks only wrong observations saw are not in it: they keep their initial estimate.
-      for (const auto& [k, x] :
-           Optimize(free_graph, CentralizedTwoStage(free_graph, joint.initial).values).values) {
-        free[k] = x;
-      }
-    } catch (const UnderdeterminedError&) {
-      // Only wrong pairs linked some robot: no outlier-free reference for this run.
-      free.clear();
-    }
-    const GroundTruthErrors ls_gt = CompareToGroundTruthOrNan(ls, truth);
-    const GroundTruthErrors robust_gt = CompareToGroundTruthOrNan(r.values, truth);
-    m.ls_ate_poses = ls_gt.aligned.poses.ate;
-    m.ls_are_poses = ls_gt.aligned.poses.are_deg;
-    m.robust_ate_poses = robust_gt.aligned.poses.ate;
-    m.robust_are_poses = robust_gt.aligned.poses.are_deg;
-    const TrajectoryErrors vs_ls = CompareEstimates(r.values, ls);  // same gauge, no alignment
-    m.robust_vs_ls_ate = vs_ls.poses.ate;
-    m.robust_vs_ls_are = vs_ls.poses.are_deg;
-    if (!free.empty()) {
-      const GroundTruthErrors free_gt = CompareToGroundTruthOrNan(free, truth);
-      m.free_ate_poses = free_gt.aligned.poses.ate;
-      m.free_are_poses = free_gt.aligned.poses.are_deg;
-      const TrajectoryErrors d = CompareEstimates(r.values, free);
-      m.robust_vs_free_ate = d.poses.ate;
-      m.robust_vs_free_are = d.poses.are_deg;
-    } else {
-      m.free_ate_poses = m.free_are_poses = std::nan("");
-      m.robust_vs_free_ate = m.robust_vs_free_are = std::nan("");
-    }
-  }
+  if (config.robust) RobustMetrics(config, seed, joint, slam, truth, m);
 
-  // Table 3, per robot.
-  const PointCloudModel& pc = config.point_cloud;
-  const double kc = pc.points_per_frame * pc.bytes_per_point;
-  std::vector<double> sent(static_cast<std::size_t>(config.robots), 0.0);
-  std::vector<double> meetings(static_cast<std::size_t>(config.robots), 0.0);
-  for (const RendezvousRecord& r : slam.rendezvous) {
-    sent[static_cast<std::size_t>(r.event.alpha)] += static_cast<double>(r.bytes_alpha_to_beta);
-    sent[static_cast<std::size_t>(r.event.beta)] += static_cast<double>(r.bytes_beta_to_alpha);
-    meetings[static_cast<std::size_t>(r.event.alpha)] += 1.0;
-    meetings[static_cast<std::size_t>(r.event.beta)] += 1.0;
-  }
-  const double n = config.robots;
-  for (std::size_t r = 0; r < slam.robots.size(); ++r) {
-    const ObjectSlam& robot = slam.robots[r];
-    const double objects = static_cast<double>(robot.landmarks().size());
-    m.memory_pcd += robot.numPoses() * kc / n;
-    m.memory_obj_formula += objects * pc.points_per_object * pc.bytes_per_point / n;
-    m.memory_obj_measured +=
-        static_cast<double>(EncodeObjectMap(MakeObjectMapMessage(robot)).size()) / n;
-    m.comm_pcd += meetings[r] * kc / n;
-    m.comm_obj_formula += objects * pc.bytes_per_object / n;
-    m.comm_obj_measured += sent[r] / n;
-  }
-  m.comm_dgs_per_robot = m.dgs_bytes_eta1 / n;
+  MemoryAndCommunication(config, slam, m);
+  m.comm_dgs_per_robot = m.dgs_bytes_eta1 / config.robots;
   m.seconds = SecondsSince(t0);
 
   if (estimates != nullptr) {
