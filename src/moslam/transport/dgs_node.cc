@@ -19,6 +19,7 @@
 #include "moslam/transport/group_formation.h"
 #include "moslam/transport/node_journal.h"
 #include "moslam/transport/record_bytes.h"
+#include "moslam/transport/step_inbox.h"
 #include "moslam/transport/step_record.h"
 
 namespace moslam {
@@ -118,23 +119,6 @@ RobotState StateOf(DgsStage stage) {
   return RobotState::kFailed;
 }
 
-TeamReport ReportOf(const StatusPacket& s) {
-  TeamReport r;
-  r.sent = s.sent;
-  r.initialised = s.initialised;
-  r.coarse_ready = s.coarse_ready;
-  r.has_share = s.coarse;
-  r.weights = s.weights;
-  r.covariance = s.covariance;
-  r.change = s.change;
-  r.bound = s.error_bound;
-  r.value[0] = s.value[0];
-  r.value[1] = s.value[1];
-  return r;
-}
-
-bool IsStage(std::uint8_t s) { return s >= 1 && s <= 3; }
-
 }  // namespace
 
 class DgsNode::Impl final : public TeamChannel {
@@ -182,6 +166,7 @@ class DgsNode::Impl final : public TeamChannel {
       }
     }
     neighbour_keys_ = agent_->neighbourVariables();
+    received_.emplace(robot_, options_.solve, neighbours_, neighbour_keys_);
     // Snapshots of a graph with object landmarks use the g2o key scheme with objects.
     g2o_options_.atomic = true;
     for (const Key& k : subgraph_.keys()) {
@@ -275,12 +260,12 @@ class DgsNode::Impl final : public TeamChannel {
     }
     send(s, sent);
     waitFor(s);
-    TeamStep got = collect(s, report, share);
+    TeamStep got = received_->collect(s, live(), report, share);
     recordStep(s, stage, got);
     notify(stage, s, report, false);
     snapshot(stage != snapshot_stage_);
     snapshot_stage_ = stage;
-    prune(s);
+    received_->prune(s);
     return got;
   }
 
@@ -321,6 +306,7 @@ class DgsNode::Impl final : public TeamChannel {
         agent_ = std::make_unique<RobotAgent>(robot_, graph, start, anchor_, agent_options_);
       }
       step_neighbours_ = agent_->neighbourRobots();
+      received_->setStepNeighbours(step_neighbours_);
       return *agent_;
     };
     result_.robust = RunRobustRobotProgram(problem, options, make, *this);
@@ -481,16 +467,16 @@ class DgsNode::Impl final : public TeamChannel {
     }
     std::set<int> known = neighbours_;
     known.insert(robot_);
-    heard_.insert(robot_);
+    received_->hear(robot_);
     while (true) {
       ingest(transport_.poll(std::chrono::milliseconds(50)));
       // The closure: robots heard from add their neighbours, until nothing changes.
       std::map<int, std::vector<int>> lists;
-      for (const auto& [r, status] : latest_) lists.emplace(r, status.neighbours);
+      for (const auto& [r, status] : received_->latest()) lists.emplace(r, status.neighbours);
       transport_detail::GrowClosure(known, lists);
       std::vector<int> missing;
       for (int r : known) {
-        if (!heard_.count(r)) missing.push_back(r);
+        if (!received_->heard().count(r)) missing.push_back(r);
       }
       if (missing.empty()) break;
       if (Clock::now() > deadline) {
@@ -520,79 +506,11 @@ class DgsNode::Impl final : public TeamChannel {
     log(fmt::format("team of {}: robots {}", team_.size(), fmt::join(team_, ", ")));
   }
 
+  // Files the packets in the inbox; counts and logs what it turned away.
   void ingest(std::vector<Received> packets) {
-    // Weights and covariances are taken from neighbours only (estimates: also for the variables
-    // this robot uses, below).
-    auto from_neighbour = [this](int sender, const char* what) {
-      if (neighbours_.count(sender)) return true;
-      ++result_.rejected_estimates;
-      log(fmt::format("rejected: {} from robot {}, which is not a neighbour", what, sender));
-      return false;
-    };
-    for (Received& r : packets) {
-      if (auto* st = std::get_if<StatusPacket>(&r.packet)) {
-        if (st->solve != options_.solve) continue;  // another solve (online mapping)
-        heard_.insert(r.sender);
-        // The most advanced status; `done` is final; a restart (higher incarnation) replaces
-        // what the robot reported before, a failure included.
-        const auto it = latest_.find(r.sender);
-        if (it == latest_.end()) {
-          latest_.emplace(r.sender, *st);
-        } else if (st->incarnation > it->second.incarnation ||
-                   (!it->second.done && (st->done || st->round >= it->second.round))) {
-          it->second = *st;
-        }
-        if (st->state == RobotState::kFailed) {
-          log(fmt::format("robot {} reports a failure", r.sender));
-        }
-        // A failure report is not the status of a step.
-        if (IsStage(st->stage) && st->state != RobotState::kFailed &&
-            st->state != RobotState::kDone && st->round > 0) {
-          statuses_[r.sender][st->round] = *st;
-          stepped_.insert(r.sender);
-        }
-      } else if (auto* e = std::get_if<EstimatesPacket>(&r.packet)) {
-        if (e->solve != options_.solve) continue;
-        const Message& m = e->message;
-        std::string why;
-        if (!neighbours_.count(m.sender)) {
-          why = fmt::format("DGS estimates from robot {}, which is not a neighbour", m.sender);
-        } else {
-          for (const Key& k : m.keys) {
-            if (!neighbour_keys_.count(k)) {
-              why = fmt::format("DGS estimates from robot {} for {}, a variable this robot does "
-                                "not use",
-                                m.sender, ToString(k));
-              break;
-            }
-          }
-        }
-        if (!why.empty()) {
-          ++result_.rejected_estimates;
-          log("rejected: " + why);
-          continue;
-        }
-        inbox_[{e->round, m.sender}] = m;
-      } else if (auto* c = std::get_if<CoarsePacket>(&r.packet)) {
-        if (c->solve != options_.solve) continue;
-        coarse_[{c->round, c->message.sender}] = c->message;
-      } else if (auto* w = std::get_if<WeightsPacket>(&r.packet)) {
-        if (w->solve != options_.solve || !from_neighbour(w->message.sender, "weights")) continue;
-        weights_[{w->round, w->message.sender}] = w->message;
-      } else if (auto* v = std::get_if<CovariancePacket>(&r.packet)) {
-        if (v->solve != options_.solve || !from_neighbour(v->message.sender, "a covariance")) {
-          continue;
-        }
-        covariances_[{v->round, v->message.sender}] = v->message;
-      }
-      // Object lists: rendezvous data, not used by the DGS protocol.
-    }
-  }
-
-  // A robot that reported a failure counts as not alive (it may be restarted).
-  bool failed(int r) const {
-    const auto it = latest_.find(r);
-    return it != latest_.end() && it->second.state == RobotState::kFailed;
+    const transport_detail::IngestNotes notes = received_->ingest(std::move(packets));
+    result_.rejected_estimates += notes.rejected;
+    for (const std::string& line : notes.lines) log(line);
   }
 
   std::vector<int> live() const {
@@ -603,47 +521,11 @@ class DgsNode::Impl final : public TeamChannel {
     return out;
   }
 
-  const StatusPacket* statusOf(int r, std::uint32_t s) const {
-    const auto it = statuses_.find(r);
-    if (it == statuses_.end()) return nullptr;
-    const auto jt = it->second.find(s);
-    return jt == it->second.end() ? nullptr : &jt->second;
-  }
-
-  // Whether robot r, whose step status is `st`, sends this robot per-neighbour packets in the step:
-  // the two are neighbours of each other's agents at work.
-  bool neighbourOf(int r, const StatusPacket& st) const {
-    return step_neighbours_.count(r) &&
-           std::binary_search(st.neighbours.begin(), st.neighbours.end(), robot_);
-  }
-  bool expectsEstimates(int r, const StatusPacket& st) const {
-    return st.sent && neighbourOf(r, st);
-  }
-  bool expectsWeights(int r, const StatusPacket& st) const {
-    return st.weights && neighbourOf(r, st);
-  }
-  bool expectsCovariance(int r, const StatusPacket& st) const {
-    return st.covariance && neighbourOf(r, st);
-  }
-
-  // What of robot r's step s it still lacks ("": nothing): its status, or the packets its
-  // status announces to this robot.
-  std::string missingOf(int r, std::uint32_t s) const {
-    const StatusPacket* st = statusOf(r, s);
-    if (!st) return "status";
-    std::vector<std::string> out;
-    if (expectsEstimates(r, *st) && !inbox_.count({s, r})) out.push_back("estimates");
-    if (st->coarse && !coarse_.count({s, r})) out.push_back("coarse share");
-    if (expectsWeights(r, *st) && !weights_.count({s, r})) out.push_back("weights");
-    if (expectsCovariance(r, *st) && !covariances_.count({s, r})) out.push_back("covariance");
-    return fmt::format("{}", fmt::join(out, ", "));
-  }
-
   // The robots step s still waits for.
   std::vector<int> waitingFor(std::uint32_t s) const {
     std::vector<int> out;
     for (int r : live()) {
-      if (!missingOf(r, s).empty()) out.push_back(r);
+      if (!received_->missing(r, s).empty()) out.push_back(r);
     }
     return out;
   }
@@ -659,7 +541,7 @@ class DgsNode::Impl final : public TeamChannel {
       const std::set<int> alive = transport_.alive();
       std::vector<int> never_stepped;  // of a team given: gone before they took a step
       for (int r : waiting) {
-        if (alive.count(r) && !failed(r)) {
+        if (alive.count(r) && !received_->failed(r)) {
           not_alive_since.erase(r);
           continue;
         }
@@ -667,7 +549,7 @@ class DgsNode::Impl final : public TeamChannel {
         if (now - it->second >= options_.leave_timeout) {
           // Only at the first step: a node restarted later replays the steps without their
           // statuses, and a robot that died since sent it no history to count as stepped.
-          if (!options_.team.empty() && s == 1 && !stepped_.count(r)) {
+          if (!options_.team.empty() && s == 1 && !received_->stepped(r)) {
             never_stepped.push_back(r);
             continue;
           }
@@ -686,37 +568,13 @@ class DgsNode::Impl final : public TeamChannel {
       }
       if (now - start > options_.stall_timeout) {
         std::vector<std::string> what;
-        for (int r : waiting) what.push_back(fmt::format("{} ({})", r, missingOf(r, s)));
+        for (int r : waiting) what.push_back(fmt::format("{} ({})", r, received_->missing(r, s)));
         throw Error(fmt::format("robot {}: no progress for {} ms at step {}, waiting for "
                                 "robot(s) {}",
                                 robot_, options_.stall_timeout.count(), s,
                                 fmt::join(what, ", ")));
       }
     }
-  }
-
-  TeamStep collect(std::uint32_t s, const TeamReport& mine, const CoarseMessage* share) {
-    TeamStep got;
-    got.reports[robot_] = mine;
-    if (share) got.shares[robot_] = *share;
-    for (int r : live()) {
-      const StatusPacket& st = *statusOf(r, s);
-      got.reports[r] = ReportOf(st);
-      if (expectsEstimates(r, st)) got.estimates.push_back(inbox_.at({s, r}));
-      if (st.coarse) got.shares[r] = coarse_.at({s, r});
-      if (expectsWeights(r, st)) got.weights[r] = weights_.at({s, r});
-      if (expectsCovariance(r, st)) got.covariances[r] = covariances_.at({s, r});
-    }
-    return got;
-  }
-
-  // Drops what steps before s received (late packets of robots that left included).
-  void prune(std::uint32_t s) {
-    for (auto& [r, by_step] : statuses_) by_step.erase(by_step.begin(), by_step.lower_bound(s));
-    inbox_.erase(inbox_.begin(), inbox_.lower_bound({s, 0}));
-    coarse_.erase(coarse_.begin(), coarse_.lower_bound({s, 0}));
-    weights_.erase(weights_.begin(), weights_.lower_bound({s, 0}));
-    covariances_.erase(covariances_.begin(), covariances_.lower_bound({s, 0}));
   }
 
   void waitForPeers() {
@@ -727,9 +585,8 @@ class DgsNode::Impl final : public TeamChannel {
       const std::set<int> alive = transport_.alive();
       const auto now = Clock::now();
       for (int r : live()) {
-        const auto it = latest_.find(r);
-        if (it != latest_.end() && it->second.done) continue;
-        if (!alive.count(r) || failed(r)) {
+        if (received_->done(r)) continue;
+        if (!alive.count(r) || received_->failed(r)) {
           const auto [jt, inserted] = not_alive_since.emplace(r, now);
           if (now - jt->second >= options_.leave_timeout) continue;  // gone
         } else {
@@ -754,14 +611,13 @@ class DgsNode::Impl final : public TeamChannel {
   std::unique_ptr<RobotAgent> agent_;  // the agent at work (robust: of the current solve)
   Values own_;                         // the robot's variables as the last solves left them
   std::vector<bool> robust_;           // with options_.gnc: per subgraph factor
-  std::set<int> stepped_;  // robots from which a status of a step (round >= 1) arrived
   std::set<int> neighbours_;           // of the subgraph (the team's; the packets it accepts)
   std::set<int> step_neighbours_;      // of the agent at work (status, what a step waits for)
   std::set<Key> neighbour_keys_;
   std::unique_ptr<transport_detail::NodeJournal> journal_;  // none without a state_dir
   G2oWriteOptions g2o_options_;  // snapshots: written whole or not at all (atomic)
 
-  std::set<int> team_, left_, heard_;
+  std::set<int> team_, left_;
   std::uint32_t step_ = 0;
   bool done_ = false;
   bool journal_done_ = false;
@@ -771,12 +627,7 @@ class DgsNode::Impl final : public TeamChannel {
   std::optional<DgsStage> round_stage_;  // on_round: the stage of the last step, steps in it
   int stage_round_ = 0;
 
-  std::map<int, StatusPacket> latest_;  // per robot: its most advanced status
-  std::map<int, std::map<std::uint32_t, StatusPacket>> statuses_;  // per robot, per step
-  std::map<std::pair<std::uint32_t, int>, Message> inbox_;         // (step, sender)
-  std::map<std::pair<std::uint32_t, int>, CoarseMessage> coarse_;  // (step, sender)
-  std::map<std::pair<std::uint32_t, int>, WeightMessage> weights_;  // (step, sender)
-  std::map<std::pair<std::uint32_t, int>, CovarianceMessage> covariances_;  // (step, sender)
+  std::optional<transport_detail::StepInbox> received_;  // what the steps received
   Clock::time_point last_snapshot_{};
   DgsNodeResult result_;
 };
