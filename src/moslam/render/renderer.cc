@@ -268,61 +268,134 @@ const Mesh* Renderer::model(const std::string& label) const {
   return nullptr;
 }
 
-RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
-                               double timestamp) const {
-  if (!world_T_body.translation().allFinite() || !world_T_body.rotation().matrix().allFinite()) {
-    throw InvalidInputError("Renderer::render: world_T_body is not finite");
+namespace {
+
+// The floor's pixels, by its analytic ray-plane intersection (before the objects).
+void DrawFloor(const PinholeIntrinsics& K, const Matrix3& R_wc, const Vector3& c_w, cv::Mat& inv_z,
+               cv::Mat& item_buf) {
+  if (c_w.z() <= 0.0) return;
+  for (int v = 0; v < K.height; ++v) {
+    auto* iz = inv_z.ptr<double>(v);
+    auto* it = item_buf.ptr<int>(v);
+    const double y = (v - K.cy) / K.fy;
+    for (int u = 0; u < K.width; ++u) {
+      const Vector3 d = R_wc * Vector3((u - K.cx) / K.fx, y, 1.0);
+      if (d.z() >= 0.0) continue;
+      const double z = -c_w.z() / d.z();
+      if (z > kFloorMaxDepth) continue;
+      iz[u] = 1.0 / z;
+      it[u] = kFloor;
+    }
   }
-  const PinholeIntrinsics& K = config_.intrinsics;
-  const int W = K.width, H = K.height;
-  RenderedFrame out;
-  out.world_T_camera = world_T_body * BodyFromCamera();
-  const SE3 camera_T_world = out.world_T_camera.inverse();
-  const Matrix3 R_wc = out.world_T_camera.rotation().matrix();
-  const Vector3 c_w = out.world_T_camera.translation();
+}
 
-  // Buffers: inverse depth (0 = nothing), item index, triangle index.
-  cv::Mat inv_z(H, W, CV_64FC1, cv::Scalar(0.0));
-  cv::Mat item_buf(H, W, CV_32SC1, cv::Scalar(kNothing));
-  cv::Mat tri_buf(H, W, CV_32SC1, cv::Scalar(0));
-  // The last item whose triangles covered each pixel: counts each item's silhouette once.
-  cv::Mat own_buf(H, W, CV_32SC1, cv::Scalar(kNothing));
-  std::vector<int> silhouette(items_.size(), 0);
-
-  // Floor: analytic ray-plane intersection, before the objects.
-  if (config_.draw_floor && c_w.z() > 0.0) {
+// The sensor on the rendered depth and colour: the depth noise (with the frame's random stream),
+// then the depth range and quantization (by the true depth, inverse in `inv_z`), then the colour
+// noise from the same stream.
+void ApplySensor(const RenderConfig& config, std::uint64_t frame_key, const cv::Mat& inv_z,
+                 cv::Mat& depth, cv::Mat& colour) {
+  const int H = depth.rows, W = depth.cols;
+  cv::RNG rng(SplitMix64(SplitMix64(config.seed) ^ frame_key));
+  if (config.depth_noise) {
+    cv::Mat n(H, W, CV_32FC1);
+    rng.fill(n, cv::RNG::NORMAL, 0.0, 1.0);
     for (int v = 0; v < H; ++v) {
-      auto* iz = inv_z.ptr<double>(v);
-      auto* it = item_buf.ptr<int>(v);
-      const double y = (v - K.cy) / K.fy;
+      auto* d = depth.ptr<float>(v);
+      const auto* e = n.ptr<float>(v);
       for (int u = 0; u < W; ++u) {
-        const Vector3 d = R_wc * Vector3((u - K.cx) / K.fx, y, 1.0);
-        if (d.z() >= 0.0) continue;
-        const double z = -c_w.z() / d.z();
-        if (z > kFloorMaxDepth) continue;
-        iz[u] = 1.0 / z;
-        it[u] = kFloor;
+        if (d[u] <= 0.0f) continue;
+        const double z = d[u];
+        d[u] = static_cast<float>(z + config.depth_noise_model.sigma(z) * e[u]);
       }
     }
   }
+  for (int v = 0; v < H; ++v) {
+    auto* d = depth.ptr<float>(v);
+    const auto* iz = inv_z.ptr<double>(v);
+    for (int u = 0; u < W; ++u) {
+      if (iz[u] <= 0.0) continue;
+      const double z_true = 1.0 / iz[u];
+      if (z_true < config.min_depth || z_true > config.max_depth) {
+        d[u] = 0.0f;
+      } else if (config.quantize_depth) {
+        d[u] = static_cast<float>(std::round(static_cast<double>(d[u]) * 5000.0) / 5000.0);
+      }
+    }
+  }
+  if (config.colour_noise_sigma > 0.0) {
+    cv::Mat n(H, W, CV_32FC3);
+    rng.fill(n, cv::RNG::NORMAL, 0.0, config.colour_noise_sigma);
+    colour += n;
+  }
+}
 
-  // Frustum side planes through the camera centre (inward normals), for culling whole items.
-  const std::array<Vector3, 4> planes = {
-      Vector3(K.fx, 0.0, 0.5 + K.cx).normalized(),
-      Vector3(-K.fx, 0.0, W - 0.5 - K.cx).normalized(),
-      Vector3(0.0, K.fy, 0.5 + K.cy).normalized(),
-      Vector3(0.0, -K.fy, H - 0.5 - K.cy).normalized()};
+// The share of an object's projected extent box (its class extent's 8 corners) inside the image:
+// 0 when a corner is behind the camera.
+double InImageFraction(const PinholeIntrinsics& K, const SE3& camera_T_object,
+                       const Vector3& extent) {
+  const Vector3 half = 0.5 * extent;
+  double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
+  for (int k = 0; k < 8; ++k) {
+    const Vector3 corner((k & 1) ? half.x() : -half.x(), (k & 2) ? half.y() : -half.y(),
+                         (k & 4) ? half.z() : -half.z());
+    const Vector3 q = camera_T_object.transformFrom(corner);
+    if (q.z() <= kNearClip) return 0.0;
+    const double pu = K.fx * q.x() / q.z() + K.cx, pv = K.fy * q.y() / q.z() + K.cy;
+    umin = std::min(umin, pu);
+    umax = std::max(umax, pu);
+    vmin = std::min(vmin, pv);
+    vmax = std::max(vmax, pv);
+  }
+  if (!(umax > umin && vmax > vmin)) return 0.0;
+  const double iu = std::max(0.0, std::min(umax, K.width - 0.5) - std::max(umin, -0.5));
+  const double iv = std::max(0.0, std::min(vmax, K.height - 0.5) - std::max(vmin, -0.5));
+  return iu * iv / ((umax - umin) * (vmax - vmin));
+}
 
+}  // namespace
+
+// One frame's z-buffer: per pixel the inverse depth (0 = nothing), the item and its triangle
+// that won it, and the last item whose triangles covered it (each item's silhouette counted
+// once); per item its pose in the camera and its silhouette in pixels.
+struct Renderer::Raster {
   struct Pose {
     Matrix3 R;
     Vector3 t;
   };
-  std::vector<Pose> camera_T_item(items_.size());
+  Raster(int H, int W, std::size_t items)
+      : inv_z(H, W, CV_64FC1, cv::Scalar(0.0)),
+        item_buf(H, W, CV_32SC1, cv::Scalar(kNothing)),
+        tri_buf(H, W, CV_32SC1, cv::Scalar(0)),
+        own_buf(H, W, CV_32SC1, cv::Scalar(kNothing)),
+        camera_T_item(items),
+        silhouette(items, 0) {}
+  cv::Mat inv_z, item_buf, tri_buf, own_buf;
+  std::vector<Pose> camera_T_item;
+  std::vector<int> silhouette;
+};
+
+// What the shading found of each world object: its visible pixels, their bounding box, and its
+// silhouette (from the raster).
+struct Renderer::ObjectPixels {
+  explicit ObjectPixels(std::size_t n, int W, int H)
+      : count(n, 0), silhouette(n, 0), lo(n, cv::Point(W, H)), hi(n, cv::Point(-1, -1)) {}
+  std::vector<int> count, silhouette;
+  std::vector<cv::Point> lo, hi;
+};
+
+void Renderer::rasterizeItems(const SE3& camera_T_world, Raster& raster) const {
+  const PinholeIntrinsics& K = config_.intrinsics;
+  const int W = K.width, H = K.height;
+  // Frustum side planes through the camera centre (inward normals), for culling whole items.
+  const std::array<Vector3, 4> planes = {Vector3(K.fx, 0.0, 0.5 + K.cx).normalized(),
+                                         Vector3(-K.fx, 0.0, W - 0.5 - K.cx).normalized(),
+                                         Vector3(0.0, K.fy, 0.5 + K.cy).normalized(),
+                                         Vector3(0.0, -K.fy, H - 0.5 - K.cy).normalized()};
   std::vector<Vector3> cam;
   for (std::size_t k = 0; k < items_.size(); ++k) {
     const Item& item = items_[k];
     const SE3 c_T_l = camera_T_world * item.world_T_local;
-    camera_T_item[k] = {c_T_l.rotation().matrix(), c_T_l.translation()};
+    raster.camera_T_item[k] = {c_T_l.rotation().matrix(), c_T_l.translation()};
     const Mesh& mesh = *item.mesh;
     if (item.object_index >= 0) {
       // Bounding-sphere culling.
@@ -335,7 +408,7 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
     }
     cam.resize(mesh.vertices.size());
     for (std::size_t i = 0; i < cam.size(); ++i) {
-      cam[i] = camera_T_item[k].R * mesh.vertices[i] + camera_T_item[k].t;
+      cam[i] = raster.camera_T_item[k].R * mesh.vertices[i] + raster.camera_T_item[k].t;
     }
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
       const auto& tri = mesh.triangles[t];
@@ -369,32 +442,35 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
                                                static_cast<std::size_t>(f + 1)};
         RasterizeTriangle({su[ix[0]], su[ix[1]], su[ix[2]]}, {sv[ix[0]], sv[ix[1]], sv[ix[2]]},
                           {siz[ix[0]], siz[ix[1]], siz[ix[2]]}, static_cast<int>(k),
-                          static_cast<int>(t), inv_z, item_buf, tri_buf, own_buf, silhouette[k]);
+                          static_cast<int>(t), raster.inv_z, raster.item_buf, raster.tri_buf,
+                          raster.own_buf, raster.silhouette[k]);
       }
     }
   }
+}
 
-  // Shading, depth and ground truth.
+Renderer::ObjectPixels Renderer::shade(const Raster& raster, const SE3& world_T_camera,
+                                       cv::Mat& colour, cv::Mat& depth,
+                                       cv::Mat& instance_ids) const {
+  const PinholeIntrinsics& K = config_.intrinsics;
+  const int W = K.width, H = K.height;
+  const Matrix3 R_wc = world_T_camera.rotation().matrix();
+  const Vector3 c_w = world_T_camera.translation();
   const SceneStyle& st = config_.style;
   const Vector3 light = st.light_direction.normalized();
-  cv::Mat colour(H, W, CV_32FC3);
-  cv::Mat depth(H, W, CV_32FC1, cv::Scalar(0.0f));
-  out.instance_ids = cv::Mat(H, W, CV_32SC1, cv::Scalar(-1));
-  const std::size_t num_objects = world_.objects.size();
-  std::vector<int> count(num_objects, 0), silhouette_of(num_objects, 0);
+  ObjectPixels seen(world_.objects.size(), W, H);
   for (std::size_t k = 0; k < items_.size(); ++k) {
     if (items_[k].object_index >= 0) {
-      silhouette_of[static_cast<std::size_t>(items_[k].object_index)] = silhouette[k];
+      seen.silhouette[static_cast<std::size_t>(items_[k].object_index)] = raster.silhouette[k];
     }
   }
-  std::vector<cv::Point> lo(num_objects, cv::Point(W, H)), hi(num_objects, cv::Point(-1, -1));
   for (int v = 0; v < H; ++v) {
-    const auto* iz = inv_z.ptr<double>(v);
-    const auto* it = item_buf.ptr<int>(v);
-    const auto* tr = tri_buf.ptr<int>(v);
+    const auto* iz = raster.inv_z.ptr<double>(v);
+    const auto* it = raster.item_buf.ptr<int>(v);
+    const auto* tr = raster.tri_buf.ptr<int>(v);
     auto* col = colour.ptr<cv::Vec3f>(v);
     auto* dep = depth.ptr<float>(v);
-    auto* ids = out.instance_ids.ptr<int>(v);
+    auto* ids = instance_ids.ptr<int>(v);
     for (int u = 0; u < W; ++u) {
       if (it[u] == kNothing) {
         const cv::Vec3b& b = st.background_bgr;
@@ -419,7 +495,7 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
         const auto k = static_cast<std::size_t>(it[u]);
         const Item& item = items_[k];
         const auto t = static_cast<std::size_t>(tr[u]);
-        const Pose& ct = camera_T_item[k];
+        const Raster::Pose& ct = raster.camera_T_item[k];
         const Vector3 p_local = ct.R.transpose() * (p_cam - ct.t);
         base = item.mesh->colourAt(t, p_local);
         Vector3 n_cam = ct.R * item.mesh->normal(t);
@@ -428,11 +504,11 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
         if (item.object_index >= 0) {
           const auto o = static_cast<std::size_t>(item.object_index);
           ids[u] = world_.objects[o].id;
-          ++count[o];
-          lo[o].x = std::min(lo[o].x, u);
-          lo[o].y = std::min(lo[o].y, v);
-          hi[o].x = std::max(hi[o].x, u);
-          hi[o].y = std::max(hi[o].y, v);
+          ++seen.count[o];
+          seen.lo[o].x = std::min(seen.lo[o].x, u);
+          seen.lo[o].y = std::min(seen.lo[o].y, v);
+          seen.hi[o].x = std::max(seen.hi[o].x, u);
+          seen.hi[o].y = std::max(seen.hi[o].y, v);
         }
       }
       const double shade = st.ambient + st.diffuse * std::max(0.0, n_world.dot(light));
@@ -441,83 +517,57 @@ RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
       dep[u] = static_cast<float>(z);
     }
   }
+  return seen;
+}
 
-  // Noise, then the depth range.
-  cv::RNG rng(SplitMix64(SplitMix64(config_.seed) ^ frame_key));
-  if (config_.depth_noise) {
-    cv::Mat n(H, W, CV_32FC1);
-    rng.fill(n, cv::RNG::NORMAL, 0.0, 1.0);
-    for (int v = 0; v < H; ++v) {
-      auto* d = depth.ptr<float>(v);
-      const auto* e = n.ptr<float>(v);
-      for (int u = 0; u < W; ++u) {
-        if (d[u] <= 0.0f) continue;
-        const double z = d[u];
-        d[u] = static_cast<float>(z + config_.depth_noise_model.sigma(z) * e[u]);
-      }
-    }
-  }
-  for (int v = 0; v < H; ++v) {
-    auto* d = depth.ptr<float>(v);
-    const auto* iz = inv_z.ptr<double>(v);
-    for (int u = 0; u < W; ++u) {
-      if (iz[u] <= 0.0) continue;
-      const double z_true = 1.0 / iz[u];
-      if (z_true < config_.min_depth || z_true > config_.max_depth) {
-        d[u] = 0.0f;
-      } else if (config_.quantize_depth) {
-        d[u] = static_cast<float>(std::round(static_cast<double>(d[u]) * 5000.0) / 5000.0);
-      }
-    }
-  }
-  if (config_.colour_noise_sigma > 0.0) {
-    cv::Mat n(H, W, CV_32FC3);
-    rng.fill(n, cv::RNG::NORMAL, 0.0, config_.colour_noise_sigma);
-    colour += n;
-  }
-  colour.convertTo(out.rgbd.rgb, CV_8UC3);
-  out.rgbd.depth = depth;
-  out.rgbd.intrinsics = K;
-  out.rgbd.timestamp = timestamp;
-
-  // Per-object ground truth.
-  for (std::size_t o = 0; o < num_objects; ++o) {
-    if (count[o] == 0) continue;
+std::vector<VisibleObject> Renderer::objectsSeen(const ObjectPixels& seen,
+                                                 const SE3& camera_T_world) const {
+  std::vector<VisibleObject> out;
+  for (std::size_t o = 0; o < world_.objects.size(); ++o) {
+    if (seen.count[o] == 0) continue;
     const ObjectInstance& obj = world_.objects[o];
     VisibleObject vo;
     vo.id = obj.id;
     vo.label = obj.label;
-    vo.visible_pixels = count[o];
-    vo.silhouette_pixels = silhouette_of[o];
-    vo.box = cv::Rect(lo[o], cv::Point(hi[o].x + 1, hi[o].y + 1));
+    vo.visible_pixels = seen.count[o];
+    vo.silhouette_pixels = seen.silhouette[o];
+    vo.box = cv::Rect(seen.lo[o], cv::Point(seen.hi[o].x + 1, seen.hi[o].y + 1));
     vo.camera_T_object = camera_T_world * obj.pose;
-    const ObjectClass* c = world_.findClass(obj.label);
-    const Vector3 half = 0.5 * c->extent;
-    double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
-    bool behind = false;
-    for (int k = 0; k < 8; ++k) {
-      const Vector3 corner((k & 1) ? half.x() : -half.x(), (k & 2) ? half.y() : -half.y(),
-                           (k & 4) ? half.z() : -half.z());
-      const Vector3 q = vo.camera_T_object.transformFrom(corner);
-      if (q.z() <= kNearClip) {
-        behind = true;
-        break;
-      }
-      const double pu = K.fx * q.x() / q.z() + K.cx, pv = K.fy * q.y() / q.z() + K.cy;
-      umin = std::min(umin, pu);
-      umax = std::max(umax, pu);
-      vmin = std::min(vmin, pv);
-      vmax = std::max(vmax, pv);
-    }
-    if (!behind && umax > umin && vmax > vmin) {
-      const double iu = std::max(0.0, std::min(umax, W - 0.5) - std::max(umin, -0.5));
-      const double iv = std::max(0.0, std::min(vmax, H - 0.5) - std::max(vmin, -0.5));
-      vo.in_image_fraction = iu * iv / ((umax - umin) * (vmax - vmin));
-    }
-    out.objects.push_back(vo);
+    vo.in_image_fraction = InImageFraction(config_.intrinsics, vo.camera_T_object,
+                                           world_.findClass(obj.label)->extent);
+    out.push_back(vo);
   }
-  std::sort(out.objects.begin(), out.objects.end(),
+  std::sort(out.begin(), out.end(),
             [](const VisibleObject& a, const VisibleObject& b) { return a.id < b.id; });
+  return out;
+}
+
+RenderedFrame Renderer::render(const SE3& world_T_body, std::uint64_t frame_key,
+                               double timestamp) const {
+  if (!world_T_body.translation().allFinite() || !world_T_body.rotation().matrix().allFinite()) {
+    throw InvalidInputError("Renderer::render: world_T_body is not finite");
+  }
+  const PinholeIntrinsics& K = config_.intrinsics;
+  const int W = K.width, H = K.height;
+  RenderedFrame out;
+  out.world_T_camera = world_T_body * BodyFromCamera();
+  const SE3 camera_T_world = out.world_T_camera.inverse();
+  Raster raster(H, W, items_.size());
+  if (config_.draw_floor) {
+    DrawFloor(K, out.world_T_camera.rotation().matrix(), out.world_T_camera.translation(),
+              raster.inv_z, raster.item_buf);
+  }
+  rasterizeItems(camera_T_world, raster);
+  cv::Mat colour(H, W, CV_32FC3);
+  cv::Mat depth(H, W, CV_32FC1, cv::Scalar(0.0f));
+  out.instance_ids = cv::Mat(H, W, CV_32SC1, cv::Scalar(-1));
+  const ObjectPixels seen = shade(raster, out.world_T_camera, colour, depth, out.instance_ids);
+  ApplySensor(config_, frame_key, raster.inv_z, depth, colour);
+  colour.convertTo(out.rgbd.rgb, CV_8UC3);
+  out.rgbd.depth = depth;
+  out.rgbd.intrinsics = K;
+  out.rgbd.timestamp = timestamp;
+  out.objects = objectsSeen(seen, camera_T_world);
   return out;
 }
 

@@ -124,6 +124,16 @@ class Renderer {
     SE3 world_T_local;
     int object_index;  // into world_.objects, -1 for walls
   };
+  struct Raster;        // one frame's z-buffer (renderer.cc)
+  struct ObjectPixels;  // what the shading found of each world object
+  // The items' triangles into the raster (culled, clipped to the near plane, z-buffered).
+  void rasterizeItems(const SE3& camera_T_world, Raster& raster) const;
+  // Colour (before the sensor's noise), depth and instance ids of every pixel of the raster.
+  ObjectPixels shade(const Raster& raster, const SE3& world_T_camera, cv::Mat& colour,
+                     cv::Mat& depth, cv::Mat& instance_ids) const;
+  // The ground truth of every world object with visible pixels, by id.
+  std::vector<VisibleObject> objectsSeen(const ObjectPixels& seen, const SE3& camera_T_world) const;
+
   World world_;
   RenderConfig config_;
   std::vector<std::string> model_labels_;
