@@ -26,6 +26,98 @@ int TrueObject(const std::vector<ObjectSlam>& robots, const Key& k) {
   return robots.at(static_cast<std::size_t>(k.robot)).landmarks().at(k.index).true_object;
 }
 
+// Throws InvalidInputError unless every robot has a measurement set of the simulation's steps,
+// every rendezvous event fits (two distinct robots, a step of the simulation) and leave_after
+// names robots of the simulation.
+void CheckSimulationFits(const SimulationData& data, const MultiRobotSlamConfig& config) {
+  const int n = data.numRobots(), steps = data.numSteps();
+  if (static_cast<int>(data.measurements.size()) != n) {
+    throw InvalidInputError("RunMultiRobotObjectSlam: " + std::to_string(n) + " trajectories but " +
+                            std::to_string(data.measurements.size()) + " measurement sets");
+  }
+  for (int r = 0; r < n; ++r) {
+    const auto& m = data.measurements[static_cast<std::size_t>(r)];
+    if (static_cast<int>(data.trajectories[static_cast<std::size_t>(r)].size()) != steps ||
+        static_cast<int>(m.detections.size()) != steps ||
+        static_cast<int>(m.odometry.size()) != std::max(steps - 1, 0)) {
+      throw InvalidInputError("RunMultiRobotObjectSlam: robot " + std::to_string(r) +
+                              " has measurements inconsistent with " + std::to_string(steps) +
+                              " time steps");
+    }
+  }
+  for (const auto& e : data.rendezvous) {
+    if (e.alpha < 0 || e.alpha >= n || e.beta < 0 || e.beta >= n || e.alpha == e.beta ||
+        e.step < 0 || e.step >= steps) {
+      throw InvalidInputError("RunMultiRobotObjectSlam: rendezvous event at step " +
+                              std::to_string(e.step) + " between robots " +
+                              std::to_string(e.alpha) + " and " + std::to_string(e.beta) +
+                              " does not fit the simulation");
+    }
+  }
+  for (const auto& [robot, step] : config.leave_after) {
+    if (robot >= n) {
+      throw InvalidInputError("RunMultiRobotObjectSlam: leave_after names robot " +
+                              std::to_string(robot) + " of " + std::to_string(n));
+    }
+  }
+}
+
+// Wrong pairs at a rendezvous that found `new_pairs` new ones, label-consistent (an object of
+// alpha with another object of beta), fraction / (1 - fraction) of them in expectation, appended
+// to `shared` (never a pair it holds); returns how many.
+int InjectWrongPairs(const ObjectSlam& alpha, const ObjectSlam& beta, std::size_t new_pairs,
+                     double fraction, std::mt19937_64& rng, std::vector<SharedObject>& shared) {
+  int injected = 0;
+  const double expected = fraction / (1.0 - fraction) * static_cast<double>(new_pairs);
+  int k = static_cast<int>(expected);
+  if (std::uniform_real_distribution<double>(0.0, 1.0)(rng) < expected - k) ++k;
+  const auto& la = alpha.landmarks();
+  const auto& lb = beta.landmarks();
+  for (int attempt = 0; k > 0 && attempt < 20 * k + 20 && !la.empty(); ++attempt) {
+    const Landmark& x = la[std::uniform_int_distribution<std::size_t>(0, la.size() - 1)(rng)];
+    std::vector<const Landmark*> other;
+    for (const Landmark& y : lb) {
+      if (y.label == x.label && y.true_object != x.true_object) other.push_back(&y);
+    }
+    if (other.empty()) continue;
+    const Landmark& y =
+        *other[std::uniform_int_distribution<std::size_t>(0, other.size() - 1)(rng)];
+    const SharedObject wrong{y.key, x.key};
+    const bool known = std::any_of(shared.begin(), shared.end(), [&](const SharedObject& z) {
+      return z.alpha_object == wrong.alpha_object && z.beta_object == wrong.beta_object;
+    });
+    if (known) continue;
+    shared.push_back(wrong);
+    ++injected;
+    --k;
+  }
+  return injected;
+}
+
+// The inter-robot association against ground truth: `possible` per robot pair (lower id first),
+// the objects both had mapped at one of their rendezvous.
+InterRobotAssociationStats InterRobotAssociation(
+    const std::vector<ObjectSlam>& robots, const std::vector<SharedObject>& shared,
+    const std::map<std::pair<int, int>, std::set<int>>& possible) {
+  InterRobotAssociationStats stats;
+  std::map<std::pair<int, int>, std::set<int>> found;
+  for (const auto& s : shared) {
+    ++stats.pairs;
+    const int ta = TrueObject(robots, s.alpha_object);
+    if (ta < 0 || ta != TrueObject(robots, s.beta_object)) continue;
+    ++stats.correct;
+    const int a = s.alpha_object.robot, b = s.beta_object.robot;
+    found[{std::min(a, b), std::max(a, b)}].insert(ta);
+  }
+  for (const auto& [pair, objects] : possible) {
+    stats.possible += static_cast<int>(objects.size());
+    const auto it = found.find(pair);
+    if (it == found.end()) continue;
+    for (int o : it->second) stats.found += static_cast<int>(objects.count(o));
+  }
+  return stats;
+}
+
 }  // namespace
 
 void MultiRobotSlamConfig::validate() const {
@@ -47,8 +139,10 @@ void MultiRobotSlamConfig::validate() const {
 MultiRobotSlamConfig MultiRobotSlamConfigForNoise(const SensingConfig& sensing) {
   sensing.validate();
   MultiRobotSlamConfig c;
-  c.slam.association = AssociationGateForNoise(sensing.objects.sigma_rotation_deg, sensing.objects.sigma_translation);
-  c.rendezvous.gate = AssociationGateForNoise(sensing.objects.sigma_rotation_deg, sensing.objects.sigma_translation);
+  c.slam.association = AssociationGateForNoise(sensing.objects.sigma_rotation_deg,
+                                               sensing.objects.sigma_translation);
+  c.rendezvous.gate = AssociationGateForNoise(sensing.objects.sigma_rotation_deg,
+                                              sensing.objects.sigma_translation);
   c.rendezvous.lambda_sigma_rotation_deg =
       std::max(sensing.objects.sigma_rotation_deg, sensing.information_sigma_floor * kRadToDeg);
   c.rendezvous.lambda_sigma_translation =
@@ -61,38 +155,8 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
                                              const MultiRobotSlamConfig& config) {
   config.validate();
   const auto t0 = std::chrono::steady_clock::now();
+  CheckSimulationFits(data, config);
   const int n = data.numRobots(), steps = data.numSteps();
-  if (static_cast<int>(data.measurements.size()) != n) {
-    throw InvalidInputError("RunMultiRobotObjectSlam: " + std::to_string(n) +
-                            " trajectories but " + std::to_string(data.measurements.size()) +
-                            " measurement sets");
-  }
-  for (int r = 0; r < n; ++r) {
-    const auto& m = data.measurements[static_cast<std::size_t>(r)];
-    if (static_cast<int>(data.trajectories[static_cast<std::size_t>(r)].size()) != steps ||
-        static_cast<int>(m.detections.size()) != steps ||
-        static_cast<int>(m.odometry.size()) != std::max(steps - 1, 0)) {
-      throw InvalidInputError("RunMultiRobotObjectSlam: robot " + std::to_string(r) +
-                              " has measurements inconsistent with " + std::to_string(steps) +
-                              " time steps");
-    }
-  }
-  for (const auto& e : data.rendezvous) {
-    if (e.alpha < 0 || e.alpha >= n || e.beta < 0 || e.beta >= n || e.alpha == e.beta ||
-        e.step < 0 || e.step >= steps) {
-      throw InvalidInputError("RunMultiRobotObjectSlam: rendezvous event at step " +
-                              std::to_string(e.step) + " between robots " +
-                              std::to_string(e.alpha) + " and " + std::to_string(e.beta) +
-                              " does not fit the simulation");
-    }
-  }
-
-  for (const auto& [robot, step] : config.leave_after) {
-    if (robot >= n) {
-      throw InvalidInputError("RunMultiRobotObjectSlam: leave_after names robot " +
-                              std::to_string(robot) + " of " + std::to_string(n));
-    }
-  }
   const auto left = [&](int robot, int t) {
     const auto it = config.leave_after.find(robot);
     return it != config.leave_after.end() && t > it->second;
@@ -151,7 +215,8 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
       };
       for (const auto& s : o.removed_shared) {
         if (!EraseShared(out.shared, s)) {
-          throw InvalidInputError("RunMultiRobotObjectSlam: a rendezvous removed a pair never shared");
+          throw InvalidInputError(
+              "RunMultiRobotObjectSlam: a rendezvous removed a pair never shared");
         }
         ++rec.removed;
         rec.removed_correct += correct(s) ? 1 : 0;
@@ -161,33 +226,9 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
         out.shared.push_back(s);
       }
       if (config.outlier_fraction > 0.0) {
-        // Wrong pairs, label-consistent: an object of alpha with another object of beta.
-        const double expected = config.outlier_fraction / (1.0 - config.outlier_fraction) *
-                                static_cast<double>(o.new_shared.size());
-        int k = static_cast<int>(expected);
-        if (std::uniform_real_distribution<double>(0.0, 1.0)(outlier_rng) < expected - k) ++k;
-        const auto& la = alpha.landmarks();
-        const auto& lb = beta.landmarks();
-        for (int attempt = 0; k > 0 && attempt < 20 * k + 20 && !la.empty(); ++attempt) {
-          const Landmark& x =
-              la[std::uniform_int_distribution<std::size_t>(0, la.size() - 1)(outlier_rng)];
-          std::vector<const Landmark*> other;
-          for (const Landmark& y : lb) {
-            if (y.label == x.label && y.true_object != x.true_object) other.push_back(&y);
-          }
-          if (other.empty()) continue;
-          const Landmark& y = *other[std::uniform_int_distribution<std::size_t>(
-              0, other.size() - 1)(outlier_rng)];
-          const SharedObject wrong{y.key, x.key};
-          const bool known = std::any_of(out.shared.begin(), out.shared.end(), [&](const SharedObject& z) {
-            return z.alpha_object == wrong.alpha_object && z.beta_object == wrong.beta_object;
-          });
-          if (known) continue;
-          out.shared.push_back(wrong);
-          ++rec.injected;
-          ++out.injected;
-          --k;
-        }
+        rec.injected = InjectWrongPairs(alpha, beta, o.new_shared.size(), config.outlier_fraction,
+                                        outlier_rng, out.shared);
+        out.injected += rec.injected;
       }
       out.bytes += static_cast<std::int64_t>(o.bytes_alpha_to_beta + o.bytes_beta_to_alpha);
       const std::set<int> ma = MappedObjects(alpha), mb = MappedObjects(beta);
@@ -233,24 +274,8 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
     robot.optimize(config.final_iterations);
     out.intra += robot.associationStats();
   }
-  // Inter-robot association statistics.
-  std::map<std::pair<int, int>, std::set<int>> found;
-  for (const auto& s : out.shared) {
-    ++out.inter.pairs;
-    const int ta = TrueObject(out.robots, s.alpha_object);
-    if (ta < 0 || ta != TrueObject(out.robots, s.beta_object)) continue;
-    ++out.inter.correct;
-    const int a = s.alpha_object.robot, b = s.beta_object.robot;
-    found[{std::min(a, b), std::max(a, b)}].insert(ta);
-  }
-  for (const auto& [pair, objects] : possible) {
-    out.inter.possible += static_cast<int>(objects.size());
-    const auto it = found.find(pair);
-    if (it == found.end()) continue;
-    for (int o : it->second) out.inter.found += static_cast<int>(objects.count(o));
-  }
-  out.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.inter = InterRobotAssociation(out.robots, out.shared, possible);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
 
