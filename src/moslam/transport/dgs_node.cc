@@ -148,7 +148,6 @@ class DgsNode::Impl final : public TeamChannel {
     agent_options_ = ao;
     agent_ = std::make_unique<RobotAgent>(robot_, subgraph_, initial_, anchor, ao);
     neighbours_ = agent_->neighbourRobots();
-    step_neighbours_ = neighbours_;
     for (const auto& [k, x] : initial_) {
       if (k.robot == robot_) own_[k] = x;
     }
@@ -305,8 +304,7 @@ class DgsNode::Impl final : public TeamChannel {
       } else {
         agent_ = std::make_unique<RobotAgent>(robot_, graph, start, anchor_, agent_options_);
       }
-      step_neighbours_ = agent_->neighbourRobots();
-      received_->setStepNeighbours(step_neighbours_);
+      received_->setStepNeighbours(agent_->neighbourRobots());
       return *agent_;
     };
     result_.robust = RunRobustRobotProgram(problem, options, make, *this);
@@ -391,7 +389,8 @@ class DgsNode::Impl final : public TeamChannel {
     st.robot = robot_;
     st.solve = options_.solve;
     st.incarnation = result_.incarnation;
-    st.neighbours.assign(step_neighbours_.begin(), step_neighbours_.end());
+    const std::set<int>& neighbours = received_->stepNeighbours();
+    st.neighbours.assign(neighbours.begin(), neighbours.end());
     st.round = step_;
     if (done_) {
       st.state = RobotState::kDone;
@@ -612,7 +611,6 @@ class DgsNode::Impl final : public TeamChannel {
   Values own_;                         // the robot's variables as the last solves left them
   std::vector<bool> robust_;           // with options_.gnc: per subgraph factor
   std::set<int> neighbours_;           // of the subgraph (the team's; the packets it accepts)
-  std::set<int> step_neighbours_;      // of the agent at work (status, what a step waits for)
   std::set<Key> neighbour_keys_;
   std::unique_ptr<transport_detail::NodeJournal> journal_;  // none without a state_dir
   G2oWriteOptions g2o_options_;  // snapshots: written whole or not at all (atomic)

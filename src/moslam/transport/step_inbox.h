@@ -50,8 +50,10 @@ class StepInbox {
   // A status of a step (round >= 1) of robot r arrived.
   bool stepped(int r) const { return stepped_.count(r) > 0; }
 
-  // The neighbours of the node's agent at work (its status; whose packets a step waits for).
+  // The neighbours of the node's agent at work (its status lists them; a step waits for their
+  // packets): at first every neighbour of the subgraph.
   void setStepNeighbours(std::set<int> neighbours) { step_neighbours_ = std::move(neighbours); }
+  const std::set<int>& stepNeighbours() const { return step_neighbours_; }
 
   // What of robot r's step s it still lacks ("": nothing): "status", or the packets its status
   // announces to this robot ("estimates", "coarse share", "weights", "covariance", comma-joined).
