@@ -444,16 +444,7 @@ class DgsNode::Impl final : public TeamChannel {
     st.state = StateOf(what.stage);
     st.stage = static_cast<std::uint8_t>(what.stage);
     st.iteration = static_cast<std::uint32_t>(std::max(agent_->iteration(), 0));
-    st.sent = what.report.sent;
-    st.initialised = what.report.initialised;
-    st.coarse_ready = what.report.coarse_ready;
-    st.coarse = what.report.has_share;
-    st.weights = what.report.weights;
-    st.covariance = what.report.covariance;
-    st.change = what.report.change;
-    st.error_bound = what.report.bound;
-    st.value[0] = what.report.value[0];
-    st.value[1] = what.report.value[1];
+    transport_detail::SetReport(what.report, st);
     transport_.publish(st);
   }
 

@@ -30,6 +30,19 @@ TeamReport ReportOf(const StatusPacket& s) {
   return r;
 }
 
+void SetReport(const TeamReport& report, StatusPacket& s) {
+  s.sent = report.sent;
+  s.initialised = report.initialised;
+  s.coarse_ready = report.coarse_ready;
+  s.coarse = report.has_share;
+  s.weights = report.weights;
+  s.covariance = report.covariance;
+  s.change = report.change;
+  s.error_bound = report.bound;
+  s.value[0] = report.value[0];
+  s.value[1] = report.value[1];
+}
+
 StepInbox::StepInbox(int robot, std::uint32_t solve, std::set<int> neighbours,
                      std::set<Key> neighbour_keys)
     : robot_(robot),

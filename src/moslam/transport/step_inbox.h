@@ -87,7 +87,9 @@ class StepInbox {
   std::map<std::pair<std::uint32_t, int>, CovarianceMessage> covariances_;
 };
 
-// The report a status carries for its step.
+// The report a status carries for its step, and the status fields that carry it (the others
+// untouched): ReportOf(status) is `report` after SetReport(report, status).
 TeamReport ReportOf(const StatusPacket& s);
+void SetReport(const TeamReport& report, StatusPacket& s);
 
 }  // namespace moslam::transport_detail

@@ -145,6 +145,26 @@ TEST(StepInbox, TheLatestStatusIsTheMostAdvancedAndARestartReplacesAFailure) {
   EXPECT_EQ(inbox.missing(0, 6), "status");  // nor is a done report the status of a step
 }
 
+// Every field of a report crosses in the status: each set to a value other than its default.
+TEST(StepInbox, AReportSurvivesTheStatusThatCarriesIt) {
+  TeamReport r;
+  r.sent = r.initialised = r.coarse_ready = r.has_share = r.weights = r.covariance = true;
+  r.change = 0.25;
+  r.bound = 0.5;
+  r.value[0] = -3.0;
+  r.value[1] = 7.0;
+  StatusPacket st = Status(2, 4);
+  SetReport(r, st);
+  EXPECT_EQ(st.round, 4u);  // the rest untouched
+  const TeamReport back = ReportOf(st);
+  EXPECT_TRUE(back.sent && back.initialised && back.coarse_ready && back.has_share &&
+              back.weights && back.covariance);
+  EXPECT_EQ(back.change, 0.25);
+  EXPECT_EQ(back.bound, 0.5);
+  EXPECT_EQ(back.value[0], -3.0);
+  EXPECT_EQ(back.value[1], 7.0);
+}
+
 TEST(StepInbox, PruneForgetsTheStepsBefore) {
   StepInbox inbox = MakeInbox();
   StatusPacket st1 = Status(0, 1);
