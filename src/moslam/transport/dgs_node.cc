@@ -164,8 +164,7 @@ class DgsNode::Impl final : public TeamChannel {
                                             options_.checked.size(), subgraph_.factors().size()));
       }
     }
-    neighbour_keys_ = agent_->neighbourVariables();
-    received_.emplace(robot_, options_.solve, neighbours_, neighbour_keys_);
+    received_.emplace(robot_, options_.solve, neighbours_, agent_->neighbourVariables());
     // Snapshots of a graph with object landmarks use the g2o key scheme with objects.
     g2o_options_.atomic = true;
     for (const Key& k : subgraph_.keys()) {
@@ -457,7 +456,6 @@ class DgsNode::Impl final : public TeamChannel {
     }
     std::set<int> known = neighbours_;
     known.insert(robot_);
-    received_->hear(robot_);
     while (true) {
       ingest(transport_.poll(std::chrono::milliseconds(50)));
       // The closure: robots heard from add their neighbours, until nothing changes.
@@ -466,7 +464,7 @@ class DgsNode::Impl final : public TeamChannel {
       transport_detail::GrowClosure(known, lists);
       std::vector<int> missing;
       for (int r : known) {
-        if (!received_->heard().count(r)) missing.push_back(r);
+        if (r != robot_ && !received_->heard().count(r)) missing.push_back(r);
       }
       if (missing.empty()) break;
       if (Clock::now() > deadline) {
@@ -602,7 +600,6 @@ class DgsNode::Impl final : public TeamChannel {
   Values own_;                         // the robot's variables as the last solves left them
   std::vector<bool> robust_;           // with options_.gnc: per subgraph factor
   std::set<int> neighbours_;           // of the subgraph (the team's; the packets it accepts)
-  std::set<Key> neighbour_keys_;
   std::unique_ptr<transport_detail::NodeJournal> journal_;  // none without a state_dir
   G2oWriteOptions g2o_options_;  // snapshots: written whole or not at all (atomic)
 

@@ -39,9 +39,8 @@ class StepInbox {
   // and answers are not the protocol's: ignored.
   IngestNotes ingest(std::vector<Received> packets);
 
-  // The robots heard from (a status of the solve), this robot once heard() is called for it.
+  // The robots heard from (a status of the solve).
   const std::set<int>& heard() const { return heard_; }
-  void hear(int robot) { heard_.insert(robot); }
   // Per robot heard from: its most advanced status.
   const std::map<int, StatusPacket>& latest() const { return latest_; }
   // Its most advanced status reports a failure (it may be restarted) / says it is done.
