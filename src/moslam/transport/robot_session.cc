@@ -1,32 +1,26 @@
 #include "moslam/transport/robot_session.h"
 
 #include <fmt/core.h>
-#include <fmt/ranges.h>
 
-#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <filesystem>
-#include <iterator>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <utility>
 
 #include "moslam/common/errors.h"
-#include "moslam/io/g2o.h"
-#include "moslam/online/group_solve.h"
-#include "moslam/robust/gnc.h"
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/event_record.h"
-#include "moslam/transport/group_transport.h"
 #include "moslam/transport/online_group_solves.h"
+#include "moslam/transport/session_batch.h"
 #include "moslam/transport/session_channel.h"
 #include "moslam/transport/session_fingerprint.h"
 #include "moslam/transport/session_journal.h"
 #include "moslam/transport/session_pairs.h"
-#include "moslam/transport/solve_record.h"
 
 namespace moslam {
 
@@ -130,39 +124,6 @@ PoseGraph SessionSubgraph(const ObjectSlam& slam, const std::vector<SharedObject
 namespace {
 
 using Clock = std::chrono::steady_clock;
-using transport_detail::AttemptSolve;
-using transport_detail::GroupIds;
-using transport_detail::GroupRecord;
-
-// Hands the packets received during the rendezvous phase (DGS statuses and estimates of robots
-// that finished it first) to the DGS node before anything new.
-class PrefetchedTransport final : public Transport {
- public:
-  PrefetchedTransport(Transport& inner, std::vector<Received> pending)
-      : inner_(inner), pending_(std::move(pending)) {}
-  int self() const override { return inner_.self(); }
-  void send(const EstimatesPacket& p) override { inner_.send(p); }
-  void send(const SharedObjectsPacket& p) override { inner_.send(p); }
-  void send(const WeightsPacket& p) override { inner_.send(p); }
-  void send(const CovariancePacket& p) override { inner_.send(p); }
-  void publish(const StatusPacket& p) override { inner_.publish(p); }
-  void publish(const ObjectListPacket& p) override { inner_.publish(p); }
-  void publish(const CoarsePacket& p) override { inner_.publish(p); }
-  std::vector<Received> poll(std::chrono::milliseconds timeout) override {
-    if (pending_.empty()) return inner_.poll(timeout);
-    std::vector<Received> out = std::move(pending_);
-    pending_.clear();
-    for (Received& r : inner_.poll(std::chrono::milliseconds(0))) out.push_back(std::move(r));
-    return out;
-  }
-  std::set<int> alive() const override { return inner_.alive(); }
-  void setKnownRobots(const std::set<int>& robots) override { inner_.setKnownRobots(robots); }
-  TransportStats stats() const override { return inner_.stats(); }
-
- private:
-  Transport& inner_;
-  std::vector<Received> pending_;
-};
 
 using transport_detail::EventRecord;
 using Pairs = transport_detail::ObjectPairs;
@@ -275,58 +236,9 @@ class RobotSession::Impl {
       slam.refresh(options_.slam.slam.iterations_per_update);
       bool list_published = false;
       for (std::size_t index : mine) {
-        const RendezvousEvent& e = data_.events[index];
-        SessionRendezvous rec;
-        rec.event = e;
-        rec.alpha = e.alpha == robot_;
-        const auto te = Clock::now();
-        const int peer = rec.alpha ? e.beta : e.alpha;
-        EventPairs pairs;
-        const auto journaled = journaled_.find(index);
-        const bool peer_left = journaled == journaled_.end() && channel_->hasLeft(peer, t);
-        if (rec.alpha && !peer_left) {
-          const ObjectMapMessage map = MakeObjectMapMessage(slam);
-          rec.objects_sent = static_cast<int>(map.objects.size());
-          rec.binary_bytes = static_cast<std::int64_t>(EncodeObjectMap(map).size());
-        }
-        if (journaled != journaled_.end()) {
-          pairs = journaled->second;
-          rec.replayed = true;
-          if (!rec.alpha) sendAnswer(e, pairs);  // the old process may have died before it left
-        } else if (peer_left) {
-          rec.skipped = true;
-        } else if (rec.alpha) {
-          if (!list_published) {
-            publishList(slam, t);
-            list_published = true;
-          }
-          if (std::optional<EventPairs> answer = awaitAnswer(e, slam)) {
-            pairs = std::move(*answer);
-            channel_->record(
-                EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
-          } else {
-            rec.skipped = true;
-          }
-        } else if (const std::optional<ObjectMapMessage> received = awaitList(e)) {
-          std::optional<SE3> beta_T_alpha;
-          if (options_.slam.known_initial_poses) {
-            beta_T_alpha = BetaTAlpha(data_.initial_poses[static_cast<std::size_t>(e.alpha)],
-                                      data_.initial_poses[static_cast<std::size_t>(e.beta)]);
-          }
-          const SharedObjectsMessage answer = AnswerObjectMap(
-              *received, slam, beta_T_alpha, pairs_.shared(), options_.slam.rendezvous);
-          pairs = {answer.pairs, answer.removed};
-          sendAnswer(e, pairs);
-          channel_->record(
-              EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
-        } else {
-          rec.skipped = true;
-        }
-        if (!rec.skipped) applyPairs(e, pairs, rec);  // skipped: the peer left, nothing exchanged
-        rec.seconds = std::chrono::duration<double>(Clock::now() - te).count();
-        result_.rendezvous_binary_bytes += rec.binary_bytes;
-        result_.rendezvous.push_back(rec);
-        if (options_.on_rendezvous) options_.on_rendezvous(rec);
+        result_.rendezvous.push_back(meet(slam, index, list_published));
+        result_.rendezvous_binary_bytes += result_.rendezvous.back().binary_bytes;
+        if (options_.on_rendezvous) options_.on_rendezvous(result_.rendezvous.back());
       }
       // Lists of this step or earlier are no longer needed (the others' events included).
       channel_->inbox().dropListsUpTo(static_cast<std::uint32_t>(t));
@@ -338,195 +250,83 @@ class RobotSession::Impl {
       }
     }
     slam.optimize(options_.slam.final_iterations);
-    if (options_.online) {
-      result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-      result_.rendezvous_transport = transport_.stats();
-      result_.shared = pairs_.shared();
-      result_.initial = slam.estimate();
-      result_.final_estimate = slam.estimate();
-      result_.set_aside = pairs_.setAside();
-      result_.poses = slam.numPoses();
-      result_.landmarks = static_cast<int>(slam.landmarks().size());
-      transport_detail::SaveSessionMap(options_.dgs.state_dir, slam, "final");
-      result_.seconds = result_.slam_seconds;
-      noteLeftTeam();
-      return result_;
-    }
     result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     result_.rendezvous_transport = transport_.stats();
     result_.shared = pairs_.shared();
     result_.initial = slam.estimate();
     result_.poses = slam.numPoses();
     result_.landmarks = static_cast<int>(slam.landmarks().size());
-    // A robot of the team that leaves before its first step stops the solve (DgsNode's
-    // TeamChangedError); the team is formed again without it, as when it had left before.
-    const int end = data_.numSteps();
-    for (int attempt = channel_->journaledAttempt(end);; ++attempt) {
-      std::vector<int> closure, robots;
-      const bool departures = batchGroup(closure, robots, attempt);
-      try {
-        if (departures) {
-          solveWithoutTheRobotsThatLeft(slam, closure, robots, attempt);
-        } else {
-          result_.subgraph =
-              SessionSubgraph(slam, pairs_.shared(), options_.slam.rendezvous.lambda());
-          solveBatch(closure);
-        }
-        break;
-      } catch (const TeamChangedError& e) {
-        for (int r : e.robots()) {
-          channel_->markLeft(departures ? robots.at(static_cast<std::size_t>(r)) : r, end,
-                             "it joined the batch solve and left before its first step");
-        }
-        result_.subgraph = PoseGraph();
-      }
+    if (options_.online) {  // its map is its result, solved at every rendezvous
+      result_.final_estimate = slam.estimate();
+      result_.set_aside = pairs_.setAside();
+      transport_detail::SaveSessionMap(options_.dgs.state_dir, slam, "final");
+      result_.seconds = result_.slam_seconds;
+    } else {
+      transport_detail::SessionBatchSolve(*channel_, pairs_, data_.num_robots, data_.numSteps(),
+                                          options_)
+          .run(slam, result_);
+      result_.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     }
-    result_.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    noteLeftTeam();
+    result_.left_team = channel_->membership().out();
+    result_.left_team_step = channel_->membership().outStep();
     return result_;
   }
 
  private:
-  // The batch solve of the whole team (none of its robots left): DgsNode on the robot's subgraph;
-  // its team the closure the joining statuses formed (empty, for a robot linked to none: the
-  // node forms it).
-  void solveBatch(const std::vector<int>& closure) {
-    PrefetchedTransport dgs_transport(transport_, channel_->inbox().takePending());
-    DgsNodeOptions node_options = options_.dgs;
-    node_options.team = closure;
-    if (node_options.gnc && node_options.robust.empty()) {
-      node_options.robust = ObjectFactors(result_.subgraph);
+  // Rendezvous event `index` of the current step: alpha publishes its object list (once per
+  // step) and waits for beta's answer; beta waits for the list and answers; a journaled event is
+  // replayed (beta answers again: the old process may have died before alpha heard it), and an
+  // event whose peer left for good is skipped. What it changed is applied to the shared pairs.
+  SessionRendezvous meet(const ObjectSlam& slam, std::size_t index, bool& list_published) {
+    const RendezvousEvent& e = data_.events[index];
+    SessionRendezvous rec;
+    rec.event = e;
+    rec.alpha = e.alpha == robot_;
+    const auto te = Clock::now();
+    const int peer = rec.alpha ? e.beta : e.alpha;
+    EventPairs pairs;
+    const auto journaled = journaled_.find(index);
+    const bool peer_left = journaled == journaled_.end() && channel_->hasLeft(peer, e.step);
+    if (rec.alpha && !peer_left) {
+      const ObjectMapMessage map = MakeObjectMapMessage(slam);
+      rec.objects_sent = static_cast<int>(map.objects.size());
+      rec.binary_bytes = static_cast<std::int64_t>(EncodeObjectMap(map).size());
     }
-    DgsNode node(robot_, result_.subgraph, result_.initial, dgs_transport, node_options);
-    result_.dgs = node.run();
-    RefuseUnlinked(result_.dgs, robot_);
-  }
-
-  // A batch robust solve whose separator check left a robot unlinked has no estimate of the
-  // team: an error, as RunRobustDgs throws it in one process.
-  static void RefuseUnlinked(const DgsNodeResult& solved, int robot) {
-    if (!solved.robust || !solved.robust->unlinked) return;
-    throw UnderdeterminedError(fmt::format(
-        "robot {}: the separator check left some robot of the team without a pair it accepts "
-        "(a robot pair with fewer than min_support pairwise-consistent shared objects keeps none "
-        "unless its robots are linked through confirmed pairs): no team estimate",
-        robot));
-  }
-
-  // ---- batch: robots that left for good ---------------------------------------------------
-  // Before the batch solve every robot with shared pairs publishes a joining status of solve
-  // 1 + T (T: its number of steps) listing every robot it shares pairs with, gone or not, and
-  // waits for those of the closure (SessionChannel::formGroup): a robot that left for good
-  // publishes none and is found gone (or was, at a rendezvous), so every robot of the closure
-  // finds the same departures. Returns whether some robot of `closure` (increasing, this robot
-  // among them) left; `robots`: the closure without them. The closure is journaled (a group record of step T), so a
-  // robot restarted in the solve takes the same way.
-  // Attempt a > 0 (the team formed again: run()) uses solve AttemptSolve(1 + T, a).
-  bool batchGroup(std::vector<int>& closure, std::vector<int>& robots, int attempt) {
-    const int end = data_.numSteps();
-    if (channel_->membership().out()) {  // it left the team: its own map is its result
-      closure = robots = {robot_};
-      return true;
-    }
-    const auto solve = AttemptSolve(static_cast<std::uint32_t>(end + 1), attempt);
-    if (const transport_detail::GroupRecord* journaled = channel_->journaledGroup(end, attempt)) {
-      closure = journaled->robots;
-    } else {
-      std::set<int> partners;
-      for (const SharedObject& o : pairs_.shared()) {
-        for (int r : {o.alpha_object.robot, o.beta_object.robot}) {
-          if (r != robot_) partners.insert(r);
-        }
+    if (journaled != journaled_.end()) {
+      pairs = journaled->second;
+      rec.replayed = true;
+      if (!rec.alpha) sendAnswer(e, pairs);  // the old process may have died before it left
+    } else if (peer_left) {
+      rec.skipped = true;
+    } else if (rec.alpha) {
+      if (!list_published) {
+        publishList(slam, e.step);
+        list_published = true;
       }
-      if (partners.empty()) return false;  // linked to no robot: the batch solve as before
-      StatusPacket join;
-      join.robot = robot_;
-      join.solve = solve;
-      join.neighbours.assign(partners.begin(), partners.end());
-      transport_.publish(join);
-      std::set<int> everyone;
-      for (int r = 0; r < data_.num_robots; ++r) everyone.insert(r);
-      std::vector<TeamPair> none;
-      channel_->formGroup(join, partners, everyone, solve, end, robots, none, &closure);
-      channel_->recordGroup(GroupRecord{static_cast<std::uint32_t>(end), closure, {}});
+      if (std::optional<EventPairs> answer = awaitAnswer(e, slam)) {
+        pairs = std::move(*answer);
+        channel_->record(
+            EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
+      } else {
+        rec.skipped = true;
+      }
+    } else if (const std::optional<ObjectMapMessage> received = awaitList(e)) {
+      std::optional<SE3> beta_T_alpha;
+      if (options_.slam.known_initial_poses) {
+        beta_T_alpha = BetaTAlpha(data_.initial_poses[static_cast<std::size_t>(e.alpha)],
+                                  data_.initial_poses[static_cast<std::size_t>(e.beta)]);
+      }
+      const SharedObjectsMessage answer =
+          AnswerObjectMap(*received, slam, beta_T_alpha, pairs_.shared(), options_.slam.rendezvous);
+      pairs = {answer.pairs, answer.removed};
+      sendAnswer(e, pairs);
+      channel_->record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});
+    } else {
+      rec.skipped = true;
     }
-    robots.clear();
-    for (int r : closure) {
-      if (r == robot_ || !channel_->hasLeft(r, end)) robots.push_back(r);
-    }
-    return robots.size() != closure.size();
-  }
-
-  // The batch solve of `robots`, the closure without the robots that left: their pairs dropped,
-  // the robots re-labelled 0..k-1 (GroupTransport) so that the lowest of them holds the gauge
-  // (robot 0 may have left), as the in-process twin solves the joint graph of the robots that
-  // stay (BuildGroupProblem without held estimates). Its DgsNode journals in
-  // <state_dir>/solves/batch; the result, in the robots' own ids, in <state_dir>/result.g2o.
-  void solveWithoutTheRobotsThatLeft(const ObjectSlam& slam, const std::vector<int>& closure,
-                                     const std::vector<int>& robots, int attempt) {
-    std::vector<int> gone;
-    std::set_difference(closure.begin(), closure.end(), robots.begin(), robots.end(),
-                        std::back_inserter(gone));
-    const auto real = [&](Key k) {
-      return Key{robots[static_cast<std::size_t>(k.robot)], k.kind, k.index};
-    };
-    if (robots.size() < 2) {  // every partner left: its own map is its result
-      for (const auto& [k, x] : slam.estimate()) result_.dgs.estimate.emplace(k, x);
-      result_.dgs.team = robots;
-      result_.subgraph = slam.graph();
-      saveBatchResult();
-      return;
-    }
-    const auto solve = AttemptSolve(static_cast<std::uint32_t>(data_.numSteps() + 1), attempt);
-    RobotGroupPart part =
-        BuildRobotGroupPart(slam, robots, pairs_.shared(), {}, options_.slam.rendezvous.lambda());
-    GroupTransport group_transport(
-        transport_, robots, solve, [this](Received r) { channel_->ingest({std::move(r)}); },
-        channel_->inbox().takePending(solve));
-    DgsNodeOptions node_options = options_.dgs;
-    node_options.solve = solve;
-    node_options.team = GroupIds(robots.size());
-    if (!options_.dgs.state_dir.empty()) {
-      node_options.state_dir = (std::filesystem::path(options_.dgs.state_dir) / "solves" /
-                                (attempt == 0 ? std::string("batch")
-                                              : fmt::format("batch_attempt_{}", attempt)))
-                                   .string();
-    }
-    if (node_options.gnc && node_options.robust.empty()) {
-      node_options.robust = ObjectFactors(part.subgraph);
-    }
-    node_options.log = [this, gone, robots](const std::string& text) {
-      options_.log(fmt::format("batch solve without robot(s) {} (robots {} as 0..{}): {}",
-                               fmt::join(gone, ","), fmt::join(robots, ","), robots.size() - 1,
-                               text));
-    };
-    DgsNode node(part.local, part.subgraph, std::move(part.initial), group_transport, node_options);
-    DgsNodeResult solved = node.run();
-    RefuseUnlinked(solved, robot_);
-    for (const RelativePoseFactor& f : part.subgraph.factors()) {
-      result_.subgraph.add(
-          RelativePoseFactor(real(f.a()), real(f.b()), f.measured(), f.information()));
-    }
-    Values estimate, neighbours;
-    for (const auto& [k, x] : solved.estimate) estimate.emplace(real(k), x);
-    for (const auto& [k, x] : solved.neighbours) neighbours.emplace(real(k), x);
-    solved.estimate = std::move(estimate);
-    solved.neighbours = std::move(neighbours);
-    for (std::vector<int>* ids : {&solved.team, &solved.left}) {
-      for (int& r : *ids) r = robots[static_cast<std::size_t>(r)];
-    }
-    result_.dgs = std::move(solved);
-    saveBatchResult();
-  }
-
-  // <state_dir>/result.g2o as the batch DgsNode writes it: the subgraph and the estimate.
-  void saveBatchResult() const {
-    if (options_.dgs.state_dir.empty()) return;
-    const std::filesystem::path dir(options_.dgs.state_dir);
-    G2oWriteOptions write;
-    write.scheme = KeyScheme::kWithObjects;
-    write.atomic = true;
-    WriteG2oFile((dir / "result.g2o").string(), result_.subgraph, result_.dgs.estimate, write);
+    if (!rec.skipped) applyPairs(e, pairs, rec);  // skipped: the peer left, nothing exchanged
+    rec.seconds = std::chrono::duration<double>(Clock::now() - te).count();
+    return rec;
   }
 
   // What event e changed, applied to the shared pairs (SessionPairs::apply) and counted in
@@ -583,12 +383,6 @@ class RobotSession::Impl {
       channel_->ingest(transport_.poll(std::chrono::milliseconds(100)));
     }
     return true;
-  }
-
-  // ---- robots that leave for good (team_membership.h) ---------------------------------------
-  void noteLeftTeam() {
-    result_.left_team = channel_->membership().out();
-    result_.left_team_step = channel_->membership().outStep();
   }
 
   // Alpha's list of the event's step, as the in-process beta decodes it (float32 poses).
