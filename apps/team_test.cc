@@ -23,6 +23,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -180,6 +181,76 @@ nlohmann::json LastJson(const std::string& output) {
   return last.empty() ? nlohmann::json() : nlohmann::json::parse(last);
 }
 
+// A predicate of output lines: those that start with `prefix`.
+std::function<bool(const std::string&)> StartsWith(const std::string& prefix) {
+  return [prefix](const std::string& l) { return l.rfind(prefix, 0) == 0; };
+}
+
+// n robot processes in DDS domain `domain` on loopback, robot r started with args(r), its stderr
+// appended to out/stderr<r> (across restarts).
+class RobotProcesses {
+ public:
+  using Args = std::function<std::vector<std::string>(int)>;
+  RobotProcesses(int domain, int n, fs::path out, Args args)
+      : uri_(LoopbackConfigXml(domain, n)), out_(std::move(out)), args_(std::move(args)) {
+    for (int r = 0; r < n; ++r) robots_.push_back(start(r));
+  }
+  Child& operator[](int r) { return *robots_[static_cast<std::size_t>(r)]; }
+
+  // Waits for robot r's first line that satisfies `at`, then kills it with SIGKILL: false (and
+  // nothing killed) when no such line came before the deadline.
+  bool killAt(int r, const std::function<bool(const std::string&)>& at,
+              Clock::time_point deadline) {
+    if (!(*this)[r].waitForLine(at, deadline)) return false;
+    (*this)[r].kill9();
+    EXPECT_EQ((*this)[r].wait(deadline), 128 + SIGKILL);
+    return true;
+  }
+  // Starts robot r again with the same arguments (its --out: what it journaled).
+  void restart(int r) { robots_[static_cast<std::size_t>(r)] = start(r); }
+
+ private:
+  std::unique_ptr<Child> start(int r) {
+    return std::make_unique<Child>(args_(r), uri_, out_ / ("stderr" + std::to_string(r)));
+  }
+  std::string uri_;
+  fs::path out_;
+  Args args_;
+  std::vector<std::unique_ptr<Child>> robots_;
+};
+
+// Robot `victim` of n on blocks_world (`solver` flags), killed at its first line starting with
+// `at` and restarted: every robot ends with no robot left, the victim in its second incarnation
+// having replayed at least `min_replayed` rounds from its journal. `merged`: the robots'
+// result.g2o estimates together. Call it inside ASSERT_NO_FATAL_FAILURE.
+void KillAndRestartOne(int domain, int n, int victim, const std::string& name,
+                       const std::vector<std::string>& solver, const std::string& at,
+                       int min_replayed, Values* merged) {
+  const std::string data = BlocksWorld(n);
+  const fs::path out = FreshDir(name);
+  const auto deadline = Clock::now() + std::chrono::seconds(120);
+  RobotProcesses robots(domain, n, out, [&](int r) {
+    std::vector<std::string> a = RobotArgs(r, data, domain, out / std::to_string(r));
+    a.insert(a.end(), solver.begin(), solver.end());
+    return a;
+  });
+  ASSERT_TRUE(robots.killAt(victim, StartsWith(at), deadline)) << robots[victim].output();
+  robots.restart(victim);
+  for (int r = 0; r < n; ++r) {
+    ASSERT_EQ(robots[r].wait(deadline), 0) << "robot " << r << ":\n" << robots[r].output();
+    const nlohmann::json j = LastJson(robots[r].output());
+    ASSERT_TRUE(j.is_object());
+    EXPECT_TRUE(j["left"].empty()) << j.dump();
+    if (r == victim) {
+      EXPECT_EQ(j["incarnation"].get<int>(), 1);
+      EXPECT_GE(j["replayed_rounds"].get<int>(), min_replayed);
+    }
+    const Dataset result = ReadRobotG2o((out / std::to_string(r) / "result.g2o").string());
+    merged->insert(result.initial.begin(), result.initial.end());
+  }
+  fs::remove_all(out);
+}
+
 TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
   const fs::path out = FreshDir("loopback");
   const fs::path log = out / "team.log";
@@ -228,42 +299,12 @@ TEST(Team, TheWholeSolverOverDdsReachesTheCentralizedOptimum) {
 TEST(Team, RobotZeroKilledInTheRefinementAndRestartedChangesNothing) {
   // Robot 0 (the lowest id: a coordinator rule's choice; here every robot decides alike) is
   // killed with SIGKILL in the refinement's conjugate gradients and restarted with its --out.
-  const int domain = 54, n = 4, victim = 0;
-  const std::string data = BlocksWorld(n);
-  const std::string uri = LoopbackConfigXml(domain, n);
-  const fs::path out = FreshDir("restart_refine");
-  const auto deadline = Clock::now() + std::chrono::seconds(120);
-  const std::vector<std::string> solver = {"--coarse", "--refine", "--stop", "error-bound"};
-  auto args = [&](int r) {
-    std::vector<std::string> a = RobotArgs(r, data, domain, out / std::to_string(r));
-    a.insert(a.end(), solver.begin(), solver.end());
-    return a;
-  };
-  std::vector<std::unique_ptr<Child>> robots;
-  for (int r = 0; r < n; ++r) {
-    robots.push_back(std::make_unique<Child>(args(r), uri, out / ("stderr" + std::to_string(r))));
-  }
-  ASSERT_TRUE(robots[victim]->waitForLine(
-      [](const std::string& l) { return l.rfind("progress: refine 12 ", 0) == 0; }, deadline))
-      << robots[victim]->output();
-  robots[victim]->kill9();
-  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
-  robots[victim] = std::make_unique<Child>(args(victim), uri,
-                                           out / ("stderr" + std::to_string(victim)));
+  const int n = 4;
   Values merged;
-  for (int r = 0; r < n; ++r) {
-    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
-    const nlohmann::json j = LastJson(robots[r]->output());
-    ASSERT_TRUE(j.is_object());
-    EXPECT_TRUE(j["left"].empty()) << j.dump();
-    if (r == victim) {
-      EXPECT_EQ(j["incarnation"].get<int>(), 1);
-      EXPECT_GE(j["replayed_rounds"].get<int>(), 12);
-    }
-    const Dataset result = ReadRobotG2o((out / std::to_string(r) / "result.g2o").string());
-    merged.insert(result.initial.begin(), result.initial.end());
-  }
-  const Dataset full = ReadG2oFolder(data);
+  ASSERT_NO_FATAL_FAILURE(KillAndRestartOne(54, n, 0, "restart_refine",
+                                            {"--coarse", "--refine", "--stop", "error-bound"},
+                                            "progress: refine 12 ", 12, &merged));
+  const Dataset full = ReadG2oFolder(BlocksWorld(n));
   DgsNodeOptions o;
   o.solver.coarse_correction = true;
   o.solver.refine = true;
@@ -273,67 +314,36 @@ TEST(Team, RobotZeroKilledInTheRefinementAndRestartedChangesNothing) {
   ASSERT_GT(reference.refine.iterations, 0);
   EXPECT_EQ(merged.size(), reference.values.size());
   EXPECT_LE(MaxPoseDifference(reference.values, merged), 1e-9);
-  fs::remove_all(out);
 }
 
 TEST(Team, ARobotKilledMidRunAndRestartedLosesNothing) {
-  const int domain = 51, n = 4, victim = 2;
-  const std::string data = BlocksWorld(n);
-  const std::string uri = LoopbackConfigXml(domain, n);
-  const fs::path out = FreshDir("restart");
-  const auto deadline = Clock::now() + std::chrono::seconds(120);
-  std::vector<std::unique_ptr<Child>> robots;
-  for (int r = 0; r < n; ++r) {
-    robots.push_back(std::make_unique<Child>(
-        RobotArgs(r, data, domain, out / std::to_string(r)), uri, out / ("stderr" + std::to_string(r))));
-  }
-  // Kill the victim in the middle of the pose stage, then restart it with the same --out.
-  ASSERT_TRUE(robots[victim]->waitForLine(
-      [](const std::string& l) { return l.rfind("progress: pose 20 ", 0) == 0; }, deadline))
-      << robots[victim]->output();
-  robots[victim]->kill9();
-  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
-  robots[victim] = std::make_unique<Child>(RobotArgs(victim, data, domain, out / std::to_string(victim)),
-                                           uri, out / ("stderr" + std::to_string(victim)));
+  // Robot 2 killed in the middle of the pose stage, then restarted with the same --out.
+  const int n = 4;
   Values merged;
-  for (int r = 0; r < n; ++r) {
-    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
-    const nlohmann::json j = LastJson(robots[r]->output());
-    ASSERT_TRUE(j.is_object());
-    EXPECT_TRUE(j["left"].empty()) << j.dump();
-    if (r == victim) {
-      EXPECT_EQ(j["incarnation"].get<int>(), 1);
-      EXPECT_GE(j["replayed_rounds"].get<int>(), 20);
-    }
-    const Dataset result = ReadRobotG2o((out / std::to_string(r) / "result.g2o").string());
-    merged.insert(result.initial.begin(), result.initial.end());
-  }
-  const Dataset full = ReadG2oFolder(data);
+  ASSERT_NO_FATAL_FAILURE(
+      KillAndRestartOne(51, n, 2, "restart", {}, "progress: pose 20 ", 20, &merged));
+  const Dataset full = ReadG2oFolder(BlocksWorld(n));
   const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(DgsNodeOptions{}));
   EXPECT_EQ(merged.size(), reference.values.size());
   EXPECT_LE(MaxPoseDifference(reference.values, merged), 1e-9);
-  fs::remove_all(out);
 }
 
 TEST(Team, ARobotThatDiesForGoodIsNoticedAndTheOthersFinish) {
   const int domain = 52, n = 4, victim = 3;
   const std::string data = BlocksWorld(n);
-  const std::string uri = LoopbackConfigXml(domain, n);
   const fs::path out = FreshDir("leave");
   const auto deadline = Clock::now() + std::chrono::seconds(120);
-  std::vector<std::unique_ptr<Child>> robots;
-  for (int r = 0; r < n; ++r) {
-    std::vector<std::string> args = RobotArgs(r, data, domain, out / std::to_string(r));
-    args.insert(args.end(), {"--leave-timeout", "1"});
-    robots.push_back(std::make_unique<Child>(args, uri, out / ("stderr" + std::to_string(r))));
-  }
-  ASSERT_TRUE(robots[victim]->waitForLine(
-      [](const std::string& l) { return l.rfind("progress: pose 5 ", 0) == 0; }, deadline));
-  robots[victim]->kill9();
+  RobotProcesses robots(domain, n, out, [&](int r) {
+    std::vector<std::string> a = RobotArgs(r, data, domain, out / std::to_string(r));
+    a.insert(a.end(), {"--leave-timeout", "1"});
+    return a;
+  });
+  ASSERT_TRUE(robots.killAt(victim, StartsWith("progress: pose 5 "), deadline))
+      << robots[victim].output();
   for (int r = 0; r < n; ++r) {
     if (r == victim) continue;
-    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
-    const nlohmann::json j = LastJson(robots[r]->output());
+    ASSERT_EQ(robots[r].wait(deadline), 0) << "robot " << r << ":\n" << robots[r].output();
+    const nlohmann::json j = LastJson(robots[r].output());
     ASSERT_TRUE(j.is_object());
     EXPECT_EQ(j["left"], nlohmann::json::array({victim})) << j.dump();
     EXPECT_TRUE(fs::exists(out / std::to_string(r) / "result.g2o"));
@@ -345,6 +355,33 @@ TEST(Team, ARobotThatDiesForGoodIsNoticedAndTheOthersFinish) {
 
 const std::vector<std::string> kScenario = {"--scenario", "chairs25", "--robots", "6", "--poses",
                                             "40"};
+
+// Robot r of `scenario` in DDS domain `domain`, writing to out/robot<r>, with `extra` flags.
+std::vector<std::string> ScenarioRobotArgs(int domain, int r, const fs::path& out,
+                                           const std::vector<std::string>& extra,
+                                           const std::vector<std::string>& scenario = kScenario) {
+  std::vector<std::string> a = {"robot",
+                                "--robot",
+                                std::to_string(r),
+                                "--domain",
+                                std::to_string(domain),
+                                "--out",
+                                (out / ("robot" + std::to_string(r))).string(),
+                                "--progress",
+                                "--json",
+                                "--join-timeout",
+                                "30",
+                                "--stall-timeout",
+                                "60",
+                                "--rendezvous-timeout",
+                                "30"};
+  a.insert(a.end(), extra.begin(), extra.end());
+  a.insert(a.end(), scenario.begin(), scenario.end());
+  return a;
+}
+
+// Robots that find a partner gone after 2 s not alive (ScenarioRobotArgs' extra flags).
+const std::vector<std::string> kLeaveAfter2s = {"--leave-timeout", "2"};
 
 // `moslam team` on kScenario in DDS domain `domain` with `extra` flags, writing to `out`: its
 // JSON summary (a failed test when it does not exit with 0 or prints none).
@@ -507,41 +544,26 @@ TEST(Team, OnlineScenarioProcessesSaveEveryMapOfTheInProcessTwin) {
 
 TEST(Team, ScenarioRobotsKilledInTheRendezvousAndInTheDgsAndRestartedLoseNothing) {
   const int domain = 48, n = 6;
-  const std::string uri = LoopbackConfigXml(domain, n);
   const fs::path out = FreshDir("scenario_restart");
   const auto deadline = Clock::now() + std::chrono::seconds(120);
-  auto args = [&](int r) {
-    std::vector<std::string> a = {"robot", "--robot", std::to_string(r), "--domain",
-                                  std::to_string(domain), "--out",
-                                  (out / ("robot" + std::to_string(r))).string(), "--progress",
-                                  "--json", "--join-timeout", "30", "--stall-timeout", "60",
-                                  "--rendezvous-timeout", "30"};
-    a.insert(a.end(), kScenario.begin(), kScenario.end());
-    return a;
-  };
-  auto stderr_file = [&](int r) { return out / ("stderr" + std::to_string(r)); };
-  std::vector<std::unique_ptr<Child>> robots;
-  for (int r = 0; r < n; ++r) robots.push_back(std::make_unique<Child>(args(r), uri, stderr_file(r)));
+  RobotProcesses robots(domain, n, out,
+                        [&](int r) { return ScenarioRobotArgs(domain, r, out, {}); });
   // Robot 0 (alpha of its first rendezvous, step 0) is killed after its second rendezvous.
   const int in_rendezvous = 0, in_dgs = 3;
   int seen = 0;
-  ASSERT_TRUE(robots[in_rendezvous]->waitForLine(
+  ASSERT_TRUE(robots.killAt(
+      in_rendezvous,
       [&](const std::string& l) { return l.rfind("rendezvous: ", 0) == 0 && ++seen == 2; },
       deadline))
-      << robots[in_rendezvous]->output();
-  robots[in_rendezvous]->kill9();
-  EXPECT_EQ(robots[in_rendezvous]->wait(deadline), 128 + SIGKILL);
-  robots[in_rendezvous] = std::make_unique<Child>(args(in_rendezvous), uri, stderr_file(in_rendezvous));
+      << robots[in_rendezvous].output();
+  robots.restart(in_rendezvous);
   // Robot 3 is killed in round 20 of the DGS rotation stage.
-  ASSERT_TRUE(robots[in_dgs]->waitForLine(
-      [](const std::string& l) { return l.rfind("progress: rotation 20 ", 0) == 0; }, deadline))
-      << robots[in_dgs]->output();
-  robots[in_dgs]->kill9();
-  EXPECT_EQ(robots[in_dgs]->wait(deadline), 128 + SIGKILL);
-  robots[in_dgs] = std::make_unique<Child>(args(in_dgs), uri, stderr_file(in_dgs));
+  ASSERT_TRUE(robots.killAt(in_dgs, StartsWith("progress: rotation 20 "), deadline))
+      << robots[in_dgs].output();
+  robots.restart(in_dgs);
   for (int r = 0; r < n; ++r) {
-    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
-    const nlohmann::json j = LastJson(robots[r]->output());
+    ASSERT_EQ(robots[r].wait(deadline), 0) << "robot " << r << ":\n" << robots[r].output();
+    const nlohmann::json j = LastJson(robots[r].output());
     ASSERT_TRUE(j.is_object());
     EXPECT_TRUE(j["left"].empty()) << j.dump();
     int replayed = 0;
@@ -581,44 +603,31 @@ void KillOnlineRobotInItsSecondSolve(int domain, const std::string& name,
                                      const std::vector<std::string>& scenario,
                                      nlohmann::json* team_json) {
   const int n = 6;
-  const std::string uri = LoopbackConfigXml(domain, n);
   const fs::path out = FreshDir(name);
   const auto deadline = Clock::now() + std::chrono::seconds(150);
-  auto args = [&](int r) {
-    std::vector<std::string> a = {"robot", "--robot", std::to_string(r), "--domain",
-                                  std::to_string(domain), "--out",
-                                  (out / ("robot" + std::to_string(r))).string(), "--progress",
-                                  "--json", "--join-timeout", "30", "--stall-timeout", "60",
-                                  "--rendezvous-timeout", "30"};
-    a.insert(a.end(), flags.begin(), flags.end());
-    a.insert(a.end(), scenario.begin(), scenario.end());
-    return a;
-  };
-  auto stderr_file = [&](int r) { return out / ("stderr" + std::to_string(r)); };
-  std::vector<std::unique_ptr<Child>> robots;
-  for (int r = 0; r < n; ++r) robots.push_back(std::make_unique<Child>(args(r), uri, stderr_file(r)));
+  RobotProcesses robots(domain, n, out,
+                        [&](int r) { return ScenarioRobotArgs(domain, r, out, flags, scenario); });
   const int victim = 1;
   bool first_done = false;
-  ASSERT_TRUE(robots[victim]->waitForLine(
+  ASSERT_TRUE(robots.killAt(
+      victim,
       [&](const std::string& l) {
         if (l.rfind("group solve: ", 0) == 0) first_done = true;
         return first_done && l.rfind("progress: rotation 3 ", 0) == 0;
       },
       deadline))
-      << robots[victim]->output();
-  robots[victim]->kill9();
-  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
-  robots[victim] = std::make_unique<Child>(args(victim), uri, stderr_file(victim));
+      << robots[victim].output();
+  robots.restart(victim);
   for (int r = 0; r < n; ++r) {
-    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
+    ASSERT_EQ(robots[r].wait(deadline), 0) << "robot " << r << ":\n" << robots[r].output();
   }
-  const nlohmann::json v = LastJson(robots[victim]->output());
-  ASSERT_TRUE(v.is_object()) << robots[victim]->output();
+  const nlohmann::json v = LastJson(robots[victim].output());
+  ASSERT_TRUE(v.is_object()) << robots[victim].output();
   ASSERT_GE(v["solves"].size(), 2u) << v.dump();
   EXPECT_TRUE(v["solves"][0]["replayed"].get<bool>());
   EXPECT_FALSE(v["solves"][1]["replayed"].get<bool>());
   // The second solve's rounds before the kill come from its node journal.
-  std::istringstream lines(robots[victim]->output());
+  std::istringstream lines(robots[victim].output());
   int replayed_rounds = 0;
   for (std::string l; std::getline(lines, l);) {
     if (l.rfind("progress: rotation ", 0) == 0 && l.size() > 9 &&
@@ -626,7 +635,7 @@ void KillOnlineRobotInItsSecondSolve(int domain, const std::string& name,
       ++replayed_rounds;
     }
   }
-  EXPECT_GE(replayed_rounds, 2) << robots[victim]->output();
+  EXPECT_GE(replayed_rounds, 2) << robots[victim].output();
   // Every map each robot saved, against the in-process twin.
   std::vector<std::string> collect = {"team", "--out", out.string(), "--collect", "--json"};
   collect.insert(collect.end(), flags.begin(), flags.end());
@@ -656,20 +665,6 @@ TEST(Team, AnOnlineRobustRobotKilledInAGroupSolveAndRestartedLosesNothing) {
   EXPECT_EQ(j["set_aside"], j["in_process_set_aside"]);
 }
 
-// Robot r of kScenario in DDS domain `domain`, writing to out/robot<r>, with `extra` flags, gone
-// for the others after 2 s not alive.
-std::vector<std::string> LeavingRobotArgs(int domain, int r, const fs::path& out,
-                                          const std::vector<std::string>& extra) {
-  std::vector<std::string> a = {"robot", "--robot", std::to_string(r), "--domain",
-                                std::to_string(domain), "--out",
-                                (out / ("robot" + std::to_string(r))).string(), "--progress",
-                                "--json", "--leave-timeout", "2", "--join-timeout", "30",
-                                "--stall-timeout", "60", "--rendezvous-timeout", "30"};
-  a.insert(a.end(), extra.begin(), extra.end());
-  a.insert(a.end(), kScenario.begin(), kScenario.end());
-  return a;
-}
-
 // n robots of kScenario as processes in DDS domain `domain` (with `extra` flags, leaving after
 // 2 s unseen), `victim` killed with SIGKILL once it prints a line starting with `kill_after`,
 // after every robot printed one starting with `first_everywhere` (if not empty; a robot that
@@ -681,30 +676,23 @@ void KillOneForGood(int domain, int n, int victim, const std::string& name,
                     const std::string& kill_after,
                     const std::function<void(int, const nlohmann::json&, const fs::path&)>& check,
                     int* skipped) {
-  const std::string uri = LoopbackConfigXml(domain, n);
   const fs::path out = FreshDir(name);
   const auto deadline = Clock::now() + std::chrono::seconds(120);
-  std::vector<std::unique_ptr<Child>> robots;
-  for (int r = 0; r < n; ++r) {
-    robots.push_back(std::make_unique<Child>(LeavingRobotArgs(domain, r, out, extra), uri,
-                                             out / ("stderr" + std::to_string(r))));
-  }
-  const auto starts = [](const std::string& prefix) {
-    return [prefix](const std::string& l) { return l.rfind(prefix, 0) == 0; };
-  };
+  std::vector<std::string> flags = kLeaveAfter2s;
+  flags.insert(flags.end(), extra.begin(), extra.end());
+  RobotProcesses robots(domain, n, out,
+                        [&](int r) { return ScenarioRobotArgs(domain, r, out, flags); });
   for (int r = 0; r < n && !first_everywhere.empty(); ++r) {
-    ASSERT_TRUE(robots[r]->waitForLine(starts(first_everywhere), deadline)) << robots[r]->output();
+    ASSERT_TRUE(robots[r].waitForLine(StartsWith(first_everywhere), deadline))
+        << robots[r].output();
   }
-  ASSERT_TRUE(robots[victim]->waitForLine(starts(kill_after), deadline))
-      << robots[victim]->output();
-  robots[victim]->kill9();
-  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
+  ASSERT_TRUE(robots.killAt(victim, StartsWith(kill_after), deadline)) << robots[victim].output();
   *skipped = 0;
   for (int r = 0; r < n; ++r) {
     if (r == victim) continue;
-    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
-    const nlohmann::json j = LastJson(robots[r]->output());
-    ASSERT_TRUE(j.is_object()) << robots[r]->output();
+    ASSERT_EQ(robots[r].wait(deadline), 0) << "robot " << r << ":\n" << robots[r].output();
+    const nlohmann::json j = LastJson(robots[r].output());
+    ASSERT_TRUE(j.is_object()) << robots[r].output();
     for (const nlohmann::json& e : j["rendezvous"]) {
       if (!e["skipped"].get<bool>()) continue;
       ++*skipped;
@@ -752,20 +740,14 @@ TEST(Team, ABatchRobotThatDiesInTheRendezvousPhaseIsLeftOutAndTheOthersSolve) {
 // (robot_session.h; against the twin: OnlineSession.ARobotBackAfterItWasFoundGone...).
 TEST(Team, AnOnlineRobotBackAfterItWasFoundGoneContinuesAlone) {
   const int domain = 46, n = 6, victim = 1;
-  const std::string uri = LoopbackConfigXml(domain, n);
   const fs::path out = FreshDir("online_back");
   const auto deadline = Clock::now() + std::chrono::seconds(120);
-  const std::vector<std::string> extra = {"--online"};
-  std::vector<std::unique_ptr<Child>> robots;
-  for (int r = 0; r < n; ++r) {
-    robots.push_back(std::make_unique<Child>(LeavingRobotArgs(domain, r, out, extra), uri,
-                                             out / ("stderr" + std::to_string(r))));
-  }
-  ASSERT_TRUE(robots[victim]->waitForLine(
-      [](const std::string& l) { return l.rfind("group solve: ", 0) == 0; }, deadline))
-      << robots[victim]->output();
-  robots[victim]->kill9();
-  EXPECT_EQ(robots[victim]->wait(deadline), 128 + SIGKILL);
+  std::vector<std::string> flags = kLeaveAfter2s;
+  flags.push_back("--online");
+  RobotProcesses robots(domain, n, out,
+                        [&](int r) { return ScenarioRobotArgs(domain, r, out, flags); });
+  ASSERT_TRUE(robots.killAt(victim, StartsWith("group solve: "), deadline))
+      << robots[victim].output();
   // Back once some partner skipped a rendezvous with it (each robot's output read in turn).
   const std::string a = " alpha " + std::to_string(victim) + " ",
                     b = " beta " + std::to_string(victim) + " ";
@@ -777,17 +759,16 @@ TEST(Team, AnOnlineRobotBackAfterItWasFoundGoneContinuesAlone) {
   while (!found && Clock::now() < deadline) {
     for (int r = 0; r < n && !found; ++r) {
       if (r == victim) continue;
-      found = robots[r]->waitForLine(skipped_with_victim,
-                                     std::min(deadline, Clock::now() + std::chrono::milliseconds(50)));
+      found = robots[r].waitForLine(
+          skipped_with_victim, std::min(deadline, Clock::now() + std::chrono::milliseconds(50)));
     }
   }
   ASSERT_TRUE(found) << "no partner skipped a rendezvous with robot " << victim;
-  robots[victim] = std::make_unique<Child>(LeavingRobotArgs(domain, victim, out, extra), uri,
-                                           out / ("stderr" + std::to_string(victim)));
+  robots.restart(victim);
   for (int r = 0; r < n; ++r) {
-    ASSERT_EQ(robots[r]->wait(deadline), 0) << "robot " << r << ":\n" << robots[r]->output();
-    const nlohmann::json j = LastJson(robots[r]->output());
-    ASSERT_TRUE(j.is_object()) << robots[r]->output();
+    ASSERT_EQ(robots[r].wait(deadline), 0) << "robot " << r << ":\n" << robots[r].output();
+    const nlohmann::json j = LastJson(robots[r].output());
+    ASSERT_TRUE(j.is_object()) << robots[r].output();
     EXPECT_EQ(j["left_team"].get<bool>(), r == victim) << "robot " << r;
     EXPECT_TRUE(fs::exists(out / ("robot" + std::to_string(r)) / "maps" / "final" / "map.g2o"));
   }
