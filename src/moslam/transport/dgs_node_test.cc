@@ -95,19 +95,22 @@ TeamResult RunTeam(InProcessNetwork& net, const Dataset& data,
 
 fs::path FreshDir(const std::string& name) { return test::ScratchDir(name); }
 
-// RunTeam with every robot journaling in dir/<robot>: robot `victim` is killed once right after
-// protocol step `round` (a step it computed, not one it replayed) and restarts from its journal.
-// The returned team's kills are counted in *crashes.
-TeamResult RunTeamKillingOnce(InProcessNetwork& net, const Dataset& data, const DgsNodeOptions& o,
-                              const fs::path& dir, int victim, std::uint32_t round,
-                              std::atomic<int>* crashes) {
+using RoundTest = std::function<bool(const DgsNodeRound&)>;
+
+// RunTeam with every robot journaling in dir/<robot>: robot `victim` is killed at each of `at` in
+// turn, the k-th time right after the first protocol step it computes (not one it replayed) that
+// at[k] accepts, and restarts from its journal each time. The kills are counted in *crashes.
+TeamResult RunTeamKilling(InProcessNetwork& net, const Dataset& data, const DgsNodeOptions& o,
+                          const fs::path& dir, int victim, const std::vector<RoundTest>& at,
+                          std::atomic<int>* crashes) {
   return RunTeam(net, data, [&](int robot) {
     RobotSetup s{o, false};
     s.options.state_dir = (dir / std::to_string(robot)).string();
     if (robot == victim) {
       s.restart_after_crash = true;
-      s.options.on_round = [=](const DgsNodeRound& r) {
-        if (!r.replayed && r.round == round && *crashes == 0) {
+      s.options.on_round = [at, crashes](const DgsNodeRound& r) {
+        const auto k = static_cast<std::size_t>(crashes->load());
+        if (!r.replayed && k < at.size() && at[k](r)) {
           ++*crashes;
           throw Crash();
         }
@@ -115,6 +118,19 @@ TeamResult RunTeamKillingOnce(InProcessNetwork& net, const Dataset& data, const 
     }
     return s;
   });
+}
+
+// Killed once, right after protocol step `round`.
+TeamResult RunTeamKillingOnce(InProcessNetwork& net, const Dataset& data, const DgsNodeOptions& o,
+                              const fs::path& dir, int victim, std::uint32_t round,
+                              std::atomic<int>* crashes) {
+  return RunTeamKilling(net, data, o, dir, victim,
+                        {[round](const DgsNodeRound& r) { return r.round == round; }}, crashes);
+}
+
+// The round test of round `stage_round` of `stage`.
+RoundTest AtStageRound(DgsStage stage, int stage_round) {
+  return [=](const DgsNodeRound& r) { return r.stage == stage && r.stage_round == stage_round; };
 }
 
 DgsNodeOptions Options() {
@@ -162,23 +178,10 @@ TEST(DgsNode, ARobotThatCrashesAndRestartsFromItsJournalLosesNothing) {
   const fs::path dir = FreshDir("restart");
   std::atomic<int> crashes{0};
   InProcessNetwork net;
-  const TeamResult team = RunTeam(net, data, [&](int robot) {
-    RobotSetup s{base, false};
-    s.options.state_dir = (dir / std::to_string(robot)).string();
-    if (robot == 2) {
-      s.restart_after_crash = true;
-      // Crashes in the rotation stage at round 5, then in the pose stage at round 3.
-      s.options.on_round = [&](const DgsNodeRound& r) {
-        if (r.replayed) return;
-        if ((r.stage == DgsStage::kRotation && r.stage_round == 5 && crashes == 0) ||
-            (r.stage == DgsStage::kPose && r.stage_round == 3 && crashes == 1)) {
-          ++crashes;
-          throw Crash();
-        }
-      };
-    }
-    return s;
-  });
+  // Robot 2 crashes in the rotation stage at round 5, then in the pose stage at round 3.
+  const TeamResult team = RunTeamKilling(
+      net, data, base, dir, 2,
+      {AtStageRound(DgsStage::kRotation, 5), AtStageRound(DgsStage::kPose, 3)}, &crashes);
   ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
   EXPECT_EQ(crashes, 2);
   EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
@@ -373,22 +376,9 @@ TEST(DgsNode, TheLowestRobotKilledInTheRefinementAndRestartedChangesNothing) {
   const fs::path dir = FreshDir("restart_refine");
   std::atomic<int> crashes{0};
   InProcessNetwork net;
-  const TeamResult team = RunTeam(net, data, [&](int robot) {
-    RobotSetup s{base, false};
-    s.options.state_dir = (dir / std::to_string(robot)).string();
-    if (robot == 0) {
-      s.restart_after_crash = true;
-      s.options.on_round = [&](const DgsNodeRound& r) {
-        if (r.replayed) return;
-        if ((r.stage == DgsStage::kRotation && r.stage_round == 6 && crashes == 0) ||
-            (r.stage == DgsStage::kRefine && r.stage_round == 9 && crashes == 1)) {
-          ++crashes;
-          throw Crash();
-        }
-      };
-    }
-    return s;
-  });
+  const TeamResult team = RunTeamKilling(
+      net, data, base, dir, 0,
+      {AtStageRound(DgsStage::kRotation, 6), AtStageRound(DgsStage::kRefine, 9)}, &crashes);
   ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
   EXPECT_EQ(crashes, 2);
   EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
