@@ -665,6 +665,126 @@ RegistrationResult RefinePose(const OrganizedCloud& segment, const ObjectTemplat
   return result;
 }
 
+namespace {
+
+// The template's feature search, built on first use: the prerejective consensus needs it, SAC-IA
+// does not, and the gate only for keypoints the consensus matched to none.
+class LazyFeatureTree {
+ public:
+  LazyFeatureTree(const ObjectTemplate& tmpl, float epsilon) : tmpl_(tmpl), epsilon_(epsilon) {}
+  const TemplateFeatureIndex::Tree::Ptr& get() {
+    if (!tree_) tree_ = FeatureTree(tmpl_, epsilon_);
+    return tree_;
+  }
+
+ private:
+  const ObjectTemplate& tmpl_;
+  float epsilon_;
+  TemplateFeatureIndex::Tree::Ptr tree_;
+};
+
+struct ConsensusOutcome {
+  // False: no sampled pose put enough segment keypoints on the template (prerejective only);
+  // then object_T_camera and fitness mean nothing.
+  bool converged = true;
+  Eigen::Matrix4f object_T_camera = Eigen::Matrix4f::Identity();
+  double fitness = 0.0;
+  std::vector<pcl::Indices> nearest_features;  // per keypoint, when the consensus has them
+};
+
+// The initial alignment, segment keypoints (camera frame) -> template keypoints (object frame),
+// i.e. object_T_camera: SAC-IA or the max-inlier prerejective consensus.
+ConsensusOutcome RunConsensus(const FeatureCloud::Ptr& keypoints, const PfhrgbCloud::Ptr& features,
+                              const ObjectTemplate& tmpl, const RegistrationConfig& config,
+                              double distance, LazyFeatureTree& tree) {
+  ConsensusOutcome out;
+  FeatureCloud aligned;
+  if (config.consensus == Consensus::kSacIa) {
+    std::srand(config.seed);  // PCL's SAC-IA draws with rand()
+    pcl::SampleConsensusInitialAlignment<FeaturePoint, FeaturePoint, pcl::PFHRGBSignature250> sac;
+    sac.setInputSource(keypoints);
+    sac.setSourceFeatures(features);
+    sac.setInputTarget(tmpl.keypoints);
+    sac.setTargetFeatures(tmpl.features);
+    sac.setNumberOfSamples(3);
+    sac.setMinSampleDistance(static_cast<float>(config.sac_min_sample_distance));
+    sac.setCorrespondenceRandomness(config.sac_correspondence_randomness);
+    sac.setMaximumIterations(config.sac_iterations);
+    sac.setMaxCorrespondenceDistance(distance);
+    sac.align(aligned);
+    out.object_T_camera = sac.getFinalTransformation();
+    out.fitness = sac.getFitnessScore(distance);
+    return out;
+  }
+  MaxInlierPrerejective sac;
+  sac.setInputSource(keypoints);
+  sac.setSourceFeatures(features);
+  sac.setInputTarget(tmpl.keypoints);
+  sac.setTargetFeatures(tmpl.features, tree.get());
+  sac.setNumberOfSamples(3);
+  sac.setCorrespondenceRandomness(config.sac_correspondence_randomness);
+  sac.setSimilarityThreshold(static_cast<float>(config.prerejective_similarity));
+  sac.setMinSampleDistance(static_cast<float>(config.sac_min_sample_distance));
+  sac.setMaximumIterations(config.prerejective_iterations);
+  sac.setMaxCorrespondenceDistance(distance);
+  sac.setInlierFraction(static_cast<float>(config.prerejective_inlier_fraction));
+  sac.setSeed(config.seed);
+  sac.align(aligned);
+  out.nearest_features = sac.nearestFeatures();
+  out.converged = sac.hasConverged();
+  if (out.converged) {
+    out.object_T_camera = sac.getFinalTransformation();
+    out.fitness = sac.getFitnessScore(distance);
+  }
+  return out;
+}
+
+// The inlier gate (registration.h): each segment keypoint with its nearest template feature (the
+// consensus' match where it has one) and its inlier radius, widened by the depth noise at its
+// depth; a pose's inliers are the correspondences it puts within their radius.
+class InlierGate {
+ public:
+  InlierGate(const FeatureCloud& keypoints, const PfhrgbCloud& features, const ObjectTemplate& tmpl,
+             const std::vector<pcl::Indices>& nearest_features, LazyFeatureTree& tree,
+             const RegistrationConfig& config)
+      : keypoints_(keypoints), template_keypoints_(*tmpl.keypoints) {
+    radius_sq_.resize(keypoints.size());
+    for (std::size_t i = 0; i < keypoints.size(); ++i) {
+      const double r = WidenedByDepthNoise(config.inlier_distance, keypoints[i].z,
+                                           config.inlier_depth_sigmas, config.depth_noise);
+      radius_sq_[i] = static_cast<float>(r * r);
+    }
+    std::vector<int> nn_index(1);
+    std::vector<float> nn_sq(1);
+    for (std::size_t i = 0; i < keypoints.size(); ++i) {
+      if (i < nearest_features.size() && !nearest_features[i].empty()) {
+        matches_.emplace_back(i, static_cast<std::size_t>(nearest_features[i][0]));
+        continue;
+      }
+      if (tree.get()->nearestKSearch(features[i], 1, nn_index, nn_sq) != 1) continue;
+      matches_.emplace_back(i, static_cast<std::size_t>(nn_index[0]));
+    }
+  }
+  int correspondences() const { return static_cast<int>(matches_.size()); }
+  int inliers(const Eigen::Matrix4f& object_T_camera) const {
+    const Eigen::Affine3f T(object_T_camera);
+    int n = 0;
+    for (const auto& [i, j] : matches_) {
+      const Eigen::Vector3f p = T * keypoints_[i].getVector3fMap();
+      n += (p - template_keypoints_[j].getVector3fMap()).squaredNorm() <= radius_sq_[i];
+    }
+    return n;
+  }
+
+ private:
+  const FeatureCloud& keypoints_;
+  const FeatureCloud& template_keypoints_;
+  std::vector<float> radius_sq_;                              // per segment keypoint
+  std::vector<std::pair<std::size_t, std::size_t>> matches_;  // segment, template keypoint
+};
+
+}  // namespace
+
 RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectTemplate& tmpl,
                                     const RegistrationConfig& config) {
   CheckInputs(tmpl, config);
@@ -682,8 +802,8 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
   FeatureCloud::Ptr source_keypoints =
       pose_detail::Keypoints(*source, config.features.keypoint_voxel);
   source_keypoints = Subsample(source_keypoints, config.max_segment_keypoints);
-  PfhrgbCloud::Ptr source_features = pose_detail::ComputePfhrgb(
-      source, source_keypoints, config.features);
+  PfhrgbCloud::Ptr source_features =
+      pose_detail::ComputePfhrgb(source, source_keypoints, config.features);
   result.segment_points = static_cast<int>(source->size());
   result.segment_keypoints = static_cast<int>(source_keypoints->size());
   result.times.prepare = MsSince(t0);
@@ -693,112 +813,42 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     return result;
   }
 
-  // --- consensus: segment (camera frame) -> template (object frame), i.e. object_T_camera.
+  // --- consensus, and the upright hypotheses of large objects beside it.
   t0 = std::chrono::steady_clock::now();
-  Eigen::Matrix4f object_T_camera_sac = Eigen::Matrix4f::Identity();
-  FeatureCloud aligned;
-  std::vector<pcl::Indices> nearest_features;  // per keypoint, from the consensus when it has them
-  TemplateFeatureIndex::Tree::Ptr template_tree;  // the template's, on first use
-  auto feature_tree = [&] {
-    if (!template_tree) {
-      template_tree = FeatureTree(tmpl, static_cast<float>(config.feature_search_epsilon));
-    }
-    return template_tree;
-  };
+  LazyFeatureTree feature_tree(tmpl, static_cast<float>(config.feature_search_epsilon));
   const std::vector<Eigen::Matrix4f> upright = UprightHypotheses(*source, tmpl, config);
-  const double consensus_distance = ConsensusDistance(*source_keypoints, config);
-  bool consensus_failed = false;
-  if (config.consensus == Consensus::kSacIa) {
-    std::srand(config.seed);  // PCL's SAC-IA draws with rand()
-    pcl::SampleConsensusInitialAlignment<FeaturePoint, FeaturePoint, pcl::PFHRGBSignature250> sac;
-    sac.setInputSource(source_keypoints);
-    sac.setSourceFeatures(source_features);
-    sac.setInputTarget(tmpl.keypoints);
-    sac.setTargetFeatures(tmpl.features);
-    sac.setNumberOfSamples(3);
-    sac.setMinSampleDistance(static_cast<float>(config.sac_min_sample_distance));
-    sac.setCorrespondenceRandomness(config.sac_correspondence_randomness);
-    sac.setMaximumIterations(config.sac_iterations);
-    sac.setMaxCorrespondenceDistance(consensus_distance);
-    sac.align(aligned);
-    object_T_camera_sac = sac.getFinalTransformation();
-    result.sac_fitness = sac.getFitnessScore(consensus_distance);
-  } else {
-    MaxInlierPrerejective sac;
-    sac.setInputSource(source_keypoints);
-    sac.setSourceFeatures(source_features);
-    sac.setInputTarget(tmpl.keypoints);
-    sac.setTargetFeatures(tmpl.features, feature_tree());
-    sac.setNumberOfSamples(3);
-    sac.setCorrespondenceRandomness(config.sac_correspondence_randomness);
-    sac.setSimilarityThreshold(static_cast<float>(config.prerejective_similarity));
-    sac.setMinSampleDistance(static_cast<float>(config.sac_min_sample_distance));
-    sac.setMaximumIterations(config.prerejective_iterations);
-    sac.setMaxCorrespondenceDistance(consensus_distance);
-    sac.setInlierFraction(static_cast<float>(config.prerejective_inlier_fraction));
-    sac.setSeed(config.seed);
-    sac.align(aligned);
-    nearest_features = sac.nearestFeatures();
-    consensus_failed = !sac.hasConverged();
-    if (consensus_failed && upright.empty()) {
-      // No sampled pose put enough segment keypoints on the template: nothing to refine.
-      result.times.consensus = MsSince(t0);
-      result.status = RegistrationStatus::kTooFewInliers;
-      return result;
-    }
-    if (!consensus_failed) {
-      object_T_camera_sac = sac.getFinalTransformation();
-      result.sac_fitness = sac.getFitnessScore(consensus_distance);
-    }
-  }
+  const ConsensusOutcome consensus =
+      RunConsensus(source_keypoints, source_features, tmpl, config,
+                   ConsensusDistance(*source_keypoints, config), feature_tree);
+  if (consensus.converged) result.sac_fitness = consensus.fitness;
   result.times.consensus = MsSince(t0);
+  if (!consensus.converged && upright.empty()) {
+    // No sampled pose put enough segment keypoints on the template: nothing to refine.
+    result.status = RegistrationStatus::kTooFewInliers;
+    return result;
+  }
 
-  // --- gate: feature correspondences agreeing under the SAC-IA transform.
+  // --- gate: feature correspondences agreeing under the consensus' transform.
   t0 = std::chrono::steady_clock::now();
-  const Eigen::Affine3f T_sac(object_T_camera_sac);
-  std::vector<float> inlier_sq(source_keypoints->size());  // each keypoint's (header comment)
-  for (std::size_t i = 0; i < source_keypoints->size(); ++i) {
-    const double r = WidenedByDepthNoise(config.inlier_distance, (*source_keypoints)[i].z,
-                                         config.inlier_depth_sigmas, config.depth_noise);
-    inlier_sq[i] = static_cast<float>(r * r);
-  }
-  std::vector<int> nn_index(1);
-  std::vector<float> nn_sq(1);
-  std::vector<std::pair<std::size_t, std::size_t>> matches;  // segment keypoint, template keypoint
-  for (std::size_t i = 0; i < source_keypoints->size(); ++i) {
-    if (i < nearest_features.size() && !nearest_features[i].empty()) {
-      matches.emplace_back(i, static_cast<std::size_t>(nearest_features[i][0]));
-      continue;
-    }
-    if (feature_tree()->nearestKSearch((*source_features)[i], 1, nn_index, nn_sq) != 1) continue;
-    matches.emplace_back(i, static_cast<std::size_t>(nn_index[0]));
-  }
-  result.correspondences = static_cast<int>(matches.size());
-  auto count_inliers = [&](const Eigen::Matrix4f& object_T_camera) {
-    const Eigen::Affine3f T(object_T_camera);
-    int n = 0;
-    for (const auto& [i, j] : matches) {
-      const Eigen::Vector3f p = T * (*source_keypoints)[i].getVector3fMap();
-      n += (p - (*tmpl.keypoints)[j].getVector3fMap()).squaredNorm() <= inlier_sq[i];
-    }
-    return n;
-  };
-  result.inliers = count_inliers(object_T_camera_sac);
+  const InlierGate gate(*source_keypoints, *source_features, tmpl, consensus.nearest_features,
+                        feature_tree, config);
+  result.correspondences = gate.correspondences();
+  result.inliers = gate.inliers(consensus.object_T_camera);
   result.times.gate = MsSince(t0);
-  result.camera_T_object = ToSE3(object_T_camera_sac).inverse();
+  result.camera_T_object = ToSE3(consensus.object_T_camera).inverse();
   result.sac_camera_T_object = result.camera_T_object;
-  const bool sac_gate = !consensus_failed && result.inliers >= config.min_inliers;
+  const bool sac_gate = consensus.converged && result.inliers >= config.min_inliers;
   if (!sac_gate && !config.gate_refined_pose) {
     result.status = RegistrationStatus::kTooFewInliers;
     return result;
   }
 
-  // --- GICP refinement from the SAC-IA transform and its symmetry hypotheses, scoring, colour
+  // --- GICP refinement from the consensus' transform and its symmetry hypotheses, scoring, colour
   // gate, information matrix; the inlier gate again at the refined pose.
   RegistrationResult refined = result;
   std::vector<Eigen::Matrix4f> hypotheses;
-  if (!consensus_failed) {
-    hypotheses = SymmetryHypotheses(*source, tmpl, object_T_camera_sac, config);
+  if (consensus.converged) {
+    hypotheses = SymmetryHypotheses(*source, tmpl, consensus.object_T_camera, config);
   }
   hypotheses.insert(hypotheses.end(), upright.begin(), upright.end());
   RefineAndInform(source, tmpl, hypotheses, config, refined);
@@ -807,12 +857,11 @@ RegistrationResult RegisterTemplate(const OrganizedCloud& segment, const ObjectT
     return refined;
   }
   t0 = std::chrono::steady_clock::now();
-  refined.refined_inliers =
-      count_inliers(refined.camera_T_object.inverse().matrix().cast<float>());
+  refined.refined_inliers = gate.inliers(refined.camera_T_object.inverse().matrix().cast<float>());
   refined.times.gate += MsSince(t0);
   // Without gate_refined_pose the consensus' count alone decides (checked above).
   if (!config.gate_refined_pose ||
-      PassesInlierGate(consensus_failed ? -1 : result.inliers, refined.hypothesis,
+      PassesInlierGate(consensus.converged ? result.inliers : -1, refined.hypothesis,
                        refined.refined_inliers, config.min_inliers)) {
     return refined;
   }
