@@ -225,42 +225,23 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
   return SegmentObject(frame, box, config, {});
 }
 
-SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& box,
-                                 const SegmentationConfig& config,
-                                 const std::vector<int>& claimed) {
-  config.validate();
-  if (!std::isfinite(box.x) || !std::isfinite(box.y) || !std::isfinite(box.width) ||
-      !std::isfinite(box.height) || box.width < 0.0f || box.height < 0.0f) {
-    throw InvalidInputError("SegmentObject: the box must be finite with non-negative size");
-  }
-  if (!frame.cloud || !frame.cloud->isOrganized()) {
-    throw InvalidInputError("SegmentObject: the frame was not prepared (no organized cloud)");
-  }
-  const auto t0 = std::chrono::steady_clock::now();
+namespace {
+
+using LabelCloud = pcl::PointCloud<pcl::Label>;
+
+// The comparator's labels (header comment, steps 3-4): 0 = candidate (valid, inside the grown box
+// `outer`, neither claimed nor structure), 1 = everything else. Counts in `result` the claimed and
+// the structure points inside the box `inner`, and the planes dropped.
+std::shared_ptr<LabelCloud> CandidateLabels(const PreparedFrame& frame, const cv::Rect2f& box,
+                                            const PixelBox& inner, const PixelBox& outer,
+                                            const SegmentationConfig& config,
+                                            const std::vector<int>& claimed,
+                                            SegmentationResult& result) {
   const OrganizedCloud& cloud = *frame.cloud;
-  const int width = static_cast<int>(cloud.width), height = static_cast<int>(cloud.height);
-  SegmentationResult result;
-  const PixelBox inner = Clip(box, width, height);
-  const PixelBox outer = Clip(Grow(box, config.box_margin_fraction), width, height);
-
-  if (!inner.empty()) {
-    for (int v = inner.v0; v < inner.v1; ++v) {
-      for (int u = inner.u0; u < inner.u1; ++u) {
-        if (Finite(cloud.at(u, v))) ++result.valid_points_in_box;
-      }
-    }
-  }
-  if (result.valid_points_in_box == 0) {
-    result.status = SegmentationStatus::kEmptyBox;
-    result.time_ms = MsSince(t0);
-    return result;
-  }
-
-  // Label cloud for the comparator: 0 = candidate (valid, inside the grown box, not structure),
-  // 1 = everything else.
+  const int width = static_cast<int>(cloud.width);
   pcl::Label one;
   one.label = 1;
-  auto labels = std::make_shared<pcl::PointCloud<pcl::Label>>(cloud.width, cloud.height, one);
+  auto labels = std::make_shared<LabelCloud>(cloud.width, cloud.height, one);
   for (int v = outer.v0; v < outer.v1; ++v) {
     for (int u = outer.u0; u < outer.u1; ++u) {
       if (Finite(cloud.at(u, v))) (*labels)[static_cast<std::size_t>(v * width + u)].label = 0;
@@ -307,14 +288,13 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
       }
     }
   }
-  if (result.valid_points_in_box - result.structure_points_in_box -
-          result.claimed_points_in_box <
-      config.min_segment_points) {
-    result.status = SegmentationStatus::kTooFewPoints;
-    result.time_ms = MsSince(t0);
-    return result;
-  }
+  return labels;
+}
 
+// Connected components of the candidate points (header comment, step 4).
+std::vector<pcl::PointIndices> Components(const PreparedFrame& frame,
+                                          const std::shared_ptr<LabelCloud>& labels,
+                                          const SegmentationConfig& config) {
   auto comparator = std::make_shared<DepthNoiseClusterComparator>(
       config.cluster_distance, config.depth_noise, config.cluster_depth_sigmas);
   comparator->setInputCloud(frame.cloud);
@@ -323,18 +303,25 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
       std::make_shared<const std::set<std::uint32_t>>(std::set<std::uint32_t>{0}));
   pcl::OrganizedConnectedComponentSegmentation<OrganizedPoint, pcl::Label> occ(comparator);
   occ.setInputCloud(frame.cloud);
-  pcl::PointCloud<pcl::Label> components;
+  LabelCloud components;
   std::vector<pcl::PointIndices> component_indices;
   occ.segment(components, component_indices);
+  return component_indices;
+}
 
-  // Select (header comment, step 5).
-  struct Candidate {
-    std::size_t component;
-    int in_box;
-    double mean_z;
-    double box_iou;  // of the component's pixel bounding box with the detection box
-    int count;       // points in the grown box
-  };
+struct Candidate {
+  std::size_t component;
+  int in_box;
+  double mean_z;
+  double box_iou;  // of the component's pixel bounding box with the detection box
+  int count;       // points in the grown box
+};
+
+// The components with points inside the box `inner`, each with what the selection weighs.
+std::vector<Candidate> Candidates(const OrganizedCloud& cloud, const LabelCloud& labels,
+                                  const std::vector<pcl::PointIndices>& component_indices,
+                                  const cv::Rect2f& box, const PixelBox& inner) {
+  const int width = static_cast<int>(cloud.width), height = static_cast<int>(cloud.height);
   const double box_area = static_cast<double>(box.width) * box.height;
   std::vector<Candidate> candidates;
   for (std::size_t c = 0; c < component_indices.size(); ++c) {
@@ -344,7 +331,7 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
     int u0 = width, v0 = height, u1 = -1, v1 = -1;
     for (auto index : component_indices[c].indices) {
       const auto i = static_cast<std::size_t>(index);
-      if ((*labels)[i].label != 0) continue;  // singleton runs of excluded points
+      if (labels[i].label != 0) continue;  // singleton runs of excluded points
       const Eigen::Vector2i uv = PixelOfIndex(i, cloud.width);
       if (inner.contains(uv.x(), uv.y())) ++in_box;
       u0 = std::min(u0, uv.x());
@@ -361,14 +348,16 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
     const double uni = box_area + extent.area() - inter;
     candidates.push_back({c, in_box, sum_z / count, uni > 0.0 ? inter / uni : 0.0, count});
   }
-  result.components = static_cast<int>(candidates.size());
+  return candidates;
+}
+
+// The object's component (header comment, step 5), or null when none holds min_segment_points
+// inside the box.
+const Candidate* SelectComponent(const std::vector<Candidate>& candidates,
+                                 const SegmentationConfig& config) {
   int best_count = 0;
   for (const auto& c : candidates) best_count = std::max(best_count, c.in_box);
-  if (best_count < config.min_segment_points) {
-    result.status = SegmentationStatus::kNoCluster;
-    result.time_ms = MsSince(t0);
-    return result;
-  }
+  if (best_count < config.min_segment_points) return nullptr;
   const Candidate* best = nullptr;
   if (config.selection == ComponentSelection::kBoxFit) {
     // The fit to the box times the share inside it; ties: more points.
@@ -388,8 +377,56 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
       if (best == nullptr || c.mean_z < best->mean_z) best = &c;
     }
   }
+  return best;
+}
 
-  for (auto index : component_indices[best->component].indices) {
+}  // namespace
+
+SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& box,
+                                 const SegmentationConfig& config,
+                                 const std::vector<int>& claimed) {
+  config.validate();
+  if (!std::isfinite(box.x) || !std::isfinite(box.y) || !std::isfinite(box.width) ||
+      !std::isfinite(box.height) || box.width < 0.0f || box.height < 0.0f) {
+    throw InvalidInputError("SegmentObject: the box must be finite with non-negative size");
+  }
+  if (!frame.cloud || !frame.cloud->isOrganized()) {
+    throw InvalidInputError("SegmentObject: the frame was not prepared (no organized cloud)");
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const OrganizedCloud& cloud = *frame.cloud;
+  const int width = static_cast<int>(cloud.width), height = static_cast<int>(cloud.height);
+  SegmentationResult result;
+  const PixelBox inner = Clip(box, width, height);
+  const PixelBox outer = Clip(Grow(box, config.box_margin_fraction), width, height);
+  const auto done = [&](SegmentationStatus status) {
+    result.status = status;
+    result.time_ms = MsSince(t0);
+    return result;
+  };
+
+  if (!inner.empty()) {
+    for (int v = inner.v0; v < inner.v1; ++v) {
+      for (int u = inner.u0; u < inner.u1; ++u) {
+        if (Finite(cloud.at(u, v))) ++result.valid_points_in_box;
+      }
+    }
+  }
+  if (result.valid_points_in_box == 0) return done(SegmentationStatus::kEmptyBox);
+
+  const std::shared_ptr<LabelCloud> labels =
+      CandidateLabels(frame, box, inner, outer, config, claimed, result);
+  if (result.valid_points_in_box - result.structure_points_in_box - result.claimed_points_in_box <
+      config.min_segment_points) {
+    return done(SegmentationStatus::kTooFewPoints);
+  }
+  const std::vector<pcl::PointIndices> components = Components(frame, labels, config);
+  const std::vector<Candidate> candidates = Candidates(cloud, *labels, components, box, inner);
+  result.components = static_cast<int>(candidates.size());
+  const Candidate* best = SelectComponent(candidates, config);
+  if (best == nullptr) return done(SegmentationStatus::kNoCluster);
+
+  for (auto index : components[best->component].indices) {
     const auto i = static_cast<std::size_t>(index);
     if ((*labels)[i].label == 0) result.indices.push_back(static_cast<int>(i));
   }
@@ -401,9 +438,7 @@ SegmentationResult SegmentObject(const PreparedFrame& frame, const cv::Rect2f& b
     for (int i : result.indices) result.segment->push_back(cloud[static_cast<std::size_t>(i)]);
     result.segment->is_dense = true;
   }
-  result.status = SegmentationStatus::kOk;
-  result.time_ms = MsSince(t0);
-  return result;
+  return done(SegmentationStatus::kOk);
 }
 
 }  // namespace moslam
