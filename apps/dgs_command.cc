@@ -179,74 +179,235 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
   return 0;
 }
 
+// The graph `moslam dgs` solves: the file or folder read, a single-robot file split with --robots.
+struct DgsInput {
+  Dataset data;  // as read (planar, repaired information)
+  PoseGraph graph;
+  Values initial;
+};
+
+DgsInput ReadDgsInput(const DgsArgs& a) {
+  DgsInput in;
+  in.data = ReadG2o(a.input, a.read);
+  in.graph = in.data.graph;
+  in.initial = in.data.initial;
+  if (a.robots == 0) return in;
+  if (std::filesystem::is_directory(a.input)) {
+    throw InvalidInputError("--robots " + std::to_string(a.robots) +
+                            " splits a single-robot file; the folder " + a.input +
+                            " is already split by robot (drop --robots)");
+  }
+  if (in.graph.numRobots() > 1) {
+    throw InvalidInputError("--robots " + std::to_string(a.robots) +
+                            " splits a single-robot file; " + a.input + " already has " +
+                            std::to_string(in.graph.numRobots()) + " robots (drop --robots)");
+  }
+  SplitGraph split = SplitIntoRobots(in.graph, in.initial, a.robots);
+  in.graph = std::move(split.graph);
+  in.initial = std::move(split.initial);
+  return in;
+}
+
+// The text progress: a line per sweep (bytes so far) and per refinement step.
+DgsProgress PrintedProgress() {
+  DgsProgress progress;
+  progress.on_sweep = [bytes_so_far = std::int64_t{0}](const DgsIterationStats& s) mutable {
+    bytes_so_far += s.bytes;
+    std::string extra;
+    if (s.stage == DgsStage::kRefine) {
+      extra = s.residual > 0.0
+                  ? fmt::format("  step {:3d}  cg residual {:.3e}", s.refine_step, s.residual)
+                  : fmt::format("  step {:3d}", s.refine_step);
+    }
+    fmt::print("{:<8} iteration {:5d}  max change {:.3e}  bytes {}{}\n", ToString(s.stage),
+               s.iteration, s.max_change, bytes_so_far, extra);
+  };
+  progress.on_refine_step = [](const RefineStepSummary& s) {
+    fmt::print("refine   step {:3d}: {} sweeps{}, lambda {:g}, cost {:.10g} -> {:.10g} ({})\n",
+               s.iteration, s.sweeps, s.linear_converged ? "" : " (max sweeps)", s.lambda,
+               s.cost_before, s.cost_candidate, s.accepted ? "accepted" : "rejected");
+  };
+  return progress;
+}
+
+// What one solve measured, against the centralized references.
+struct DgsRun {
+  int robots = 0;
+  DgsResult result;
+  OptimizerResult central;  // Gauss-Newton from chordal, in the solve's gauge
+  double central_seconds = 0.0;
+  double two_stage_cost = 0.0, final_cost = 0.0, central_two_stage_cost = 0.0;
+  TrajectoryErrors errors, two_stage_errors;  // against central
+  TrajectoryErrors to_fixed_point;  // the two stages against their fixed point solved centrally
+  int iterations_total = 0;
+  double total_seconds = 0.0;
+};
+
+nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInput& in,
+                       const DgsRun& run) {
+  const DgsResult& r = run.result;
+  const OptimizerResult& central = run.central;
+  const int iterations_refine = r.refine.sweeps;
+  nlohmann::json j = {
+      {"input", a.input},
+      {"robots", run.robots},
+      {"variables", in.graph.keys().size()},
+      {"factors", in.graph.factors().size()},
+      {"repaired_information", in.data.repaired_information},
+      {"eta_rotation", a.solver.eta_rotation},
+      {"eta_pose", a.solver.eta_pose},
+      {"gamma", a.solver.gamma},
+      {"order", a.order},
+      {"flagged_initialisation", !a.solver.no_flagged},
+      {"weighted", a.solver.weighted},
+      {"coarse", options.coarse_correction},
+      {"coarse_corrections", r.rotation.coarse_corrections + r.pose.coarse_corrections},
+      {"refine", a.solver.refine},
+      {"two_stage_cost", run.two_stage_cost},
+      {"final_cost", run.final_cost},
+      {"centralized_cost", central.final_cost},
+      {"centralized_init", "chordal"},
+      {"centralized_iterations", central.iterations},
+      {"centralized_termination", ToString(central.termination)},
+      {"centralized_seconds", run.central_seconds},
+      {"two_stage_cost_ratio", run.two_stage_cost / central.final_cost},
+      {"final_cost_ratio", run.final_cost / central.final_cost},
+      {"iterations_rotation", r.rotation.iterations},
+      {"iterations_pose", r.pose.iterations},
+      {"iterations_refine", iterations_refine},
+      {"iterations_total", run.iterations_total},
+      {"termination_rotation", ToString(r.rotation.status)},
+      {"termination_pose", ToString(r.pose.status)},
+      {"termination_refine", ToString(r.refine.status)},
+      {"final_change_rotation", Number(r.rotation.final_change)},
+      {"final_change_pose", Number(r.pose.final_change)},
+      {"ate_poses", run.errors.poses.ate},
+      {"are_poses_deg", run.errors.poses.are_deg},
+      {"two_stage_ate_poses", run.two_stage_errors.poses.ate},
+      {"two_stage_are_poses_deg", run.two_stage_errors.poses.are_deg},
+      {"stopping", a.solver.stopping},
+      {"final_error_bound_rotation", Number(r.rotation.final_error_bound)},
+      {"final_error_bound_pose", Number(r.pose.final_error_bound)},
+      {"centralized_two_stage_cost", run.central_two_stage_cost},
+      {"fixed_point_ate_poses", run.to_fixed_point.poses.ate},
+      {"fixed_point_are_poses_deg", run.to_fixed_point.poses.are_deg},
+      {"messages", r.messages},
+      {"bytes", r.bytes},
+      {"messages_rotation", r.rotation.messages},
+      {"bytes_rotation", r.rotation.bytes},
+      {"messages_pose", r.pose.messages},
+      {"bytes_pose", r.pose.bytes},
+      {"messages_refine", r.refine.messages},
+      {"bytes_refine", r.refine.bytes},
+      {"seconds", r.seconds},
+      {"seconds_rotation", StageSeconds(r, DgsStage::kRotation)},
+      {"seconds_pose", StageSeconds(r, DgsStage::kPose)},
+      {"seconds_refine", r.refine.seconds},
+      {"seconds_per_iteration", run.iterations_total > 0 ? r.seconds / run.iterations_total : 0.0},
+      {"total_seconds", run.total_seconds},
+  };
+  if (a.solver.refine) {
+    // Per Gauss-Newton step: the accepted cost and the bytes so far (two stages included), and
+    // the bytes when the estimate first came within 1e-6 relative of the centralized optimum.
+    const std::int64_t two_stage_bytes = r.rotation.bytes + r.pose.bytes;
+    const double within = central.final_cost * (1.0 + 1e-6);
+    nlohmann::json history = nlohmann::json::array();
+    nlohmann::json bytes_to_optimum =
+        run.two_stage_cost <= within ? nlohmann::json(two_stage_bytes) : nlohmann::json(nullptr);
+    double cost = r.refine.initial_cost;
+    for (const RefineStepSummary& step : r.refine.steps) {
+      if (step.accepted) cost = step.cost_candidate;
+      history.push_back({{"step", step.iteration},
+                         {"sweeps", step.sweeps},
+                         {"accepted", step.accepted},
+                         {"cost", cost},
+                         {"bytes", two_stage_bytes + step.bytes}});
+      if (bytes_to_optimum.is_null() && cost <= within) {
+        bytes_to_optimum = two_stage_bytes + step.bytes;
+      }
+    }
+    j["refine_history"] = history;
+    j["bytes_to_optimum_1e-6"] = bytes_to_optimum;
+    j["refine_preconditioner"] = ToString(options.refinement.preconditioner);
+    j["refine_coarse_corrections"] = r.refine.coarse_corrections;
+    j["refine_solver"] = ToString(options.refinement.solver);
+    j["refine_steps"] = r.refine.iterations;
+    j["refine_rejected_steps"] = r.refine.rejected;
+    j["refine_initial_cost"] = r.refine.initial_cost;  // as the robots' shares sum it
+    j["control_messages_refine"] = r.refine.control_messages;
+    j["control_bytes_refine"] = r.refine.control_bytes;
+  }
+  if (run.errors.objects.count > 0) {
+    j["ate_objects"] = run.errors.objects.ate;
+    j["are_objects_deg"] = run.errors.objects.are_deg;
+    j["objects"] = run.errors.objects.count;
+  }
+  return j;
+}
+
+void PrintDgsSummary(const DgsArgs& a, const DgsRun& run) {
+  const DgsResult& r = run.result;
+  const double central_cost = run.central.final_cost;
+  fmt::print("rotation: {} after {} sweep(s); pose: {} after {} sweep(s)",
+             ToString(r.rotation.status), r.rotation.iterations, ToString(r.pose.status),
+             r.pose.iterations);
+  if (a.solver.refine) {
+    fmt::print("; refine: {} after {} step(s), {} sweep(s)", ToString(r.refine.status),
+               r.refine.iterations, r.refine.sweeps);
+  }
+  fmt::print("\n");
+  fmt::print(
+      "cost: two-stage {:.10g} ({:.6f} x centralized), final {:.10g} ({:.6f} x), "
+      "centralized GN {:.10g}\n",
+      run.two_stage_cost, run.two_stage_cost / central_cost, run.final_cost,
+      run.final_cost / central_cost, central_cost);
+  fmt::print("vs centralized GN (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses",
+             run.errors.poses.ate, run.errors.poses.are_deg, run.errors.poses.count);
+  if (run.errors.objects.count > 0) {
+    fmt::print("; objects ATE* {:.3e} m, ARE* {:.3e} deg over {}", run.errors.objects.ate,
+               run.errors.objects.are_deg, run.errors.objects.count);
+  }
+  fmt::print("\ntraffic: {} messages, {} bytes; {:.3f} s ({:.3g} ms per sweep)\n", r.messages,
+             r.bytes, r.seconds,
+             run.iterations_total > 0 ? 1e3 * r.seconds / run.iterations_total : 0.0);
+}
+
 int RunDgsCommand(const DgsArgs& a_in) {
   DgsArgs a = a_in;
   if (a.robust) a.solver.refine = true;  // every robust round solves to the optimum
   const auto t_start = std::chrono::steady_clock::now();
-  const G2oReadOptions& read_options = a.read;
-  const Dataset data = ReadG2o(a.input, read_options);
-  const bool planar = data.planar;  // --out writes SE2 lines back
-  PoseGraph graph = data.graph;
-  Values initial = data.initial;
-  if (a.robots != 0) {
-    if (std::filesystem::is_directory(a.input)) {
-      throw InvalidInputError("--robots " + std::to_string(a.robots) +
-                              " splits a single-robot file; the folder " + a.input +
-                              " is already split by robot (drop --robots)");
-    }
-    if (graph.numRobots() > 1) {
-      throw InvalidInputError("--robots " + std::to_string(a.robots) +
-                              " splits a single-robot file; " + a.input + " already has " +
-                              std::to_string(graph.numRobots()) + " robots (drop --robots)");
-    }
-    SplitGraph split = SplitIntoRobots(graph, initial, a.robots);
-    graph = std::move(split.graph);
-    initial = std::move(split.initial);
-  }
-
+  const DgsInput in = ReadDgsInput(a);
+  const PoseGraph& graph = in.graph;
   const DgsOptions options =
       a.solver.options(a.order == "jacobi" ? SweepOrder::kJacobi : SweepOrder::kGaussSeidel);
-  if (a.robust) return RunRobustDgsCommand(a, graph, initial, planar, options, t_start);
+  if (a.robust) {
+    return RunRobustDgsCommand(a, graph, in.initial, in.data.planar, options, t_start);
+  }
 
   // The reference: centralized Gauss-Newton from the chordal initialisation, in the same gauge
   // (the anchor at its initial value, as the distributed solve holds it).
+  DgsRun run;
   const auto t_central = std::chrono::steady_clock::now();
   const Key anchor = GaugeAnchor(graph);
-  const auto anchor_it = initial.find(anchor);
-  const SE3 anchor_pose = anchor_it != initial.end() ? anchor_it->second : SE3();
-  const OptimizerResult central = Optimize(graph, ChordalInitialization(graph, anchor_pose));
-  const double central_seconds = Since(t_central);
+  const auto anchor_it = in.initial.find(anchor);
+  const SE3 anchor_pose = anchor_it != in.initial.end() ? anchor_it->second : SE3();
+  run.central = Optimize(graph, ChordalInitialization(graph, anchor_pose));
+  run.central_seconds = Since(t_central);
 
-  DgsDriver driver(graph, initial, options);
+  DgsDriver driver(graph, in.initial, options);
+  run.robots = driver.numAgents();
   if (!a.json) {
-    fmt::print("{}: {} variables, {} factors, {} robots (order {}); centralized GN {} after {} "
-               "iteration(s): cost {:.10g} ({:.3f} s)\n",
-               a.input, graph.keys().size(), graph.factors().size(), driver.numAgents(),
-               ToString(options.order), ToString(central.termination), central.iterations,
-               central.final_cost, central_seconds);
-    if (data.repaired_information > 0) {
+    fmt::print(
+        "{}: {} variables, {} factors, {} robots (order {}); centralized GN {} after {} "
+        "iteration(s): cost {:.10g} ({:.3f} s)\n",
+        a.input, graph.keys().size(), graph.factors().size(), run.robots, ToString(options.order),
+        ToString(run.central.termination), run.central.iterations, run.central.final_cost,
+        run.central_seconds);
+    if (in.data.repaired_information > 0) {
       fmt::print("note: {} information matrices read without their indefinite coupling\n",
-                 data.repaired_information);
+                 in.data.repaired_information);
     }
-    std::int64_t bytes_so_far = 0;
-    DgsProgress progress;
-    progress.on_sweep = [&bytes_so_far](const DgsIterationStats& s) {
-      bytes_so_far += s.bytes;
-      std::string extra;
-      if (s.stage == DgsStage::kRefine) {
-        extra = s.residual > 0.0 ? fmt::format("  step {:3d}  cg residual {:.3e}", s.refine_step,
-                                               s.residual)
-                                 : fmt::format("  step {:3d}", s.refine_step);
-      }
-      fmt::print("{:<8} iteration {:5d}  max change {:.3e}  bytes {}{}\n", ToString(s.stage),
-                 s.iteration, s.max_change, bytes_so_far, extra);
-    };
-    progress.on_refine_step = [](const RefineStepSummary& s) {
-      fmt::print("refine   step {:3d}: {} sweeps{}, lambda {:g}, cost {:.10g} -> {:.10g} ({})\n",
-                 s.iteration, s.sweeps, s.linear_converged ? "" : " (max sweeps)", s.lambda,
-                 s.cost_before, s.cost_candidate, s.accepted ? "accepted" : "rejected");
-    };
-    driver.setProgress(std::move(progress));
+    driver.setProgress(PrintedProgress());
   }
   driver.runRotationStage();
   driver.runPoseStage();
@@ -254,135 +415,24 @@ int RunDgsCommand(const DgsArgs& a_in) {
   // The fixed point of the two stages, solved centrally: what DGS converges to (DGS.md).
   TwoStageOptions two_stage_options;
   two_stage_options.weight_by_information = a.solver.weighted;
-  const Values central_two_stage = CentralizedTwoStage(graph, initial, two_stage_options).values;
-  const TrajectoryErrors to_fixed_point = CompareEstimates(two_stage, central_two_stage);
-  const double two_stage_cost = graph.cost(two_stage);
+  const Values central_two_stage = CentralizedTwoStage(graph, in.initial, two_stage_options).values;
+  run.to_fixed_point = CompareEstimates(two_stage, central_two_stage);
+  run.two_stage_cost = graph.cost(two_stage);
   if (a.solver.refine) driver.runRefineStage();
-  const DgsResult r = driver.result();
-  WriteEstimate(a.out, graph, r.values, a.read, planar);
-  const double final_cost = graph.cost(r.values);
-  const TrajectoryErrors errors = CompareEstimates(r.values, central.values);
-  const TrajectoryErrors two_stage_errors = CompareEstimates(two_stage, central.values);
-  const int iterations_refine = r.refine.sweeps;
-  const int iterations_total = r.rotation.iterations + r.pose.iterations + iterations_refine;
-  const double total_seconds = Since(t_start);
+  run.result = driver.result();
+  const DgsResult& r = run.result;
+  WriteEstimate(a.out, graph, r.values, a.read, in.data.planar);
+  run.final_cost = graph.cost(r.values);
+  run.errors = CompareEstimates(r.values, run.central.values);
+  run.two_stage_errors = CompareEstimates(two_stage, run.central.values);
+  run.iterations_total = r.rotation.iterations + r.pose.iterations + r.refine.sweeps;
+  run.central_two_stage_cost = graph.cost(central_two_stage);
+  run.total_seconds = Since(t_start);
 
   if (a.json) {
-    nlohmann::json j = {
-        {"input", a.input},
-        {"robots", driver.numAgents()},
-        {"variables", graph.keys().size()},
-        {"factors", graph.factors().size()},
-        {"repaired_information", data.repaired_information},
-        {"eta_rotation", a.solver.eta_rotation},
-        {"eta_pose", a.solver.eta_pose},
-        {"gamma", a.solver.gamma},
-        {"order", a.order},
-        {"flagged_initialisation", !a.solver.no_flagged},
-        {"weighted", a.solver.weighted},
-        {"coarse", options.coarse_correction},
-        {"coarse_corrections", r.rotation.coarse_corrections + r.pose.coarse_corrections},
-        {"refine", a.solver.refine},
-        {"two_stage_cost", two_stage_cost},
-        {"final_cost", final_cost},
-        {"centralized_cost", central.final_cost},
-        {"centralized_init", "chordal"},
-        {"centralized_iterations", central.iterations},
-        {"centralized_termination", ToString(central.termination)},
-        {"centralized_seconds", central_seconds},
-        {"two_stage_cost_ratio", two_stage_cost / central.final_cost},
-        {"final_cost_ratio", final_cost / central.final_cost},
-        {"iterations_rotation", r.rotation.iterations},
-        {"iterations_pose", r.pose.iterations},
-        {"iterations_refine", iterations_refine},
-        {"iterations_total", iterations_total},
-        {"termination_rotation", ToString(r.rotation.status)},
-        {"termination_pose", ToString(r.pose.status)},
-        {"termination_refine", ToString(r.refine.status)},
-        {"final_change_rotation", Number(r.rotation.final_change)},
-        {"final_change_pose", Number(r.pose.final_change)},
-        {"ate_poses", errors.poses.ate},
-        {"are_poses_deg", errors.poses.are_deg},
-        {"two_stage_ate_poses", two_stage_errors.poses.ate},
-        {"two_stage_are_poses_deg", two_stage_errors.poses.are_deg},
-        {"stopping", a.solver.stopping},
-        {"final_error_bound_rotation", Number(r.rotation.final_error_bound)},
-        {"final_error_bound_pose", Number(r.pose.final_error_bound)},
-        {"centralized_two_stage_cost", graph.cost(central_two_stage)},
-        {"fixed_point_ate_poses", to_fixed_point.poses.ate},
-        {"fixed_point_are_poses_deg", to_fixed_point.poses.are_deg},
-        {"messages", r.messages},
-        {"bytes", r.bytes},
-        {"messages_rotation", r.rotation.messages},
-        {"bytes_rotation", r.rotation.bytes},
-        {"messages_pose", r.pose.messages},
-        {"bytes_pose", r.pose.bytes},
-        {"messages_refine", r.refine.messages},
-        {"bytes_refine", r.refine.bytes},
-        {"seconds", r.seconds},
-        {"seconds_rotation", StageSeconds(r, DgsStage::kRotation)},
-        {"seconds_pose", StageSeconds(r, DgsStage::kPose)},
-        {"seconds_refine", r.refine.seconds},
-        {"seconds_per_iteration", iterations_total > 0 ? r.seconds / iterations_total : 0.0},
-        {"total_seconds", total_seconds},
-    };
-    if (a.solver.refine) {
-      // Per Gauss-Newton step: the accepted cost and the bytes so far (two stages included), and
-      // the bytes when the estimate first came within 1e-6 relative of the centralized optimum.
-      const std::int64_t two_stage_bytes = r.rotation.bytes + r.pose.bytes;
-      const double within = central.final_cost * (1.0 + 1e-6);
-      nlohmann::json history = nlohmann::json::array();
-      nlohmann::json bytes_to_optimum =
-          two_stage_cost <= within ? nlohmann::json(two_stage_bytes) : nlohmann::json(nullptr);
-      double cost = r.refine.initial_cost;
-      for (const RefineStepSummary& step : r.refine.steps) {
-        if (step.accepted) cost = step.cost_candidate;
-        history.push_back({{"step", step.iteration},
-                           {"sweeps", step.sweeps},
-                           {"accepted", step.accepted},
-                           {"cost", cost},
-                           {"bytes", two_stage_bytes + step.bytes}});
-        if (bytes_to_optimum.is_null() && cost <= within) {
-          bytes_to_optimum = two_stage_bytes + step.bytes;
-        }
-      }
-      j["refine_history"] = history;
-      j["bytes_to_optimum_1e-6"] = bytes_to_optimum;
-      j["refine_preconditioner"] = ToString(options.refinement.preconditioner);
-      j["refine_coarse_corrections"] = r.refine.coarse_corrections;
-      j["refine_solver"] = ToString(options.refinement.solver);
-      j["refine_steps"] = r.refine.iterations;
-      j["refine_rejected_steps"] = r.refine.rejected;
-      j["refine_initial_cost"] = r.refine.initial_cost;  // as the robots' shares sum it
-      j["control_messages_refine"] = r.refine.control_messages;
-      j["control_bytes_refine"] = r.refine.control_bytes;
-    }
-    if (errors.objects.count > 0) {
-      j["ate_objects"] = errors.objects.ate;
-      j["are_objects_deg"] = errors.objects.are_deg;
-      j["objects"] = errors.objects.count;
-    }
-    fmt::print("{}\n", j.dump());
+    fmt::print("{}\n", DgsJson(a, options, in, run).dump());
   } else {
-    fmt::print("rotation: {} after {} sweep(s); pose: {} after {} sweep(s)", ToString(r.rotation.status),
-               r.rotation.iterations, ToString(r.pose.status), r.pose.iterations);
-    if (a.solver.refine) {
-      fmt::print("; refine: {} after {} step(s), {} sweep(s)", ToString(r.refine.status),
-                 r.refine.iterations, r.refine.sweeps);
-    }
-    fmt::print("\n");
-    fmt::print("cost: two-stage {:.10g} ({:.6f} x centralized), final {:.10g} ({:.6f} x), "
-               "centralized GN {:.10g}\n",
-               two_stage_cost, two_stage_cost / central.final_cost, final_cost,
-               final_cost / central.final_cost, central.final_cost);
-    fmt::print("vs centralized GN (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses",
-               errors.poses.ate, errors.poses.are_deg, errors.poses.count);
-    if (errors.objects.count > 0) {
-      fmt::print("; objects ATE* {:.3e} m, ARE* {:.3e} deg over {}", errors.objects.ate,
-                 errors.objects.are_deg, errors.objects.count);
-    }
-    fmt::print("\ntraffic: {} messages, {} bytes; {:.3f} s ({:.3g} ms per sweep)\n", r.messages,
-               r.bytes, r.seconds, iterations_total > 0 ? 1e3 * r.seconds / iterations_total : 0.0);
+    PrintDgsSummary(a, run);
   }
   return 0;
 }
