@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for a bounded time: the g2o
 # reader, the decoders of the messages robots send one another (fuzz/messages_fuzz.cc), the
-# journal a restarted robot replays (fuzz/journal_fuzz.cc), the
+# journal a restarted robot replays (fuzz/journal_fuzz.cc), the DDS samples a robot takes
+# (fuzz/dds_samples_fuzz.cc), the
 # template cache decoder (fuzz/template_cache_fuzz.cc), the perception cache decoder
 # (fuzz/perception_cache_fuzz.cc) and the other text files a user hands moslam: worlds, TUM
 # trajectories and sequences, YOLO labels, a robot's g2o file, class names
@@ -28,7 +29,7 @@ cmake -S "$repo" -B "$build" -G Ninja \
   -DCMAKE_C_COMPILER="$CC_BIN" -DCMAKE_CXX_COMPILER="$CXX_BIN" \
   -DMOSLAM_BUILD_FUZZ=ON -DMOSLAM_BUILD_TESTS=OFF -DMOSLAM_BUILD_BENCH=OFF >/dev/null
 cmake --build "$build" --target g2o_reader_fuzz messages_fuzz template_cache_fuzz journal_fuzz \
-  perception_cache_fuzz text_files_fuzz
+  perception_cache_fuzz text_files_fuzz dds_samples_fuzz
 
 # Seed corpus, made fresh at every run from short snippets (datasets are never copied into the
 # repository).
@@ -135,6 +136,21 @@ cat >"$jdict" <<'DICT'
 "\x01\x00\x00\x00"
 DICT
 run_target journal_fuzz "$jcorpus" "$jdict" 4096
+
+# DDS samples as Cyclone DDS receives them: one valid sample of each topic type, written by the
+# target itself (MOSLAM_FUZZ_WRITE_SEEDS), is where the fuzzer starts.
+dcorpus="$work/dds"
+mkdir -p "$dcorpus"
+MOSLAM_FUZZ_WRITE_SEEDS="$dcorpus" "$build/fuzz/dds_samples_fuzz"
+ddict="$work/dds.dict"
+cat >"$ddict" <<'DICT'
+"\x00\x00\x00\x00\x00\x00\xf0\x3f"
+"\x00\x00\x00\x00\x00\x00\xf8\x7f"
+"\x00\x00\x00\x00\x00\x00\xf0\x7f"
+"\x06\x00\x00\x00chair\x00"
+"\xff\xff\xff\xff"
+DICT
+run_target dds_samples_fuzz "$dcorpus" "$ddict" 4096
 
 # Template cache files (without their checksum, which the harness appends): a header that asks
 # for label "chair" and holds a few points.

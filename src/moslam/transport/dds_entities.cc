@@ -47,8 +47,21 @@ Qos::~Qos() {
   if (qos_) dds_delete_qos(qos_);
 }
 
+namespace {
+
+// XCDR1 only, written and accepted: Cyclone DDS 0.10.2 (Debian 12) validates an XCDR2 sequence of
+// 8-byte elements against 4 bytes per element and then reads past the buffer
+// (fuzz/dds_samples_fuzz.cc); a peer that offers XCDR2 is not matched.
+void OnlyXcdr1(dds_qos_t* qos) {
+  const dds_data_representation_id_t xcdr1[] = {DDS_DATA_REPRESENTATION_XCDR1};
+  dds_qset_data_representation(qos, 1, xcdr1);
+}
+
+}  // namespace
+
 Qos Qos::Reliable(int depth, std::chrono::milliseconds lease) {
   Qos q;
+  OnlyXcdr1(q.qos_);
   dds_qset_reliability(q.qos_, DDS_RELIABILITY_RELIABLE, DDS_SECS(10));
   dds_qset_durability(q.qos_, DDS_DURABILITY_TRANSIENT_LOCAL);
   dds_qset_history(q.qos_, DDS_HISTORY_KEEP_LAST, depth);
@@ -61,6 +74,7 @@ Qos Qos::Reliable(int depth, std::chrono::milliseconds lease) {
 
 Qos Qos::ReliableKeepAll(std::chrono::milliseconds lease) {
   Qos q;
+  OnlyXcdr1(q.qos_);
   dds_qset_reliability(q.qos_, DDS_RELIABILITY_RELIABLE, DDS_SECS(10));
   dds_qset_durability(q.qos_, DDS_DURABILITY_TRANSIENT_LOCAL);
   dds_qset_history(q.qos_, DDS_HISTORY_KEEP_ALL, 0);

@@ -368,6 +368,20 @@ TEST(DdsTransport, RejectsAndLogsMalformedSamplesAndUnknownRobots) {
   EXPECT_TRUE(named_unknown);
 }
 
+// Both QoS profiles pin the data representation to XCDR1 (dds_entities.cc: Cyclone DDS 0.10.2's
+// XCDR2 validation reads past short sequences), so a peer offering XCDR2 does not match.
+TEST(DdsEntities, EveryProfileAcceptsXcdr1Only) {
+  for (const dds::Qos& q : {dds::Qos::Reliable(4, std::chrono::milliseconds(1000)),
+                            dds::Qos::ReliableKeepAll(std::chrono::milliseconds(1000))}) {
+    uint32_t n = 0;
+    dds_data_representation_id_t* values = nullptr;
+    ASSERT_TRUE(dds_qget_data_representation(q.get(), &n, &values));
+    ASSERT_EQ(n, 1u);
+    EXPECT_EQ(values[0], DDS_DATA_REPRESENTATION_XCDR1);
+    dds_free(values);
+  }
+}
+
 TEST(DdsTransport, ValidatesOptionsAndRobotIds) {
   DdsTransportOptions o;
   o.domain = 300;
