@@ -144,18 +144,7 @@ class Progress {
   int last_decile_ = 0;
 };
 
-int RunPerceive(const PerceiveArgs& a) {
-  // SAC-IA warns on stderr for every relaxed sample distance; the statuses say what matters.
-  pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
-  const TumSequence sequence = ReadTumSequence(a.sequence);
-  std::optional<World> world;
-  if (!a.world.empty()) world = LoadWorld(a.world);
-  if (!a.annotate.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(a.annotate, ec);
-    if (ec) throw Error("perceive: cannot create '" + a.annotate + "': " + ec.message());
-  }
-
+PerceptionConfig PerceiveConfig(const PerceiveArgs& a) {
   PerceptionConfig config;
   config.detector.model_path = a.model;
   config.detector.class_names_file = a.classes;
@@ -167,132 +156,108 @@ int RunPerceive(const PerceiveArgs& a) {
   config.threads = a.threads;
   config.registration.consensus =
       a.consensus == "sac-ia" ? Consensus::kSacIa : Consensus::kPrerejective;
-  ObjectPerception perception(config, world ? world->classes : StandardObjectClasses());
+  return config;
+}
 
-  std::vector<std::size_t> frames;
-  for (std::size_t i = 0; i < sequence.frames.size(); i += static_cast<std::size_t>(a.every)) {
-    if (a.max_frames > 0 && static_cast<int>(frames.size()) >= a.max_frames) break;
-    frames.push_back(i);
+// One detection as --out writes it: box, status, the registration's diagnostics and, when it
+// registered, its times; accepted, its fitness and information.
+nlohmann::json ObjectJson(const PerceivedObject& o) {
+  const cv::Rect2f& b = o.detection.box;
+  nlohmann::json j = {{"label", o.detection.label},
+                      {"confidence", o.detection.confidence},
+                      {"box", {b.x, b.y, b.width, b.height}},
+                      {"status", ToString(o.status)},
+                      {"inliers", o.registration.inliers},
+                      {"refined_inliers", o.registration.refined_inliers},
+                      {"geometric_agreement", o.registration.geometric_agreement},
+                      {"colour_agreement", o.registration.colour_agreement},
+                      {"covered_agreement", o.registration.covered_agreement},
+                      {"hypothesis", o.registration.hypothesis}};
+  if (o.status == PerceptionStatus::kSegmentationFailed) {
+    const SegmentationResult& sr = o.segmentation;
+    j["segmentation"] = {{"status", ToString(sr.status)},
+                         {"valid_points_in_box", sr.valid_points_in_box},
+                         {"structure_points_in_box", sr.structure_points_in_box},
+                         {"planes_dropped", sr.planes_dropped},
+                         {"components", sr.components}};
   }
-  Progress progress(static_cast<int>(frames.size()));
-  nlohmann::json out_frames = nlohmann::json::array();
+  if (o.status != PerceptionStatus::kNoTemplate &&
+      o.status != PerceptionStatus::kSegmentationFailed) {
+    const RegistrationTimes& rt = o.registration.times;
+    j["register_ms"] = rt.total();
+    j["stage_ms"] = {{"prepare", rt.prepare},
+                     {"consensus", rt.consensus},
+                     {"gate", rt.gate},
+                     {"gicp", rt.gicp + rt.information}};
+  }
+  if (o.accepted()) {
+    j["fitness"] = o.registration.fitness;
+    std::vector<double> info(o.registration.information.data(),
+                             o.registration.information.data() + 36);
+    j["information"] = info;
+  }
+  return j;
+}
+
+// A rejected registration keeps the pose it rejected (RegistrationResult::camera_T_object): its
+// error tells a right pose turned away from a wrong one. Only accepted poses enter the medians.
+bool HasPose(const PerceivedObject& o) {
+  return o.status == PerceptionStatus::kAccepted || o.status == PerceptionStatus::kTooFewInliers ||
+         o.status == PerceptionStatus::kShapeMismatch ||
+         o.status == PerceptionStatus::kBoxMismatch ||
+         o.status == PerceptionStatus::kColourMismatch;
+}
+
+// An estimated object pose against the nearest world object of its label.
+struct GroundTruthError {
+  const ObjectInstance* object = nullptr;  // null: the world has none of the label
+  double translation = 0.0;                // m
+  double rotation_deg = 0.0;
+};
+
+GroundTruthError AgainstWorld(const World& world, const std::string& label,
+                              const SE3& world_T_object) {
+  GroundTruthError e;
+  double best = std::numeric_limits<double>::infinity();
+  for (const ObjectInstance& w : world.objects) {
+    if (w.label != label) continue;
+    const double d = (w.pose.translation() - world_T_object.translation()).norm();
+    if (d < best) {
+      best = d;
+      e.object = &w;
+    }
+  }
+  if (e.object == nullptr) return e;
+  e.translation = best;
+  e.rotation_deg =
+      SO3::Log(e.object->pose.rotation().inverse() * world_T_object.rotation()).norm() * 180.0 /
+      M_PI;
+  return e;
+}
+
+// What the run counted over every perceived frame.
+struct PerceiveTotals {
+  std::size_t frames = 0;
   StageTimes times;
   int detections = 0, accepted = 0, gate_rejects = 0;
-  std::vector<double> t_err, r_err;
+  std::vector<double> t_err, r_err;  // accepted poses against the world
   std::map<std::string, ClassStats> by_class;
-  for (std::size_t n = 0; n < frames.size(); ++n) {
-    const std::size_t i = frames[n];
-    const TumFrame& f = sequence.frames[i];
-    RgbdFrame frame = LoadTumFrame(sequence, i);
-    const FramePerception seen = perception.perceive(frame);
-    times.detect += seen.times.detect;
-    times.prepare += seen.times.prepare;
-    times.segment += seen.times.segment;
-    times.register_ += seen.times.register_;
-    nlohmann::json objects = nlohmann::json::array();
-    for (const PerceivedObject& o : seen.objects) {
-      ++detections;
-      by_class[o.detection.label].add(o);
-      by_class["all"].add(o);
-      if (o.status == PerceptionStatus::kTooFewInliers) ++gate_rejects;
-      const cv::Rect2f& b = o.detection.box;
-      nlohmann::json j = {{"label", o.detection.label},
-                          {"confidence", o.detection.confidence},
-                          {"box", {b.x, b.y, b.width, b.height}},
-                          {"status", ToString(o.status)},
-                          {"inliers", o.registration.inliers},
-                          {"refined_inliers", o.registration.refined_inliers},
-                          {"geometric_agreement", o.registration.geometric_agreement},
-                          {"colour_agreement", o.registration.colour_agreement},
-                          {"covered_agreement", o.registration.covered_agreement},
-                          {"hypothesis", o.registration.hypothesis}};
-      if (o.status == PerceptionStatus::kSegmentationFailed) {
-        const SegmentationResult& sr = o.segmentation;
-        j["segmentation"] = {{"status", ToString(sr.status)},
-                             {"valid_points_in_box", sr.valid_points_in_box},
-                             {"structure_points_in_box", sr.structure_points_in_box},
-                             {"planes_dropped", sr.planes_dropped},
-                             {"components", sr.components}};
-      }
-      if (o.status != PerceptionStatus::kNoTemplate &&
-          o.status != PerceptionStatus::kSegmentationFailed) {
-        const RegistrationTimes& rt = o.registration.times;
-        j["register_ms"] = rt.total();
-        j["stage_ms"] = {{"prepare", rt.prepare},
-                         {"consensus", rt.consensus},
-                         {"gate", rt.gate},
-                         {"gicp", rt.gicp + rt.information}};
-      }
-      if (o.accepted()) {
-        ++accepted;
-        j["fitness"] = o.registration.fitness;
-        std::vector<double> info(o.registration.information.data(),
-                                 o.registration.information.data() + 36);
-        j["information"] = info;
-      }
-      // A rejected registration keeps the pose it rejected (RegistrationResult::camera_T_object):
-      // its error tells a right pose turned away from a wrong one. Only accepted poses enter the
-      // medians.
-      const bool has_pose = o.status == PerceptionStatus::kAccepted ||
-                            o.status == PerceptionStatus::kTooFewInliers ||
-                            o.status == PerceptionStatus::kShapeMismatch ||
-                            o.status == PerceptionStatus::kBoxMismatch ||
-                            o.status == PerceptionStatus::kColourMismatch;
-      if (has_pose) j["camera_T_object"] = PoseJson(o.registration.camera_T_object);
-      if (world && f.world_T_camera && has_pose) {
-        const SE3 est = *f.world_T_camera * o.registration.camera_T_object;
-        const ObjectInstance* nearest = nullptr;
-        double best = std::numeric_limits<double>::infinity();
-        for (const ObjectInstance& w : world->objects) {
-          if (w.label != o.detection.label) continue;
-          const double d = (w.pose.translation() - est.translation()).norm();
-          if (d < best) {
-            best = d;
-            nearest = &w;
-          }
-        }
-        if (nearest) {
-          const double rot =
-              SO3::Log(nearest->pose.rotation().inverse() * est.rotation()).norm() * 180.0 / M_PI;
-          if (o.accepted()) {
-            t_err.push_back(best);
-            r_err.push_back(rot);
-            for (const char* key : {"all", o.detection.label.c_str()}) {
-              by_class[key].t_err.push_back(best);
-              by_class[key].r_err.push_back(rot);
-            }
-          }
-          j["ground_truth"] = {{"object", nearest->id},
-                               {"translation_error", best},
-                               {"rotation_error_deg", rot}};
-        }
-      }
-      objects.push_back(std::move(j));
-    }
-    out_frames.push_back({{"timestamp", f.rgb_timestamp}, {"rgb", f.rgb_file},
-                          {"objects", std::move(objects)}});
-    if (!a.annotate.empty()) {
-      Annotate(frame.rgb, seen);
-      const std::string path =
-          (std::filesystem::path(a.annotate) / std::filesystem::path(f.rgb_file).filename())
-              .string();
-      if (!cv::imwrite(path, frame.rgb)) throw Error("perceive: cannot write '" + path + "'");
-    }
-    progress.update(static_cast<int>(n + 1), accepted);
-  }
+};
 
-  const double nf = std::max<double>(1.0, static_cast<double>(frames.size()));
+nlohmann::json SummaryJson(const PerceiveArgs& a, const PerceiveTotals& t,
+                           const ObjectPerception& perception, bool evaluated) {
+  const double nf = std::max<double>(1.0, static_cast<double>(t.frames));
   nlohmann::json summary = {
       {"sequence", a.sequence},
-      {"frames", frames.size()},
-      {"detections", detections},
-      {"accepted", accepted},
-      {"rejected_by_inlier_gate", gate_rejects},
+      {"frames", t.frames},
+      {"detections", t.detections},
+      {"accepted", t.accepted},
+      {"rejected_by_inlier_gate", t.gate_rejects},
       {"ms_per_frame",
-       {{"detect", times.detect / nf},
-        {"segment", (times.prepare + times.segment) / nf},
-        {"register", times.register_ / nf},
-        {"total", times.total() / nf}}},
+       {{"detect", t.times.detect / nf},
+        {"segment", (t.times.prepare + t.times.segment) / nf},
+        {"register", t.times.register_ / nf},
+        {"total", t.times.total() / nf}}},
       {"template_seconds", perception.templateSeconds()},
       {"templates_from_cache", perception.templatesFromCache()},
       {"detector",
@@ -305,7 +270,7 @@ int RunPerceive(const PerceiveArgs& a) {
       {"threads", a.threads},
   };
   nlohmann::json classes = nlohmann::json::object();
-  for (const auto& [label, c] : by_class) {
+  for (const auto& [label, c] : t.by_class) {
     nlohmann::json j = {
         {"detections", c.detections},
         {"registered", c.registered},
@@ -316,7 +281,7 @@ int RunPerceive(const PerceiveArgs& a) {
           {"consensus", Number(Median(c.consensus))},
           {"gate", Number(Median(c.gate))},
           {"gicp", Number(Median(c.gicp))}}}};
-    if (world) {
+    if (evaluated) {
       j["evaluated"] = c.t_err.size();
       j["median_translation_error"] = Number(Median(c.t_err));
       j["median_rotation_error_deg"] = Number(Median(c.r_err));
@@ -324,11 +289,87 @@ int RunPerceive(const PerceiveArgs& a) {
     classes[label] = std::move(j);
   }
   summary["classes"] = std::move(classes);
-  if (world) {
-    summary["evaluated"] = t_err.size();
-    summary["median_translation_error"] = Number(Median(t_err));
-    summary["median_rotation_error_deg"] = Number(Median(r_err));
+  if (evaluated) {
+    summary["evaluated"] = t.t_err.size();
+    summary["median_translation_error"] = Number(Median(t.t_err));
+    summary["median_rotation_error_deg"] = Number(Median(t.r_err));
   }
+  return summary;
+}
+
+int RunPerceive(const PerceiveArgs& a) {
+  // SAC-IA warns on stderr for every relaxed sample distance; the statuses say what matters.
+  pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
+  const TumSequence sequence = ReadTumSequence(a.sequence);
+  std::optional<World> world;
+  if (!a.world.empty()) world = LoadWorld(a.world);
+  if (!a.annotate.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.annotate, ec);
+    if (ec) throw Error("perceive: cannot create '" + a.annotate + "': " + ec.message());
+  }
+  ObjectPerception perception(PerceiveConfig(a), world ? world->classes : StandardObjectClasses());
+
+  std::vector<std::size_t> frames;
+  for (std::size_t i = 0; i < sequence.frames.size(); i += static_cast<std::size_t>(a.every)) {
+    if (a.max_frames > 0 && static_cast<int>(frames.size()) >= a.max_frames) break;
+    frames.push_back(i);
+  }
+  Progress progress(static_cast<int>(frames.size()));
+  nlohmann::json out_frames = nlohmann::json::array();
+  PerceiveTotals t;
+  t.frames = frames.size();
+  for (std::size_t n = 0; n < frames.size(); ++n) {
+    const std::size_t i = frames[n];
+    const TumFrame& f = sequence.frames[i];
+    RgbdFrame frame = LoadTumFrame(sequence, i);
+    const FramePerception seen = perception.perceive(frame);
+    t.times.detect += seen.times.detect;
+    t.times.prepare += seen.times.prepare;
+    t.times.segment += seen.times.segment;
+    t.times.register_ += seen.times.register_;
+    nlohmann::json objects = nlohmann::json::array();
+    for (const PerceivedObject& o : seen.objects) {
+      ++t.detections;
+      t.by_class[o.detection.label].add(o);
+      t.by_class["all"].add(o);
+      if (o.status == PerceptionStatus::kTooFewInliers) ++t.gate_rejects;
+      if (o.accepted()) ++t.accepted;
+      nlohmann::json j = ObjectJson(o);
+      const bool has_pose = HasPose(o);
+      if (has_pose) j["camera_T_object"] = PoseJson(o.registration.camera_T_object);
+      if (world && f.world_T_camera && has_pose) {
+        const GroundTruthError e = AgainstWorld(*world, o.detection.label,
+                                                *f.world_T_camera * o.registration.camera_T_object);
+        if (e.object) {
+          if (o.accepted()) {
+            t.t_err.push_back(e.translation);
+            t.r_err.push_back(e.rotation_deg);
+            for (const char* key : {"all", o.detection.label.c_str()}) {
+              t.by_class[key].t_err.push_back(e.translation);
+              t.by_class[key].r_err.push_back(e.rotation_deg);
+            }
+          }
+          j["ground_truth"] = {{"object", e.object->id},
+                               {"translation_error", e.translation},
+                               {"rotation_error_deg", e.rotation_deg}};
+        }
+      }
+      objects.push_back(std::move(j));
+    }
+    out_frames.push_back(
+        {{"timestamp", f.rgb_timestamp}, {"rgb", f.rgb_file}, {"objects", std::move(objects)}});
+    if (!a.annotate.empty()) {
+      Annotate(frame.rgb, seen);
+      const std::string path =
+          (std::filesystem::path(a.annotate) / std::filesystem::path(f.rgb_file).filename())
+              .string();
+      if (!cv::imwrite(path, frame.rgb)) throw Error("perceive: cannot write '" + path + "'");
+    }
+    progress.update(static_cast<int>(n + 1), t.accepted);
+  }
+
+  const nlohmann::json summary = SummaryJson(a, t, perception, world.has_value());
   if (!a.out.empty()) {
     std::ofstream file(a.out);
     file << nlohmann::json({{"summary", summary}, {"frames", out_frames}}).dump(1) << "\n";
@@ -340,13 +381,15 @@ int RunPerceive(const PerceiveArgs& a) {
   if (a.json) {
     fmt::print("{}\n", summary.dump());
   } else {
-    fmt::print("{}: {} frames, {} detections, {} accepted, {} rejected by the 12-inlier gate; "
-               "ms/frame detect {:.1f}, segment {:.1f}, register {:.1f}\n",
-               a.sequence, frames.size(), detections, accepted, gate_rejects, times.detect / nf,
-               (times.prepare + times.segment) / nf, times.register_ / nf);
+    const double nf = std::max<double>(1.0, static_cast<double>(t.frames));
+    fmt::print(
+        "{}: {} frames, {} detections, {} accepted, {} rejected by the 12-inlier gate; "
+        "ms/frame detect {:.1f}, segment {:.1f}, register {:.1f}\n",
+        a.sequence, t.frames, t.detections, t.accepted, t.gate_rejects, t.times.detect / nf,
+        (t.times.prepare + t.times.segment) / nf, t.times.register_ / nf);
     if (world) {
       fmt::print("pose error against ground truth ({} objects): median {:.3f} m, {:.2f} deg\n",
-                 t_err.size(), Median(t_err), Median(r_err));
+                 t.t_err.size(), Median(t.t_err), Median(t.r_err));
     }
   }
   return 0;
