@@ -118,6 +118,176 @@ struct SimulateArgs {
   std::optional<bool> rendezvous_constellation;
   bool online = false;
 };
+// The options that exclude one another, refused before any work.
+void CheckSimulateArgs(const SimulateArgs& a) {
+  if (a.sigma_rot.size() != a.sigma_trans.size()) {
+    throw InvalidInputError(fmt::format(
+        "simulate: --sigma-rot has {} values but --sigma-trans has {}: give one of each per "
+        "noise row",
+        a.sigma_rot.size(), a.sigma_trans.size()));
+  }
+  const bool rendered = a.perception == "rendered";
+  if (!rendered && !a.detection_log.empty()) {
+    throw InvalidInputError(
+        "simulate: --detection-log needs --perception rendered (sampled "
+        "measurements have no detections)");
+  }
+  if (!rendered && !a.perception_cache.empty()) {
+    throw InvalidInputError(
+        "simulate: --perception-cache needs --perception rendered (sampled "
+        "measurements are not perceived)");
+  }
+  if (!a.perception_cache.empty() && !a.detection_log.empty()) {
+    throw InvalidInputError(
+        "simulate: --detection-log and --perception-cache together: a run "
+        "replayed from the cache has no detection records; drop one");
+  }
+  if (a.rendezvous_constellation.value_or(false) && a.initial_poses == "unknown") {
+    throw InvalidInputError(std::string("simulate: ") + kConstellationNeedsKnownPoses);
+  }
+  if (a.perception != "visible" &&
+      (a.visible_noise != std::vector<double>{5.0, 0.2} || a.visible_keep != 1.0)) {
+    throw InvalidInputError(
+        "simulate: --visible-noise and --visible-keep need --perception visible");
+  }
+  if (a.perception == "visible" &&
+      std::find(a.table.begin(), a.table.end(), "perception") != a.table.end()) {
+    throw InvalidInputError(
+        "simulate: --table perception describes the front-end's detections; "
+        "--perception visible has none (its measurements per pose are in "
+        "--json)");
+  }
+  if (a.online && (a.perception != "sampled" || a.information != "noise" ||
+                   a.loop_closure.value_or(false) || a.rendezvous_constellation.value_or(false))) {
+    throw InvalidInputError(
+        "simulate --online: perception rendered or visible, --information fixed, "
+        "--loop-closure and --rendezvous-constellation are not part of the online mission");
+  }
+}
+
+// The experiment of one table row: `robots` robots at noise row `noise` (--sigma-rot and
+// --sigma-trans), the robots' rules of rendered perception unless set.
+ExperimentConfig RowConfig(const SimulateArgs& a, int robots, std::size_t noise,
+                           const ExperimentConfig::Perceive& perceive) {
+  const bool rendered = a.perception == "rendered";
+  ExperimentConfig c;
+  c.scenario = a.scenario;
+  c.robots = robots;
+  c.runs = a.runs;
+  c.seed = a.seed;
+  c.sigma_rotation_deg = a.sigma_rot[noise];
+  c.sigma_translation = a.sigma_trans[noise];
+  c.information = InformationModeFromString(a.information);
+  c.poses_per_robot = a.poses;
+  c.refine = !a.no_refine;
+  c.two_level_dgs = a.dgs == "two-level";
+  c.known_initial_poses = a.initial_poses == "known";
+  c.outlier_fraction = a.outliers;
+  c.robust = a.robust;
+  c.gnc_threshold = a.gnc_threshold;
+  c.retest_left_out = a.retest_left_out;
+  c.retest_groups = a.retest_groups;
+  c.skip_unlinked = a.skip_unlinked;
+  c.perceive = perceive;
+  c.perception = a.perception;
+  c.exclusion_radius = a.exclusion_radius.value_or(rendered ? kRenderedExclusionRadius : 0.0);
+  c.leave_one_out_check = a.leave_one_out_check;
+  c.ambiguity_ratio = a.ambiguity_ratio.value_or(rendered ? kRenderedAmbiguityRatio : 0.0);
+  c.loop_closure = a.loop_closure.value_or(rendered && kRenderedLoopClosure);
+  c.rendezvous_constellation =
+      a.rendezvous_constellation.value_or(rendered && kRenderedRendezvousConstellation);
+  return c;
+}
+
+void WritePlot(const std::string& path, const std::string& svg) {
+  std::ofstream out(path);
+  out << svg;
+  if (!out) throw Error("simulate: cannot write the plot to '" + path + "'");
+}
+
+// --online: the mission with a group solve at every rendezvous, a row per robot count and noise.
+int RunOnlineSimulation(const SimulateArgs& a) {
+  std::vector<OnlineExperimentResult> results;
+  for (int robots : a.robots) {
+    for (std::size_t i = 0; i < a.sigma_rot.size(); ++i) {
+      OnlineExperimentConfig c;
+      c.base.scenario = a.scenario;
+      c.base.robots = robots;
+      c.base.runs = a.runs;
+      c.base.seed = a.seed;
+      c.base.sigma_rotation_deg = a.sigma_rot[i];
+      c.base.sigma_translation = a.sigma_trans[i];
+      c.base.poses_per_robot = a.poses;
+      c.base.known_initial_poses = a.initial_poses == "known";
+      c.base.exclusion_radius = a.exclusion_radius.value_or(0.0);
+      c.base.leave_one_out_check = a.leave_one_out_check;
+      c.base.ambiguity_ratio = a.ambiguity_ratio.value_or(0.0);
+      c.base.outlier_fraction = a.outliers;
+      c.base.robust = a.robust;
+      c.base.gnc_threshold = a.gnc_threshold;
+      c.base.retest_left_out = a.retest_left_out;
+      c.base.retest_groups = a.retest_groups;
+      results.push_back(RunOnlineExperiment(c));
+    }
+  }
+  const bool wrong_pairs_table = a.robust || a.outliers_option->count() > 0;
+  fmt::print("{}",
+             wrong_pairs_table ? FormatOnlineRobustTable(results) : FormatOnlineTable(results));
+  if (!a.plot.empty()) {
+    const ExperimentConfig& c = results.front().config.base;
+    WritePlot(a.plot, PlotOnlineSvg(results.front(),
+                                    fmt::format("{}, {} robots, {} runs from seed {}: online "
+                                                "mapping",
+                                                c.scenario, c.robots, c.runs, c.seed)));
+  }
+  if (a.json) fmt::print("{}\n", OnlineResultsToJson(results));
+  return 0;
+}
+
+// The tables --table asks for ("all": the perception table only with perception rendered, the
+// robust one only with --robust).
+void PrintTables(const SimulateArgs& a, const std::vector<ExperimentResult>& results) {
+  const std::vector<std::pair<std::string, TableKind>> tables = {
+      {"accuracy", TableKind::kAccuracy},     {"association", TableKind::kAssociation},
+      {"memory", TableKind::kMemory},         {"scale", TableKind::kScale},
+      {"perception", TableKind::kPerception}, {"robust", TableKind::kRobust}};
+  const bool rendered = a.perception == "rendered";
+  bool first_table = true;
+  for (const auto& [name, kind] : tables) {
+    const bool all = std::find(a.table.begin(), a.table.end(), "all") != a.table.end() &&
+                     (kind != TableKind::kPerception || rendered) &&
+                     (kind != TableKind::kRobust || a.robust);
+    const bool wanted = all || std::find(a.table.begin(), a.table.end(), name) != a.table.end();
+    if (!wanted) continue;
+    if (!first_table) fmt::print("\n");
+    first_table = false;
+    fmt::print("{}", FormatMarkdownTable(results, kind));
+  }
+}
+
+// The robots' loop closures per row, to stderr: wrong as the robots' front-end closed them
+// (landmarks created for two objects), and as the robust experiment judges them (landmarks
+// standing for two objects by the majority of their observations; the outlier-free solve leaves
+// those out).
+void PrintLoopClosures(const std::vector<ExperimentResult>& results) {
+  for (const ExperimentResult& r : results) {
+    if (!r.config.loop_closure) continue;
+    std::string robust;
+    if (r.config.robust) {
+      robust = fmt::format(
+          "; {:.1f} wrong by their landmarks' majority, rejected by the "
+          "robust solve with precision {:.3f} / recall {:.3f}",
+          r.mean.wrong_loop_closure_factors, r.mean.loop_closure_precision,
+          r.mean.loop_closure_recall);
+    }
+    fmt::print(stderr,
+               "loop closures, {} ({} robots): {:.1f} object pairs per run, {:.1f} of "
+               "them wrong{}\n",
+               r.config.scenario, r.config.robots, r.mean.intra_loop_closures,
+               r.mean.intra_wrong_loop_closures, robust);
+  }
+}
+
 }  // namespace
 
 Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
@@ -265,170 +435,31 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
 
   return [args, make_perception]() -> int {
     const SimulateArgs& a = *args;
-    if (a.sigma_rot.size() != a.sigma_trans.size()) {
-      throw InvalidInputError(fmt::format(
-          "simulate: --sigma-rot has {} values but --sigma-trans has {}: give one of each per "
-          "noise row",
-          a.sigma_rot.size(), a.sigma_trans.size()));
-    }
+    CheckSimulateArgs(a);
     ExperimentConfig::Perceive perceive;
-    const bool rendered = a.perception == "rendered";
-    if (!rendered && !a.detection_log.empty()) {
-      throw InvalidInputError("simulate: --detection-log needs --perception rendered (sampled "
-                              "measurements have no detections)");
+    if (a.perception != "sampled") {
+      perceive = make_perception({a.model, a.classes, a.templates, a.perceive_every,
+                                  a.template_cache, a.template_views, a.depth_smoothing,
+                                  a.detection_log, a.perception_cache, a.perception == "visible",
+                                  a.visible_noise[0], a.visible_noise[1], a.visible_keep});
     }
-    if (!rendered && !a.perception_cache.empty()) {
-      throw InvalidInputError("simulate: --perception-cache needs --perception rendered (sampled "
-                              "measurements are not perceived)");
-    }
-    if (!a.perception_cache.empty() && !a.detection_log.empty()) {
-      throw InvalidInputError("simulate: --detection-log and --perception-cache together: a run "
-                              "replayed from the cache has no detection records; drop one");
-    }
-    if (a.rendezvous_constellation.value_or(false) && a.initial_poses == "unknown") {
-      throw InvalidInputError(std::string("simulate: ") + kConstellationNeedsKnownPoses);
-    }
-    const bool on_frames = a.perception != "sampled";
-    if (a.perception != "visible" &&
-        (a.visible_noise != std::vector<double>{5.0, 0.2} || a.visible_keep != 1.0)) {
-      throw InvalidInputError(
-          "simulate: --visible-noise and --visible-keep need --perception visible");
-    }
-    if (a.perception == "visible" &&
-        std::find(a.table.begin(), a.table.end(), "perception") != a.table.end()) {
-      throw InvalidInputError("simulate: --table perception describes the front-end's detections; "
-                              "--perception visible has none (its measurements per pose are in "
-                              "--json)");
-    }
-    if (on_frames) perceive = make_perception(
-          {a.model, a.classes, a.templates, a.perceive_every, a.template_cache,
-           a.template_views, a.depth_smoothing, a.detection_log, a.perception_cache,
-           a.perception == "visible", a.visible_noise[0], a.visible_noise[1],
-           a.visible_keep});
-    if (a.online) {
-      if (on_frames || a.information != "noise" || a.loop_closure.value_or(false) ||
-          a.rendezvous_constellation.value_or(false)) {
-        throw InvalidInputError(
-            "simulate --online: perception rendered or visible, --information fixed, "
-            "--loop-closure and --rendezvous-constellation are not part of the online mission");
-      }
-      std::vector<OnlineExperimentResult> results;
-      for (int robots : a.robots) {
-        for (std::size_t i = 0; i < a.sigma_rot.size(); ++i) {
-          OnlineExperimentConfig c;
-          c.base.scenario = a.scenario;
-          c.base.robots = robots;
-          c.base.runs = a.runs;
-          c.base.seed = a.seed;
-          c.base.sigma_rotation_deg = a.sigma_rot[i];
-          c.base.sigma_translation = a.sigma_trans[i];
-          c.base.poses_per_robot = a.poses;
-          c.base.known_initial_poses = a.initial_poses == "known";
-          c.base.exclusion_radius = a.exclusion_radius.value_or(0.0);
-          c.base.leave_one_out_check = a.leave_one_out_check;
-          c.base.ambiguity_ratio = a.ambiguity_ratio.value_or(0.0);
-          c.base.outlier_fraction = a.outliers;
-          c.base.robust = a.robust;
-          c.base.gnc_threshold = a.gnc_threshold;
-          c.base.retest_left_out = a.retest_left_out;
-          c.base.retest_groups = a.retest_groups;
-          results.push_back(RunOnlineExperiment(c));
-        }
-      }
-      const bool wrong_pairs_table = a.robust || a.outliers_option->count() > 0;
-      fmt::print("{}", wrong_pairs_table ? FormatOnlineRobustTable(results)
-                                         : FormatOnlineTable(results));
-      if (!a.plot.empty()) {
-        std::ofstream out(a.plot);
-        const ExperimentConfig& c = results.front().config.base;
-        out << PlotOnlineSvg(results.front(),
-                             fmt::format("{}, {} robots, {} runs from seed {}: online mapping",
-                                         c.scenario, c.robots, c.runs, c.seed));
-        if (!out) throw Error("simulate: cannot write the plot to '" + a.plot + "'");
-      }
-      if (a.json) fmt::print("{}\n", OnlineResultsToJson(results));
-      return 0;
-    }
+    if (a.online) return RunOnlineSimulation(a);
     std::vector<ExperimentResult> results;
     RunEstimates first;
     for (int robots : a.robots) {
       for (std::size_t i = 0; i < a.sigma_rot.size(); ++i) {
-        ExperimentConfig c;
-        c.scenario = a.scenario;
-        c.robots = robots;
-        c.runs = a.runs;
-        c.seed = a.seed;
-        c.sigma_rotation_deg = a.sigma_rot[i];
-        c.sigma_translation = a.sigma_trans[i];
-        c.information = InformationModeFromString(a.information);
-        c.poses_per_robot = a.poses;
-        c.refine = !a.no_refine;
-        c.two_level_dgs = a.dgs == "two-level";
-        c.known_initial_poses = a.initial_poses == "known";
-        c.outlier_fraction = a.outliers;
-        c.robust = a.robust;
-        c.gnc_threshold = a.gnc_threshold;
-        c.retest_left_out = a.retest_left_out;
-        c.retest_groups = a.retest_groups;
-        c.skip_unlinked = a.skip_unlinked;
-        c.perceive = perceive;
-        c.perception = a.perception;
-        c.exclusion_radius = a.exclusion_radius.value_or(rendered ? kRenderedExclusionRadius : 0.0);
-        c.leave_one_out_check = a.leave_one_out_check;
-        c.ambiguity_ratio = a.ambiguity_ratio.value_or(rendered ? kRenderedAmbiguityRatio : 0.0);
-        c.loop_closure = a.loop_closure.value_or(rendered && kRenderedLoopClosure);
-        c.rendezvous_constellation =
-            a.rendezvous_constellation.value_or(rendered && kRenderedRendezvousConstellation);
-        results.push_back(RunExperiment(c, results.empty() ? &first : nullptr));
+        results.push_back(
+            RunExperiment(RowConfig(a, robots, i, perceive), results.empty() ? &first : nullptr));
       }
     }
-    const std::vector<std::pair<std::string, TableKind>> tables = {
-        {"accuracy", TableKind::kAccuracy},
-        {"association", TableKind::kAssociation},
-        {"memory", TableKind::kMemory},
-        {"scale", TableKind::kScale},
-        {"perception", TableKind::kPerception},
-        {"robust", TableKind::kRobust}};
-    bool first_table = true;
-    for (const auto& [name, kind] : tables) {
-      // "all" includes the perception table only when there was perception, the robust one
-      // only with --robust.
-      const bool all = std::find(a.table.begin(), a.table.end(), "all") != a.table.end() &&
-                       (kind != TableKind::kPerception || rendered) &&
-                       (kind != TableKind::kRobust || a.robust);
-      const bool wanted =
-          all || std::find(a.table.begin(), a.table.end(), name) != a.table.end();
-      if (!wanted) continue;
-      if (!first_table) fmt::print("\n");
-      first_table = false;
-      fmt::print("{}", FormatMarkdownTable(results, kind));
-    }
-    for (const ExperimentResult& r : results) {
-      if (r.config.loop_closure) {
-        // Wrong as the robots' front-end closed them (landmarks created for two objects), and as
-        // the robust experiment judges them (landmarks standing for two objects by the majority of
-        // their observations; the outlier-free solve leaves those out).
-        std::string robust;
-        if (r.config.robust) {
-          robust = fmt::format("; {:.1f} wrong by their landmarks' majority, rejected by the "
-                               "robust solve with precision {:.3f} / recall {:.3f}",
-                               r.mean.wrong_loop_closure_factors, r.mean.loop_closure_precision,
-                               r.mean.loop_closure_recall);
-        }
-        fmt::print(stderr, "loop closures, {} ({} robots): {:.1f} object pairs per run, {:.1f} of "
-                   "them wrong{}\n",
-                   r.config.scenario, r.config.robots, r.mean.intra_loop_closures,
-                   r.mean.intra_wrong_loop_closures, robust);
-      }
-    }
+    PrintTables(a, results);
+    PrintLoopClosures(results);
     if (!a.plot.empty()) {
-      std::ofstream out(a.plot);
       const ExperimentConfig& c = results.front().config;
-      out << PlotSvg(first, fmt::format("{}, {} robots, noise {} deg / {} m, seed {}: DGS vs "
-                                        "centralized",
-                                        c.scenario, c.robots, c.sigma_rotation_deg,
-                                        c.sigma_translation, c.seed));
-      if (!out) throw Error("simulate: cannot write the plot to '" + a.plot + "'");
+      WritePlot(a.plot, PlotSvg(first, fmt::format("{}, {} robots, noise {} deg / {} m, seed {}: "
+                                                   "DGS vs centralized",
+                                                   c.scenario, c.robots, c.sigma_rotation_deg,
+                                                   c.sigma_translation, c.seed)));
     }
     if (a.json) fmt::print("{}\n", ResultsToJson(results));
     return 0;
