@@ -306,75 +306,63 @@ void ReportFailedRobots(const nlohmann::json& per_robot) {
   }
 }
 
-// `moslam team --scenario ... --online`: the robots map online as processes; compared with the
-// in-process twin (online/online_team.h, RunOnline with the processes' solver): the same group
-// solves, and every map each robot saved (after each solve, and at the end) equal to the twin's.
-int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFlags& flags,
-                  const fs::path& out) {
-  const int n = spec.robots;
-  std::vector<std::string> source = ScenarioArgs(flags);
-  source.push_back("--online");
-  const TeamRun run = RunTeamRobots(a, out, n, source);
-  const std::map<int, int>& exit_codes = run.exit_codes;
-  const double seconds = run.seconds;
-
-  nlohmann::json j = ScenarioJson(spec);
-  j["robots"] = n;
-  j["poses_per_robot"] = spec.poses_per_robot;
-  j["online"] = true;
-  j["out"] = out.string();
-  j["seconds"] = seconds;
+// The online robots' summaries: whether every robot exited 0 and wrote one, and per robot its
+// exit code and log (failed) or its number of group solves.
+struct OnlineSummaries {
   bool ok = true;
-  std::map<int, nlohmann::json> summaries;
   nlohmann::json per_robot = nlohmann::json::array();
+  std::map<int, nlohmann::json> summaries;  // robot -> summary, those that finished
+};
+
+OnlineSummaries ReadOnlineSummaries(const fs::path& out, int n,
+                                    const std::map<int, int>& exit_codes) {
+  OnlineSummaries o;
   for (int r = 0; r < n; ++r) {
     const fs::path dir = out / fmt::format("robot{}", r);
     const int code = exit_codes.count(r) ? exit_codes.at(r) : 0;
     if (code != 0 || !fs::exists(dir / "summary.json")) {
-      ok = false;
-      per_robot.push_back({{"robot", r}, {"exit_code", code}, {"log", (dir / "log.txt").string()}});
+      o.ok = false;
+      o.per_robot.push_back(
+          {{"robot", r}, {"exit_code", code}, {"log", (dir / "log.txt").string()}});
       continue;
     }
     std::ifstream in(dir / "summary.json");
-    summaries[r] = nlohmann::json::parse(in);
-    per_robot.push_back({{"robot", r}, {"exit_code", 0}, {"solves", summaries[r]["solves"].size()}});
+    o.summaries[r] = nlohmann::json::parse(in);
+    o.per_robot.push_back(
+        {{"robot", r}, {"exit_code", 0}, {"solves", o.summaries[r]["solves"].size()}});
   }
-  if (!ok) {
-    ReportFailedRobots(per_robot);
-    j["ok"] = false;
-    j["per_robot"] = per_robot;
-    if (a.json) fmt::print("{}\n", j.dump());
-    return 1;
-  }
-  OnlineOptions twin_options;
-  const DgsNodeOptions node = NodeOptions(OnlineSolveFlags(a.solve));
-  twin_options.solver = DriverOptions(node);
-  if (node.gnc) twin_options.robust = ReferenceRobustOptions(node);  // its dgs: the solver
-  const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
-  twin_options.lambda = config.rendezvous.lambda();
-  const OnlineRun twin = RunOnline(SimulateScenario(spec), config, twin_options);
+  return o;
+}
 
-  // Every map a robot saved against the twin's map of the same robot at the same time.
-  double largest = 0.0;
-  int maps = 0, mismatched = 0;
-  std::int64_t objects_bytes = 0, solve_bytes = 0;
-  int events = 0;
-  // --robust: the pairs set aside at the end, by the robots (each holds its own) and the twin.
+// The processes' online mission against the in-process twin's: every map each robot saved, the
+// group solves each took part in, the pairs set aside at the end (--robust), and the bytes.
+struct OnlineComparison {
+  bool same_solves = true;       // every robot in the twin's group solves
+  int maps = 0, mismatched = 0;  // maps compared; of another size than the twin's
+  double largest = 0.0;          // largest pose difference over them
+  std::int64_t objects_bytes = 0, solve_bytes = 0;  // DDS payload: rendezvous, group solves
+  int events = 0;                                   // rendezvous (counted once, by alpha)
+  std::set<std::pair<Key, Key>> set_aside, twin_set_aside;
+  int unlinked = 0;  // twin's group solves the separator check left unlinked
+};
+
+OnlineComparison CompareWithTwin(const fs::path& out,
+                                 const std::map<int, nlohmann::json>& summaries,
+                                 const OnlineRun& twin) {
+  OnlineComparison c;
   const auto pair_of = [](const nlohmann::json& p) {
     return UnorderedPair(Key::Object(p[0].get<int>(), p[1].get<std::uint64_t>()),
                          Key::Object(p[2].get<int>(), p[3].get<std::uint64_t>()));
   };
-  std::set<std::pair<Key, Key>> set_aside, twin_set_aside;
   for (const SharedObject& o : twin.set_aside) {
-    twin_set_aside.insert(UnorderedPair(o.alpha_object, o.beta_object));
+    c.twin_set_aside.insert(UnorderedPair(o.alpha_object, o.beta_object));
   }
-  int unlinked = 0;
-  for (const GroupSolveRecord& g : twin.solves) unlinked += g.unlinked ? 1 : 0;
+  for (const GroupSolveRecord& g : twin.solves) c.unlinked += g.unlinked ? 1 : 0;
   const auto compare = [&](const fs::path& file, const Values& reference) {
     const Dataset saved = ReadRobotG2o(file.string(), WithObjects());
-    ++maps;
-    if (saved.initial.size() != reference.size()) ++mismatched;
-    largest = std::max(largest, MaxPoseDifference(saved.initial, reference));
+    ++c.maps;
+    if (saved.initial.size() != reference.size()) ++c.mismatched;
+    c.largest = std::max(c.largest, MaxPoseDifference(saved.initial, reference));
   };
   for (const auto& [r, s] : summaries) {
     const fs::path dir = out / fmt::format("robot{}", r);
@@ -387,65 +375,106 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
     std::vector<std::pair<int, std::vector<int>>> got;
     for (const auto& g : s["solves"]) {
       got.emplace_back(g["step"].get<int>(), g["robots"].get<std::vector<int>>());
-      solve_bytes += g["dds_sent_bytes"].get<std::int64_t>();
+      c.solve_bytes += g["dds_sent_bytes"].get<std::int64_t>();
       compare(dir / "maps" / fmt::format("step_{:04d}", got.back().first) / "map.g2o",
               twin.maps.at({got.back().first, r}));
     }
     if (got != expected) {
-      ok = false;
+      c.same_solves = false;
       fmt::print(stderr, "moslam: robot {} took part in {} group solves, the in-process twin's "
                  "robot in {} (or in other groups)\n", r, got.size(), expected.size());
     }
     compare(dir / "maps" / "final" / "map.g2o",
             twin.slam.robots[static_cast<std::size_t>(r)].estimate());
-    objects_bytes += s["rendezvous_dds_bytes"].get<std::int64_t>();
-    for (const auto& e : s["rendezvous"]) events += e["alpha"].get<int>() == r ? 1 : 0;
+    c.objects_bytes += s["rendezvous_dds_bytes"].get<std::int64_t>();
+    for (const auto& e : s["rendezvous"]) c.events += e["alpha"].get<int>() == r ? 1 : 0;
     for (const auto& p : s.value("set_aside", nlohmann::json::array())) {
-      set_aside.insert(pair_of(p));
+      c.set_aside.insert(pair_of(p));
     }
   }
-  if (set_aside != twin_set_aside) {
+  return c;
+}
+
+// `moslam team --scenario ... --online`: the robots map online as processes; compared with the
+// in-process twin (online/online_team.h, RunOnline with the processes' solver): the same group
+// solves, and every map each robot saved (after each solve, and at the end) equal to the twin's.
+int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFlags& flags,
+                  const fs::path& out) {
+  const int n = spec.robots;
+  std::vector<std::string> source = ScenarioArgs(flags);
+  source.push_back("--online");
+  const TeamRun run = RunTeamRobots(a, out, n, source);
+
+  nlohmann::json j = ScenarioJson(spec);
+  j["robots"] = n;
+  j["poses_per_robot"] = spec.poses_per_robot;
+  j["online"] = true;
+  j["out"] = out.string();
+  j["seconds"] = run.seconds;
+  const OnlineSummaries robots = ReadOnlineSummaries(out, n, run.exit_codes);
+  if (!robots.ok) {
+    ReportFailedRobots(robots.per_robot);
+    j["ok"] = false;
+    j["per_robot"] = robots.per_robot;
+    if (a.json) fmt::print("{}\n", j.dump());
+    return 1;
+  }
+  OnlineOptions twin_options;
+  const DgsNodeOptions node = NodeOptions(OnlineSolveFlags(a.solve));
+  twin_options.solver = DriverOptions(node);
+  if (node.gnc) twin_options.robust = ReferenceRobustOptions(node);  // its dgs: the solver
+  const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
+  twin_options.lambda = config.rendezvous.lambda();
+  const OnlineRun twin = RunOnline(SimulateScenario(spec), config, twin_options);
+
+  const OnlineComparison c = CompareWithTwin(out, robots.summaries, twin);
+  bool ok = c.same_solves;
+  if (c.set_aside != c.twin_set_aside) {
     ok = false;
     fmt::print(stderr,
                "moslam: the robots set aside {} pairs, the in-process twin {} (or others)\n",
-               set_aside.size(), twin_set_aside.size());
+               c.set_aside.size(), c.twin_set_aside.size());
   }
   std::int64_t cloud_bytes = 0;  // the paper's alternative: one 640 x 480 x 32 B frame per robot
   for (const GroupSolveRecord& g : twin.solves) {
     cloud_bytes += static_cast<std::int64_t>(g.robots.size()) * 640 * 480 * 32;
   }
   const double solves = std::max<double>(1.0, static_cast<double>(twin.solves.size()));
-  ok = ok && mismatched == 0;
-  j["rendezvous_events"] = events;
+  ok = ok && c.mismatched == 0;
+  j["rendezvous_events"] = c.events;
   j["group_solves"] = twin.solves.size();
   j["robust"] = twin_options.robust.has_value();
-  j["set_aside"] = set_aside.size();  // pairs set aside at the end (--robust)
-  j["in_process_set_aside"] = twin_set_aside.size();
-  j["unlinked_solves"] = unlinked;  // group solves the check left unlinked (--robust)
-  j["maps_compared"] = maps;
-  j["max_difference"] = largest;
-  j["rendezvous_dds_bytes"] = objects_bytes;
-  j["solve_dds_bytes"] = solve_bytes;
-  j["dds_bytes_per_solve"] = static_cast<double>(objects_bytes + solve_bytes) / solves;
+  j["set_aside"] = c.set_aside.size();  // pairs set aside at the end (--robust)
+  j["in_process_set_aside"] = c.twin_set_aside.size();
+  j["unlinked_solves"] = c.unlinked;  // group solves the check left unlinked (--robust)
+  j["maps_compared"] = c.maps;
+  j["max_difference"] = c.largest;
+  j["rendezvous_dds_bytes"] = c.objects_bytes;
+  j["solve_dds_bytes"] = c.solve_bytes;
+  j["dds_bytes_per_solve"] = static_cast<double>(c.objects_bytes + c.solve_bytes) / solves;
   j["point_cloud_bytes_per_solve"] = static_cast<double>(cloud_bytes) / solves;
-  fmt::print("{} with {} robots (seed {}, {} poses each), online, as processes on loopback: "
-             "{:.2f} s\n",
-             spec.scenario, n, spec.seed, spec.poses_per_robot, seconds);
-  fmt::print("{} rendezvous, {} group solves; {} saved maps against the in-process twin: largest "
-             "difference {:.3g}{}\n",
-             events, twin.solves.size(), maps, largest,
-             mismatched ? fmt::format(" ({} of other sizes)", mismatched) : "");
+  fmt::print(
+      "{} with {} robots (seed {}, {} poses each), online, as processes on loopback: "
+      "{:.2f} s\n",
+      spec.scenario, n, spec.seed, spec.poses_per_robot, run.seconds);
+  fmt::print(
+      "{} rendezvous, {} group solves; {} saved maps against the in-process twin: largest "
+      "difference {:.3g}{}\n",
+      c.events, twin.solves.size(), c.maps, c.largest,
+      c.mismatched ? fmt::format(" ({} of other sizes)", c.mismatched) : "");
   if (twin_options.robust) {
-    fmt::print("robust: {} pairs set aside at the end (in-process twin {}), {} group solves left "
-               "unlinked by the separator check\n",
-               set_aside.size(), twin_set_aside.size(), unlinked);
+    fmt::print(
+        "robust: {} pairs set aside at the end (in-process twin {}), {} group solves left "
+        "unlinked by the separator check\n",
+        c.set_aside.size(), c.twin_set_aside.size(), c.unlinked);
   }
-  fmt::print("DDS payload: objects {} B, group solves {} B; {:.1f} kB per group solve (point "
-             "clouds, one frame per robot: {:.0f} kB)\n",
-             objects_bytes, solve_bytes, j["dds_bytes_per_solve"].get<double>() / 1e3,
-             j["point_cloud_bytes_per_solve"].get<double>() / 1e3);
+  fmt::print(
+      "DDS payload: objects {} B, group solves {} B; {:.1f} kB per group solve (point "
+      "clouds, one frame per robot: {:.0f} kB)\n",
+      c.objects_bytes, c.solve_bytes, j["dds_bytes_per_solve"].get<double>() / 1e3,
+      j["point_cloud_bytes_per_solve"].get<double>() / 1e3);
   j["ok"] = ok;
-  j["per_robot"] = per_robot;
+  j["per_robot"] = robots.per_robot;
   fmt::print("maps in {}/robot<R>/maps\n", out.string());
   if (a.json) fmt::print("{}\n", j.dump());
   return ok ? 0 : 1;
