@@ -4,12 +4,12 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "commands.h"
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/io/g2o.h"
 #include "moslam/online/online_team.h"
 #include "moslam/transport/dds_transport.h"
@@ -34,6 +34,14 @@ struct RobotArgs {
   bool progress = false;
   bool json = false;
 };
+
+// <out>/summary.json (with --out), which `moslam team` reads back: written whole, or an error
+// naming it (never half a file, never a silent failure).
+void WriteSummary(const RobotArgs& a, const nlohmann::json& j) {
+  if (a.out.empty()) return;
+  WriteWholeFile((fs::path(a.out) / "summary.json").string(), j.dump(2) + "\n",
+                 fmt::format("robot {}: its summary", a.robot));
+}
 
 nlohmann::json SolveJson(const SessionSolve& s) {
   return {{"step", s.step},
@@ -167,7 +175,7 @@ int ReportOnlineRobot(const RobotArgs& a, const ScenarioSpec& spec, const RobotS
   j["set_aside"] = SharedJson(r.set_aside);  // --robust: its pairs set aside at the end
   j["seconds"] = r.seconds;
   j["out"] = a.out;
-  if (!a.out.empty()) std::ofstream(fs::path(a.out) / "summary.json") << j.dump(2) << "\n";
+  WriteSummary(a, j);
   fmt::print("robot {}: {} rendezvous, {} shared objects ({} B DDS payload sent), {} group solves "
              "({} B DDS payload sent), {:.3f} s{}\n",
              a.robot, r.rendezvous.size(), r.shared.size(), r.rendezvous_transport.objects_bytes,
@@ -232,7 +240,7 @@ int RunScenarioRobot(const RobotArgs& a) {
   AddSessionSummary(spec, r, j);
   j["slam_seconds"] = r.slam_seconds;
   j["seconds"] = r.seconds;
-  if (!a.out.empty()) std::ofstream(fs::path(a.out) / "summary.json") << j.dump(2) << "\n";
+  WriteSummary(a, j);
   fmt::print("robot {}: {} rendezvous, {} shared objects ({} B in-process encoding, {} B DDS "
              "payload sent); DGS team {}, rotation {} rounds, pose {} rounds, {:.3f} s{}\n",
              a.robot, r.rendezvous.size(), r.shared.size(), r.rendezvous_binary_bytes,
@@ -264,7 +272,7 @@ int RunRobot(const RobotArgs& a) {
   DgsNode node(a.robot, data.graph, data.initial, transport, options);
   const DgsNodeResult r = node.run();
   const nlohmann::json j = Summary(a, r);
-  if (!a.out.empty()) std::ofstream(fs::path(a.out) / "summary.json") << j.dump(2) << "\n";
+  WriteSummary(a, j);
   fmt::print("robot {}: team {}, rotation {} rounds, pose {} rounds{}, {} estimates sent "
              "({} B binary, {} B CDR), {:.3f} s{}\n",
              a.robot, fmt::join(r.team, ","), r.rotation_rounds, r.pose_rounds,

@@ -127,9 +127,8 @@ void WriteSeed(const std::string& dir, const std::string& name, std::uint8_t mod
 
 void WriteSeeds(const std::string& dir) {
   std::vector<std::uint64_t> keys = {2, 4};
-  std::vector<double> values(18, 0.0);
-  for (int k = 0; k < 2; ++k)
-    values[static_cast<std::size_t>(9 * k)] = values[9 * k + 4] = values[9 * k + 8] = 1.0;
+  std::vector<double> values;  // two identity rotations, row by row (stage 1)
+  for (int k = 0; k < 2; ++k) values.insert(values.end(), {1, 0, 0, 0, 1, 0, 0, 0, 1});
   EstimatesSample e{};
   e.sender = 1;
   e.receiver = 0;
