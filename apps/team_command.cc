@@ -169,6 +169,82 @@ TeamResults RunTeamProcesses(const TeamArgs& a, const fs::path& out, int n,
   return t;
 }
 
+// --robust: the robots' separator check, GNC rounds, weights and re-tests (summed or the most of
+// their summaries) against the in-process robust solve's; JSON fields and two report lines.
+void CompareRobust(const TeamResults& t, const RobustDgsResult& in_process, nlohmann::json& j) {
+  std::int64_t messages = 0, binary = 0, dds = 0, check_binary = 0, check_dds = 0;
+  int rounds = 0, outliers = 0, check_rejected = 0, retests = 0, retest_readmitted = 0;
+  int group_retests = 0, group_readmitted = 0;
+  for (const auto& [r, s] : t.summaries) {
+    messages += s["weight_messages"].get<std::int64_t>();
+    binary += s["weight_binary_bytes"].get<std::int64_t>();
+    dds += s["dds_weight_bytes"].get<std::int64_t>();
+    check_rejected += s["check_rejected"].get<int>();
+    check_binary += s["check_binary_bytes"].get<std::int64_t>();
+    check_dds += s["dds_covariance_bytes"].get<std::int64_t>();
+    rounds = std::max(rounds, s["gnc_rounds"].get<int>());
+    outliers += s["outliers"].get<int>();
+    retests = std::max(retests, s["retests"].get<int>());
+    retest_readmitted += s["retest_readmitted"].get<int>();
+    group_retests = std::max(group_retests, s["group_retests"].get<int>());
+    group_readmitted += s["group_readmitted"].get<int>();
+  }
+  j["gnc_rounds"] = rounds;
+  j["in_process_gnc_rounds"] = in_process.iterations;
+  j["in_process_outliers"] = in_process.outliers;
+  j["robots_outliers"] = outliers;  // per robot, its subgraph's: a separator counts twice
+  j["weight_messages"] = messages;
+  j["weight_binary_bytes"] = binary;
+  j["dds_weight_bytes"] = dds;
+  j["in_process_weight_messages"] = in_process.weight_messages;
+  j["in_process_weight_bytes"] = in_process.weight_bytes;
+  j["check_rejected"] = check_rejected;
+  j["in_process_check_rejected"] = in_process.consistency_rejected;
+  j["check_binary_bytes"] = check_binary;
+  j["in_process_check_bytes"] = in_process.consistency_bytes;
+  j["dds_covariance_bytes"] = check_dds;
+  j["retests"] = retests;
+  j["retest_readmitted"] = retest_readmitted;
+  j["in_process_retests"] = in_process.retests;
+  j["in_process_retest_readmitted"] = in_process.retest_readmitted;
+  j["group_retests"] = group_retests;
+  j["group_readmitted"] = group_readmitted;
+  j["in_process_group_retests"] = in_process.group_retests;
+  j["in_process_group_readmitted"] = in_process.group_readmitted;
+  fmt::print(
+      "separator check: {} separators left out (in-process {}); {} B binary for it "
+      "(in-process {} B), {} B CDR payload of covariances\n",
+      check_rejected, in_process.consistency_rejected, check_binary, in_process.consistency_bytes,
+      check_dds);
+  fmt::print(
+      "robust: {} GNC rounds (in-process {}), {} outliers in-process; {} weight "
+      "messages, {} B binary, {} B CDR payload (in-process {}, {} B)\n",
+      rounds, in_process.iterations, in_process.outliers, messages, binary, dds,
+      in_process.weight_messages, in_process.weight_bytes);
+}
+
+// With the refinement: the team's cost against the centralized optimum in the same gauge (the
+// anchor at its initial value); JSON fields (j["cost"] already set) and a report line.
+void CompareWithCentralized(const TeamResults& t, const PoseGraph& graph,
+                            const DgsResult& reference, nlohmann::json& j) {
+  // The centralized optimum in the same gauge (the anchor at its initial value).
+  const Key anchor = GaugeAnchor(graph);
+  const auto it = reference.values.find(anchor);
+  const SE3 anchor_pose = it != reference.values.end() ? it->second : SE3();
+  const OptimizerResult central = Optimize(graph, ChordalInitialization(graph, anchor_pose));
+  j["refine_final_cost"] = t.refine_cost;
+  j["in_process_refine_final_cost"] = reference.refine.final_cost;
+  j["cost_centralized"] = central.final_cost;
+  j["cost_relative_to_centralized"] =
+      (j["cost"].get<double>() - central.final_cost) / central.final_cost;
+  fmt::print(
+      "refinement: {} steps (in-process {}), cost F = {:.12g} (in-process {:.12g}, "
+      "centralized optimum {:.12g}: {:+.2e} relative)\n",
+      t.refine_steps, reference.refine.iterations, j["cost"].get<double>(),
+      reference.refine.final_cost, central.final_cost,
+      j["cost_relative_to_centralized"].get<double>());
+}
+
 // The team's estimate against the in-process driver's on the same graph (and, with the
 // refinement, against the centralized optimum): JSON fields and the DGS lines of the report.
 // Writes the merged map into `out`: merged.g2o (every variable and factor) and robot_<r>.tum.
@@ -186,55 +262,7 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
   j["max_difference"] = MaxPoseDifference(t.merged, expected);
   j["variables"] = t.merged.size();
   j["in_process_variables"] = expected.size();
-  if (robust) {
-    std::int64_t messages = 0, binary = 0, dds = 0, check_binary = 0, check_dds = 0;
-    int rounds = 0, outliers = 0, check_rejected = 0, retests = 0, retest_readmitted = 0;
-    int group_retests = 0, group_readmitted = 0;
-    for (const auto& [r, s] : t.summaries) {
-      messages += s["weight_messages"].get<std::int64_t>();
-      binary += s["weight_binary_bytes"].get<std::int64_t>();
-      dds += s["dds_weight_bytes"].get<std::int64_t>();
-      check_rejected += s["check_rejected"].get<int>();
-      check_binary += s["check_binary_bytes"].get<std::int64_t>();
-      check_dds += s["dds_covariance_bytes"].get<std::int64_t>();
-      rounds = std::max(rounds, s["gnc_rounds"].get<int>());
-      outliers += s["outliers"].get<int>();
-      retests = std::max(retests, s["retests"].get<int>());
-      retest_readmitted += s["retest_readmitted"].get<int>();
-      group_retests = std::max(group_retests, s["group_retests"].get<int>());
-      group_readmitted += s["group_readmitted"].get<int>();
-    }
-    j["gnc_rounds"] = rounds;
-    j["in_process_gnc_rounds"] = robust->iterations;
-    j["in_process_outliers"] = robust->outliers;
-    j["robots_outliers"] = outliers;  // per robot, its subgraph's: a separator counts twice
-    j["weight_messages"] = messages;
-    j["weight_binary_bytes"] = binary;
-    j["dds_weight_bytes"] = dds;
-    j["in_process_weight_messages"] = robust->weight_messages;
-    j["in_process_weight_bytes"] = robust->weight_bytes;
-    j["check_rejected"] = check_rejected;
-    j["in_process_check_rejected"] = robust->consistency_rejected;
-    j["check_binary_bytes"] = check_binary;
-    j["in_process_check_bytes"] = robust->consistency_bytes;
-    j["dds_covariance_bytes"] = check_dds;
-    j["retests"] = retests;
-    j["retest_readmitted"] = retest_readmitted;
-    j["in_process_retests"] = robust->retests;
-    j["in_process_retest_readmitted"] = robust->retest_readmitted;
-    j["group_retests"] = group_retests;
-    j["group_readmitted"] = group_readmitted;
-    j["in_process_group_retests"] = robust->group_retests;
-    j["in_process_group_readmitted"] = robust->group_readmitted;
-    fmt::print("separator check: {} separators left out (in-process {}); {} B binary for it "
-               "(in-process {} B), {} B CDR payload of covariances\n",
-               check_rejected, robust->consistency_rejected, check_binary,
-               robust->consistency_bytes, check_dds);
-    fmt::print("robust: {} GNC rounds (in-process {}), {} outliers in-process; {} weight "
-               "messages, {} B binary, {} B CDR payload (in-process {}, {} B)\n",
-               rounds, robust->iterations, robust->outliers, messages, binary, dds,
-               robust->weight_messages, robust->weight_bytes);
-  }
+  if (robust) CompareRobust(t, *robust, j);
   j["rotation_rounds"] = t.rotation_rounds;
   j["pose_rounds"] = t.pose_rounds;
   j["in_process_rotation_iterations"] = reference.rotation.iterations;
@@ -257,21 +285,7 @@ void CompareWithInProcess(const TeamResults& t, const PoseGraph& graph, const Dg
       rounds ? static_cast<double>(t.cdr + t.status_bytes) / rounds : 0.0;
   j["dds_payload_bytes"] = t.cdr + t.status_bytes + t.coarse_cdr;
   if (reference.refine.status != StageStatus::kNotRun && !robust) {
-    // The centralized optimum in the same gauge (the anchor at its initial value).
-    const Key anchor = GaugeAnchor(graph);
-    const auto it = reference.values.find(anchor);
-    const SE3 anchor_pose = it != reference.values.end() ? it->second : SE3();
-    const OptimizerResult central = Optimize(graph, ChordalInitialization(graph, anchor_pose));
-    j["refine_final_cost"] = t.refine_cost;
-    j["in_process_refine_final_cost"] = reference.refine.final_cost;
-    j["cost_centralized"] = central.final_cost;
-    j["cost_relative_to_centralized"] = (j["cost"].get<double>() - central.final_cost) /
-                                        central.final_cost;
-    fmt::print("refinement: {} steps (in-process {}), cost F = {:.12g} (in-process {:.12g}, "
-               "centralized optimum {:.12g}: {:+.2e} relative)\n",
-               t.refine_steps, reference.refine.iterations, j["cost"].get<double>(),
-               reference.refine.final_cost, central.final_cost,
-               j["cost_relative_to_centralized"].get<double>());
+    CompareWithCentralized(t, graph, reference, j);
   }
   if (robust) {
     j["in_process_solve_bytes"] = robust->solve_bytes;
