@@ -288,12 +288,8 @@ void PrintLoopClosures(const std::vector<ExperimentResult>& results) {
   }
 }
 
-}  // namespace
-
-Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
-  auto args = std::make_shared<SimulateArgs>();
-  CLI::App* sub = app.add_subcommand(
-      "simulate", "Simulated multi-robot object SLAM: DGS vs centralized (paper Tables 1-3)");
+// The experiment: scenario, team sizes, runs, noise rows, the solver of the tables.
+void AddExperimentFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args) {
   sub->add_option("--scenario", args->scenario, "chairs25 | house | generated")
       ->check(CLI::IsMember({"chairs25", "house", "generated"}));
   sub->add_option("--robots", args->robots, "number(s) of robots, one row each")
@@ -316,6 +312,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "one-level (the paper's); the other runs too, for its sweep counts")
       ->check(CLI::IsMember({"two-level", "one-level"}))
       ->capture_default_str();
+}
+
+// Unknown initial poses, injected wrong associations and the robust solve.
+void AddRobustnessFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args) {
   sub->add_option("--initial-poses", args->initial_poses,
                   "known (the paper: a rendezvous relates the frames by the robots' initial "
                   "poses) or unknown (it aligns the two object maps from the objects alone)")
@@ -336,6 +336,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
       ->check(NonNegative())
       ->capture_default_str();
   AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
+}
+
+// What is printed and written, and which runs are left out.
+void AddOutputFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args) {
   sub->add_flag("--skip-unlinked", args->skip_unlinked,
                 "leave out (and count) the runs in which a robot never links to robot 0, instead "
                 "of failing");
@@ -349,6 +353,11 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                 "optimum, bytes per rendezvous");
   sub->add_flag("--json", args->json, "print the results as one JSON object on the last line");
   sub->add_option("--plot", args->plot, "write an SVG of run 0 of the first row (Fig. 4)");
+}
+
+// Where the object measurements come from: sampled, the ideal front-end or the real one on
+// rendered frames, and the front-end's options.
+void AddPerceptionFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args) {
   sub->add_option("--perception", args->perception,
                   "object measurements: sampled (Gaussian noise), visible (every object the "
                   "rendered frames show, with Gaussian noise: an ideal front-end) or rendered "
@@ -397,6 +406,10 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
                   "measurement)")
       ->check(Positive())
       ->capture_default_str();
+}
+
+// The robots' own association and loop closure, and the rendezvous' alignment.
+void AddAssociationFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args) {
   sub->add_option("--exclusion-radius", args->exclusion_radius,
                   "m: a detection matching no landmark within this distance of a landmark of its "
                   "label is discarded, not mapped again (0: off; default 0.5 with --perception "
@@ -432,6 +445,19 @@ Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
          "the rendezvous refines the known-initial-pose transform by single-pair proposals "
          "alone, with rendered perception too")
       ->excludes(constellation_on);
+}
+
+}  // namespace
+
+Runner RegisterSimulate(CLI::App& app, MakePerception make_perception) {
+  auto args = std::make_shared<SimulateArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "simulate", "Simulated multi-robot object SLAM: DGS vs centralized (paper Tables 1-3)");
+  AddExperimentFlags(sub, args);
+  AddRobustnessFlags(sub, args);
+  AddOutputFlags(sub, args);
+  AddPerceptionFlags(sub, args);
+  AddAssociationFlags(sub, args);
 
   return [args, make_perception]() -> int {
     const SimulateArgs& a = *args;
