@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "moslam/common/errors.h"
 #include "moslam/common/statistics.h"
@@ -68,6 +69,138 @@ AcceptanceCounts RenderedSensingStats::total() const {
 double RenderedSensingStats::medianTranslationError() const { return Median(translation_errors); }
 double RenderedSensingStats::medianRotationErrorDeg() const { return Median(rotation_errors_deg); }
 
+namespace {
+
+// The object a detection's box shows: the same-label object whose visible-pixel box it overlaps
+// most, at IoU >= 0.5 (nullptr: a false detection).
+const VisibleObject* BoxTruth(const std::vector<VisibleObject>& seen, const Detection& detection) {
+  const VisibleObject* truth = nullptr;
+  double best = 0.5;
+  for (const VisibleObject& v : seen) {
+    if (v.label != detection.label) continue;
+    const double iou = BoxIou(detection.box, cv::Rect2f(v.box));
+    if (iou >= best) {
+      best = iou;
+      truth = &v;
+    }
+  }
+  return truth;
+}
+
+void AddTimes(StageTimes& sum, const StageTimes& t) {
+  sum.detect += t.detect;
+  sum.prepare += t.prepare;
+  sum.segment += t.segment;
+  sum.register_ += t.register_;
+}
+
+// One detection as the record keeps it (record_detections).
+DetectionRecord MakeRecord(int robot, int pose, const PerceivedObject& o,
+                           const VisibleObject* truth, bool registered, double t_error,
+                           double r_error) {
+  DetectionRecord rec;
+  rec.robot = robot;
+  rec.pose = pose;
+  rec.label = o.detection.label;
+  rec.status = o.status;
+  rec.translation_error = t_error;
+  rec.rotation_error_deg = r_error;
+  if (truth) {
+    rec.object = truth->id;
+    rec.visible_fraction = truth->visibleFraction();
+    rec.depth = truth->camera_T_object.translation().z();
+  }
+  if (registered) {
+    const RegistrationResult& g = o.registration;
+    rec.inliers = g.inliers;
+    rec.refined_inliers = g.refined_inliers;
+    rec.segment_points = g.segment_points;
+    rec.geometric_agreement = g.geometric_agreement;
+    rec.covered_agreement = g.covered_agreement;
+    rec.colour_agreement = g.colour_agreement;
+  }
+  return rec;
+}
+
+// Evaluates one perceived object of pose `pose` of `robot` against what the frame shows (`seen`)
+// into `stats`; the measurement it makes when accepted.
+std::optional<ObjectDetection> Evaluate(const PerceivedObject& o,
+                                        const std::vector<VisibleObject>& seen, int robot, int pose,
+                                        const RenderedSensingConfig& config,
+                                        RenderedSensingStats& stats) {
+  ++stats.detections;
+  const VisibleObject* truth = BoxTruth(seen, o.detection);
+  AcceptanceCounts* of_class = nullptr;  // the true detection's class
+  AcceptanceCounts* of_depth = nullptr;  // and its depth bin
+  const bool visible = truth != nullptr && truth->visibleFraction() >= config.min_visible_fraction;
+  if (truth) {
+    of_class = &stats.by_class[o.detection.label];
+    const double z = truth->camera_T_object.translation().z();
+    of_depth = &stats.by_depth[std::clamp(static_cast<int>(std::floor(z)), 0,
+                                          RenderedSensingStats::kDepthBins - 1)];
+    for (AcceptanceCounts* c : {of_class, of_depth}) {
+      ++c->true_detections;
+      if (visible) ++c->true_visible;
+    }
+  }
+  // The reported pose's error against the true object's (NaN: false, or no pose).
+  const RegistrationResult& g = o.registration;
+  const bool registered = o.status != PerceptionStatus::kNoTemplate &&
+                          o.status != PerceptionStatus::kSegmentationFailed &&
+                          o.status != PerceptionStatus::kTooFewPoints;
+  double t_error = std::numeric_limits<double>::quiet_NaN(), r_error = t_error;
+  if (truth && registered) {
+    t_error = (g.camera_T_object.translation() - truth->camera_T_object.translation()).norm();
+    r_error = RotationErrorDeg(truth->camera_T_object, g.camera_T_object);
+  }
+  if (config.record_detections) {
+    stats.records.push_back(MakeRecord(robot, pose, o, truth, registered, t_error, r_error));
+  }
+  switch (o.status) {
+    case PerceptionStatus::kAccepted:
+      break;
+    case PerceptionStatus::kTooFewInliers:
+      ++stats.rejected_inliers;
+      if (!truth) ++stats.rejected_inliers_false;
+      return std::nullopt;
+    case PerceptionStatus::kSegmentationFailed:
+      ++stats.segmentation_failed;
+      return std::nullopt;
+    default:
+      ++stats.other_rejected;
+      return std::nullopt;
+  }
+  ++stats.accepted;
+  ObjectDetection d;
+  d.label = o.detection.label;
+  d.measurement = o.body_T_object;
+  d.information = o.registration.information;
+  // The same-label object seen nearest the pose, and the pose's error against it.
+  const SE3& est = g.camera_T_object;
+  const auto [nearest, nearest_t] = NearestSeen(seen, o.detection.label, est.translation());
+  if (!truth) {
+    stats.false_accepted_errors.emplace_back(
+        nearest_t, nearest ? RotationErrorDeg(nearest->camera_T_object, est)
+                           : std::numeric_limits<double>::infinity());
+  } else {
+    for (AcceptanceCounts* c : {of_class, of_depth}) {
+      ++c->accepted;
+      if (visible) ++c->accepted_visible;
+    }
+    stats.translation_errors.push_back(t_error);
+    stats.rotation_errors_deg.push_back(r_error);
+    if (t_error > 0.1 || r_error > 10.0) {
+      ++stats.accepted_true_off;
+      if (nearest != truth && nearest_t <= 0.1) ++stats.accepted_true_other_object;
+    }
+  }
+  d.object_id = MeasuredObject(seen, d.label, est.translation(), truth ? truth->id : -1,
+                               config.same_object_radius);
+  return d;
+}
+
+}  // namespace
+
 RenderedSensingStats PerceiveSimulation(SimulationData& data,
                                         const RenderedSensingConfig& config) {
   config.validate();
@@ -95,111 +228,11 @@ RenderedSensingStats PerceiveSimulation(SimulationData& data,
       const FramePerception seen = perception.perceive(frame.rgbd);
       ++stats.frames;
       stats.valid_depth_points += cv::countNonZero(frame.rgbd.depth > 0.0f);
-      stats.times.detect += seen.times.detect;
-      stats.times.prepare += seen.times.prepare;
-      stats.times.segment += seen.times.segment;
-      stats.times.register_ += seen.times.register_;
+      AddTimes(stats.times, seen.times);
       for (const PerceivedObject& o : seen.objects) {
-        ++stats.detections;
-        const VisibleObject* truth = nullptr;
-        double best = 0.5;
-        for (const VisibleObject& v : frame.objects) {
-          if (v.label != o.detection.label) continue;
-          const double iou = BoxIou(o.detection.box, cv::Rect2f(v.box));
-          if (iou >= best) {
-            best = iou;
-            truth = &v;
-          }
-        }
-        AcceptanceCounts* of_class = nullptr;  // the true detection's class
-        AcceptanceCounts* of_depth = nullptr;  // and its depth bin
-        const bool visible =
-            truth != nullptr && truth->visibleFraction() >= config.min_visible_fraction;
-        if (truth) {
-          of_class = &stats.by_class[o.detection.label];
-          const double z = truth->camera_T_object.translation().z();
-          of_depth = &stats.by_depth[std::clamp(static_cast<int>(std::floor(z)), 0,
-                                                RenderedSensingStats::kDepthBins - 1)];
-          for (AcceptanceCounts* c : {of_class, of_depth}) {
-            ++c->true_detections;
-            if (visible) ++c->true_visible;
-          }
-        }
-        // The reported pose's error against the true object's (NaN: false, or no pose).
-        const RegistrationResult& g = o.registration;
-        const bool registered = o.status != PerceptionStatus::kNoTemplate &&
-                                o.status != PerceptionStatus::kSegmentationFailed &&
-                                o.status != PerceptionStatus::kTooFewPoints;
-        double t_error = std::numeric_limits<double>::quiet_NaN(), r_error = t_error;
-        if (truth && registered) {
-          t_error = (g.camera_T_object.translation() - truth->camera_T_object.translation()).norm();
-          r_error = RotationErrorDeg(truth->camera_T_object, g.camera_T_object);
-        }
-        if (config.record_detections) {
-          DetectionRecord rec;
-          rec.robot = r;
-          rec.pose = static_cast<int>(i);
-          rec.label = o.detection.label;
-          rec.status = o.status;
-          rec.translation_error = t_error;
-          rec.rotation_error_deg = r_error;
-          if (truth) {
-            rec.object = truth->id;
-            rec.visible_fraction = truth->visibleFraction();
-            rec.depth = truth->camera_T_object.translation().z();
-          }
-          if (registered) {
-            rec.inliers = g.inliers;
-            rec.refined_inliers = g.refined_inliers;
-            rec.segment_points = g.segment_points;
-            rec.geometric_agreement = g.geometric_agreement;
-            rec.covered_agreement = g.covered_agreement;
-            rec.colour_agreement = g.colour_agreement;
-          }
-          stats.records.push_back(std::move(rec));
-        }
-        switch (o.status) {
-          case PerceptionStatus::kAccepted:
-            break;
-          case PerceptionStatus::kTooFewInliers:
-            ++stats.rejected_inliers;
-            if (!truth) ++stats.rejected_inliers_false;
-            continue;
-          case PerceptionStatus::kSegmentationFailed:
-            ++stats.segmentation_failed;
-            continue;
-          default:
-            ++stats.other_rejected;
-            continue;
-        }
-        ++stats.accepted;
-        ObjectDetection d;
-        d.label = o.detection.label;
-        d.measurement = o.body_T_object;
-        d.information = o.registration.information;
-        // The same-label object seen nearest the pose, and the pose's error against it.
-        const SE3& est = g.camera_T_object;
-        const auto [nearest, nearest_t] =
-            NearestSeen(frame.objects, o.detection.label, est.translation());
-        if (!truth) {
-          stats.false_accepted_errors.emplace_back(
-              nearest_t, nearest ? RotationErrorDeg(nearest->camera_T_object, est)
-                                 : std::numeric_limits<double>::infinity());
-        } else {
-          for (AcceptanceCounts* c : {of_class, of_depth}) {
-            ++c->accepted;
-            if (visible) ++c->accepted_visible;
-          }
-          stats.translation_errors.push_back(t_error);
-          stats.rotation_errors_deg.push_back(r_error);
-          if (t_error > 0.1 || r_error > 10.0) {
-            ++stats.accepted_true_off;
-            if (nearest != truth && nearest_t <= 0.1) ++stats.accepted_true_other_object;
-          }
-        }
-        d.object_id = MeasuredObject(frame.objects, d.label, est.translation(),
-                                     truth ? truth->id : -1, config.same_object_radius);
-        m.detections[i].push_back(std::move(d));
+        std::optional<ObjectDetection> d =
+            Evaluate(o, frame.objects, r, static_cast<int>(i), config, stats);
+        if (d) m.detections[i].push_back(std::move(*d));
       }
     }
   }
