@@ -9,8 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 
 #include "child_processes.h"
@@ -31,6 +31,7 @@
 #include "moslam/transport/robot_data.h"
 #include "moslam/transport/robot_session.h"
 #include "robot_flags.h"
+#include "robot_summaries.h"
 
 namespace moslam::cli {
 namespace {
@@ -81,7 +82,7 @@ std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>
 struct TeamResults {
   bool ok = true;  // every robot exited 0 and wrote its summary
   nlohmann::json per_robot = nlohmann::json::array();  // robot, exit_code, log or the summary
-  std::map<int, nlohmann::json> summaries;             // robot -> summary, those that finished
+  std::map<int, JsonFields> summaries;                 // robot -> summary, those that finished
   Values merged;  // each finished robot's own variables, from its result.g2o
   std::int64_t binary = 0, cdr = 0, status_bytes = 0, messages = 0;
   std::int64_t coarse_binary = 0, coarse_cdr = 0, coarse_messages = 0;
@@ -96,20 +97,18 @@ struct TeamResults {
 TeamResults CollectTeam(const fs::path& out, int n, const std::map<int, int>& exit_codes,
                         bool scenario) {
   TeamResults t;
+  TeamSummaries read = ReadTeamSummaries(out, n, exit_codes);
+  t.ok = read.ok;
   for (int r = 0; r < n; ++r) {
-    const fs::path dir = out / fmt::format("robot{}", r);
-    const auto code = exit_codes.find(r);
-    const int exit_code = code == exit_codes.end() ? 0 : code->second;
-    nlohmann::json entry = {{"robot", r}, {"exit_code", exit_code}};
-    if (exit_code != 0 || !fs::exists(dir / "summary.json")) {
-      t.ok = false;
-      entry["log"] = (dir / "log.txt").string();
-      t.per_robot.push_back(entry);
+    const auto it = read.summaries.find(r);
+    if (it == read.summaries.end()) {
+      t.per_robot.push_back(read.failed.at(r));
       continue;
     }
-    std::ifstream in(dir / "summary.json");
-    const nlohmann::json s = nlohmann::json::parse(in);
-    entry.update(s);
+    const JsonFields& s = it->second;
+    const fs::path dir = out / fmt::format("robot{}", r);
+    nlohmann::json entry = {{"robot", r}, {"exit_code", 0}};
+    entry.update(s.json());
     entry.erase("shared");
     t.per_robot.push_back(entry);
     const Dataset result = ReadRobotG2o((dir / "result.g2o").string(),
@@ -117,19 +116,19 @@ TeamResults CollectTeam(const fs::path& out, int n, const std::map<int, int>& ex
     for (const auto& [k, x] : result.initial) {
       if (!scenario || k.robot == r) t.merged.emplace(k, x);
     }
-    t.binary += s["estimate_binary_bytes"].get<std::int64_t>();
-    t.cdr += s["dds_estimate_bytes"].get<std::int64_t>();
-    t.status_bytes += s["dds_status_bytes"].get<std::int64_t>();
-    t.messages += s["estimate_messages"].get<std::int64_t>();
-    t.coarse_binary += s["coarse_binary_bytes"].get<std::int64_t>();
-    t.coarse_cdr += s["dds_coarse_bytes"].get<std::int64_t>();
-    t.coarse_messages += s["coarse_messages"].get<std::int64_t>();
-    t.refine_steps = std::max(t.refine_steps, s["refine_steps"].get<int>());
-    t.protocol_steps = std::max(t.protocol_steps, s["protocol_steps"].get<int>());
-    t.refine_cost = s["refine_final_cost"].get<double>();
-    t.rotation_rounds = std::max(t.rotation_rounds, s["rotation_rounds"].get<int>());
-    t.pose_rounds = std::max(t.pose_rounds, s["pose_rounds"].get<int>());
-    t.summaries[r] = s;
+    t.binary += s.get<std::int64_t>("estimate_binary_bytes");
+    t.cdr += s.get<std::int64_t>("dds_estimate_bytes");
+    t.status_bytes += s.get<std::int64_t>("dds_status_bytes");
+    t.messages += s.get<std::int64_t>("estimate_messages");
+    t.coarse_binary += s.get<std::int64_t>("coarse_binary_bytes");
+    t.coarse_cdr += s.get<std::int64_t>("dds_coarse_bytes");
+    t.coarse_messages += s.get<std::int64_t>("coarse_messages");
+    t.refine_steps = std::max(t.refine_steps, s.get<int>("refine_steps"));
+    t.protocol_steps = std::max(t.protocol_steps, s.get<int>("protocol_steps"));
+    t.refine_cost = s.get<double>("refine_final_cost");
+    t.rotation_rounds = std::max(t.rotation_rounds, s.get<int>("rotation_rounds"));
+    t.pose_rounds = std::max(t.pose_rounds, s.get<int>("pose_rounds"));
+    t.summaries.emplace(r, s);
   }
   return t;
 }
@@ -176,18 +175,18 @@ void CompareRobust(const TeamResults& t, const RobustDgsResult& in_process, nloh
   int rounds = 0, outliers = 0, check_rejected = 0, retests = 0, retest_readmitted = 0;
   int group_retests = 0, group_readmitted = 0;
   for (const auto& [r, s] : t.summaries) {
-    messages += s["weight_messages"].get<std::int64_t>();
-    binary += s["weight_binary_bytes"].get<std::int64_t>();
-    dds += s["dds_weight_bytes"].get<std::int64_t>();
-    check_rejected += s["check_rejected"].get<int>();
-    check_binary += s["check_binary_bytes"].get<std::int64_t>();
-    check_dds += s["dds_covariance_bytes"].get<std::int64_t>();
-    rounds = std::max(rounds, s["gnc_rounds"].get<int>());
-    outliers += s["outliers"].get<int>();
-    retests = std::max(retests, s["retests"].get<int>());
-    retest_readmitted += s["retest_readmitted"].get<int>();
-    group_retests = std::max(group_retests, s["group_retests"].get<int>());
-    group_readmitted += s["group_readmitted"].get<int>();
+    messages += s.get<std::int64_t>("weight_messages");
+    binary += s.get<std::int64_t>("weight_binary_bytes");
+    dds += s.get<std::int64_t>("dds_weight_bytes");
+    check_rejected += s.get<int>("check_rejected");
+    check_binary += s.get<std::int64_t>("check_binary_bytes");
+    check_dds += s.get<std::int64_t>("dds_covariance_bytes");
+    rounds = std::max(rounds, s.get<int>("gnc_rounds"));
+    outliers += s.get<int>("outliers");
+    retests = std::max(retests, s.get<int>("retests"));
+    retest_readmitted += s.get<int>("retest_readmitted");
+    group_retests = std::max(group_retests, s.get<int>("group_retests"));
+    group_readmitted += s.get<int>("group_readmitted");
   }
   j["gnc_rounds"] = rounds;
   j["in_process_gnc_rounds"] = in_process.iterations;
@@ -325,26 +324,24 @@ void ReportFailedRobots(const nlohmann::json& per_robot) {
 struct OnlineSummaries {
   bool ok = true;
   nlohmann::json per_robot = nlohmann::json::array();
-  std::map<int, nlohmann::json> summaries;  // robot -> summary, those that finished
+  std::map<int, JsonFields> summaries;  // robot -> summary, those that finished
 };
 
 OnlineSummaries ReadOnlineSummaries(const fs::path& out, int n,
                                     const std::map<int, int>& exit_codes) {
+  TeamSummaries read = ReadTeamSummaries(out, n, exit_codes);
   OnlineSummaries o;
+  o.ok = read.ok;
   for (int r = 0; r < n; ++r) {
-    const fs::path dir = out / fmt::format("robot{}", r);
-    const int code = exit_codes.count(r) ? exit_codes.at(r) : 0;
-    if (code != 0 || !fs::exists(dir / "summary.json")) {
-      o.ok = false;
-      o.per_robot.push_back(
-          {{"robot", r}, {"exit_code", code}, {"log", (dir / "log.txt").string()}});
+    const auto it = read.summaries.find(r);
+    if (it == read.summaries.end()) {
+      o.per_robot.push_back(read.failed.at(r));
       continue;
     }
-    std::ifstream in(dir / "summary.json");
-    o.summaries[r] = nlohmann::json::parse(in);
     o.per_robot.push_back(
-        {{"robot", r}, {"exit_code", 0}, {"solves", o.summaries[r]["solves"].size()}});
+        {{"robot", r}, {"exit_code", 0}, {"solves", it->second.items("solves").size()}});
   }
+  o.summaries = std::move(read.summaries);
   return o;
 }
 
@@ -360,13 +357,17 @@ struct OnlineComparison {
   int unlinked = 0;  // twin's group solves the separator check left unlinked
 };
 
-OnlineComparison CompareWithTwin(const fs::path& out,
-                                 const std::map<int, nlohmann::json>& summaries,
+OnlineComparison CompareWithTwin(const fs::path& out, const std::map<int, JsonFields>& summaries,
                                  const OnlineRun& twin) {
   OnlineComparison c;
-  const auto pair_of = [](const nlohmann::json& p) {
-    return UnorderedPair(Key::Object(p[0].get<int>(), p[1].get<std::uint64_t>()),
-                         Key::Object(p[2].get<int>(), p[3].get<std::uint64_t>()));
+  const auto pair_of = [](const JsonFields& p) {
+    const auto v = p.as<std::vector<std::uint64_t>>();
+    const auto robots = static_cast<std::uint64_t>(kMaxRobotsWithObjects);
+    if (v.size() != 4 || v[0] >= robots || v[2] >= robots) {
+      throw InvalidInputError(p.where() + ": not a pair of objects [robot, index, robot, index]");
+    }
+    return UnorderedPair(Key::Object(static_cast<int>(v[0]), v[1]),
+                         Key::Object(static_cast<int>(v[2]), v[3]));
   };
   for (const SharedObject& o : twin.set_aside) {
     c.twin_set_aside.insert(UnorderedPair(o.alpha_object, o.beta_object));
@@ -387,9 +388,9 @@ OnlineComparison CompareWithTwin(const fs::path& out,
       }
     }
     std::vector<std::pair<int, std::vector<int>>> got;
-    for (const auto& g : s["solves"]) {
-      got.emplace_back(g["step"].get<int>(), g["robots"].get<std::vector<int>>());
-      c.solve_bytes += g["dds_sent_bytes"].get<std::int64_t>();
+    for (const JsonFields& g : s.items("solves")) {
+      got.emplace_back(g.get<int>("step"), g.get<std::vector<int>>("robots"));
+      c.solve_bytes += g.get<std::int64_t>("dds_sent_bytes");
       compare(dir / "maps" / fmt::format("step_{:04d}", got.back().first) / "map.g2o",
               twin.maps.at({got.back().first, r}));
     }
@@ -400,9 +401,9 @@ OnlineComparison CompareWithTwin(const fs::path& out,
     }
     compare(dir / "maps" / "final" / "map.g2o",
             twin.slam.robots[static_cast<std::size_t>(r)].estimate());
-    c.objects_bytes += s["rendezvous_dds_bytes"].get<std::int64_t>();
-    for (const auto& e : s["rendezvous"]) c.events += e["alpha"].get<int>() == r ? 1 : 0;
-    for (const auto& p : s.value("set_aside", nlohmann::json::array())) {
+    c.objects_bytes += s.get<std::int64_t>("rendezvous_dds_bytes");
+    for (const JsonFields& e : s.items("rendezvous")) c.events += e.get<int>("alpha") == r ? 1 : 0;
+    for (const JsonFields& p : s.items("set_aside", /*optional=*/true)) {
       c.set_aside.insert(pair_of(p));
     }
   }
@@ -519,11 +520,11 @@ int RunScenarioTeam(const TeamArgs& a) {
   std::int64_t rdv_binary = 0, rdv_dds = 0, rdv_samples = 0;
   int events = 0;
   for (const auto& [r, s] : t.summaries) {
-    for (const auto& p : s["shared"]) shared.insert(p.get<std::vector<std::uint64_t>>());
-    rdv_binary += s["rendezvous_binary_bytes"].get<std::int64_t>();
-    rdv_dds += s["rendezvous_dds_bytes"].get<std::int64_t>();
-    rdv_samples += s["rendezvous_dds_samples"].get<std::int64_t>();
-    for (const auto& e : s["rendezvous"]) events += e["alpha"].get<int>() == r ? 1 : 0;
+    for (const JsonFields& p : s.items("shared")) shared.insert(p.as<std::vector<std::uint64_t>>());
+    rdv_binary += s.get<std::int64_t>("rendezvous_binary_bytes");
+    rdv_dds += s.get<std::int64_t>("rendezvous_dds_bytes");
+    rdv_samples += s.get<std::int64_t>("rendezvous_dds_samples");
+    for (const JsonFields& e : s.items("rendezvous")) events += e.get<int>("alpha") == r ? 1 : 0;
   }
 
   nlohmann::json j = ScenarioJson(spec);

@@ -4,12 +4,14 @@
 // groundtruth.txt; render/tum_sequence.h), a YOLO label file (`moslam detect --data`,
 // detection/yolo_dataset.h) and one robot's file of a distributed-mapper folder with its
 // separators (`moslam robot`, transport/robot_data.h), a detector's class names file (`moslam
-// detect --classes`, detection/detector.h). The first byte picks the reader, the rest
-// is its input; a sequence's four texts are the input cut at its first three NUL bytes. A reader
-// may only reject input with a moslam::Error; any other exception, a crash, a sanitizer report or
-// a hang is a bug. What is accepted must hold what the reader promises (finite poses, rotations
-// orthonormal, label boxes of positive size within [0, 1], a world that validates and reads back
-// from its own JSON, class names distinct, trimmed and printable).
+// detect --classes`, detection/detector.h), a robot's summary.json as `moslam team` reads it back
+// (apps/robot_summaries.h: every field read through the checked accessors). The first byte picks
+// the reader, the rest is its input; a sequence's four texts are the input cut at its first three
+// NUL bytes. A reader may only reject input with a moslam::Error; any other exception, a crash, a
+// sanitizer report or a hang is a bug. What is accepted must hold what the reader promises (finite
+// poses, rotations orthonormal, label boxes of positive size within [0, 1], a world that validates
+// and reads back from its own JSON, class names distinct, trimmed and printable, a summary's
+// integers within their types).
 #include <Eigen/LU>
 #include <cmath>
 #include <cstddef>
@@ -26,6 +28,7 @@
 #include "moslam/render/tum_sequence.h"
 #include "moslam/sim/world.h"
 #include "moslam/transport/robot_data.h"
+#include "robot_summaries.h"
 
 namespace {
 
@@ -56,7 +59,7 @@ std::vector<std::string> Split(const std::string& input, std::size_t parts) {
 
 void Read(std::uint8_t which, const std::string& input) {
   using namespace moslam;
-  switch (which % 6) {
+  switch (which % 7) {
     case 0: {
       const World w = WorldFromJson(input, "fuzz.json");
       ValidateWorld(w, "accepted world");
@@ -125,6 +128,32 @@ void Read(std::uint8_t which, const std::string& input) {
           Require(u >= 0x20 && u != 0x7f);
         }
         Require(name.front() != ' ' && name.back() != ' ');
+      }
+      break;
+    }
+    case 6: {
+      const cli::JsonFields summary = cli::JsonFields::Parse(input, "fuzz/summary.json");
+      if (!summary.json().is_object()) break;
+      // Each field read every way `moslam team` reads one; each read returns or refuses.
+      const auto tolerate = [](auto&& read) {
+        try {
+          read();
+        } catch (const Error&) {
+        }
+      };
+      for (const auto& item : summary.json().items()) {
+        const std::string& key = item.key();
+        tolerate([&] { Require(summary.get<int>(key) == summary.json()[key].get<int>()); });
+        tolerate([&] { summary.get<std::int64_t>(key); });
+        tolerate([&] { summary.get<double>(key); });
+        tolerate([&] { summary.get<std::vector<int>>(key); });
+        tolerate([&] {
+          for (const cli::JsonFields& e : summary.items(key, (which & 0x10) != 0)) {
+            tolerate([&] { e.get<int>("alpha"); });
+            tolerate(
+                [&] { Require(e.as<std::vector<std::uint64_t>>().size() == e.json().size()); });
+          }
+        });
       }
       break;
     }

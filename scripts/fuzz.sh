@@ -5,7 +5,7 @@
 # (fuzz/dds_samples_fuzz.cc), the
 # template cache decoder (fuzz/template_cache_fuzz.cc), the perception cache decoder
 # (fuzz/perception_cache_fuzz.cc) and the other text files a user hands moslam: worlds, TUM
-# trajectories and sequences, YOLO labels, a robot's g2o file, class names
+# trajectories and sequences, YOLO labels, a robot's g2o file, class names, a robot's summary
 # (fuzz/text_files_fuzz.cc).
 # Usage: scripts/fuzz.sh [seconds per target, default 60]
 # Exits non-zero when the fuzzer finds a crash, a sanitizer report, a leak or a timeout; the input
@@ -224,15 +224,17 @@ run_target perception_cache_fuzz "$pcorpus" "$pdict" 65536
 
 # Text files: the first byte picks the reader (text_files_fuzz.cc: 0 world, 1 TUM trajectory, 2
 # TUM sequence with bit 0x10 a camera file and 0x20 ground truth, its texts cut at NULs, 3 YOLO
-# labels, 4 a robot's g2o file, 5 class names; modulo 6).
+# labels, 4 a robot's g2o file, 5 class names, 6 a robot's summary.json, bit 0x10 its arrays
+# optional; modulo 7).
 xcorpus="$work/text"
 mkdir -p "$xcorpus"
 printf '\x00{"format": "moslam-world", "version": 1, "name": "w", "classes": [{"label": "chair", "extent": [0.5, 0.5, 0.9]}], "objects": [{"id": 0, "label": "chair", "translation": [1, 2, 0], "rotation": [0, 0, 0, 1]}], "rooms": [{"name": "r", "min": [0, 0], "max": [4, 4]}], "navigation": {"nodes": [[1, 1], [3, 3]], "edges": [[0, 1]]}}' >"$xcorpus/world"
 printf '\x01# timestamp tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0.7071 0.7071\n' >"$xcorpus/trajectory"
-printf '\x32# fx fy cx cy width height depth_scale\n160 160 159.5 119.5 320 240 5000\0# rgb\n0.000000 rgb/0.000000.png\n0.100000 rgb/0.100000.png\n\x000.000000 depth/0.000000.png\n0.100000 depth/0.100000.png\n\x000.000000 0 0 0 0 0 0 1\n0.100000 0.1 0 0 0 0 0 1\n' >"$xcorpus/sequence"
+printf '\x33# fx fy cx cy width height depth_scale\n160 160 159.5 119.5 320 240 5000\0# rgb\n0.000000 rgb/0.000000.png\n0.100000 rgb/0.100000.png\n\x000.000000 depth/0.000000.png\n0.100000 depth/0.100000.png\n\x000.000000 0 0 0 0 0 0 1\n0.100000 0.1 0 0 0 0 0 1\n' >"$xcorpus/sequence"
 printf '\x03\x30 0.5 0.5 0.25 0.4\n1 0.1 0.9 0.05 0.05\n' >"$xcorpus/labels"
 printf '\x04VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nEDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\nEDGE_SE3:QUAT 0 7061644215716937730 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n' >"$xcorpus/robot_file"
 printf '\x05person\r\nchair\n\n  dining table \t\n' >"$xcorpus/class_names"
+printf '\x06{"pose_rounds": 7, "refine_final_cost": 2.94, "solves": [{"step": 3, "robots": [0, 2], "dds_sent_bytes": 100}], "rendezvous": [{"alpha": 0}], "shared": [[0, 1, 2, 3]]}' >"$xcorpus/summary"
 xdict="$work/text.dict"
 cat >"$xdict" <<'DICT'
 "\"format\""
@@ -249,6 +251,8 @@ cat >"$xdict" <<'DICT'
 "\x00"
 "VERTEX_SE3:QUAT"
 "EDGE_SE3:QUAT"
+"18446744073709551616"
+"-9223372036854775809"
 DICT
 run_target text_files_fuzz "$xcorpus" "$xdict" 4096
 echo "fuzz.sh: no crash in ${seconds}s per target"
