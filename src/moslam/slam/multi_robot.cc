@@ -151,16 +151,116 @@ MultiRobotSlamConfig MultiRobotSlamConfigForNoise(const SensingConfig& sensing) 
   return c;
 }
 
+namespace {
+
+// Whether `robot` has left the team by step t (MultiRobotSlamConfig::leave_after).
+bool HasLeft(const MultiRobotSlamConfig& config, int robot, int t) {
+  const auto it = config.leave_after.find(robot);
+  return it != config.leave_after.end() && t > it->second;
+}
+
+// Every robot's pose of step t with its detections.
+void AddPoses(const SimulationData& data, int t, std::vector<ObjectSlam>& robots) {
+  for (std::size_t r = 0; r < robots.size(); ++r) {
+    const auto& m = data.measurements[r];
+    const auto ti = static_cast<std::size_t>(t);
+    if (t == 0) {
+      robots[r].addFirstPose(m.detections[0]);
+    } else {
+      robots[r].addPose(m.odometry[ti - 1], m.detections[ti]);
+    }
+  }
+}
+
+// One rendezvous of two robots still in the team: the exchange (RunRendezvous), the pairs it
+// adds to and removes from out.shared, the wrong pairs injected, the bytes, and its record against
+// the ground truth. Returns the objects both robots had mapped (the truly shared ones).
+std::vector<int> Meet(const SimulationData& data, const RendezvousEvent& e,
+                      const MultiRobotSlamConfig& config, std::mt19937_64& outlier_rng,
+                      MultiRobotSlamResult& out) {
+  auto& alpha = out.robots[static_cast<std::size_t>(e.alpha)];
+  auto& beta = out.robots[static_cast<std::size_t>(e.beta)];
+  std::optional<SE3> beta_T_alpha;
+  if (config.known_initial_poses) {
+    beta_T_alpha = BetaTAlpha(data.trajectories[static_cast<std::size_t>(e.alpha)].front(),
+                              data.trajectories[static_cast<std::size_t>(e.beta)].front());
+  }
+  const RendezvousOutcome o =
+      RunRendezvous(alpha, beta, beta_T_alpha, out.shared, config.rendezvous);
+  RendezvousRecord rec;
+  rec.event = e;
+  rec.objects_sent = o.objects_sent;
+  rec.new_shared = static_cast<int>(o.new_shared.size());
+  rec.bytes_alpha_to_beta = o.bytes_alpha_to_beta;
+  rec.bytes_beta_to_alpha = o.bytes_beta_to_alpha;
+  const auto correct = [&](const SharedObject& s) {
+    const int ta = TrueObject(out.robots, s.alpha_object);
+    return ta >= 0 && ta == TrueObject(out.robots, s.beta_object);
+  };
+  for (const auto& s : o.removed_shared) {
+    if (!EraseShared(out.shared, s)) {
+      throw InvalidInputError("RunMultiRobotObjectSlam: a rendezvous removed a pair never shared");
+    }
+    ++rec.removed;
+    rec.removed_correct += correct(s) ? 1 : 0;
+  }
+  for (const auto& s : o.new_shared) {
+    if (correct(s)) ++rec.new_shared_correct;
+    out.shared.push_back(s);
+  }
+  if (config.outlier_fraction > 0.0) {
+    rec.injected = InjectWrongPairs(alpha, beta, o.new_shared.size(), config.outlier_fraction,
+                                    outlier_rng, out.shared);
+    out.injected += rec.injected;
+  }
+  out.bytes += static_cast<std::int64_t>(o.bytes_alpha_to_beta + o.bytes_beta_to_alpha);
+  const std::set<int> ma = MappedObjects(alpha), mb = MappedObjects(beta);
+  std::vector<int> now;
+  std::set_intersection(ma.begin(), ma.end(), mb.begin(), mb.end(), std::back_inserter(now));
+  rec.truly_shared = static_cast<int>(now.size());
+  if (o.alignment) {
+    rec.alignment = o.alignment->status;
+    rec.alignment_support = o.alignment->support;
+    rec.alignment_rival = o.alignment->rival;
+    if (o.alignment->status == AlignmentStatus::kAligned) {
+      int right = 0;
+      for (const auto& [ka, kb] : o.alignment->pairs) {
+        right += correct({Key::Object(e.beta, kb), Key::Object(e.alpha, ka)}) ? 1 : 0;
+      }
+      rec.alignment_wrong = 2 * right < static_cast<int>(o.alignment->pairs.size());
+    }
+  }
+  out.rendezvous.push_back(rec);
+  return now;
+}
+
+// The robots that met at step t, grouped by connection, each group handed to
+// config.on_rendezvous.
+void HandGroupsOn(int t, const std::vector<RendezvousEvent>& events_now,
+                  const MultiRobotSlamConfig& config, MultiRobotSlamResult& out) {
+  std::vector<int> robots;
+  std::vector<std::pair<int, int>> links;
+  for (const RendezvousEvent& e : events_now) {
+    robots.insert(robots.end(), {e.alpha, e.beta});
+    links.emplace_back(e.alpha, e.beta);
+  }
+  for (std::vector<int>& g : ConnectedRobots(robots, links)) {
+    RendezvousGroup group{t, std::move(g), {}};
+    for (int r : group.robots) {
+      if (HasLeft(config, r, t)) group.gone.push_back(r);
+    }
+    config.on_rendezvous(group, out);
+  }
+}
+
+}  // namespace
+
 MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
                                              const MultiRobotSlamConfig& config) {
   config.validate();
   const auto t0 = std::chrono::steady_clock::now();
   CheckSimulationFits(data, config);
   const int n = data.numRobots(), steps = data.numSteps();
-  const auto left = [&](int robot, int t) {
-    const auto it = config.leave_after.find(robot);
-    return it != config.leave_after.end() && t > it->second;
-  };
 
   MultiRobotSlamResult out;
   out.robots.reserve(static_cast<std::size_t>(n));
@@ -170,102 +270,26 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
   std::mt19937_64 outlier_rng(config.outlier_seed);
   std::size_t next_event = 0;
   for (int t = 0; t < steps; ++t) {
+    AddPoses(data, t, out.robots);
     std::vector<RendezvousEvent> events_now;
-    for (int r = 0; r < n; ++r) {
-      auto& robot = out.robots[static_cast<std::size_t>(r)];
-      const auto& m = data.measurements[static_cast<std::size_t>(r)];
-      const auto ti = static_cast<std::size_t>(t);
-      if (t == 0) {
-        robot.addFirstPose(m.detections[0]);
-      } else {
-        robot.addPose(m.odometry[ti - 1], m.detections[ti]);
-      }
-    }
     for (; next_event < data.rendezvous.size() && data.rendezvous[next_event].step == t;
          ++next_event) {
       const RendezvousEvent& e = data.rendezvous[next_event];
       events_now.push_back(e);
-      auto& alpha = out.robots[static_cast<std::size_t>(e.alpha)];
-      auto& beta = out.robots[static_cast<std::size_t>(e.beta)];
-      alpha.refresh(config.slam.iterations_per_update);
-      beta.refresh(config.slam.iterations_per_update);
-      if (left(e.alpha, t) || left(e.beta, t)) {  // nothing exchanged
+      out.robots[static_cast<std::size_t>(e.alpha)].refresh(config.slam.iterations_per_update);
+      out.robots[static_cast<std::size_t>(e.beta)].refresh(config.slam.iterations_per_update);
+      if (HasLeft(config, e.alpha, t) || HasLeft(config, e.beta, t)) {  // nothing exchanged
         RendezvousRecord skipped;
         skipped.event = e;
         skipped.skipped = true;
         out.rendezvous.push_back(skipped);
         continue;
       }
-      std::optional<SE3> beta_T_alpha;
-      if (config.known_initial_poses) {
-        beta_T_alpha = BetaTAlpha(data.trajectories[static_cast<std::size_t>(e.alpha)].front(),
-                                  data.trajectories[static_cast<std::size_t>(e.beta)].front());
-      }
-      const RendezvousOutcome o =
-          RunRendezvous(alpha, beta, beta_T_alpha, out.shared, config.rendezvous);
-      RendezvousRecord rec;
-      rec.event = e;
-      rec.objects_sent = o.objects_sent;
-      rec.new_shared = static_cast<int>(o.new_shared.size());
-      rec.bytes_alpha_to_beta = o.bytes_alpha_to_beta;
-      rec.bytes_beta_to_alpha = o.bytes_beta_to_alpha;
-      const auto correct = [&](const SharedObject& s) {
-        const int ta = TrueObject(out.robots, s.alpha_object);
-        return ta >= 0 && ta == TrueObject(out.robots, s.beta_object);
-      };
-      for (const auto& s : o.removed_shared) {
-        if (!EraseShared(out.shared, s)) {
-          throw InvalidInputError(
-              "RunMultiRobotObjectSlam: a rendezvous removed a pair never shared");
-        }
-        ++rec.removed;
-        rec.removed_correct += correct(s) ? 1 : 0;
-      }
-      for (const auto& s : o.new_shared) {
-        if (correct(s)) ++rec.new_shared_correct;
-        out.shared.push_back(s);
-      }
-      if (config.outlier_fraction > 0.0) {
-        rec.injected = InjectWrongPairs(alpha, beta, o.new_shared.size(), config.outlier_fraction,
-                                        outlier_rng, out.shared);
-        out.injected += rec.injected;
-      }
-      out.bytes += static_cast<std::int64_t>(o.bytes_alpha_to_beta + o.bytes_beta_to_alpha);
-      const std::set<int> ma = MappedObjects(alpha), mb = MappedObjects(beta);
-      std::vector<int> now;
-      std::set_intersection(ma.begin(), ma.end(), mb.begin(), mb.end(), std::back_inserter(now));
-      rec.truly_shared = static_cast<int>(now.size());
-      if (o.alignment) {
-        rec.alignment = o.alignment->status;
-        rec.alignment_support = o.alignment->support;
-        rec.alignment_rival = o.alignment->rival;
-        if (o.alignment->status == AlignmentStatus::kAligned) {
-          int right = 0;
-          for (const auto& [ka, kb] : o.alignment->pairs) {
-            right += correct({Key::Object(e.beta, kb), Key::Object(e.alpha, ka)}) ? 1 : 0;
-          }
-          rec.alignment_wrong = 2 * right < static_cast<int>(o.alignment->pairs.size());
-        }
-      }
-      out.rendezvous.push_back(rec);
+      const std::vector<int> now = Meet(data, e, config, outlier_rng, out);
       auto& both = possible[{std::min(e.alpha, e.beta), std::max(e.alpha, e.beta)}];
       both.insert(now.begin(), now.end());
     }
-    if (config.on_rendezvous) {
-      std::vector<int> robots;
-      std::vector<std::pair<int, int>> links;
-      for (const RendezvousEvent& e : events_now) {
-        robots.insert(robots.end(), {e.alpha, e.beta});
-        links.emplace_back(e.alpha, e.beta);
-      }
-      for (std::vector<int>& g : ConnectedRobots(robots, links)) {
-        RendezvousGroup group{t, std::move(g), {}};
-        for (int r : group.robots) {
-          if (left(r, t)) group.gone.push_back(r);
-        }
-        config.on_rendezvous(group, out);
-      }
-    }
+    if (config.on_rendezvous) HandGroupsOn(t, events_now, config, out);
   }
   if (next_event != data.rendezvous.size()) {
     throw InvalidInputError("RunMultiRobotObjectSlam: rendezvous events are not sorted by step");
