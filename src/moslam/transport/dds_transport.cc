@@ -443,86 +443,67 @@ class DdsTransport::Impl {
   }
 
   void drain(std::vector<Received>& out) {
-    constexpr int kMax = 1 << 20;
-    inbox_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
-      if (!info.valid_data) return;
-      const auto& s = *static_cast<const EstimatesSample*>(data);
-      try {
-        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__DgsEstimates__desc, &s));
-      } catch (const std::exception& e) {
-        reject(fmt::format("DGS estimates from robot {}: {}", s.sender, e.what()));
-      }
-    });
-    status_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+    takeAll<EstimatesSample, &EstimatesSample::sender>(
+        inbox_reader_, moslam_msg_dds__DgsEstimates__desc, "DGS estimates", out);
+    status_reader_.take(kMaxTake, [&](const void* data, const dds_sample_info_t& info) {
       const auto& s = *static_cast<const StatusSample*>(data);
-      const int robot = s.robot;  // the key: valid in invalid samples too
-      const bool instance_alive = info.instance_state == DDS_IST_ALIVE;
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (robot != robot_ && (!known_.empty() ? known_.count(robot) > 0 : true)) {
-          const auto it = alive_.find(robot);
-          const bool was = it != alive_.end() && it->second;
-          if (was != instance_alive && (instance_alive ? info.valid_data : true)) {
-            alive_[robot] = instance_alive;
-            if (it != alive_.end() || !instance_alive) {
-              options_.transport.log(fmt::format("robot {} {}", robot,
-                                                 instance_alive ? "is back" : "is gone"));
-            }
-          }
-        }
-      }
-      if (!info.valid_data) return;
-      try {
-        accept(out, s.robot, FromSample(s), CdrSize(moslam_msg_dds__Status__desc, &s));
-      } catch (const std::exception& e) {
-        reject(fmt::format("status from robot {}: {}", s.robot, e.what()));
-      }
+      noteLiveliness(s.robot, info);  // the key: valid in invalid samples too
+      if (info.valid_data) acceptSample(out, s.robot, s, moslam_msg_dds__Status__desc, "status");
     });
-    coarse_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
+    takeAll<CoarseSample, &CoarseSample::sender>(coarse_reader_, moslam_msg_dds__DgsCoarse__desc,
+                                                 "coarse share", out);
+    takeAll<ObjectListSample, &ObjectListSample::robot>(
+        objects_reader_, moslam_msg_dds__ObjectList__desc, "object list", out);
+    takeAll<SharedSample, &SharedSample::sender>(
+        shared_reader_, moslam_msg_dds__SharedObjects__desc, "shared objects", out);
+    takeAll<WeightsSample, &WeightsSample::sender>(
+        weights_reader_, moslam_msg_dds__DgsWeights__desc, "weights", out);
+    takeAll<CovarianceSample, &CovarianceSample::sender>(
+        covariance_reader_, moslam_msg_dds__DgsCovariance__desc, "covariance", out);
+  }
+
+  static constexpr int kMaxTake = 1 << 20;  // samples taken from a reader at once
+
+  // Every valid sample `reader` holds, converted (acceptSample); `Sender` is the field naming the
+  // robot that wrote it.
+  template <class Sample, auto Sender>
+  void takeAll(dds::Reader& reader, const dds_topic_descriptor_t& type, const char* what,
+               std::vector<Received>& out) {
+    reader.take(kMaxTake, [&](const void* data, const dds_sample_info_t& info) {
       if (!info.valid_data) return;
-      const auto& s = *static_cast<const CoarseSample*>(data);
-      try {
-        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__DgsCoarse__desc, &s));
-      } catch (const std::exception& e) {
-        reject(fmt::format("coarse share from robot {}: {}", s.sender, e.what()));
-      }
+      const auto& s = *static_cast<const Sample*>(data);
+      acceptSample(out, s.*Sender, s, type, what);
     });
-    objects_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
-      if (!info.valid_data) return;
-      const auto& s = *static_cast<const ObjectListSample*>(data);
-      try {
-        accept(out, s.robot, FromSample(s), CdrSize(moslam_msg_dds__ObjectList__desc, &s));
-      } catch (const std::exception& e) {
-        reject(fmt::format("object list from robot {}: {}", s.robot, e.what()));
+  }
+
+  // One sample from robot `sender` converted to a packet and accepted, or rejected with what it
+  // was and why (a conversion or packet check that failed).
+  template <class Sample>
+  void acceptSample(std::vector<Received>& out, int sender, const Sample& s,
+                    const dds_topic_descriptor_t& type, const char* what) {
+    try {
+      accept(out, sender, FromSample(s), CdrSize(type, &s));
+    } catch (const std::exception& e) {
+      reject(fmt::format("{} from robot {}: {}", what, sender, e.what()));
+    }
+  }
+
+  // A status instance's liveliness: robot `robot` (another one, of the team when it is known) is
+  // back when its instance is alive with data, gone when the instance is disposed or has no
+  // writer; logged when that changes (and not at a robot's first appearance).
+  void noteLiveliness(int robot, const dds_sample_info_t& info) {
+    const bool instance_alive = info.instance_state == DDS_IST_ALIVE;
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (robot == robot_ || (!known_.empty() && known_.count(robot) == 0)) return;
+    const auto it = alive_.find(robot);
+    const bool was = it != alive_.end() && it->second;
+    if (was != instance_alive && (instance_alive ? info.valid_data : true)) {
+      alive_[robot] = instance_alive;
+      if (it != alive_.end() || !instance_alive) {
+        options_.transport.log(
+            fmt::format("robot {} {}", robot, instance_alive ? "is back" : "is gone"));
       }
-    });
-    shared_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
-      if (!info.valid_data) return;
-      const auto& s = *static_cast<const SharedSample*>(data);
-      try {
-        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__SharedObjects__desc, &s));
-      } catch (const std::exception& e) {
-        reject(fmt::format("shared objects from robot {}: {}", s.sender, e.what()));
-      }
-    });
-    weights_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
-      if (!info.valid_data) return;
-      const auto& s = *static_cast<const WeightsSample*>(data);
-      try {
-        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__DgsWeights__desc, &s));
-      } catch (const std::exception& e) {
-        reject(fmt::format("weights from robot {}: {}", s.sender, e.what()));
-      }
-    });
-    covariance_reader_.take(kMax, [&](const void* data, const dds_sample_info_t& info) {
-      if (!info.valid_data) return;
-      const auto& s = *static_cast<const CovarianceSample*>(data);
-      try {
-        accept(out, s.sender, FromSample(s), CdrSize(moslam_msg_dds__DgsCovariance__desc, &s));
-      } catch (const std::exception& e) {
-        reject(fmt::format("covariance from robot {}: {}", s.sender, e.what()));
-      }
-    });
+    }
   }
 
   int robot_;
