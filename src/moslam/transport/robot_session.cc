@@ -137,6 +137,30 @@ struct EventPairs {
 
 }  // namespace
 
+// Throws InvalidInputError unless the data is one robot's of a team: its robot among num_robots,
+// the initial poses of all when they are known (unknown: whatever the data holds is never read),
+// one odometry reading between every two steps, and rendezvous events of two distinct robots of
+// the team at steps of the scenario, in order.
+void CheckSessionData(const RobotScenarioData& data, bool known_initial_poses) {
+  const int n = data.num_robots, steps = data.numSteps(), robot = data.robot;
+  const bool poses_ok = !known_initial_poses || static_cast<int>(data.initial_poses.size()) == n;
+  if (robot < 0 || robot >= n || !poses_ok || steps < 1 ||
+      static_cast<int>(data.measurements.odometry.size()) != steps - 1) {
+    throw InvalidInputError(
+        fmt::format("robot session: inconsistent data for robot {} of {}", robot, n));
+  }
+  for (std::size_t i = 0; i < data.events.size(); ++i) {
+    const RendezvousEvent& e = data.events[i];
+    if (e.alpha < 0 || e.alpha >= n || e.beta < 0 || e.beta >= n || e.alpha == e.beta ||
+        e.step < 0 || e.step >= steps || (i > 0 && e.step < data.events[i - 1].step)) {
+      throw InvalidInputError(fmt::format(
+          "robot session: rendezvous event {} (step {}, robots {} and {}) does not fit the "
+          "scenario or is out of order",
+          i, e.step, e.alpha, e.beta));
+    }
+  }
+}
+
 class RobotSession::Impl {
  public:
   Impl(RobotScenarioData data, Transport& transport, RobotSessionOptions options)
@@ -150,25 +174,7 @@ class RobotSession::Impl {
       throw InvalidInputError(fmt::format("robot session: robot {} given the transport of robot {}",
                                           robot_, transport_.self()));
     }
-    const int n = data_.num_robots, steps = data_.numSteps();
-    // Unknown initial poses: whatever the data holds is never read.
-    const bool poses_ok = !options_.slam.known_initial_poses ||
-                          static_cast<int>(data_.initial_poses.size()) == n;
-    if (robot_ < 0 || robot_ >= n || !poses_ok || steps < 1 ||
-        static_cast<int>(data_.measurements.odometry.size()) != steps - 1) {
-      throw InvalidInputError(fmt::format("robot session: inconsistent data for robot {} of {}",
-                                          robot_, n));
-    }
-    for (std::size_t i = 0; i < data_.events.size(); ++i) {
-      const RendezvousEvent& e = data_.events[i];
-      if (e.alpha < 0 || e.alpha >= n || e.beta < 0 || e.beta >= n || e.alpha == e.beta ||
-          e.step < 0 || e.step >= steps || (i > 0 && e.step < data_.events[i - 1].step)) {
-        throw InvalidInputError(fmt::format(
-            "robot session: rendezvous event {} (step {}, robots {} and {}) does not fit the "
-            "scenario or is out of order",
-            i, e.step, e.alpha, e.beta));
-      }
-    }
+    CheckSessionData(data_, options_.slam.known_initial_poses);
     if (!options_.log) {
       const int r = robot_;
       options_.log = [r](const std::string& text) {
@@ -176,26 +182,12 @@ class RobotSession::Impl {
         std::fflush(stderr);
       };
     }
-    std::unique_ptr<transport_detail::SessionJournal> journal;
-    if (!options_.dgs.state_dir.empty()) {
-      std::filesystem::create_directories(options_.dgs.state_dir);
-      transport_detail::SessionJournalRun run;
-      run.robot = robot_;
-      run.fingerprint = transport_detail::SessionFingerprint(data_, options_);
-      run.num_robots = data_.num_robots;
-      run.num_steps = static_cast<std::uint32_t>(data_.numSteps());
-      run.num_events = data_.events.size();
-      run.online = options_.online;
-      journal = std::make_unique<transport_detail::SessionJournal>(
-          (std::filesystem::path(options_.dgs.state_dir) / "rendezvous.bin").string(), run,
-          options_.dgs.state_dir);
-    }
     transport_detail::SessionChannel::Options channel;
     channel.join_timeout = options_.dgs.join_timeout;
     channel.leave_timeout = options_.dgs.leave_timeout;
     channel.log = options_.log;
     channel_ = std::make_unique<transport_detail::SessionChannel>(
-        robot_, n, transport_, std::move(channel), std::move(journal));
+        robot_, data_.num_robots, transport_, std::move(channel), openJournal());
     for (const auto& [index, event] : channel_->journaled().events) {
       journaled_[index] = {event.pairs, event.removed};
     }
@@ -224,31 +216,43 @@ class RobotSession::Impl {
       } else {
         slam.addPose(m.odometry[ti - 1], m.detections[ti]);
       }
-      std::vector<std::size_t> mine;
+      std::vector<std::size_t> mine;  // this robot's events of step t
       for (; next < data_.events.size() && data_.events[next].step == t; ++next) {
         const RendezvousEvent& e = data_.events[next];
         if (e.alpha == robot_ || e.beta == robot_) mine.push_back(next);
       }
-      if (mine.empty()) continue;
-      channel_->membership().noteAlive();
-      // As RunMultiRobotObjectSlam: both robots refresh before an event (the later events of
-      // the same step find nothing new).
-      slam.refresh(options_.slam.slam.iterations_per_update);
-      bool list_published = false;
-      for (std::size_t index : mine) {
-        result_.rendezvous.push_back(meet(slam, index, list_published));
-        result_.rendezvous_binary_bytes += result_.rendezvous.back().binary_bytes;
-        if (options_.on_rendezvous) options_.on_rendezvous(result_.rendezvous.back());
-      }
-      // Lists of this step or earlier are no longer needed (the others' events included).
-      channel_->inbox().dropListsUpTo(static_cast<std::uint32_t>(t));
-      if (online_) {
-        if (std::optional<SessionSolve> solved = online_->solve(slam, t)) {
-          result_.solves.push_back(std::move(*solved));
-          if (options_.on_solve) options_.on_solve(result_.solves.back());
-        }
+      if (!mine.empty()) rendezvousAt(slam, t, mine);
+    }
+    finish(slam, t0);
+    return result_;
+  }
+
+ private:
+  // This robot's rendezvous events `mine` of step t, met in order; online, then the group solve.
+  void rendezvousAt(ObjectSlam& slam, int t, const std::vector<std::size_t>& mine) {
+    channel_->membership().noteAlive();
+    // As RunMultiRobotObjectSlam: both robots refresh before an event (the later events of the
+    // same step find nothing new).
+    slam.refresh(options_.slam.slam.iterations_per_update);
+    bool list_published = false;
+    for (std::size_t index : mine) {
+      result_.rendezvous.push_back(meet(slam, index, list_published));
+      result_.rendezvous_binary_bytes += result_.rendezvous.back().binary_bytes;
+      if (options_.on_rendezvous) options_.on_rendezvous(result_.rendezvous.back());
+    }
+    // Lists of this step or earlier are no longer needed (the others' events included).
+    channel_->inbox().dropListsUpTo(static_cast<std::uint32_t>(t));
+    if (online_) {
+      if (std::optional<SessionSolve> solved = online_->solve(slam, t)) {
+        result_.solves.push_back(std::move(*solved));
+        if (options_.on_solve) options_.on_solve(result_.solves.back());
       }
     }
+  }
+
+  // After the last step: the robot's own map optimized and recorded, then (batch) the team's
+  // solve, or (online) its map as it stands.
+  void finish(ObjectSlam& slam, Clock::time_point t0) {
     slam.optimize(options_.slam.final_iterations);
     result_.slam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     result_.rendezvous_transport = transport_.stats();
@@ -269,10 +273,25 @@ class RobotSession::Impl {
     }
     result_.left_team = channel_->membership().out();
     result_.left_team_step = channel_->membership().outStep();
-    return result_;
   }
 
- private:
+  // The session's journal in state_dir (rendezvous.bin, keyed by the run's fingerprint), or none
+  // without a state directory.
+  std::unique_ptr<transport_detail::SessionJournal> openJournal() const {
+    if (options_.dgs.state_dir.empty()) return nullptr;
+    std::filesystem::create_directories(options_.dgs.state_dir);
+    transport_detail::SessionJournalRun run;
+    run.robot = robot_;
+    run.fingerprint = transport_detail::SessionFingerprint(data_, options_);
+    run.num_robots = data_.num_robots;
+    run.num_steps = static_cast<std::uint32_t>(data_.numSteps());
+    run.num_events = data_.events.size();
+    run.online = options_.online;
+    return std::make_unique<transport_detail::SessionJournal>(
+        (std::filesystem::path(options_.dgs.state_dir) / "rendezvous.bin").string(), run,
+        options_.dgs.state_dir);
+  }
+
   // Rendezvous event `index` of the current step: alpha publishes its object list (once per
   // step) and waits for beta's answer; beta waits for the list and answers; a journaled event is
   // replayed (beta answers again: the old process may have died before alpha heard it), and an
