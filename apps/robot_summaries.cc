@@ -22,7 +22,7 @@ JsonFields JsonFields::Parse(const std::string& text, const std::string& where) 
   nlohmann::json value = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (value.is_discarded()) {
     throw InvalidInputError(fmt::format(
-        "{}: not JSON (cut short while a robot wrote it, or not a robot's summary?)", where));
+        "{}: not JSON (damaged or cut short, or not a robot's summary?)", where));
   }
   return JsonFields(std::move(value), where);
 }

@@ -2,10 +2,11 @@
 // reads them back: each robot's exit code, and the summary of every robot that finished, with
 // every field it reads checked.
 //
-// A summary is a file: it can be cut short (a robot killed while another version wrote it), of
-// another version, or edited. Every read names the file and the field it wanted:
+// `moslam robot` writes its summary whole (a temporary file renamed), but a summary is still a
+// file: another version's, edited, or damaged in a copy. Every read names the file, the field (and
+// the array element) it wanted and the likely cause:
 //   robot1/summary.json: field "pose_rounds" is missing (written by another version of `moslam
-//   robot`?)
+//   robot`, or edited?)
 // as an InvalidInputError; nothing else escapes (no nlohmann exception).
 #pragma once
 
