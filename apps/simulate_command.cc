@@ -338,7 +338,8 @@ void AddRobustnessFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args
   AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
 }
 
-// What is printed and written, and which runs are left out.
+// The mode (the batch tables or the online mission), what is printed and written, and which
+// runs are left out.
 void AddOutputFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args) {
   sub->add_flag("--skip-unlinked", args->skip_unlinked,
                 "leave out (and count) the runs in which a robot never links to robot 0, instead "
