@@ -63,59 +63,71 @@ std::pair<double, int> TeamMapError(const SimulationData& data,
   return {n > 0 ? sum / n : std::numeric_limits<double>::quiet_NaN(), n};
 }
 
-}  // namespace
-
-void OnlineExperimentConfig::validate() const {
-  base.validate();
-  online.validate();
-  if (base.perceive) {
-    throw InvalidInputError("online experiment: perception is not part of the online mission yet");
-  }
-  if (online.robust) {
-    throw InvalidInputError("online experiment: set base.robust (with base.gnc_threshold and "
-                            "base.retest_left_out), not online.robust, which the run builds from "
-                            "them as the batch experiment builds its robust solve");
-  }
-  if (base.information != InformationMode::kNoise) {
-    throw InvalidInputError("online experiment: the robots solve with the information of their "
-                            "measurements (information mode 'noise')");
-  }
-  if (base.robots < 2) {
-    throw InvalidInputError("online experiment: a team is two robots or more");
-  }
-}
-
-OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, int run) {
-  config.validate();
-  const auto t0 = Clock::now();
-  RunMetrics unused;
-  SimulatedRun sim = SimulateRun(config.base, run, unused);
-  OnlineRunMetrics m;
-  m.seed = sim.seed;
-  OnlineOptions options = config.online;
-  options.lambda = sim.slam.rendezvous.lambda();
-  if (config.base.robust) {
-    RobustDgsOptions robust;  // its dgs: options.solver (OnlineOptions::robust)
-    robust.gnc.threshold = config.base.gnc_threshold;
-    robust.retest_left_out = config.base.retest_left_out;
-    robust.retest_groups = config.base.retest_groups;
-    options.robust = robust;
+// One run of the online mission: the robots without the team (solo), the online team with a
+// point per group solve, then the batch and outlier-free references of its final factors and
+// every robot's map error against them.
+class OnlineMission {
+ public:
+  OnlineMission(const OnlineExperimentConfig& config, int run)
+      : config_(config), sim_(Simulate(config.base, run)), options_(TeamOptions(config, sim_)) {
+    m_.seed = sim_.seed;
   }
 
-  // Solo first: the team's map error at every step with a rendezvous.
-  std::map<int, double> solo_at_step;
-  MultiRobotSlamConfig solo_config = sim.slam;
-  solo_config.on_rendezvous = [&](const RendezvousGroup& g, MultiRobotSlamResult& team) {
-    if (solo_at_step.count(g.step) == 0) {
-      solo_at_step[g.step] = TeamMapError(sim.data, team.robots).first;
+  OnlineRunMetrics measure() {
+    const MultiRobotSlamResult solo = runSolo();
+    OnlineTeam team(options_);
+    MultiRobotSlamConfig online_config = sim_.slam;
+    online_config.on_rendezvous =
+        team.hook([&](const RendezvousGroup& g, const MultiRobotSlamResult& state) {
+          record(g, state, team);
+        });
+    const MultiRobotSlamResult online = RunMultiRobotObjectSlam(sim_.data, online_config);
+    m_.rendezvous = static_cast<double>(online.rendezvous.size());
+    m_.solves = static_cast<double>(team.solves().size());
+    m_.bytes_objects = static_cast<double>(online.bytes);
+    for (const GroupSolveRecord& s : team.solves()) {
+      m_.bytes_dgs += static_cast<double>(s.bytes);
+      m_.unlinked_solves += s.unlinked ? 1.0 : 0.0;
+      m_.robust_extra_bytes += static_cast<double>(s.robust_extra_bytes);
     }
-  };
-  const MultiRobotSlamResult solo = RunMultiRobotObjectSlam(sim.data, solo_config);
+    const Values batch = batchOptimum(online, team);
+    const std::optional<Values> free = outlierFree(online, team);
+    robotErrors(online, solo, batch, free);
+    return std::move(m_);
+  }
 
-  OnlineTeam team(options);
-  MultiRobotSlamConfig online_config = sim.slam;
-  online_config.on_rendezvous = team.hook([&](const RendezvousGroup& g,
-                                              const MultiRobotSlamResult& state) {
+ private:
+  static SimulatedRun Simulate(const ExperimentConfig& base, int run) {
+    RunMetrics unused;
+    return SimulateRun(base, run, unused);
+  }
+
+  static OnlineOptions TeamOptions(const OnlineExperimentConfig& config, const SimulatedRun& sim) {
+    OnlineOptions options = config.online;
+    options.lambda = sim.slam.rendezvous.lambda();
+    if (config.base.robust) {
+      RobustDgsOptions robust;  // its dgs: options.solver (OnlineOptions::robust)
+      robust.gnc.threshold = config.base.gnc_threshold;
+      robust.retest_left_out = config.base.retest_left_out;
+      robust.retest_groups = config.base.retest_groups;
+      options.robust = robust;
+    }
+    return options;
+  }
+
+  // The robots without the team, and the team's map error at every step with a rendezvous.
+  MultiRobotSlamResult runSolo() {
+    MultiRobotSlamConfig solo_config = sim_.slam;
+    solo_config.on_rendezvous = [&](const RendezvousGroup& g, MultiRobotSlamResult& team) {
+      if (solo_at_step_.count(g.step) == 0) {
+        solo_at_step_[g.step] = TeamMapError(sim_.data, team.robots).first;
+      }
+    };
+    return RunMultiRobotObjectSlam(sim_.data, solo_config);
+  }
+
+  // A point per group solve of the rendezvous group `g` (after its solves).
+  void record(const RendezvousGroup& g, const MultiRobotSlamResult& state, const OnlineTeam& team) {
     // The rendezvous records of this step among these robots (appended before the hook).
     double bytes_objects = 0.0;
     for (const RendezvousRecord& r : state.rendezvous) {
@@ -124,7 +136,7 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
         bytes_objects += static_cast<double>(r.bytes_alpha_to_beta + r.bytes_beta_to_alpha);
       }
     }
-    const auto [team_ate, measured] = TeamMapError(sim.data, state.robots);
+    const auto [team_ate, measured] = TeamMapError(sim_.data, state.robots);
     bool first = true;
     for (const GroupSolveRecord& s : team.solves()) {
       if (s.step != g.step || !std::includes(g.robots.begin(), g.robots.end(), s.robots.begin(),
@@ -135,8 +147,8 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
       p.step = g.step;
       p.robots = s.robots;
       p.team_ate = team_ate;
-      p.solo_ate = solo_at_step.count(g.step) > 0 ? solo_at_step.at(g.step)
-                                                  : std::numeric_limits<double>::quiet_NaN();
+      p.solo_ate = solo_at_step_.count(g.step) > 0 ? solo_at_step_.at(g.step)
+                                                   : std::numeric_limits<double>::quiet_NaN();
       p.robots_measured = measured;
       p.rotation_sweeps = s.rotation_sweeps;
       p.pose_sweeps = s.pose_sweeps;
@@ -147,105 +159,140 @@ OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, i
       first = false;
       p.bytes_dgs = static_cast<double>(s.bytes);
       p.bytes_point_clouds = static_cast<double>(s.robots.size()) *
-                             config.base.point_cloud.points_per_frame *
-                             config.base.point_cloud.bytes_per_point;
+                             config_.base.point_cloud.points_per_frame *
+                             config_.base.point_cloud.bytes_per_point;
       p.seconds = s.seconds;
-      m.points.push_back(std::move(p));
+      m_.points.push_back(std::move(p));
     }
-  });
-  const MultiRobotSlamResult online = RunMultiRobotObjectSlam(sim.data, online_config);
-  m.rendezvous = static_cast<double>(online.rendezvous.size());
-  m.solves = static_cast<double>(team.solves().size());
-  m.bytes_objects = static_cast<double>(online.bytes);
-  for (const GroupSolveRecord& s : team.solves()) {
-    m.bytes_dgs += static_cast<double>(s.bytes);
-    m.unlinked_solves += s.unlinked ? 1.0 : 0.0;
-    m.robust_extra_bytes += static_cast<double>(s.robust_extra_bytes);
   }
 
-  // The batch optimum of the online run's factors: the robots' final graphs and the pairs not set
-  // aside (all of them in least squares). Nullopt when a robot is not linked to robot 0 by `pairs`.
-  const auto batch_optimum = [&](const std::vector<SharedObject>& pairs) -> std::optional<Values> {
-    const JointProblem joint = AssembleJointProblem(online.robots, pairs, options.lambda);
-    if (!joint.unanchored_robots.empty()) return std::nullopt;
+  // The batch optimum of the online run's factors: the robots' final graphs and the pairs not
+  // set aside (all of them in least squares). Throws UnlinkedRobotError when a robot is not
+  // linked to robot 0 by those pairs.
+  Values batchOptimum(const MultiRobotSlamResult& online, const OnlineTeam& team) const {
+    const JointProblem joint = AssembleJointProblem(
+        online.robots, AcceptedPairs(online.shared, team.setAside()), options_.lambda);
+    if (!joint.unanchored_robots.empty()) {
+      throw UnlinkedRobotError(fmt::format(
+          "online experiment {} with {} robots, seed {}: some robot was never linked to robot 0 "
+          "through the rendezvous' pairs it kept (try another seed or more poses per robot)",
+          config_.base.scenario, config_.base.robots, sim_.seed));
+    }
     return Optimize(joint.graph, CentralizedTwoStage(joint.graph, joint.initial).values).values;
-  };
-  const std::optional<Values> batch =
-      batch_optimum(AcceptedPairs(online.shared, team.setAside()));
-  if (!batch) {
-    throw UnlinkedRobotError(fmt::format(
-        "online experiment {} with {} robots, seed {}: some robot was never linked to robot 0 "
-        "through the rendezvous' pairs it kept (try another seed or more poses per robot)",
-        config.base.scenario, config.base.robots, sim.seed));
   }
-  const JointProblem all = AssembleJointProblem(online.robots, online.shared, options.lambda);
-  const std::map<Key, int> objects = LandmarkObjects(all, online.robots);
-  std::vector<RelativePoseFactor> right_factors;  // the outlier-free graph
-  // The object-pose factors: wrong when the detection is of another object than its landmark's
-  // (as the batch experiment counts them); set aside when the robot's weight says so.
-  std::size_t first = 0;  // the joint graph holds each robot's own graph in turn, then the pairs
-  for (const ObjectSlam& r : online.robots) {
-    const std::size_t n = r.numFactors();
-    for (std::size_t j = 0; j < n; ++j) {
-      const int object = all.factor_objects[first + j];
-      const RelativePoseFactor& f = all.graph.factors()[first + j];
-      if (object == ObjectSlam::kNoObservation) {
-        // Odometry, and the robot's own loop-closure pairs: right unless their landmarks stand
-        // for two world objects.
-        const bool pair = f.a().isObject() && f.b().isObject();
-        if (!pair || !WrongPair(objects, f.a(), f.b())) right_factors.push_back(f);
-        continue;
+
+  // The outlier-free batch: the robots' final graphs without their wrong object-pose factors,
+  // and the right pairs of all found (as the batch experiment's outlier-free solve); nullopt
+  // when only wrong factors linked some robot (no reference for this run). Counts the wrong
+  // and set-aside factors and pairs on the way.
+  std::optional<Values> outlierFree(const MultiRobotSlamResult& online, const OnlineTeam& team) {
+    const JointProblem all = AssembleJointProblem(online.robots, online.shared, options_.lambda);
+    const std::map<Key, int> objects = LandmarkObjects(all, online.robots);
+    std::vector<RelativePoseFactor> right_factors;
+    // The object-pose factors: wrong when the detection is of another object than its
+    // landmark's (as the batch experiment counts them); set aside when the robot's weight says so.
+    std::size_t first = 0;  // the joint graph holds each robot's own graph in turn, then the pairs
+    for (const ObjectSlam& r : online.robots) {
+      const std::size_t n = r.numFactors();
+      for (std::size_t j = 0; j < n; ++j) {
+        const int object = all.factor_objects[first + j];
+        const RelativePoseFactor& f = all.graph.factors()[first + j];
+        if (object == ObjectSlam::kNoObservation) {
+          // Odometry, and the robot's own loop-closure pairs: right unless their landmarks stand
+          // for two world objects.
+          const bool pair = f.a().isObject() && f.b().isObject();
+          if (!pair || !WrongPair(objects, f.a(), f.b())) right_factors.push_back(f);
+          continue;
+        }
+        const bool wrong = object < 0 || object != objects.at(f.b());
+        if (!wrong) right_factors.push_back(f);
+        const bool aside = j < r.factorWeights().size() && r.factorWeights()[j] < 0.5;
+        m_.wrong_observations += wrong ? 1.0 : 0.0;
+        m_.observations_set_aside += aside ? 1.0 : 0.0;
+        m_.observations_set_aside_wrong += aside && wrong ? 1.0 : 0.0;
       }
-      const bool wrong = object < 0 || object != objects.at(f.b());
-      if (!wrong) right_factors.push_back(f);
-      const bool aside = j < r.factorWeights().size() && r.factorWeights()[j] < 0.5;
-      m.wrong_observations += wrong ? 1.0 : 0.0;
-      m.observations_set_aside += aside ? 1.0 : 0.0;
-      m.observations_set_aside_wrong += aside && wrong ? 1.0 : 0.0;
+      first += n;
     }
-    first += n;
-  }
-  for (const SharedObject& s : online.shared) {
-    const bool wrong = WrongPair(objects, s.alpha_object, s.beta_object);
-    m.pairs += 1.0;
-    m.wrong_pairs += wrong ? 1.0 : 0.0;
-    if (!wrong) right_factors.push_back(ObjectObjectFactor(s, options.lambda));
-  }
-  for (const SharedObject& s : team.setAside()) {
-    m.set_aside += 1.0;
-    m.set_aside_wrong += WrongPair(objects, s.alpha_object, s.beta_object) ? 1.0 : 0.0;
-  }
-  for (const RendezvousRecord& r : online.rendezvous) m.injected += r.injected;
-  // The outlier-free batch: the robots' final graphs without their wrong object-pose factors, and
-  // the right pairs of all found (as the batch experiment's outlier-free solve). When only wrong
-  // factors linked some robot: no reference for this run (NaN).
-  std::optional<Values> free;
-  try {
-    const PoseGraph free_graph(std::move(right_factors));
-    free = Optimize(free_graph, CentralizedTwoStage(free_graph, all.initial).values).values;
-  } catch (const UnderdeterminedError&) {
-  }
-  const Values truth = JointGroundTruth(sim.data, online.robots);
-  for (const ObjectSlam& r : online.robots) {
-    const auto on = RobotMapError(r.estimate(), truth, r.robot());
-    const auto ba = RobotMapError(*batch, truth, r.robot());
-    const auto fr = free ? RobotMapError(*free, truth, r.robot())
-                         : std::optional<MapError>(MapError{std::nan(""), std::nan("")});
-    const auto so = RobotMapError(solo.robots[static_cast<std::size_t>(r.robot())].estimate(),
-                                  truth, r.robot());
-    if (!on || !ba || !fr || !so) {
-      throw UnderdeterminedError(fmt::format(
-          "online experiment: robot {} of seed {} has no three non-collinear positions",
-          r.robot(), sim.seed));
+    for (const SharedObject& s : online.shared) {
+      const bool wrong = WrongPair(objects, s.alpha_object, s.beta_object);
+      m_.pairs += 1.0;
+      m_.wrong_pairs += wrong ? 1.0 : 0.0;
+      if (!wrong) right_factors.push_back(ObjectObjectFactor(s, options_.lambda));
     }
-    m.online_ate.push_back(on->ate);
-    m.online_are.push_back(on->are);
-    m.batch_ate.push_back(ba->ate);
-    m.batch_are.push_back(ba->are);
-    m.solo_ate.push_back(so->ate);
-    m.free_ate.push_back(fr->ate);
-    m.worst_ratio = std::max(m.worst_ratio, on->ate / ba->ate);
+    for (const SharedObject& s : team.setAside()) {
+      m_.set_aside += 1.0;
+      m_.set_aside_wrong += WrongPair(objects, s.alpha_object, s.beta_object) ? 1.0 : 0.0;
+    }
+    for (const RendezvousRecord& r : online.rendezvous) m_.injected += r.injected;
+    try {
+      const PoseGraph free_graph(std::move(right_factors));
+      return Optimize(free_graph, CentralizedTwoStage(free_graph, all.initial).values).values;
+    } catch (const UnderdeterminedError&) {
+      return std::nullopt;
+    }
   }
+
+  // Every robot's map (online, batch, outlier-free, solo) against ground truth, aligned alone.
+  void robotErrors(const MultiRobotSlamResult& online, const MultiRobotSlamResult& solo,
+                   const Values& batch, const std::optional<Values>& free) {
+    const Values truth = JointGroundTruth(sim_.data, online.robots);
+    for (const ObjectSlam& r : online.robots) {
+      const auto on = RobotMapError(r.estimate(), truth, r.robot());
+      const auto ba = RobotMapError(batch, truth, r.robot());
+      const auto fr = free ? RobotMapError(*free, truth, r.robot())
+                           : std::optional<MapError>(MapError{std::nan(""), std::nan("")});
+      const auto so = RobotMapError(solo.robots[static_cast<std::size_t>(r.robot())].estimate(),
+                                    truth, r.robot());
+      if (!on || !ba || !fr || !so) {
+        throw UnderdeterminedError(fmt::format(
+            "online experiment: robot {} of seed {} has no three non-collinear positions",
+            r.robot(), sim_.seed));
+      }
+      m_.online_ate.push_back(on->ate);
+      m_.online_are.push_back(on->are);
+      m_.batch_ate.push_back(ba->ate);
+      m_.batch_are.push_back(ba->are);
+      m_.solo_ate.push_back(so->ate);
+      m_.free_ate.push_back(fr->ate);
+      m_.worst_ratio = std::max(m_.worst_ratio, on->ate / ba->ate);
+    }
+  }
+
+  const OnlineExperimentConfig& config_;
+  const SimulatedRun sim_;
+  const OnlineOptions options_;
+  OnlineRunMetrics m_;
+  std::map<int, double> solo_at_step_;  // the team's map error without the team, per step
+};
+
+}  // namespace
+
+void OnlineExperimentConfig::validate() const {
+  base.validate();
+  online.validate();
+  if (base.perceive) {
+    throw InvalidInputError("online experiment: perception is not part of the online mission yet");
+  }
+  if (online.robust) {
+    throw InvalidInputError(
+        "online experiment: set base.robust (with base.gnc_threshold and "
+        "base.retest_left_out), not online.robust, which the run builds from "
+        "them as the batch experiment builds its robust solve");
+  }
+  if (base.information != InformationMode::kNoise) {
+    throw InvalidInputError(
+        "online experiment: the robots solve with the information of their "
+        "measurements (information mode 'noise')");
+  }
+  if (base.robots < 2) {
+    throw InvalidInputError("online experiment: a team is two robots or more");
+  }
+}
+
+OnlineRunMetrics RunOnlineSimulationOnce(const OnlineExperimentConfig& config, int run) {
+  config.validate();
+  const auto t0 = Clock::now();
+  OnlineRunMetrics m = OnlineMission(config, run).measure();
   m.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return m;
 }
