@@ -271,6 +271,159 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
   return out;
 }
 
+namespace {
+
+using RobotPair = std::pair<int, int>;
+
+// The separators of each robot pair (lower robot first), as factor indices.
+std::map<RobotPair, std::vector<std::size_t>> SeparatorsByPair(
+    const std::vector<RelativePoseFactor>& factors) {
+  std::map<RobotPair, std::vector<std::size_t>> pairs;
+  for (std::size_t i = 0; i < factors.size(); ++i) {
+    const int a = factors[i].a().robot, b = factors[i].b().robot;
+    if (a != b) pairs[{std::min(a, b), std::max(a, b)}].push_back(i);
+  }
+  return pairs;
+}
+
+// The check of every robot pair in one process, as the robots run it (robot_program.h): the
+// higher robot's map sent to the lower one as encoded messages (counted), each pair's largest
+// consistent set, then the pairs too small to confirm themselves judged by the groups the
+// confirmed pairs link.
+class CentralizedCheck {
+ public:
+  CentralizedCheck(const PoseGraph& graph, const SeparatorConsistencyOptions& options,
+                   const std::vector<bool>& robust, const GncOptions& local)
+      : graph_(graph), options_(options), robust_(robust), local_(local) {
+    const std::size_t n = graph.factors().size();
+    out_.kept.assign(n, true);
+    out_.support.assign(n, -1);
+    out_.runner_up.assign(n, false);
+  }
+
+  SeparatorConsistencyResult run() && {
+    const auto pairs = SeparatorsByPair(graph_.factors());
+    for (const auto& [pair, list] : pairs) out_.separators += static_cast<int>(list.size());
+    for (const auto& [pair, list] : pairs) checkPair(pair, list);
+    std::vector<int> robots;
+    for (const auto& [pair, list] : pairs) robots.insert(robots.end(), {pair.first, pair.second});
+    judgeUnconfirmed(robots);
+    return std::move(out_);
+  }
+
+ private:
+  // A pair too small to confirm itself, judged once every pair is known.
+  struct Unconfirmed {
+    RobotPair pair;
+    std::vector<std::size_t> list, kept;  // its separators; what it keeps if left to GNC
+    std::vector<int> support;             // per separator: the members of kept it agrees with
+    std::vector<std::size_t> runner_up;   // the runner-up set (PairConsistency::runner_up)
+    int largest = 0;                      // its largest consistent set
+  };
+
+  const SeparatorCheckMap& mapOf(int robot) {
+    auto it = maps_.find(robot);
+    if (it == maps_.end()) {
+      it = maps_
+               .emplace(robot, std::make_unique<SeparatorCheckMap>(graph_, robot, robust_, local_,
+                                                                   options_.map_uncertainty))
+               .first;
+    }
+    return *it->second;
+  }
+
+  void checkPair(const RobotPair& pair, const std::vector<std::size_t>& list) {
+    ++out_.robot_pairs;
+    const auto [ra, rb] = pair;
+    std::vector<RelativePoseFactor> separators;
+    for (std::size_t i : list) separators.push_back(graph_.factors()[i]);
+    const SeparatorCheckMap& A = mapOf(ra);
+    const SeparatorCheckMap& B = mapOf(rb);
+    const std::vector<Key> kb = SeparatorVariables(separators, rb);
+    // A variable the robot's own factors do not reach: nothing to check with.
+    if (!A.hasAll(SeparatorVariables(separators, ra)) || !B.hasAll(kb)) return;
+    // What robot b sends robot a: the local estimates of its separator variables and their joint
+    // covariance in its map.
+    const std::vector<std::uint8_t> wire = EncodeMessage(B.estimates(kb));
+    out_.bytes += static_cast<std::int64_t>(wire.size());
+    ++out_.messages;
+    Eigen::MatrixXd SB;
+    if (options_.map_uncertainty) {
+      CovarianceMessage cm;
+      cm.sender = rb;
+      cm.receiver = ra;
+      cm.covariance = B.covariance(kb);
+      const std::vector<std::uint8_t> wire_cov = EncodeCovarianceMessage(cm);
+      out_.bytes += static_cast<std::int64_t>(wire_cov.size());
+      ++out_.messages;
+      SB = DecodeCovarianceMessage(wire_cov).covariance;
+    }
+    const PairConsistency check =
+        ConsistentSeparators(separators, A, DecodeMessage(wire), SB, options_);
+    std::vector<std::size_t> kept;
+    for (std::size_t p : check.kept) kept.push_back(list[p]);
+    if (check.largest >= options_.min_support) {
+      keepOnly(list, kept);
+      setSupport(list, check.support, check.runner_up, true);
+      confirmed_.push_back(pair);
+    } else {
+      unconfirmed_.push_back({pair, list, kept, check.support, check.runner_up, check.largest});
+    }
+  }
+
+  // The pairs too small to confirm themselves keep their largest sets when the confirmed pairs
+  // link their two robots (and the set holds linked_min_support), else none.
+  void judgeUnconfirmed(const std::vector<int>& robots) {
+    std::map<int, std::size_t> group_of;
+    const std::vector<std::vector<int>> groups = ConnectedRobots(robots, confirmed_);
+    for (std::size_t g = 0; g < groups.size(); ++g) {
+      for (int r : groups[g]) group_of[r] = g;
+    }
+    for (const Unconfirmed& u : unconfirmed_) {
+      if (group_of.at(u.pair.first) == group_of.at(u.pair.second) &&
+          u.largest >= options_.linked_min_support) {
+        ++out_.robot_pairs_deferred;
+        out_.deferred += static_cast<int>(u.kept.size());
+        keepOnly(u.list, u.kept);
+        setSupport(u.list, u.support, u.runner_up, true);
+      } else {
+        ++out_.robot_pairs_rejected;
+        keepOnly(u.list, {});
+        setSupport(u.list, u.support, u.runner_up, false);
+      }
+    }
+  }
+
+  // Leaves out the separators of `list` not in `keep`.
+  void keepOnly(const std::vector<std::size_t>& list, const std::vector<std::size_t>& keep) {
+    for (std::size_t i : list) {
+      if (std::find(keep.begin(), keep.end(), i) != keep.end()) continue;
+      out_.kept[i] = false;
+      ++out_.rejected;
+    }
+  }
+
+  // The support of a pair's separators: against what it keeps if it is kept, else none. And of
+  // a kept pair, its runner-up set.
+  void setSupport(const std::vector<std::size_t>& list, const std::vector<int>& support,
+                  const std::vector<std::size_t>& runner_up, bool kept) {
+    for (std::size_t p = 0; p < list.size(); ++p) out_.support[list[p]] = kept ? support[p] : 0;
+    if (!kept) return;
+    for (std::size_t p : runner_up) out_.runner_up[list[p]] = true;
+  }
+
+  const PoseGraph& graph_;
+  const SeparatorConsistencyOptions& options_;
+  const std::vector<bool>& robust_;
+  const GncOptions& local_;
+  SeparatorConsistencyResult out_;
+  std::map<int, std::unique_ptr<SeparatorCheckMap>> maps_;  // built when a pair needs them
+  std::vector<RobotPair> confirmed_;
+  std::vector<Unconfirmed> unconfirmed_;
+};
+
+}  // namespace
+
 SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
                                                      const SeparatorConsistencyOptions& options,
                                                      const std::vector<bool>& robust,
@@ -282,115 +435,7 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
                             " robust flags for " + std::to_string(graph.factors().size()) +
                             " factors");
   }
-  const auto& factors = graph.factors();
-  SeparatorConsistencyResult out;
-  out.kept.assign(factors.size(), true);
-  out.support.assign(factors.size(), -1);
-  out.runner_up.assign(factors.size(), false);
-  std::map<std::pair<int, int>, std::vector<std::size_t>> pairs;
-  for (std::size_t i = 0; i < factors.size(); ++i) {
-    const int a = factors[i].a().robot, b = factors[i].b().robot;
-    if (a == b) continue;
-    ++out.separators;
-    pairs[{std::min(a, b), std::max(a, b)}].push_back(i);
-  }
-  std::map<int, std::unique_ptr<SeparatorCheckMap>> maps;
-  auto map_of = [&](int robot) -> const SeparatorCheckMap& {
-    auto it = maps.find(robot);
-    if (it == maps.end()) {
-      it = maps.emplace(robot, std::make_unique<SeparatorCheckMap>(graph, robot, robust, local,
-                                                                   options.map_uncertainty))
-               .first;
-    }
-    return *it->second;
-  };
-  // The robot pairs confirmed (min_support), and those too small to confirm themselves.
-  std::vector<std::pair<int, int>> confirmed;
-  struct Unconfirmed {
-    std::pair<int, int> pair;
-    std::vector<std::size_t> list, kept;  // its separators; what it keeps if left to GNC
-    std::vector<int> support;             // per separator: the members of kept it agrees with
-    std::vector<std::size_t> runner_up;   // the runner-up set (PairConsistency::runner_up)
-    int largest = 0;                      // its largest consistent set
-  };
-  // The support of a pair's separators: against what it keeps if it is kept, else none.
-  // And of a kept pair, its runner-up set.
-  const auto set_support = [&](const std::vector<std::size_t>& list,
-                               const std::vector<int>& support,
-                               const std::vector<std::size_t>& runner_up, bool kept) {
-    for (std::size_t p = 0; p < list.size(); ++p) out.support[list[p]] = kept ? support[p] : 0;
-    if (!kept) return;
-    for (std::size_t p : runner_up) out.runner_up[list[p]] = true;
-  };
-  std::vector<Unconfirmed> unconfirmed;
-  const auto reject_except = [&](const std::vector<std::size_t>& list,
-                                 const std::vector<std::size_t>& keep) {
-    for (std::size_t i : list) {
-      if (std::find(keep.begin(), keep.end(), i) != keep.end()) continue;
-      out.kept[i] = false;
-      ++out.rejected;
-    }
-  };
-  for (const auto& [pair, list] : pairs) {
-    ++out.robot_pairs;
-    const auto [ra, rb] = pair;
-    std::vector<RelativePoseFactor> separators;
-    for (std::size_t i : list) separators.push_back(factors[i]);
-    const SeparatorCheckMap& A = map_of(ra);
-    const SeparatorCheckMap& B = map_of(rb);
-    const std::vector<Key> kb = SeparatorVariables(separators, rb);
-    // A variable the robot's own factors do not reach: nothing to check with.
-    if (!A.hasAll(SeparatorVariables(separators, ra)) || !B.hasAll(kb)) continue;
-    // What robot b sends robot a: the local estimates of its separator variables and their joint
-    // covariance in its map.
-    const std::vector<std::uint8_t> wire = EncodeMessage(B.estimates(kb));
-    out.bytes += static_cast<std::int64_t>(wire.size());
-    ++out.messages;
-    Eigen::MatrixXd SB;
-    if (options.map_uncertainty) {
-      CovarianceMessage cm;
-      cm.sender = rb;
-      cm.receiver = ra;
-      cm.covariance = B.covariance(kb);
-      const std::vector<std::uint8_t> wire_cov = EncodeCovarianceMessage(cm);
-      out.bytes += static_cast<std::int64_t>(wire_cov.size());
-      ++out.messages;
-      SB = DecodeCovarianceMessage(wire_cov).covariance;
-    }
-    const PairConsistency check = ConsistentSeparators(separators, A, DecodeMessage(wire), SB,
-                                                       options);
-    std::vector<std::size_t> kept;
-    for (std::size_t p : check.kept) kept.push_back(list[p]);
-    if (check.largest >= options.min_support) {
-      reject_except(list, kept);
-      set_support(list, check.support, check.runner_up, true);
-      confirmed.push_back(pair);
-    } else {  // judged below, once every pair is known
-      unconfirmed.push_back({pair, list, kept, check.support, check.runner_up, check.largest});
-    }
-  }
-  // The robots linked through confirmed pairs: the same group.
-  std::vector<int> robots;
-  for (const auto& [pair, list] : pairs) robots.insert(robots.end(), {pair.first, pair.second});
-  std::map<int, std::size_t> group_of;
-  const std::vector<std::vector<int>> groups = ConnectedRobots(robots, confirmed);
-  for (std::size_t g = 0; g < groups.size(); ++g) {
-    for (int r : groups[g]) group_of[r] = g;
-  }
-  for (const Unconfirmed& u : unconfirmed) {
-    if (group_of.at(u.pair.first) == group_of.at(u.pair.second) &&
-        u.largest >= options.linked_min_support) {
-      ++out.robot_pairs_deferred;
-      out.deferred += static_cast<int>(u.kept.size());
-      reject_except(u.list, u.kept);
-      set_support(u.list, u.support, u.runner_up, true);
-    } else {
-      ++out.robot_pairs_rejected;
-      reject_except(u.list, {});
-      set_support(u.list, u.support, u.runner_up, false);
-    }
-  }
-  return out;
+  return CentralizedCheck(graph, options, robust, local).run();
 }
 
 }  // namespace moslam
