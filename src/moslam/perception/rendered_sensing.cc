@@ -19,58 +19,6 @@ double RotationErrorDeg(const SE3& truth, const SE3& est) {
   return SO3::Log(truth.rotation().inverse() * est.rotation()).norm() * kRadToDeg;
 }
 
-}  // namespace
-
-void RenderedSensingConfig::validate() const {
-  render.validate();
-  perception.validate();
-  if (every < 1) throw InvalidInputError("RenderedSensingConfig: every must be >= 1");
-  if (!(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0)) {
-    throw InvalidInputError("RenderedSensingConfig: min_visible_fraction must be in [0, 1]");
-  }
-  if (!(same_object_radius >= 0.0) || !std::isfinite(same_object_radius)) {
-    throw InvalidInputError("RenderedSensingConfig: same_object_radius must be finite and >= 0");
-  }
-}
-
-std::pair<const VisibleObject*, double> NearestSeen(const std::vector<VisibleObject>& seen,
-                                                    const std::string& label,
-                                                    const Vector3& camera_t_object) {
-  const VisibleObject* nearest = nullptr;
-  double distance = std::numeric_limits<double>::infinity();
-  for (const VisibleObject& v : seen) {
-    if (v.label != label) continue;
-    const double d = (v.camera_T_object.translation() - camera_t_object).norm();
-    if (d < distance) {
-      distance = d;
-      nearest = &v;
-    }
-  }
-  return {nearest, distance};
-}
-
-int MeasuredObject(const std::vector<VisibleObject>& seen, const std::string& label,
-                   const Vector3& camera_t_object, int box_object, double radius) {
-  const auto [nearest, distance] = NearestSeen(seen, label, camera_t_object);
-  return nearest != nullptr && distance < radius ? nearest->id : box_object;
-}
-
-AcceptanceCounts RenderedSensingStats::total() const {
-  AcceptanceCounts sum;
-  for (const auto& [label, c] : by_class) {
-    sum.true_detections += c.true_detections;
-    sum.accepted += c.accepted;
-    sum.true_visible += c.true_visible;
-    sum.accepted_visible += c.accepted_visible;
-  }
-  return sum;
-}
-
-double RenderedSensingStats::medianTranslationError() const { return Median(translation_errors); }
-double RenderedSensingStats::medianRotationErrorDeg() const { return Median(rotation_errors_deg); }
-
-namespace {
-
 // The object a detection's box shows: the same-label object whose visible-pixel box it overlaps
 // most, at IoU >= 0.5 (nullptr: a false detection).
 const VisibleObject* BoxTruth(const std::vector<VisibleObject>& seen, const Detection& detection) {
@@ -200,6 +148,55 @@ std::optional<ObjectDetection> Evaluate(const PerceivedObject& o,
 }
 
 }  // namespace
+
+void RenderedSensingConfig::validate() const {
+  render.validate();
+  perception.validate();
+  if (every < 1) throw InvalidInputError("RenderedSensingConfig: every must be >= 1");
+  if (!(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0)) {
+    throw InvalidInputError("RenderedSensingConfig: min_visible_fraction must be in [0, 1]");
+  }
+  if (!(same_object_radius >= 0.0) || !std::isfinite(same_object_radius)) {
+    throw InvalidInputError("RenderedSensingConfig: same_object_radius must be finite and >= 0");
+  }
+}
+
+std::pair<const VisibleObject*, double> NearestSeen(const std::vector<VisibleObject>& seen,
+                                                    const std::string& label,
+                                                    const Vector3& camera_t_object) {
+  const VisibleObject* nearest = nullptr;
+  double distance = std::numeric_limits<double>::infinity();
+  for (const VisibleObject& v : seen) {
+    if (v.label != label) continue;
+    const double d = (v.camera_T_object.translation() - camera_t_object).norm();
+    if (d < distance) {
+      distance = d;
+      nearest = &v;
+    }
+  }
+  return {nearest, distance};
+}
+
+int MeasuredObject(const std::vector<VisibleObject>& seen, const std::string& label,
+                   const Vector3& camera_t_object, int box_object, double radius) {
+  const auto [nearest, distance] = NearestSeen(seen, label, camera_t_object);
+  return nearest != nullptr && distance < radius ? nearest->id : box_object;
+}
+
+AcceptanceCounts RenderedSensingStats::total() const {
+  AcceptanceCounts sum;
+  for (const auto& [label, c] : by_class) {
+    sum.true_detections += c.true_detections;
+    sum.accepted += c.accepted;
+    sum.true_visible += c.true_visible;
+    sum.accepted_visible += c.accepted_visible;
+  }
+  return sum;
+}
+
+double RenderedSensingStats::medianTranslationError() const { return Median(translation_errors); }
+double RenderedSensingStats::medianRotationErrorDeg() const { return Median(rotation_errors_deg); }
+
 
 RenderedSensingStats PerceiveSimulation(SimulationData& data,
                                         const RenderedSensingConfig& config) {
