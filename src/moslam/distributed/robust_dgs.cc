@@ -397,118 +397,158 @@ RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
 // The re-tests of the check's rejects once the inliers' solve was kept (RunRobustDgs): one by one
 // (retest_left_out), then the robot pairs' groups (retest_groups). Updates r's weights and
 // estimate and counts into it (retests, group re-tests, sweeps and bytes).
-void RetestChecksRejects(const PoseGraph& graph, const std::vector<bool>& robust,
-                         const SeparatorConsistencyResult& check, const RobustDgsOptions& options,
-                         RobustDgsResult& r) {
-  const std::size_t n = graph.factors().size();
-  // First the higher robot of each pair sends the lower its estimates of its variables, held by
-  // inliers, in the separators the check left out that are still rejected (for their residuals).
-  const std::set<Key> held = InlierKeys(graph, r.weights);
-  const std::vector<bool> rejected = LeftOut(check, robust, r.weights);
-  r.consistency_bytes += LeftOutEstimateBytes(graph, r.values, [&](std::size_t i, const Key& k) {
-    return rejected[i] && held.count(k) > 0;
-  });
-  const std::vector<std::size_t> candidates =
-      RetestCandidates(graph, check, robust, r.weights, r.values, options.consistency.min_support);
-  const std::vector<std::vector<std::size_t>> groups =
-      RetestGroups(graph, check, robust, r.weights);
-  const std::vector<int> robots = RobotsOf(graph);
-  Coordinator coordinator(robots, &r.control_bytes);
-  std::uint32_t step = 0;
+// The re-tests of the check's rejects by the team, counted as the robots send them: the
+// candidates one at a time (Retest), then each pair's runner-up group (RetestGroup).
+class ChecksRejectsRetest {
+ public:
+  ChecksRejectsRetest(const PoseGraph& graph, const std::vector<bool>& robust,
+                      const SeparatorConsistencyResult& check, const RobustDgsOptions& options,
+                      RobustDgsResult& r)
+      : graph_(graph),
+        robust_(robust),
+        check_(check),
+        options_(options),
+        r_(r),
+        robots_(RobotsOf(graph)),
+        coordinator_(robots_, &r.control_bytes) {}
+
+  void run() {
+    // First the higher robot of each pair sends the lower its estimates of its variables, held
+    // by inliers, in the separators the check left out that are still rejected (for their
+    // residuals).
+    const std::set<Key> held = InlierKeys(graph_, r_.weights);
+    const std::vector<bool> rejected = LeftOut(check_, robust_, r_.weights);
+    r_.consistency_bytes += LeftOutEstimateBytes(
+        graph_, r_.values,
+        [&](std::size_t i, const Key& k) { return rejected[i] && held.count(k) > 0; });
+    const std::vector<std::size_t> candidates = RetestCandidates(
+        graph_, check_, robust_, r_.weights, r_.values, options_.consistency.min_support);
+    const std::vector<std::vector<std::size_t>> groups =
+        RetestGroups(graph_, check_, robust_, r_.weights);
+    r_.retests = static_cast<int>(candidates.size());
+    r_.retest_readmitted = Retest(
+        graph_, candidates, options_.gnc.threshold2(), &r_.weights, &r_.values,
+        [&](const PoseGraph& g, const Values& start, std::size_t i) {
+          return trialSolve(g, start, i);
+        },
+        [&](const PoseGraph& g, const Values& x) { return teamCost(g, x); });
+    if (!options_.retest_groups) return;
+    for (const std::vector<std::size_t>& group : groups) retestGroup(group);
+  }
+
+ private:
   // F over the team: each robot the factors it owns (a separator: the lower robot), reduced.
-  const auto team_cost = [&](const PoseGraph& g, const Values& x) {
+  double teamCost(const PoseGraph& g, const Values& x) {
     std::map<int, double> share;
-    for (int robot : robots) share[robot] = 0.0;
+    for (int robot : robots_) share[robot] = 0.0;
     for (const RelativePoseFactor& f : g.factors()) {
       share[std::min(f.a().robot, f.b().robot)] += f.cost(x.at(f.a()), x.at(f.b()));
     }
-    return coordinator.reduce(share, ++step, /*take_max=*/false);
-  };
+    return coordinator_.reduce(share, ++step_, /*take_max=*/false);
+  }
+
+  // The team's sum of `share` (robots without a share: 0).
+  double reduce(const std::map<int, double>& share) {
+    std::map<int, double> all;
+    for (int robot : robots_) all[robot] = 0.0;
+    for (const auto& [robot, x] : share) all[robot] += x;
+    return coordinator_.reduce(all, ++step_, /*take_max=*/false);
+  }
+
   // A solve of the trials: RunDgs with the refinement, its traffic counted.
-  const auto refined_solve = [&](const PoseGraph& g, const Values& start) {
-    DgsOptions dgs = options.dgs;
+  Values refinedSolve(const PoseGraph& g, const Values& start) {
+    DgsOptions dgs = options_.dgs;
     dgs.refine = true;
     const DgsResult trial = RunDgs(g, start, dgs);
-    r.solve_bytes += trial.bytes;
-    r.sweeps += trial.rotation.iterations + trial.pose.iterations + trial.refine.sweeps;
+    r_.solve_bytes += trial.bytes;
+    r_.sweeps += trial.rotation.iterations + trial.pose.iterations + trial.refine.sweeps;
     return trial.values;
-  };
-  const auto trial_solve = [&](const PoseGraph& g, const Values& start, std::size_t i) {
-    // The candidate's owner sends the other robot its trial weight.
-    const RelativePoseFactor& f = graph.factors()[i];
+  }
+
+  // A candidate's trial: its owner sends the other robot its trial weight, then the solve.
+  Values trialSolve(const PoseGraph& g, const Values& start, std::size_t i) {
+    const RelativePoseFactor& f = graph_.factors()[i];
     WeightMessage m;
     m.sender = std::min(f.a().robot, f.b().robot);
     m.receiver = std::max(f.a().robot, f.b().robot);
-    m.round = step;
+    m.round = step_;
     m.weights = {1.0};
-    r.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
-    ++r.weight_messages;
-    return refined_solve(g, start);
-  };
-  r.retests = static_cast<int>(candidates.size());
-  r.retest_readmitted = Retest(graph, candidates, options.gnc.threshold2(), &r.weights, &r.values,
-                               trial_solve, team_cost);
-  for (const std::vector<std::size_t>& group : groups) {
-    if (!options.retest_groups) break;
-    const std::vector<std::size_t> members =
-        StillRejected(group, r.weights, options.consistency.min_support);
-    if (members.empty()) continue;
-    // A step in which each robot offers the size of its next group: the lowest robot's is tried.
-    std::map<int, double> offers;
-    for (int robot : robots) offers[robot] = 0.0;
-    const RelativePoseFactor& first = graph.factors()[members.front()];
-    offers[std::min(first.a().robot, first.b().robot)] = static_cast<double>(members.size());
-    coordinator.reduce(offers, ++step, /*take_max=*/true);
-    ++r.group_retests;
-    const auto reduce = [&](const std::map<int, double>& share) {
-      std::map<int, double> all;
-      for (int robot : robots) all[robot] = 0.0;
-      for (const auto& [robot, x] : share) all[robot] += x;
-      return coordinator.reduce(all, ++step, /*take_max=*/false);
-    };
-    const std::vector<bool> left_out = LeftOut(check, robust, r.weights);
-    std::vector<bool> usable(n);
-    for (std::size_t i = 0; i < n; ++i) usable[i] = !left_out[i];
-    for (std::size_t i : members) usable[i] = true;
-    // A weight step: the owner of each robust separator it may use sends the other robot its
-    // weight, one message per robot pair.
-    const auto weight_step = [&]() {
-      std::map<std::pair<int, int>, WeightMessage> sent;
-      for (std::size_t i = 0; i < n; ++i) {
-        const int a = graph.factors()[i].a().robot, b = graph.factors()[i].b().robot;
-        if (a == b || !robust[i] || !usable[i]) continue;
-        WeightMessage& m = sent[{std::min(a, b), std::max(a, b)}];
-        m.sender = std::min(a, b);
-        m.receiver = std::max(a, b);
-        m.round = step;
-        m.weights.push_back(r.weights[i]);
-      }
-      for (const auto& [pair, m] : sent) {
-        r.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
-        ++r.weight_messages;
-      }
-    };
-    const auto weighted_solve = [&](const PoseGraph& g, const Values& start, int) {
-      return refined_solve(g, start);
-    };
-    // The weights to the truncated cost's and the group's in (a weight step), the estimates of
-    // the factors the trial may use (for the truncated cost before).
-    weight_step();
-    r.consistency_bytes +=
-        LeftOutEstimateBytes(graph, r.values, [&](std::size_t i, const Key&) { return usable[i]; });
-    if (RetestGroup(
-            graph, robust, left_out, members, options.gnc, options.retest_group_solves, &r.weights,
-            &r.values, weighted_solve,
-            [&](const std::map<int, double>& count, int) {
-              weight_step();
-              return reduce(count);
-            },
-            [&](const PoseGraph& g, const std::vector<bool>& g_robust, const Values& x) {
-              return TruncatedCost(g, g_robust, x, options.gnc.threshold2(), reduce);
-            })) {
-      for (std::size_t i : members) r.group_readmitted += r.weights[i] >= 0.5 ? 1 : 0;
+    r_.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
+    ++r_.weight_messages;
+    return refinedSolve(g, start);
+  }
+
+  // A weight step: the owner of each robust separator the trial may use (`usable`) sends the
+  // other robot its weight, one message per robot pair.
+  void weightStep(const std::vector<bool>& usable) {
+    std::map<std::pair<int, int>, WeightMessage> sent;
+    for (std::size_t i = 0; i < graph_.factors().size(); ++i) {
+      const int a = graph_.factors()[i].a().robot, b = graph_.factors()[i].b().robot;
+      if (a == b || !robust_[i] || !usable[i]) continue;
+      WeightMessage& m = sent[{std::min(a, b), std::max(a, b)}];
+      m.sender = std::min(a, b);
+      m.receiver = std::max(a, b);
+      m.round = step_;
+      m.weights.push_back(r_.weights[i]);
+    }
+    for (const auto& [pair, m] : sent) {
+      r_.weight_bytes += static_cast<std::int64_t>(EncodeWeightMessage(m).size());
+      ++r_.weight_messages;
     }
   }
+
+  // One pair's runner-up group, those of it still rejected, tried together.
+  void retestGroup(const std::vector<std::size_t>& group) {
+    const std::vector<std::size_t> members =
+        StillRejected(group, r_.weights, options_.consistency.min_support);
+    if (members.empty()) return;
+    // A step in which each robot offers the size of its next group: the lowest robot's is tried.
+    std::map<int, double> offers;
+    for (int robot : robots_) offers[robot] = 0.0;
+    const RelativePoseFactor& first = graph_.factors()[members.front()];
+    offers[std::min(first.a().robot, first.b().robot)] = static_cast<double>(members.size());
+    coordinator_.reduce(offers, ++step_, /*take_max=*/true);
+    ++r_.group_retests;
+    const std::vector<bool> left_out = LeftOut(check_, robust_, r_.weights);
+    std::vector<bool> usable(graph_.factors().size());
+    for (std::size_t i = 0; i < usable.size(); ++i) usable[i] = !left_out[i];
+    for (std::size_t i : members) usable[i] = true;
+    // The weights to the truncated cost's and the group's in (a weight step), the estimates of
+    // the factors the trial may use (for the truncated cost before).
+    weightStep(usable);
+    r_.consistency_bytes += LeftOutEstimateBytes(
+        graph_, r_.values, [&](std::size_t i, const Key&) { return usable[i]; });
+    const bool kept = RetestGroup(
+        graph_, robust_, left_out, members, options_.gnc, options_.retest_group_solves, &r_.weights,
+        &r_.values,
+        [&](const PoseGraph& g, const Values& start, int) { return refinedSolve(g, start); },
+        [&](const std::map<int, double>& count, int) {
+          weightStep(usable);
+          return reduce(count);
+        },
+        [&](const PoseGraph& g, const std::vector<bool>& g_robust, const Values& x) {
+          return TruncatedCost(g, g_robust, x, options_.gnc.threshold2(),
+                               [&](const std::map<int, double>& share) { return reduce(share); });
+        });
+    if (kept) {
+      for (std::size_t i : members) r_.group_readmitted += r_.weights[i] >= 0.5 ? 1 : 0;
+    }
+  }
+
+  const PoseGraph& graph_;
+  const std::vector<bool>& robust_;
+  const SeparatorConsistencyResult& check_;
+  const RobustDgsOptions& options_;
+  RobustDgsResult& r_;
+  const std::vector<int> robots_;
+  Coordinator coordinator_;
+  std::uint32_t step_ = 0;  // the team's protocol steps so far
+};
+
+void RetestChecksRejects(const PoseGraph& graph, const std::vector<bool>& robust,
+                         const SeparatorConsistencyResult& check, const RobustDgsOptions& options,
+                         RobustDgsResult& r) {
+  ChecksRejectsRetest(graph, robust, check, options, r).run();
 }
 
 }  // namespace
