@@ -705,98 +705,35 @@ const RefineReport& DgsDriver::runRefineStage() {
     throw InvalidInputError("DGS: the refinement runs once, after the pose stage");
   }
   const auto stage_start = Clock::now();
-  const DgsOptions::Refinement& opt = options_.refinement;
   previous_.clear();
   RefineRun run;
-
-  std::set<int> told_silent;  // robots whose silence the live agents were told about
-  auto tellSilence = [&]() {
-    bool changed = false;
-    for (const auto& [robot, silence] : silent_) {
-      if (!told_silent.insert(robot).second) continue;
-      changed = true;
-      for (auto& [r, agent] : agents_) {
-        if (live(r)) agent->setUnresponsive(robot);
-      }
-    }
-    return changed;
-  };
   updateSilence(DgsStage::kRefine, 0);
   for (int r : order_) {
     if (live(r)) agents_.at(r)->startRefine();
   }
-  tellSilence();
-  auto costOf = [&](bool candidate) {
-    return gather(run, ControlKind::kCostReport, 0,
-                  [candidate](RobotAgent& a) { return a.costShare(candidate); }, Reduce::kSum);
-  };
+  tellSilence(run);
 
   report.status = StageStatus::kMaxIterations;
   if (coordinator() < 0) {
     report.status = StageStatus::kConverged;  // nobody left to refine
   } else {
     report.coordinator = coordinator();
-    double cost = costOf(false);
+    double cost = refineCost(run, false);
     report.initial_cost = cost;
     report.final_cost = cost;
     double lambda = 0.0;
-    for (int step = 1; step <= opt.max_iterations; ++step) {
-      const auto step_start = Clock::now();
+    for (int step = 1; step <= options_.refinement.max_iterations; ++step) {
       run.step = step;
       updateSilence(DgsStage::kRefine, step);
-      if (tellSilence()) {
+      if (tellSilence(run)) {
         if (coordinator() < 0) {
           report.status = StageStatus::kConverged;
           break;
         }
         report.coordinator = coordinator();
-        cost = costOf(false);  // the shares changed
+        cost = refineCost(run, false);  // the shares changed
       }
-      RefineStepSummary summary;
-      summary.iteration = step;
-      summary.lambda = lambda;
-      summary.cost_before = cost;
-      for (int r : order_) {
-        if (live(r)) agents_.at(r)->beginStep(lambda);
-      }
-      if (opt.solver == RefineSolver::kConjugateGradient) {
-        CgGoal goal;
-        goal.tolerance = opt.cg_tolerance;
-        goal.max_sweeps = opt.max_sweeps;
-        const CgOutcome outcome = solveByConjugateGradients(run, goal);
-        summary.sweeps = outcome.sweeps;
-        summary.linear_converged = outcome.converged;
-      } else {
-        solveBySweeps(run, summary);
-      }
-      // The step's cost; the coordinator's decision, broadcast.
-      const double candidate = costOf(true);
-      summary.cost_candidate = candidate;
-      const auto [accept, finished] = DecideRefineStep(cost, candidate, step, opt, lambda, report);
-      const int c = coordinator();
-      for (int r : order_) {
-        if (!live(r)) continue;
-        ControlMessage d;
-        d.kind = ControlKind::kStepDecision;
-        d.sender = c;
-        d.round = static_cast<std::uint32_t>(step);
-        d.flags = static_cast<std::uint8_t>((accept ? kAcceptStep : 0) |
-                                            (finished ? kRefineFinished : 0));
-        d.value[0] = accept ? candidate : cost;
-        d.value[1] = lambda;
-        const ControlMessage got = r == c ? d : sendControl(d, r, traffic(run));
-        if ((got.flags & kAcceptStep) != 0) agents_.at(r)->acceptStep();
-      }
-      closeSweep(run);
-      if (accept) cost = candidate;
-      summary.accepted = accept;
-      summary.bytes = report.bytes;
-      report.iterations = step;
-      report.final_cost = cost;
-      summary.seconds = Since(step_start);
-      report.steps.push_back(summary);
-      if (progress_.on_refine_step) progress_.on_refine_step(summary);
-      if (finished) break;
+      if (refineStep(run, cost, lambda)) break;
     }
   }
   // Traffic after the last sweep (none unless the refinement ended before sweeping).
@@ -810,6 +747,75 @@ const RefineReport& DgsDriver::runRefineStage() {
   report.seconds = Since(stage_start);
   result_.seconds += report.seconds;
   return report;
+}
+
+bool DgsDriver::tellSilence(RefineRun& run) {
+  bool changed = false;
+  for (const auto& [robot, silence] : silent_) {
+    if (!run.told_silent.insert(robot).second) continue;
+    changed = true;
+    for (auto& [r, agent] : agents_) {
+      if (live(r)) agent->setUnresponsive(robot);
+    }
+  }
+  return changed;
+}
+
+double DgsDriver::refineCost(RefineRun& run, bool candidate) {
+  return gather(
+      run, ControlKind::kCostReport, 0,
+      [candidate](RobotAgent& a) { return a.costShare(candidate); }, Reduce::kSum);
+}
+
+bool DgsDriver::refineStep(RefineRun& run, double& cost, double& lambda) {
+  const auto step_start = Clock::now();
+  const DgsOptions::Refinement& opt = options_.refinement;
+  RefineReport& report = result_.refine;
+  RefineStepSummary summary;
+  summary.iteration = run.step;
+  summary.lambda = lambda;
+  summary.cost_before = cost;
+  for (int r : order_) {
+    if (live(r)) agents_.at(r)->beginStep(lambda);
+  }
+  if (opt.solver == RefineSolver::kConjugateGradient) {
+    CgGoal goal;
+    goal.tolerance = opt.cg_tolerance;
+    goal.max_sweeps = opt.max_sweeps;
+    const CgOutcome outcome = solveByConjugateGradients(run, goal);
+    summary.sweeps = outcome.sweeps;
+    summary.linear_converged = outcome.converged;
+  } else {
+    solveBySweeps(run, summary);
+  }
+  // The step's cost; the coordinator's decision, broadcast.
+  const double candidate = refineCost(run, true);
+  summary.cost_candidate = candidate;
+  const auto [accept, finished] = DecideRefineStep(cost, candidate, run.step, opt, lambda, report);
+  const int c = coordinator();
+  for (int r : order_) {
+    if (!live(r)) continue;
+    ControlMessage d;
+    d.kind = ControlKind::kStepDecision;
+    d.sender = c;
+    d.round = static_cast<std::uint32_t>(run.step);
+    d.flags =
+        static_cast<std::uint8_t>((accept ? kAcceptStep : 0) | (finished ? kRefineFinished : 0));
+    d.value[0] = accept ? candidate : cost;
+    d.value[1] = lambda;
+    const ControlMessage got = r == c ? d : sendControl(d, r, traffic(run));
+    if ((got.flags & kAcceptStep) != 0) agents_.at(r)->acceptStep();
+  }
+  closeSweep(run);
+  if (accept) cost = candidate;
+  summary.accepted = accept;
+  summary.bytes = report.bytes;
+  report.iterations = run.step;
+  report.final_cost = cost;
+  summary.seconds = Since(step_start);
+  report.steps.push_back(summary);
+  if (progress_.on_refine_step) progress_.on_refine_step(summary);
+  return finished;
 }
 
 RefineDecision DecideRefineStep(double cost, double candidate, int step,

@@ -67,6 +67,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -330,7 +331,14 @@ class DgsDriver {
     bool open = false;
     DgsIterationStats current, pending;
     std::chrono::steady_clock::time_point sweep_start;
+    std::set<int> told_silent;  // robots whose silence the live agents were told about
   };
+  // The refinement: tells the live agents of robots newly silent (true if any); the team's cost
+  // (at the step's candidate or not); one Gauss-Newton step of the team, true when it finishes
+  // the refinement (cost, lambda: the accepted cost and the damping, updated).
+  bool tellSilence(RefineRun& run);
+  double refineCost(RefineRun& run, bool candidate);
+  bool refineStep(RefineRun& run, double& cost, double& lambda);
   int coordinator() const;  // the first live robot of the order, -1 if none
   void openSweep(RefineRun& run);
   void closeSweep(RefineRun& run);
