@@ -213,123 +213,6 @@ std::string Fix(double v, int digits = 1) {
 }
 std::string MB(double bytes) { return Sci(bytes / 1e6); }
 
-}  // namespace
-
-std::string ToString(InformationMode mode) {
-  return mode == InformationMode::kFixed ? "fixed" : "noise";
-}
-
-InformationMode InformationModeFromString(const std::string& text) {
-  if (text == "noise") return InformationMode::kNoise;
-  if (text == "fixed") return InformationMode::kFixed;
-  throw InvalidInputError("information mode must be 'noise' or 'fixed', got '" + text + "'");
-}
-
-TableKind TableKindFromString(const std::string& text) {
-  if (text == "accuracy") return TableKind::kAccuracy;
-  if (text == "association") return TableKind::kAssociation;
-  if (text == "memory") return TableKind::kMemory;
-  if (text == "scale") return TableKind::kScale;
-  if (text == "perception") return TableKind::kPerception;
-  if (text == "robust") return TableKind::kRobust;
-  throw InvalidInputError(
-      "table must be accuracy, association, memory, scale, perception or robust, got '" + text +
-      "'");
-}
-
-void ExperimentConfig::validate() const {
-  if (scenario != "chairs25" && scenario != "house" && scenario != "generated") {
-    throw InvalidInputError("experiment: scenario must be chairs25, house or generated, got '" +
-                            scenario + "'");
-  }
-  if (robots < 1) {
-    throw InvalidInputError("experiment: robots must be at least 1, got " +
-                            std::to_string(robots));
-  }
-  if (runs < 1) {
-    throw InvalidInputError("experiment: runs must be at least 1, got " + std::to_string(runs));
-  }
-  if (!(sigma_rotation_deg >= 0.0) || !std::isfinite(sigma_rotation_deg)) {
-    throw InvalidInputError("experiment: sigma_rotation_deg must be finite and >= 0");
-  }
-  if (!(sigma_translation >= 0.0) || !std::isfinite(sigma_translation)) {
-    throw InvalidInputError("experiment: sigma_translation must be finite and >= 0");
-  }
-  if (!(outlier_fraction >= 0.0 && outlier_fraction < 1.0)) {
-    throw InvalidInputError("experiment: outlier_fraction must be in [0, 1)");
-  }
-  if (!(gnc_threshold >= 0.0) || !std::isfinite(gnc_threshold)) {
-    throw InvalidInputError("experiment: gnc_threshold must be finite and >= 0");
-  }
-  if (!(exclusion_radius >= 0.0) || !std::isfinite(exclusion_radius)) {
-    throw InvalidInputError("experiment: exclusion_radius must be finite and >= 0");
-  }
-  if (!(ambiguity_ratio >= 0.0 && ambiguity_ratio < 1.0)) {
-    throw InvalidInputError("experiment: ambiguity_ratio must be in [0, 1) (0: off)");
-  }
-  if (poses_per_robot < 2) {
-    throw InvalidInputError("experiment: poses_per_robot must be at least 2, got " +
-                            std::to_string(poses_per_robot));
-  }
-  const PointCloudModel& p = point_cloud;
-  for (double v : {p.points_per_frame, p.bytes_per_point, p.points_per_object,
-                   p.bytes_per_object}) {
-    if (!(v > 0.0) || !std::isfinite(v)) {
-      throw InvalidInputError("experiment: point-cloud model values must be positive");
-    }
-  }
-}
-
-SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& metrics) {
-  config.validate();
-  SimulatedRun out;
-  out.seed = config.seed + static_cast<unsigned>(run);
-  const World world = MakeScenarioWorld(config.scenario, out.seed, config.robots);
-  const SimulationConfig sim =
-      NoiseSimulationConfig(config.robots, config.poses_per_robot, out.seed,
-                            config.sigma_rotation_deg, config.sigma_translation);
-  out.data = Simulate(world, sim);
-  if (config.perceive) config.perceive(out.data, metrics);
-  out.slam = MultiRobotSlamConfigForNoise(sim.sensing);
-  out.slam.known_initial_poses = config.known_initial_poses;
-  out.slam.slam.exclusion_radius = config.exclusion_radius;
-  out.slam.slam.leave_one_out_check = config.leave_one_out_check;
-  out.slam.slam.ambiguity_ratio = config.ambiguity_ratio;
-  out.slam.slam.loop_closure = config.loop_closure;
-  out.slam.rendezvous.refine_by_constellation = config.rendezvous_constellation;
-  out.slam.outlier_fraction = config.outlier_fraction;
-  out.slam.outlier_seed = out.seed;
-  return out;
-}
-
-std::map<Key, int> LandmarkObjects(const JointProblem& joint,
-                                   const std::vector<ObjectSlam>& robots) {
-  std::map<Key, std::map<int, int>> seen;
-  for (std::size_t i = 0; i < joint.graph.factors().size(); ++i) {
-    if (joint.factor_objects[i] != ObjectSlam::kNoObservation) {
-      ++seen[joint.graph.factors()[i].b()][joint.factor_objects[i]];
-    }
-  }
-  std::map<Key, int> truth_of;
-  for (const ObjectSlam& robot : robots) {
-    for (const Landmark& l : robot.landmarks()) {
-      int best = l.true_object, most = seen[l.key][l.true_object];
-      for (const auto& [object, count] : seen[l.key]) {
-        if (count > most) best = object, most = count;
-      }
-      truth_of[l.key] = best;
-    }
-  }
-  return truth_of;
-}
-
-bool WrongPair(const std::map<Key, int>& objects, const Key& a, const Key& b) {
-  const int ta = objects.at(a), tb = objects.at(b);
-  return ta < 0 || ta != tb;
-}
-
-namespace {
-
 // The robust solve's columns of one run (config.robust): the robust DGS, the least-squares DGS and
 // the outlier-free centralized solve against the ground truth and one another, and the
 // precision and recall of the rejections of each kind of robust factor.
@@ -465,28 +348,10 @@ void MemoryAndCommunication(const ExperimentConfig& config, const MultiRobotSlam
   }
 }
 
-}  // namespace
-
-RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimates* estimates) {
-  const auto t0 = Clock::now();
-  RunMetrics m;
-  SimulatedRun simulated = SimulateRun(config, run, m);
-  const unsigned seed = simulated.seed;
-  const SimulationData& data = simulated.data;
-  const MultiRobotSlamConfig& slam_config = simulated.slam;
-  const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, slam_config);
-  JointProblem joint =
-      AssembleJointProblem(slam.robots, slam.shared, slam_config.rendezvous.lambda());
-  if (!joint.unanchored_robots.empty()) {
-    throw UnlinkedRobotError(fmt::format(
-        "experiment {} with {} robots, seed {}: robot {} never linked to robot 0 through "
-        "rendezvous (try another seed or more poses per robot)",
-        config.scenario, config.robots, seed, joint.unanchored_robots.front()));
-  }
-  if (config.information == InformationMode::kFixed) {
-    NoiseModel paper;  // 5 deg, 0.2 m
-    joint.graph = WithInformation(joint.graph, paper.information(SensingConfig().information_sigma_floor));
-  }
+// What the robots' SLAM and rendezvous did: measurements per pose, the joint graph's size, the
+// association's precision and recall, the alignments (unknown initial poses).
+void SlamMetrics(const SimulationData& data, const MultiRobotSlamResult& slam,
+                 const JointProblem& joint, RunMetrics& m) {
   m.seconds_slam = slam.seconds;
   const MeasurementCoverage coverage = CoverageOf(data.measurements);
   m.measurements_per_pose = coverage.perPose();
@@ -520,8 +385,11 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
       m.alignable_aligned += aligned ? 1 : 0;
     }
   }
+}
 
-  // Centralized.
+// The centralized solve (two-stage initialisation, then Gauss-Newton), and the cost from the
+// chordal initialisation alone.
+OptimizerResult CentralizedMetrics(const JointProblem& joint, RunMetrics& m) {
   const auto t_gn = Clock::now();
   const OptimizerResult gn =
       Optimize(joint.graph, CentralizedTwoStage(joint.graph, joint.initial).values);
@@ -529,10 +397,15 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.gn_cost = gn.final_cost;
   m.gn_iterations = gn.iterations;
   m.gn_chordal_cost = Optimize(joint.graph, ChordalInitialization(joint.graph)).final_cost;
+  return gn;
+}
 
-  // Distributed.
+// DGS at the paper's two thresholds (the second with the refinement when config.refine), and the
+// sweeps of the other DGS level for comparison. Returns the run at eta = 0.1.
+DgsRun DistributedMetrics(const ExperimentConfig& config, const JointProblem& joint,
+                          RunMetrics& m) {
   const bool two_level = config.two_level_dgs;
-  const DgsRun eta1 = RunDgsStages(joint.graph, joint.initial, 1e-1, false, two_level);
+  DgsRun eta1 = RunDgsStages(joint.graph, joint.initial, 1e-1, false, two_level);
   const DgsRun eta2 = RunDgsStages(joint.graph, joint.initial, 1e-2, config.refine, two_level);
   m.iterations_eta1_other =
       RunDgsStages(joint.graph, joint.initial, 1e-1, false, !two_level).iterations;
@@ -549,16 +422,18 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.refine_iterations = eta2.refine_iterations;
   m.refine_bytes = eta2.refine_bytes;
   m.seconds_refine = eta2.refine_seconds;
+  return eta1;
+}
 
-  const TrajectoryErrors star = CompareEstimates(eta1.values, gn.values);
+// DGS against the centralized estimate (ATE* / ARE*), and both against ground truth.
+void AccuracyMetrics(const Values& gn, const Values& dgs, const Values& truth, RunMetrics& m) {
+  const TrajectoryErrors star = CompareEstimates(dgs, gn);
   m.ate_star_poses = star.poses.ate;
   m.ate_star_landmarks = star.objects.ate;
   m.are_star_poses = star.poses.are_deg;
   m.are_star_landmarks = star.objects.are_deg;
-
-  const Values truth = JointGroundTruth(data, slam.robots);
-  const GroundTruthErrors gn_gt = CompareToGroundTruthOrNan(gn.values, truth);
-  const GroundTruthErrors dgs_gt = CompareToGroundTruthOrNan(eta1.values, truth);
+  const GroundTruthErrors gn_gt = CompareToGroundTruthOrNan(gn, truth);
+  const GroundTruthErrors dgs_gt = CompareToGroundTruthOrNan(dgs, truth);
   m.gn_ate_poses = gn_gt.aligned.poses.ate;
   m.gn_ate_landmarks = gn_gt.aligned.objects.ate;
   m.gn_are_poses = gn_gt.aligned.poses.are_deg;
@@ -567,7 +442,148 @@ RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimat
   m.dgs_ate_landmarks = dgs_gt.aligned.objects.ate;
   m.dgs_are_poses = dgs_gt.aligned.poses.are_deg;
   m.dgs_are_landmarks = dgs_gt.aligned.objects.are_deg;
+}
 
+}  // namespace
+
+std::string ToString(InformationMode mode) {
+  return mode == InformationMode::kFixed ? "fixed" : "noise";
+}
+
+InformationMode InformationModeFromString(const std::string& text) {
+  if (text == "noise") return InformationMode::kNoise;
+  if (text == "fixed") return InformationMode::kFixed;
+  throw InvalidInputError("information mode must be 'noise' or 'fixed', got '" + text + "'");
+}
+
+TableKind TableKindFromString(const std::string& text) {
+  if (text == "accuracy") return TableKind::kAccuracy;
+  if (text == "association") return TableKind::kAssociation;
+  if (text == "memory") return TableKind::kMemory;
+  if (text == "scale") return TableKind::kScale;
+  if (text == "perception") return TableKind::kPerception;
+  if (text == "robust") return TableKind::kRobust;
+  throw InvalidInputError(
+      "table must be accuracy, association, memory, scale, perception or robust, got '" + text +
+      "'");
+}
+
+void ExperimentConfig::validate() const {
+  if (scenario != "chairs25" && scenario != "house" && scenario != "generated") {
+    throw InvalidInputError("experiment: scenario must be chairs25, house or generated, got '" +
+                            scenario + "'");
+  }
+  if (robots < 1) {
+    throw InvalidInputError("experiment: robots must be at least 1, got " + std::to_string(robots));
+  }
+  if (runs < 1) {
+    throw InvalidInputError("experiment: runs must be at least 1, got " + std::to_string(runs));
+  }
+  if (!(sigma_rotation_deg >= 0.0) || !std::isfinite(sigma_rotation_deg)) {
+    throw InvalidInputError("experiment: sigma_rotation_deg must be finite and >= 0");
+  }
+  if (!(sigma_translation >= 0.0) || !std::isfinite(sigma_translation)) {
+    throw InvalidInputError("experiment: sigma_translation must be finite and >= 0");
+  }
+  if (!(outlier_fraction >= 0.0 && outlier_fraction < 1.0)) {
+    throw InvalidInputError("experiment: outlier_fraction must be in [0, 1)");
+  }
+  if (!(gnc_threshold >= 0.0) || !std::isfinite(gnc_threshold)) {
+    throw InvalidInputError("experiment: gnc_threshold must be finite and >= 0");
+  }
+  if (!(exclusion_radius >= 0.0) || !std::isfinite(exclusion_radius)) {
+    throw InvalidInputError("experiment: exclusion_radius must be finite and >= 0");
+  }
+  if (!(ambiguity_ratio >= 0.0 && ambiguity_ratio < 1.0)) {
+    throw InvalidInputError("experiment: ambiguity_ratio must be in [0, 1) (0: off)");
+  }
+  if (poses_per_robot < 2) {
+    throw InvalidInputError("experiment: poses_per_robot must be at least 2, got " +
+                            std::to_string(poses_per_robot));
+  }
+  const PointCloudModel& p = point_cloud;
+  for (double v :
+       {p.points_per_frame, p.bytes_per_point, p.points_per_object, p.bytes_per_object}) {
+    if (!(v > 0.0) || !std::isfinite(v)) {
+      throw InvalidInputError("experiment: point-cloud model values must be positive");
+    }
+  }
+}
+
+SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& metrics) {
+  config.validate();
+  SimulatedRun out;
+  out.seed = config.seed + static_cast<unsigned>(run);
+  const World world = MakeScenarioWorld(config.scenario, out.seed, config.robots);
+  const SimulationConfig sim =
+      NoiseSimulationConfig(config.robots, config.poses_per_robot, out.seed,
+                            config.sigma_rotation_deg, config.sigma_translation);
+  out.data = Simulate(world, sim);
+  if (config.perceive) config.perceive(out.data, metrics);
+  out.slam = MultiRobotSlamConfigForNoise(sim.sensing);
+  out.slam.known_initial_poses = config.known_initial_poses;
+  out.slam.slam.exclusion_radius = config.exclusion_radius;
+  out.slam.slam.leave_one_out_check = config.leave_one_out_check;
+  out.slam.slam.ambiguity_ratio = config.ambiguity_ratio;
+  out.slam.slam.loop_closure = config.loop_closure;
+  out.slam.rendezvous.refine_by_constellation = config.rendezvous_constellation;
+  out.slam.outlier_fraction = config.outlier_fraction;
+  out.slam.outlier_seed = out.seed;
+  return out;
+}
+
+std::map<Key, int> LandmarkObjects(const JointProblem& joint,
+                                   const std::vector<ObjectSlam>& robots) {
+  std::map<Key, std::map<int, int>> seen;
+  for (std::size_t i = 0; i < joint.graph.factors().size(); ++i) {
+    if (joint.factor_objects[i] != ObjectSlam::kNoObservation) {
+      ++seen[joint.graph.factors()[i].b()][joint.factor_objects[i]];
+    }
+  }
+  std::map<Key, int> truth_of;
+  for (const ObjectSlam& robot : robots) {
+    for (const Landmark& l : robot.landmarks()) {
+      int best = l.true_object, most = seen[l.key][l.true_object];
+      for (const auto& [object, count] : seen[l.key]) {
+        if (count > most) best = object, most = count;
+      }
+      truth_of[l.key] = best;
+    }
+  }
+  return truth_of;
+}
+
+bool WrongPair(const std::map<Key, int>& objects, const Key& a, const Key& b) {
+  const int ta = objects.at(a), tb = objects.at(b);
+  return ta < 0 || ta != tb;
+}
+
+RunMetrics RunSimulationOnce(const ExperimentConfig& config, int run, RunEstimates* estimates) {
+  const auto t0 = Clock::now();
+  RunMetrics m;
+  SimulatedRun simulated = SimulateRun(config, run, m);
+  const unsigned seed = simulated.seed;
+  const SimulationData& data = simulated.data;
+  const MultiRobotSlamConfig& slam_config = simulated.slam;
+  const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, slam_config);
+  JointProblem joint =
+      AssembleJointProblem(slam.robots, slam.shared, slam_config.rendezvous.lambda());
+  if (!joint.unanchored_robots.empty()) {
+    throw UnlinkedRobotError(fmt::format(
+        "experiment {} with {} robots, seed {}: robot {} never linked to robot 0 through "
+        "rendezvous (try another seed or more poses per robot)",
+        config.scenario, config.robots, seed, joint.unanchored_robots.front()));
+  }
+  if (config.information == InformationMode::kFixed) {
+    NoiseModel paper;  // 5 deg, 0.2 m
+    joint.graph =
+        WithInformation(joint.graph, paper.information(SensingConfig().information_sigma_floor));
+  }
+  SlamMetrics(data, slam, joint, m);
+  const OptimizerResult gn = CentralizedMetrics(joint, m);
+  const DgsRun eta1 = DistributedMetrics(config, joint, m);
+  const Values truth = JointGroundTruth(data, slam.robots);
+  AccuracyMetrics(gn.values, eta1.values, truth, m);
   if (config.robust) RobustMetrics(config, seed, joint, slam, truth, m);
 
   MemoryAndCommunication(config, slam, m);
