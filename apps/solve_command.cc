@@ -53,15 +53,103 @@ Values InitialEstimate(const Dataset& data, const std::string& how) {
   return data.initial;
 }
 
+// The robust solve (`--robust`): the separator check and GNC of `moslam dgs --robust`, in one
+// process, as an OptimizerResult beside GNC's own report.
+OptimizerResult SolveRobust(const SolveArgs& a, const Dataset& data, const Values& initial,
+                            const std::vector<bool>& robust_mask, const OptimizerOptions& options,
+                            GncResult& gnc) {
+  RobustDgsOptions robust_options;  // the same check and GNC as `moslam dgs --robust`
+  a.robust_args.applyTo(&robust_options);
+  // The initialisation of the factors the separator check keeps (--init file: the file's).
+  auto initialize = [&](const PoseGraph& kept) {
+    if (a.init == "file") return initial;
+    Dataset d;
+    d.graph = kept;
+    d.initial = data.initial;
+    return InitialEstimate(d, a.init);
+  };
+  gnc = SolveRobustCentralized(data.graph, initialize, robust_mask, robust_options, options);
+  OptimizerResult result;
+  result.values = gnc.values;
+  result.termination = TerminationStatus::kConverged;
+  result.initial_cost = data.graph.cost(initial);
+  result.final_cost = data.graph.cost(gnc.values);
+  result.iterations = gnc.iterations;
+  result.seconds = gnc.seconds;
+  return result;
+}
+
+// `--out` (one g2o file, or a folder of one per robot) and `--tum`.
+void WriteEstimate(const SolveArgs& a, const Dataset& data, const Values& values) {
+  if (!a.out.empty()) {
+    G2oWriteOptions w;
+    w.scheme = a.read.scheme;
+    w.plain_keys = data.plain_keys;
+    w.planar = data.planar;
+    if (std::filesystem::is_directory(a.out) || a.out.back() == '/') {
+      WriteG2oFolder(a.out, data.graph, values, w);
+    } else {
+      const auto parent = std::filesystem::path(a.out).parent_path();
+      if (!parent.empty()) std::filesystem::create_directories(parent);
+      WriteG2oFile(a.out, data.graph, values, w);
+    }
+  }
+  if (!a.tum_dir.empty()) WriteTumTrajectories(a.tum_dir, values);
+}
+
+struct SolveTimes {
+  double load = 0.0, init = 0.0, total = 0.0;  // seconds
+};
+
+nlohmann::json SolveJson(const SolveArgs& a, const Dataset& data, const OptimizerResult& result,
+                         const GncResult& gnc, const SolveTimes& times) {
+  nlohmann::json j = {
+      {"input", a.input},
+      {"variables", data.graph.keys().size()},
+      {"factors", data.graph.factors().size()},
+      {"robots", data.graph.numRobots()},
+      {"repaired_information", data.repaired_information},
+      {"init", a.init},
+      {"method", a.method},
+      {"initial_cost", result.initial_cost},
+      {"final_cost", result.final_cost},
+      {"iterations", result.iterations},
+      {"termination", ToString(result.termination)},
+      {"seconds", result.seconds},
+      {"init_seconds", times.init},
+      {"load_seconds", times.load},
+      {"linearize_seconds", result.linearize_seconds},
+      {"cholesky_seconds", result.solve_seconds},
+      {"total_seconds", times.total},
+  };
+  if (a.robust) {
+    nlohmann::json r = {{"status", ToString(gnc.status)},
+                        {"rounds", gnc.iterations},
+                        {"outliers", gnc.outliers},
+                        {"least_squares_cost", gnc.least_squares_cost},
+                        {"final_mu", gnc.final_mu}};
+    nlohmann::json rejected = nlohmann::json::array();
+    for (std::size_t i = 0; i < gnc.weights.size(); ++i) {
+      if (gnc.weights[i] < 0.5) {
+        const RelativePoseFactor& f = data.graph.factors()[i];
+        rejected.push_back({ToString(f.a()), ToString(f.b())});
+      }
+    }
+    r["rejected"] = rejected;
+    j["robust"] = r;
+  }
+  return j;
+}
+
 int RunSolve(const SolveArgs& a) {
   const auto t_start = std::chrono::steady_clock::now();
-  const G2oReadOptions& read_options = a.read;
-  const Dataset data = ReadG2o(a.input, read_options);
-  const double load_seconds = Since(t_start);
+  SolveTimes times;
+  const Dataset data = ReadG2o(a.input, a.read);
+  times.load = Since(t_start);
 
   const auto t_init = std::chrono::steady_clock::now();
   const Values initial = InitialEstimate(data, a.init);
-  const double init_seconds = Since(t_init);
+  times.init = Since(t_init);
 
   OptimizerOptions options;
   options.method = a.method == "lm" ? Method::kLevenbergMarquardt : Method::kGaussNewton;
@@ -72,91 +160,22 @@ int RunSolve(const SolveArgs& a) {
   if (!a.json) {
     fmt::print("{}: {} variables, {} factors, {} robot(s); init {} ({:.3f} s), cost {:.6f}\n",
                a.input, data.graph.keys().size(), data.graph.factors().size(),
-               data.graph.numRobots(), a.init, init_seconds, optimizer.cost());
+               data.graph.numRobots(), a.init, times.init, optimizer.cost());
     if (data.repaired_information > 0) {
       fmt::print("note: {} information matrices read without their indefinite coupling\n",
                  data.repaired_information);
     }
   }
-  OptimizerResult result;
   GncResult gnc;
   const std::vector<bool> robust_mask =
       a.robust ? DefaultRobustFactors(data.graph) : std::vector<bool>{};
-  if (a.robust) {
-    RobustDgsOptions robust_options;  // the same check and GNC as `moslam dgs --robust`
-    a.robust_args.applyTo(&robust_options);
-    // The initialisation of the factors the separator check keeps (--init file: the file's).
-    auto initialize = [&](const PoseGraph& kept) {
-      if (a.init == "file") return initial;
-      Dataset d;
-      d.graph = kept;
-      d.initial = data.initial;
-      return InitialEstimate(d, a.init);
-    };
-    gnc = SolveRobustCentralized(data.graph, initialize, robust_mask, robust_options, options);
-    result.values = gnc.values;
-    result.termination = TerminationStatus::kConverged;
-    result.initial_cost = data.graph.cost(initial);
-    result.final_cost = data.graph.cost(gnc.values);
-    result.iterations = gnc.iterations;
-    result.seconds = gnc.seconds;
-  } else {
-    result = optimizer.optimize();
-  }
-  const double total_seconds = Since(t_start);
-
-  if (!a.out.empty()) {
-    G2oWriteOptions w;
-    w.scheme = read_options.scheme;
-    w.plain_keys = data.plain_keys;
-    w.planar = data.planar;
-    if (std::filesystem::is_directory(a.out) || a.out.back() == '/') {
-      WriteG2oFolder(a.out, data.graph, result.values, w);
-    } else {
-      const auto parent = std::filesystem::path(a.out).parent_path();
-      if (!parent.empty()) std::filesystem::create_directories(parent);
-      WriteG2oFile(a.out, data.graph, result.values, w);
-    }
-  }
-  if (!a.tum_dir.empty()) WriteTumTrajectories(a.tum_dir, result.values);
+  const OptimizerResult result =
+      a.robust ? SolveRobust(a, data, initial, robust_mask, options, gnc) : optimizer.optimize();
+  times.total = Since(t_start);
+  WriteEstimate(a, data, result.values);
 
   if (a.json) {
-    nlohmann::json j = {
-        {"input", a.input},
-        {"variables", data.graph.keys().size()},
-        {"factors", data.graph.factors().size()},
-        {"robots", data.graph.numRobots()},
-        {"repaired_information", data.repaired_information},
-        {"init", a.init},
-        {"method", a.method},
-        {"initial_cost", result.initial_cost},
-        {"final_cost", result.final_cost},
-        {"iterations", result.iterations},
-        {"termination", ToString(result.termination)},
-        {"seconds", result.seconds},
-        {"init_seconds", init_seconds},
-        {"load_seconds", load_seconds},
-        {"linearize_seconds", result.linearize_seconds},
-        {"cholesky_seconds", result.solve_seconds},
-        {"total_seconds", total_seconds},
-    };
-    if (a.robust) {
-      nlohmann::json r = {{"status", ToString(gnc.status)},
-                          {"rounds", gnc.iterations},
-                          {"outliers", gnc.outliers},
-                          {"least_squares_cost", gnc.least_squares_cost},
-                          {"final_mu", gnc.final_mu}};
-      nlohmann::json rejected = nlohmann::json::array();
-      for (std::size_t i = 0; i < gnc.weights.size(); ++i) {
-        if (gnc.weights[i] < 0.5) {
-          const RelativePoseFactor& f = data.graph.factors()[i];
-          rejected.push_back({ToString(f.a()), ToString(f.b())});
-        }
-      }
-      r["rejected"] = rejected;
-      j["robust"] = r;
-    }
-    fmt::print("{}\n", j.dump());
+    fmt::print("{}\n", SolveJson(a, data, result, gnc, times).dump());
   } else if (a.robust) {
     fmt::print("robust (GNC-TLS, threshold {:g}): {} after {} weighted solve(s), {} of {} robust "
                "factor(s) rejected; cost of all factors {:.10g} (least squares {:.10g}) in "
