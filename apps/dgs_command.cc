@@ -68,6 +68,125 @@ void WriteEstimate(const std::string& dir, const PoseGraph& graph, const Values&
 }
 
 // --robust: GNC-TLS by the robots (distributed/robust_dgs.h) beside the centralized GNC.
+// The robots' robust solve against the centralized one of the same options.
+struct RobustComparison {
+  long robust_factors = 0;
+  int disagree = 0;                                   // factors whose verdicts differ
+  nlohmann::json rejected = nlohmann::json::array();  // the robots' rejects, as key pairs
+  double cost = 0.0, central_cost = 0.0;              // of the factors each solve kept
+  TrajectoryErrors errors;                            // the robots' vs the centralized
+};
+
+RobustComparison CompareRobust(const PoseGraph& graph, const std::vector<bool>& robust,
+                               const RobustDgsResult& r, const GncResult& central) {
+  // The cost of the factors each solve kept (weight >= 0.5).
+  auto keptCost = [&](const Values& values, const std::vector<double>& weights) {
+    const std::vector<double> r2 = SquaredResiduals(graph, values);
+    double c = 0.0;
+    for (std::size_t i = 0; i < r2.size(); ++i) c += weights[i] >= 0.5 ? 0.5 * r2[i] : 0.0;
+    return c;
+  };
+  RobustComparison out;
+  out.robust_factors = static_cast<long>(std::count(robust.begin(), robust.end(), true));
+  for (std::size_t i = 0; i < r.weights.size(); ++i) {
+    out.disagree += (r.weights[i] < 0.5) != (central.weights[i] < 0.5) ? 1 : 0;
+    if (r.weights[i] < 0.5) {
+      out.rejected.push_back({ToString(graph.factors()[i].a()), ToString(graph.factors()[i].b())});
+    }
+  }
+  out.cost = keptCost(r.values, r.weights);
+  out.central_cost = keptCost(central.values, central.weights);
+  out.errors = CompareEstimates(r.values, central.values);
+  return out;
+}
+
+nlohmann::json RobustDgsJson(const DgsArgs& a, const PoseGraph& graph,
+                             const RobustDgsOptions& options, const RobustDgsResult& r,
+                             const GncResult& central, const RobustComparison& c,
+                             double total_seconds) {
+  nlohmann::json j = {
+      {"input", a.input},
+      {"robust", true},
+      {"variables", graph.keys().size()},
+      {"factors", graph.factors().size()},
+      {"robust_factors", c.robust_factors},
+      {"gnc_threshold", options.gnc.threshold2()},
+      {"status", ToString(r.status)},
+      {"rounds", r.iterations},
+      {"outliers", r.outliers},
+      {"polished", r.polished},
+      {"polish_refused", r.polish_refused},
+      {"rejected", c.rejected},
+      {"centralized_status", ToString(central.status)},
+      {"centralized_rounds", central.iterations},
+      {"centralized_outliers", central.outliers},
+      {"weights_disagreeing", c.disagree},
+      {"kept_cost", c.cost},
+      {"centralized_kept_cost", c.central_cost},
+      {"ate_poses", c.errors.poses.ate},
+      {"are_poses_deg", c.errors.poses.are_deg},
+      {"bytes", r.bytes()},
+      {"bytes_solves", r.solve_bytes},
+      {"bytes_weights", r.weight_bytes},
+      {"weight_messages", r.weight_messages},
+      {"bytes_control", r.control_bytes},
+      {"bytes_consistency", r.consistency_bytes},
+      {"consistency_rejected", r.consistency_rejected},
+      {"retests", r.retests},
+      {"retest_readmitted", r.retest_readmitted},
+      {"group_retests", r.group_retests},
+      {"group_readmitted", r.group_readmitted},
+      {"consistency_deferred", r.consistency_deferred},
+      {"sweeps", r.sweeps},
+      {"seconds", r.seconds},
+      {"total_seconds", total_seconds},
+  };
+  nlohmann::json rounds = nlohmann::json::array();
+  for (const RobustDgsRound& k : r.rounds) {
+    rounds.push_back({{"round", k.round},
+                      {"mu", k.mu},
+                      {"undecided", k.undecided},
+                      {"outliers", k.outliers},
+                      {"bytes", k.solve_bytes},
+                      {"cost", k.cost}});
+  }
+  j["round_history"] = rounds;
+  return j;
+}
+
+void PrintRobustDgs(const DgsArgs& a, const PoseGraph& graph, const RobustDgsOptions& options,
+                    const RobustDgsResult& r, const GncResult& central, const RobustComparison& c) {
+  fmt::print("{}: {} variables, {} factors ({} robust), GNC-TLS threshold {:g}\n", a.input,
+             graph.keys().size(), graph.factors().size(), c.robust_factors,
+             options.gnc.threshold2());
+  fmt::print(
+      "centralized GNC: {} after {} round(s), {} rejected, cost of the kept factors "
+      "{:.10g}\n",
+      ToString(central.status), central.iterations, central.outliers, c.central_cost);
+  fmt::print(
+      "robots' GNC:     {} after {} round(s), {} rejected ({} weight(s) differ from "
+      "the centralized), cost of the kept factors {:.10g} ({:.3e} relative)\n",
+      ToString(r.status), r.iterations, r.outliers, c.disagree, c.cost,
+      c.central_cost > 0 ? c.cost / c.central_cost - 1.0 : 0.0);
+  fmt::print("vs centralized GNC (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses\n",
+             c.errors.poses.ate, c.errors.poses.are_deg, c.errors.poses.count);
+  fmt::print(
+      "separator check: {} rejected before GNC, {} left to it (too few to confirm "
+      "themselves, their robots linked otherwise)\n",
+      r.consistency_rejected, r.consistency_deferred);
+  if (options.retest_left_out && options.check_separators) {
+    fmt::print(
+        "re-tested against the joint estimate: {} left-out separator(s), {} back; "
+        "{} robot pair group(s), {} separator(s) back\n",
+        r.retests, r.retest_readmitted, r.group_retests, r.group_readmitted);
+  }
+  fmt::print(
+      "traffic: {} bytes (solves {}, weights {} in {} messages, control {}, separator "
+      "check {}); {} sweeps; {:.3f} s\n",
+      r.bytes(), r.solve_bytes, r.weight_bytes, r.weight_messages, r.control_bytes,
+      r.consistency_bytes, r.sweeps, r.seconds);
+}
+
 int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& initial,
                         bool planar, const DgsOptions& dgs,
                         std::chrono::steady_clock::time_point t_start) {
@@ -76,105 +195,20 @@ int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& 
   a.robust_args.applyTo(&options);
   options.validate();
   const std::vector<bool> robust = DefaultRobustFactors(graph);
-  const auto robust_count = std::count(robust.begin(), robust.end(), true);
   const Key anchor = GaugeAnchor(graph);
   const auto anchor_it = initial.find(anchor);
   const SE3 anchor_pose = anchor_it != initial.end() ? anchor_it->second : SE3();
-  const GncResult central =
-      SolveRobustCentralized(graph,
-                             [&](const PoseGraph& g) { return ChordalInitialization(g, anchor_pose); },
-                             robust, options);
+  const GncResult central = SolveRobustCentralized(
+      graph, [&](const PoseGraph& g) { return ChordalInitialization(g, anchor_pose); }, robust,
+      options);
   const RobustDgsResult r = RunRobustDgs(graph, initial, robust, options);
   WriteEstimate(a.out, graph, r.values, a.read, planar);
-  // The cost of the factors each solve kept (weight >= 0.5).
-  auto keptCost = [&](const Values& values, const std::vector<double>& weights) {
-    const std::vector<double> r2 = SquaredResiduals(graph, values);
-    double c = 0.0;
-    for (std::size_t i = 0; i < r2.size(); ++i) c += weights[i] >= 0.5 ? 0.5 * r2[i] : 0.0;
-    return c;
-  };
-  int disagree = 0;
-  nlohmann::json rejected = nlohmann::json::array();
-  for (std::size_t i = 0; i < r.weights.size(); ++i) {
-    disagree += (r.weights[i] < 0.5) != (central.weights[i] < 0.5) ? 1 : 0;
-    if (r.weights[i] < 0.5) {
-      rejected.push_back({ToString(graph.factors()[i].a()), ToString(graph.factors()[i].b())});
-    }
-  }
-  const double cost = keptCost(r.values, r.weights);
-  const double central_cost = keptCost(central.values, central.weights);
-  const TrajectoryErrors errors = CompareEstimates(r.values, central.values);
+  const RobustComparison c = CompareRobust(graph, robust, r, central);
   const double total_seconds = Since(t_start);
   if (a.json) {
-    nlohmann::json j = {
-        {"input", a.input},
-        {"robust", true},
-        {"variables", graph.keys().size()},
-        {"factors", graph.factors().size()},
-        {"robust_factors", robust_count},
-        {"gnc_threshold", options.gnc.threshold2()},
-        {"status", ToString(r.status)},
-        {"rounds", r.iterations},
-        {"outliers", r.outliers},
-        {"polished", r.polished},
-        {"polish_refused", r.polish_refused},
-        {"rejected", rejected},
-        {"centralized_status", ToString(central.status)},
-        {"centralized_rounds", central.iterations},
-        {"centralized_outliers", central.outliers},
-        {"weights_disagreeing", disagree},
-        {"kept_cost", cost},
-        {"centralized_kept_cost", central_cost},
-        {"ate_poses", errors.poses.ate},
-        {"are_poses_deg", errors.poses.are_deg},
-        {"bytes", r.bytes()},
-        {"bytes_solves", r.solve_bytes},
-        {"bytes_weights", r.weight_bytes},
-        {"weight_messages", r.weight_messages},
-        {"bytes_control", r.control_bytes},
-        {"bytes_consistency", r.consistency_bytes},
-        {"consistency_rejected", r.consistency_rejected},
-        {"retests", r.retests},
-        {"retest_readmitted", r.retest_readmitted},
-        {"group_retests", r.group_retests},
-        {"group_readmitted", r.group_readmitted},
-        {"consistency_deferred", r.consistency_deferred},
-        {"sweeps", r.sweeps},
-        {"seconds", r.seconds},
-        {"total_seconds", total_seconds},
-    };
-    nlohmann::json rounds = nlohmann::json::array();
-    for (const RobustDgsRound& k : r.rounds) {
-      rounds.push_back({{"round", k.round}, {"mu", k.mu}, {"undecided", k.undecided},
-                        {"outliers", k.outliers}, {"bytes", k.solve_bytes}, {"cost", k.cost}});
-    }
-    j["round_history"] = rounds;
-    fmt::print("{}\n", j.dump());
+    fmt::print("{}\n", RobustDgsJson(a, graph, options, r, central, c, total_seconds).dump());
   } else {
-    fmt::print("{}: {} variables, {} factors ({} robust), GNC-TLS threshold {:g}\n", a.input,
-               graph.keys().size(), graph.factors().size(), robust_count,
-               options.gnc.threshold2());
-    fmt::print("centralized GNC: {} after {} round(s), {} rejected, cost of the kept factors "
-               "{:.10g}\n",
-               ToString(central.status), central.iterations, central.outliers, central_cost);
-    fmt::print("robots' GNC:     {} after {} round(s), {} rejected ({} weight(s) differ from "
-               "the centralized), cost of the kept factors {:.10g} ({:.3e} relative)\n",
-               ToString(r.status), r.iterations, r.outliers, disagree, cost,
-               central_cost > 0 ? cost / central_cost - 1.0 : 0.0);
-    fmt::print("vs centralized GNC (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses\n",
-               errors.poses.ate, errors.poses.are_deg, errors.poses.count);
-    fmt::print("separator check: {} rejected before GNC, {} left to it (too few to confirm "
-               "themselves, their robots linked otherwise)\n",
-               r.consistency_rejected, r.consistency_deferred);
-    if (options.retest_left_out && options.check_separators) {
-      fmt::print("re-tested against the joint estimate: {} left-out separator(s), {} back; "
-                 "{} robot pair group(s), {} separator(s) back\n",
-                 r.retests, r.retest_readmitted, r.group_retests, r.group_readmitted);
-    }
-    fmt::print("traffic: {} bytes (solves {}, weights {} in {} messages, control {}, separator "
-               "check {}); {} sweeps; {:.3f} s\n",
-               r.bytes(), r.solve_bytes, r.weight_bytes, r.weight_messages, r.control_bytes,
-               r.consistency_bytes, r.sweeps, r.seconds);
+    PrintRobustDgs(a, graph, options, r, central, c);
   }
   return 0;
 }
