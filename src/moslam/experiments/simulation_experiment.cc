@@ -213,79 +213,64 @@ std::string Fix(double v, int digits = 1) {
 }
 std::string MB(double bytes) { return Sci(bytes / 1e6); }
 
-// The robust solve's columns of one run (config.robust): the robust DGS, the least-squares DGS and
-// the outlier-free centralized solve against the ground truth and one another, and the
-// precision and recall of the rejections of each kind of robust factor.
-void RobustMetrics(const ExperimentConfig& config, unsigned seed, const JointProblem& joint,
-                   const MultiRobotSlamResult& slam, const Values& truth, RunMetrics& m) {
-  // Robust: the factors that touch an object (ObjectFactors, as the robot processes), of three
-  // kinds. The object-object factors between robots and those of a robot's own loop closures,
-  // wrong when their landmarks are other world objects; the object-pose factors, wrong when the
-  // detection is of another object than its landmark's (a wrong association inside the robot's
-  // own map, as the intra-association errors of Table 2). A landmark stands for the world object
-  // most of its observations are of (ties: the one that created it): a wrong association inside
-  // a map can outnumber the right ones.
+// The robust factors of the joint graph (ObjectFactors, as the robot processes), of three kinds,
+// and which are wrong. The object-object factors between robots and those of a robot's own loop
+// closures, wrong when their landmarks are other world objects; the object-pose factors, wrong
+// when the detection is of another object than its landmark's (a wrong association inside the
+// robot's own map, as the intra-association errors of Table 2). A landmark stands for the world
+// object most of its observations are of (ties: the one that created it): a wrong association
+// inside a map can outnumber the right ones.
+struct FactorTruth {
+  enum class Kind { kOther, kSeparator, kObservation, kLoopClosure };
+  std::vector<bool> robust;
+  std::vector<Kind> kind;
+  std::vector<bool> wrong;
+  std::vector<RelativePoseFactor> right;  // the factors not wrong: the outlier-free graph
+};
+
+FactorTruth ClassifyFactors(const JointProblem& joint, const MultiRobotSlamResult& slam) {
+  using Kind = FactorTruth::Kind;
   const std::size_t nf = joint.graph.factors().size();
   const std::map<Key, int> truth_of = LandmarkObjects(joint, slam.robots);
-  const std::vector<bool> robust = ObjectFactors(joint.graph);
-  enum class Kind { kOther, kSeparator, kObservation, kLoopClosure };
-  std::vector<Kind> kind(nf, Kind::kOther);
-  std::vector<bool> wrong(nf, false);
-  std::vector<RelativePoseFactor> right;
+  FactorTruth t;
+  t.robust = ObjectFactors(joint.graph);
+  t.kind.assign(nf, Kind::kOther);
+  t.wrong.assign(nf, false);
   for (std::size_t i = 0; i < nf; ++i) {
     const RelativePoseFactor& f = joint.graph.factors()[i];
     if (f.a().isObject() && f.b().isObject()) {
-      kind[i] = f.a().robot != f.b().robot ? Kind::kSeparator : Kind::kLoopClosure;
-      wrong[i] = WrongPair(truth_of, f.a(), f.b());
+      t.kind[i] = f.a().robot != f.b().robot ? Kind::kSeparator : Kind::kLoopClosure;
+      t.wrong[i] = WrongPair(truth_of, f.a(), f.b());
     } else if (joint.factor_objects[i] != ObjectSlam::kNoObservation) {
-      kind[i] = Kind::kObservation;
-      wrong[i] = joint.factor_objects[i] < 0 || joint.factor_objects[i] != truth_of.at(f.b());
+      t.kind[i] = Kind::kObservation;
+      t.wrong[i] = joint.factor_objects[i] < 0 || joint.factor_objects[i] != truth_of.at(f.b());
     }
-    if (!wrong[i]) right.push_back(f);
+    if (!t.wrong[i]) t.right.push_back(f);
   }
-  m.injected = slam.injected;
-  RobustDgsOptions options;
-  options.dgs.coarse_correction = config.two_level_dgs;
-  options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
-  options.gnc.threshold = config.gnc_threshold;
-  options.retest_left_out = config.retest_left_out;
-  options.retest_groups = config.retest_groups;
-  RobustDgsResult r;
-  try {
-    r = RunRobustDgs(joint.graph, joint.initial, robust, options);
-  } catch (const UnderdeterminedError& e) {
-    // The separator check refused every link of a robot: unlinked for the robust solve.
-    throw UnlinkedRobotError(fmt::format("experiment {} with {} robots, seed {}: {}",
-                                         config.scenario, config.robots, seed, e.what()));
-  }
-  // Precision and recall of the rejections, each kind apart.
-  auto score = [&](Kind k, double* count, double* precision, double* recall) {
-    int flagged = 0, flagged_wrong = 0, wrong_count = 0;
-    for (std::size_t i = 0; i < nf; ++i) {
-      if (!robust[i] || kind[i] != k) continue;
-      wrong_count += wrong[i] ? 1 : 0;
-      if (r.weights[i] < 0.5) {
-        ++flagged;
-        flagged_wrong += wrong[i] ? 1 : 0;
-      }
+  return t;
+}
+
+// Precision and recall of the rejections (weight < 0.5) among the robust factors of kind `k`,
+// and how many of them are wrong.
+void ScoreRejections(const FactorTruth& t, FactorTruth::Kind k, const std::vector<double>& weights,
+                     double* count, double* precision, double* recall) {
+  int flagged = 0, flagged_wrong = 0, wrong_count = 0;
+  for (std::size_t i = 0; i < t.kind.size(); ++i) {
+    if (!t.robust[i] || t.kind[i] != k) continue;
+    wrong_count += t.wrong[i] ? 1 : 0;
+    if (weights[i] < 0.5) {
+      ++flagged;
+      flagged_wrong += t.wrong[i] ? 1 : 0;
     }
-    *count = wrong_count;
-    *precision = flagged > 0 ? static_cast<double>(flagged_wrong) / flagged : 1.0;
-    *recall = wrong_count > 0 ? static_cast<double>(flagged_wrong) / wrong_count : 1.0;
-  };
-  score(Kind::kSeparator, &m.wrong_factors, &m.outlier_precision, &m.outlier_recall);
-  score(Kind::kObservation, &m.wrong_observations, &m.observation_precision, &m.observation_recall);
-  score(Kind::kLoopClosure, &m.wrong_loop_closure_factors, &m.loop_closure_precision,
-        &m.loop_closure_recall);
-  m.robust_bytes = static_cast<double>(r.bytes());
-  m.robust_extra_bytes =
-      static_cast<double>(r.weight_bytes + r.control_bytes + r.consistency_bytes);
-  m.robust_rounds = r.iterations;
-  // The least-squares DGS, refined (the same solver with every weight 1).
-  DgsOptions ls_options = options.dgs;
-  ls_options.refine = true;
-  const Values ls = RunDgs(joint.graph, joint.initial, ls_options).values;
-  // The outlier-free solve, centralized from the same start as the robots'.
+  }
+  *count = wrong_count;
+  *precision = flagged > 0 ? static_cast<double>(flagged_wrong) / flagged : 1.0;
+  *recall = wrong_count > 0 ? static_cast<double>(flagged_wrong) / wrong_count : 1.0;
+}
+
+// The outlier-free solve, centralized from the same start as the robots'; empty when only wrong
+// pairs linked some robot (no outlier-free reference for this run).
+Values OutlierFreeSolve(const JointProblem& joint, std::vector<RelativePoseFactor> right) {
   PoseGraph free_graph(std::move(right));
   Values free = joint.initial;
   try {
@@ -295,9 +280,48 @@ void RobustMetrics(const ExperimentConfig& config, unsigned seed, const JointPro
       free[k] = x;
     }
   } catch (const UnderdeterminedError&) {
-    // Only wrong pairs linked some robot: no outlier-free reference for this run.
     free.clear();
   }
+  return free;
+}
+
+// The robust solve's columns of one run (config.robust): the robust DGS, the least-squares DGS and
+// the outlier-free centralized solve against the ground truth and one another, and the
+// precision and recall of the rejections of each kind of robust factor.
+void RobustMetrics(const ExperimentConfig& config, unsigned seed, const JointProblem& joint,
+                   const MultiRobotSlamResult& slam, const Values& truth, RunMetrics& m) {
+  using Kind = FactorTruth::Kind;
+  FactorTruth t = ClassifyFactors(joint, slam);
+  m.injected = slam.injected;
+  RobustDgsOptions options;
+  options.dgs.coarse_correction = config.two_level_dgs;
+  options.dgs.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+  options.gnc.threshold = config.gnc_threshold;
+  options.retest_left_out = config.retest_left_out;
+  options.retest_groups = config.retest_groups;
+  RobustDgsResult r;
+  try {
+    r = RunRobustDgs(joint.graph, joint.initial, t.robust, options);
+  } catch (const UnderdeterminedError& e) {
+    // The separator check refused every link of a robot: unlinked for the robust solve.
+    throw UnlinkedRobotError(fmt::format("experiment {} with {} robots, seed {}: {}",
+                                         config.scenario, config.robots, seed, e.what()));
+  }
+  ScoreRejections(t, Kind::kSeparator, r.weights, &m.wrong_factors, &m.outlier_precision,
+                  &m.outlier_recall);
+  ScoreRejections(t, Kind::kObservation, r.weights, &m.wrong_observations, &m.observation_precision,
+                  &m.observation_recall);
+  ScoreRejections(t, Kind::kLoopClosure, r.weights, &m.wrong_loop_closure_factors,
+                  &m.loop_closure_precision, &m.loop_closure_recall);
+  m.robust_bytes = static_cast<double>(r.bytes());
+  m.robust_extra_bytes =
+      static_cast<double>(r.weight_bytes + r.control_bytes + r.consistency_bytes);
+  m.robust_rounds = r.iterations;
+  // The least-squares DGS, refined (the same solver with every weight 1).
+  DgsOptions ls_options = options.dgs;
+  ls_options.refine = true;
+  const Values ls = RunDgs(joint.graph, joint.initial, ls_options).values;
+  const Values free = OutlierFreeSolve(joint, std::move(t.right));
   const GroundTruthErrors ls_gt = CompareToGroundTruthOrNan(ls, truth);
   const GroundTruthErrors robust_gt = CompareToGroundTruthOrNan(r.values, truth);
   m.ls_ate_poses = ls_gt.aligned.poses.ate;
