@@ -31,6 +31,53 @@ std::vector<std::uint32_t> RejectedFactors(const ObjectSlam& slam) {
   return out;
 }
 
+// The robots connected to `robot` through the rendezvous events of step t, itself included
+// (empty when it has none).
+std::set<int> RobotsInRange(const std::vector<RendezvousEvent>& events, int t, int robot) {
+  std::vector<int> in_range;
+  std::vector<std::pair<int, int>> links;
+  for (const RendezvousEvent& e : events) {
+    if (e.step != t) continue;
+    in_range.insert(in_range.end(), {e.alpha, e.beta});
+    links.emplace_back(e.alpha, e.beta);
+  }
+  std::set<int> range;
+  for (const std::vector<int>& g : ConnectedRobots(in_range, links)) {
+    if (std::binary_search(g.begin(), g.end(), robot)) range.insert(g.begin(), g.end());
+  }
+  return range;
+}
+
+// The DgsNode journal of attempt `attempt` of the group solve of step t (none without a
+// state_dir): a robot restarted in the solve resumes it from there (dgs_node.h).
+std::filesystem::path SolveDir(const std::string& state_dir, int t, int attempt) {
+  if (state_dir.empty()) return {};
+  return std::filesystem::path(state_dir) / "solves" /
+         (attempt == 0 ? fmt::format("step_{:04d}", t)
+                       : fmt::format("step_{:04d}_attempt_{}", t, attempt));
+}
+
+// The node options of one attempt of the group solve of step t among `robots` (their local ids
+// 0..n-1), robust as OnlineTeam's group solve with options.dgs.gnc.
+DgsNodeOptions GroupNodeOptions(const RobotSessionOptions& options, int t, std::uint32_t solve,
+                                const std::vector<int>& robots, const RobotGroupPart& part,
+                                const std::filesystem::path& solve_dir) {
+  DgsNodeOptions node_options = options.dgs;
+  node_options.solve = solve;
+  node_options.team = GroupIds(robots.size());  // formed by the joining statuses
+  node_options.state_dir = solve_dir.string();
+  if (node_options.gnc) {
+    RobustGroupMasks masks = RobustGroupFactors(part.subgraph, part.team);
+    node_options.robust = std::move(masks.robust);
+    if (node_options.separator_check) node_options.checked = std::move(masks.checked);
+  }
+  node_options.log = [log = options.log, t, robots](const std::string& text) {
+    log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t, fmt::join(robots, ","),
+                    robots.size() - 1, text));
+  };
+  return node_options;
+}
+
 }  // namespace
 
 OnlineGroupSolves::OnlineGroupSolves(SessionChannel& channel, SessionPairs& pairs,
@@ -53,17 +100,7 @@ std::optional<SessionSolve> OnlineGroupSolves::solve(ObjectSlam& slam, int t) {
   }
   Transport& transport = channel_.transport();
   const TransportStats before = transport.stats();
-  std::vector<int> in_range;
-  std::vector<std::pair<int, int>> links;
-  for (const RendezvousEvent& e : events_) {
-    if (e.step != t) continue;
-    in_range.insert(in_range.end(), {e.alpha, e.beta});
-    links.emplace_back(e.alpha, e.beta);
-  }
-  std::set<int> range;
-  for (const std::vector<int>& g : ConnectedRobots(in_range, links)) {
-    if (std::binary_search(g.begin(), g.end(), robot_)) range.insert(g.begin(), g.end());
-  }
+  const std::set<int> range = RobotsInRange(events_, t, robot_);
   // A member that leaves before its first step stops the solve (DgsNode's TeamChangedError):
   // found gone, the group is formed again without it, as if it had left before (attempt a of
   // the solve: AttemptSolve).
@@ -80,26 +117,9 @@ std::optional<SessionSolve> OnlineGroupSolves::solve(ObjectSlam& slam, int t) {
     GroupTransport group_transport(
         transport, robots, solve, [this](Received r) { channel_.ingest({std::move(r)}); },
         channel_.inbox().takePending(solve));
-    DgsNodeOptions node_options = options_.dgs;
-    node_options.solve = solve;
-    node_options.team = GroupIds(robots.size());  // formed by the joining statuses
-    // Its own journal, so that a robot restarted in the solve resumes it (dgs_node.h).
-    solve_dir = options_.dgs.state_dir.empty()
-                    ? std::filesystem::path()
-                    : std::filesystem::path(options_.dgs.state_dir) / "solves" /
-                          (attempt == 0 ? fmt::format("step_{:04d}", t)
-                                        : fmt::format("step_{:04d}_attempt_{}", t, attempt));
-    node_options.state_dir = solve_dir.string();
-    if (node_options.gnc) {  // OnlineTeam's robust group solve
-      RobustGroupMasks masks = RobustGroupFactors(part->subgraph, part->team);
-      node_options.robust = std::move(masks.robust);
-      if (node_options.separator_check) node_options.checked = std::move(masks.checked);
-    }
-    node_options.log = [this, t, robots](const std::string& text) {
-      options_.log(fmt::format("group solve of step {} (robots {} as 0..{}): {}", t,
-                               fmt::join(robots, ","), robots.size() - 1, text));
-    };
-    DgsNode node(part->local, part->subgraph, part->initial, group_transport, node_options);
+    solve_dir = SolveDir(options_.dgs.state_dir, t, attempt);
+    DgsNode node(part->local, part->subgraph, part->initial, group_transport,
+                 GroupNodeOptions(options_, t, solve, robots, *part, solve_dir));
     try {
       result = node.run();
     } catch (const TeamChangedError& e) {
@@ -112,23 +132,31 @@ std::optional<SessionSolve> OnlineGroupSolves::solve(ObjectSlam& slam, int t) {
       if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
     }
   }
-  const DgsNodeResult& solved = *result;
+  const SolveRecord done = recordSolved(slam, t, robots, *part, *result);
+  if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
+  return finish(slam, t, robots, done, transport.stats() - before, t0, false);
+}
+
+// The outcome of a group solve just run into the robot's verdicts (robust) and its record,
+// journaled: its map and held copies, or (the check left some robot of the group unlinked)
+// nothing changed, as OnlineTeam.
+SolveRecord OnlineGroupSolves::recordSolved(ObjectSlam& slam, int t, const std::vector<int>& robots,
+                                            const RobotGroupPart& part,
+                                            const DgsNodeResult& solved) {
   SolveRecord done;
   done.step = static_cast<std::uint32_t>(t);
-  done.object_object = static_cast<std::uint32_t>(part->object_object);
-  done.team_factors = static_cast<std::uint32_t>(part->team_factors);
+  done.object_object = static_cast<std::uint32_t>(part.object_object);
+  done.team_factors = static_cast<std::uint32_t>(part.team_factors);
   if (solved.robust && solved.robust->unlinked) {
-    // The check left some robot of the group unlinked: nothing changes (OnlineTeam alike).
     done.unlinked = true;
     done.estimate = slam.estimate();
     done.set_aside = pairs_.setAsideKeys();
     done.rejected = RejectedFactors(slam);
     channel_.record(done);
-    if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
-    return finish(slam, t, robots, done, transport.stats() - before, t0, false);
+    return done;
   }
   if (solved.robust) {  // the verdicts first: the held copies are of the accepted pairs
-    judge(slam, robots, *part, *solved.robust, done);
+    judge(slam, robots, part, *solved.robust, done);
     applyVerdicts(slam, done, t);
   }
   Values solution = solved.estimate;
@@ -152,8 +180,7 @@ std::optional<SessionSolve> OnlineGroupSolves::solve(ObjectSlam& slam, int t) {
   done.protocol_steps = static_cast<std::uint32_t>(solved.program.channel_steps);
   done.refine_status = solved.program.refine.status;
   channel_.record(done);
-  if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
-  return finish(slam, t, robots, done, transport.stats() - before, t0, false);
+  return done;
 }
 
 // Attempt `attempt` (solve `solve`) of the group solve of step t: publishes the robot's joining

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "moslam/online/group_solve.h"
+#include "moslam/transport/dgs_node.h"
 #include "moslam/transport/robot_session.h"
 #include "moslam/transport/session_channel.h"
 #include "moslam/transport/session_pairs.h"
@@ -36,6 +37,8 @@ class OnlineGroupSolves {
  private:
   bool joinGroup(int t, const std::set<int>& range, std::uint32_t solve, int attempt,
                  std::vector<int>& robots, std::vector<TeamPair>& team);
+  SolveRecord recordSolved(ObjectSlam& slam, int t, const std::vector<int>& robots,
+                           const RobotGroupPart& part, const DgsNodeResult& solved);
   SessionSolve finish(ObjectSlam& slam, int t, const std::vector<int>& robots,
                       const SolveRecord& done, const TransportStats& sent,
                       std::chrono::steady_clock::time_point t0, bool replayed);
