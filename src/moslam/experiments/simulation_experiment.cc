@@ -468,6 +468,188 @@ void AccuracyMetrics(const Values& gn, const Values& dgs, const Values& truth, R
   m.dgs_are_landmarks = dgs_gt.aligned.objects.are_deg;
 }
 
+// The columns of a table of `kind` after scenario, robots and noise; `other`: the DGS variant run
+// beside the tables' one, for its sweep counts.
+std::vector<std::string> TableColumns(TableKind kind, const std::string& other) {
+  switch (kind) {
+    case TableKind::kAccuracy:
+      return {"#Iter η=1e-1",
+              "Cost η=1e-1",
+              "#Iter η=1e-2",
+              "Cost η=1e-2",
+              "GN cost",
+              "Refined cost",
+              "ATE* poses (m)",
+              "ATE* lmks (m)",
+              "ARE* poses (deg)",
+              "ARE* lmks (deg)",
+              other + " #Iter η=1e-1 / 1e-2"};
+    case TableKind::kAssociation:
+      return {"Intra precision",         "Intra recall",
+              "Rendezvous precision",    "Rendezvous recall",
+              "Shared objects",          "GT ATE poses GN/DGS (m)",
+              "GT ATE lmks GN/DGS (m)",  "GT ARE poses GN/DGS (deg)",
+              "GT ARE lmks GN/DGS (deg)"};
+    case TableKind::kMemory:
+      return {"Frames",          "Objects",         "Rendezvous",
+              "Memory PCD (MB)", "Memory Obj (MB)", "Memory Obj measured (MB)",
+              "Comm. PCD (MB)",  "Comm. Obj (MB)",  "Comm. Obj measured (MB)",
+              "DGS traffic (MB)"};
+    case TableKind::kScale:
+      return {"Poses",
+              "Landmarks",
+              "#Iter η=1e-1",
+              "#Iter η=1e-2",
+              other + " #Iter η=1e-1 / 1e-2",
+              "Cost η=1e-1 / GN",
+              "Cost η=1e-2 / GN",
+              "Refined / GN",
+              "Rendezvous bytes",
+              "DGS bytes η=1e-1",
+              "Refine bytes",
+              "Time SLAM / GN / DGS / refine (s)",
+              "Time total (s)"};
+    case TableKind::kPerception:
+      return {"Frames",
+              "Detections",
+              "True detections",
+              "Accepted (true)",
+              "Accepted of true, objects >= 30 % visible",
+              "Rejected by the 12-inlier gate (false det.)",
+              "Median pose error (cm / deg)",
+              "ms/frame render / detect / segment / register",
+              "Point clouds of the frames (MB/robot)",
+              "Object map measured (MB/robot)",
+              "GN cost",
+              "Refined cost",
+              "ATE* poses (m)"};
+    case TableKind::kRobust:
+      return {"Initial poses",
+              "P",
+              "Runs (skipped)",
+              "Rendezvous precision / recall",
+              "Aligned / refused few / ambiguous / contradicted / wrong",
+              "Aligned of alignable",
+              "Wrong factors (injected)",
+              "Outlier precision / recall",
+              "Wrong observations",
+              "Observation outliers precision / recall",
+              "GT ATE poses LS / robust / free (m)",
+              "GT ARE poses LS / robust / free (deg)",
+              "Robust vs free, worst run: ATE (m) / ARE (deg)",
+              "Robust extra bytes"};
+  }
+  return {};
+}
+
+// The robust table's cells: alignment and association, then what the robust solve measured
+// ("-" when it did not run).
+std::vector<std::string> RobustCells(const ExperimentResult& r) {
+  const RunMetrics& m = r.mean;
+  const ExperimentConfig& c = r.config;
+  double worst_ate = 0.0, worst_are = 0.0;
+  for (const RunMetrics& run : r.runs) {
+    worst_ate = std::max(worst_ate, run.robust_vs_free_ate);
+    worst_are = std::max(worst_are, run.robust_vs_free_are);
+  }
+  const bool unknown = !c.known_initial_poses;
+  std::vector<std::string> extra = {
+      unknown ? "unknown" : "known",
+      Fix(c.outlier_fraction, 1),
+      fmt::format("{} ({})", r.runs.size(), r.skipped.size()),
+      Fix(m.inter_precision, 3) + " / " + Fix(m.inter_recall, 3),
+      unknown ? fmt::format("{} / {} / {} / {} / {}", Fix(m.aligned), Fix(m.refused_too_few),
+                            Fix(m.refused_ambiguous), Fix(m.refused_contradicted),
+                            Fix(m.alignments_wrong))
+              : "-",
+      unknown && m.alignable > 0 ? Fix(100.0 * m.alignable_aligned / m.alignable, 1) + " %" : "-"};
+  // What the robust solve measures: "-" when it did not run.
+  const std::vector<std::string> solved = {
+      Fix(m.wrong_factors) + " (" + Fix(m.injected) + ")",
+      Fix(m.outlier_precision, 3) + " / " + Fix(m.outlier_recall, 3),
+      Fix(m.wrong_observations),
+      Fix(m.observation_precision, 3) + " / " + Fix(m.observation_recall, 3),
+      Sci(m.ls_ate_poses) + " / " + Sci(m.robust_ate_poses) + " / " + Sci(m.free_ate_poses),
+      Sci(m.ls_are_poses) + " / " + Sci(m.robust_are_poses) + " / " + Sci(m.free_are_poses),
+      Sci(worst_ate) + " / " + Sci(worst_are),
+      Sci(m.robust_extra_bytes)};
+  for (const std::string& cell : solved) extra.push_back(c.robust ? cell : "-");
+  return extra;
+}
+
+// The cells of one row of a table of `kind` after scenario, robots and noise.
+std::vector<std::string> TableCells(TableKind kind, const ExperimentResult& r) {
+  const RunMetrics& m = r.mean;
+  const ExperimentConfig& c = r.config;
+  const double robots = c.robots;
+  switch (kind) {
+    case TableKind::kAccuracy:
+      return {Fix(m.iterations_eta1),
+              Fix(m.cost_eta1),
+              Fix(m.iterations_eta2),
+              Fix(m.cost_eta2),
+              Fix(m.gn_cost),
+              Fix(m.refined_cost),
+              Sci(m.ate_star_poses),
+              Sci(m.ate_star_landmarks),
+              Sci(m.are_star_poses),
+              Sci(m.are_star_landmarks),
+              Fix(m.iterations_eta1_other) + " / " + Fix(m.iterations_eta2_other)};
+    case TableKind::kAssociation:
+      return {Fix(m.intra_precision, 3),
+              Fix(m.intra_recall, 3),
+              Fix(m.inter_precision, 3),
+              Fix(m.inter_recall, 3),
+              Fix(m.shared_objects),
+              Sci(m.gn_ate_poses) + " / " + Sci(m.dgs_ate_poses),
+              Sci(m.gn_ate_landmarks) + " / " + Sci(m.dgs_ate_landmarks),
+              Sci(m.gn_are_poses) + " / " + Sci(m.dgs_are_poses),
+              Sci(m.gn_are_landmarks) + " / " + Sci(m.dgs_are_landmarks)};
+    case TableKind::kMemory:
+      return {Fix(m.poses / robots),   Fix(m.landmarks / robots), Fix(2.0 * m.rendezvous / robots),
+              MB(m.memory_pcd),        MB(m.memory_obj_formula),  MB(m.memory_obj_measured),
+              MB(m.comm_pcd),          MB(m.comm_obj_formula),    MB(m.comm_obj_measured),
+              MB(m.comm_dgs_per_robot)};
+    case TableKind::kScale:
+      return {Fix(m.poses, 0),
+              Fix(m.landmarks, 0),
+              Fix(m.iterations_eta1),
+              Fix(m.iterations_eta2),
+              Fix(m.iterations_eta1_other) + " / " + Fix(m.iterations_eta2_other),
+              Fix(m.cost_eta1 / m.gn_cost, 4),
+              Fix(m.cost_eta2 / m.gn_cost, 4),
+              Fix(m.refined_cost / m.gn_cost, 6),
+              Sci(m.rendezvous_bytes),
+              Sci(m.dgs_bytes_eta1),
+              Sci(m.refine_bytes),
+              fmt::format("{} / {} / {} / {}", Fix(m.seconds_slam, 2), Fix(m.seconds_gn, 2),
+                          Fix(m.seconds_dgs_eta1, 2), Fix(m.seconds_refine, 2)),
+              Fix(m.seconds, 2)};
+    case TableKind::kPerception:
+      return {Fix(m.perception_frames),
+              Fix(m.perception_detections),
+              Fix(m.perception_true_detections),
+              Fix(m.perception_accepted) + " (" + Fix(m.perception_accepted_true) + ")",
+              Fix(m.perception_accepted_visible) + " of " + Fix(m.perception_true_visible) + " (" +
+                  Fix(100.0 * m.perception_accepted_visible / m.perception_true_visible, 1) + " %)",
+              Fix(m.perception_rejected_inliers) + " (" + Fix(m.perception_rejected_inliers_false) +
+                  ")",
+              Fix(100.0 * m.perception_median_error_m, 1) + " / " +
+                  Fix(m.perception_median_error_deg, 1),
+              fmt::format("{} / {} / {} / {}", Fix(m.perception_ms_render, 0),
+                          Fix(m.perception_ms_detect, 0), Fix(m.perception_ms_segment, 0),
+                          Fix(m.perception_ms_register, 0)),
+              MB(m.perception_pcd_bytes),
+              MB(m.memory_obj_measured),
+              Fix(m.gn_cost),
+              Fix(m.refined_cost),
+              Sci(m.ate_star_poses)};
+    case TableKind::kRobust:
+      return RobustCells(r);
+  }
+  return {};
+}
+
 }  // namespace
 
 std::string ToString(InformationMode mode) {
@@ -668,140 +850,17 @@ std::string FormatMarkdownTable(const std::vector<ExperimentResult>& results, Ta
     out += "\n";
   };
   std::vector<std::string> head = {"Scenario", "Robots", "σR (deg)", "σt (m)"};
-  std::vector<std::string> extra;
-  // The DGS variant run beside the tables' one, for its sweep counts.
   const bool two_level = results.empty() || results.front().config.two_level_dgs;
-  const std::string other = two_level ? "One-level" : "Two-level";
-  switch (kind) {
-    case TableKind::kAccuracy:
-      extra = {"#Iter η=1e-1", "Cost η=1e-1", "#Iter η=1e-2", "Cost η=1e-2", "GN cost",
-               "Refined cost", "ATE* poses (m)", "ATE* lmks (m)", "ARE* poses (deg)",
-               "ARE* lmks (deg)", other + " #Iter η=1e-1 / 1e-2"};
-      break;
-    case TableKind::kAssociation:
-      extra = {"Intra precision", "Intra recall", "Rendezvous precision", "Rendezvous recall",
-               "Shared objects", "GT ATE poses GN/DGS (m)", "GT ATE lmks GN/DGS (m)",
-               "GT ARE poses GN/DGS (deg)", "GT ARE lmks GN/DGS (deg)"};
-      break;
-    case TableKind::kMemory:
-      extra = {"Frames", "Objects", "Rendezvous", "Memory PCD (MB)", "Memory Obj (MB)",
-               "Memory Obj measured (MB)", "Comm. PCD (MB)", "Comm. Obj (MB)",
-               "Comm. Obj measured (MB)", "DGS traffic (MB)"};
-      break;
-    case TableKind::kScale:
-      extra = {"Poses", "Landmarks", "#Iter η=1e-1", "#Iter η=1e-2",
-               other + " #Iter η=1e-1 / 1e-2", "Cost η=1e-1 / GN",
-               "Cost η=1e-2 / GN", "Refined / GN", "Rendezvous bytes", "DGS bytes η=1e-1",
-               "Refine bytes", "Time SLAM / GN / DGS / refine (s)", "Time total (s)"};
-      break;
-    case TableKind::kPerception:
-      extra = {"Frames", "Detections", "True detections", "Accepted (true)",
-               "Accepted of true, objects >= 30 % visible",
-               "Rejected by the 12-inlier gate (false det.)", "Median pose error (cm / deg)",
-               "ms/frame render / detect / segment / register",
-               "Point clouds of the frames (MB/robot)", "Object map measured (MB/robot)",
-               "GN cost", "Refined cost", "ATE* poses (m)"};
-      break;
-    case TableKind::kRobust:
-      extra = {"Initial poses", "P", "Runs (skipped)", "Rendezvous precision / recall",
-               "Aligned / refused few / ambiguous / contradicted / wrong", "Aligned of alignable",
-               "Wrong factors (injected)", "Outlier precision / recall",
-               "Wrong observations", "Observation outliers precision / recall",
-               "GT ATE poses LS / robust / free (m)", "GT ARE poses LS / robust / free (deg)",
-               "Robust vs free, worst run: ATE (m) / ARE (deg)", "Robust extra bytes"};
-      break;
-  }
+  const std::vector<std::string> extra = TableColumns(kind, two_level ? "One-level" : "Two-level");
   head.insert(head.end(), extra.begin(), extra.end());
   row(head);
   rule(head.size());
   for (const ExperimentResult& r : results) {
-    const RunMetrics& m = r.mean;
     const ExperimentConfig& c = r.config;
     std::vector<std::string> cells = {c.scenario, std::to_string(c.robots),
                                       Fix(c.sigma_rotation_deg, 0), Fix(c.sigma_translation, 2)};
-    const double robots = c.robots;
-    switch (kind) {
-      case TableKind::kAccuracy:
-        extra = {Fix(m.iterations_eta1), Fix(m.cost_eta1), Fix(m.iterations_eta2),
-                 Fix(m.cost_eta2), Fix(m.gn_cost), Fix(m.refined_cost), Sci(m.ate_star_poses),
-                 Sci(m.ate_star_landmarks), Sci(m.are_star_poses), Sci(m.are_star_landmarks),
-                 Fix(m.iterations_eta1_other) + " / " + Fix(m.iterations_eta2_other)};
-        break;
-      case TableKind::kAssociation:
-        extra = {Fix(m.intra_precision, 3), Fix(m.intra_recall, 3), Fix(m.inter_precision, 3),
-                 Fix(m.inter_recall, 3), Fix(m.shared_objects),
-                 Sci(m.gn_ate_poses) + " / " + Sci(m.dgs_ate_poses),
-                 Sci(m.gn_ate_landmarks) + " / " + Sci(m.dgs_ate_landmarks),
-                 Sci(m.gn_are_poses) + " / " + Sci(m.dgs_are_poses),
-                 Sci(m.gn_are_landmarks) + " / " + Sci(m.dgs_are_landmarks)};
-        break;
-      case TableKind::kMemory:
-        extra = {Fix(m.poses / robots), Fix(m.landmarks / robots),
-                 Fix(2.0 * m.rendezvous / robots), MB(m.memory_pcd), MB(m.memory_obj_formula),
-                 MB(m.memory_obj_measured), MB(m.comm_pcd), MB(m.comm_obj_formula),
-                 MB(m.comm_obj_measured), MB(m.comm_dgs_per_robot)};
-        break;
-      case TableKind::kScale:
-        extra = {Fix(m.poses, 0), Fix(m.landmarks, 0), Fix(m.iterations_eta1),
-                 Fix(m.iterations_eta2),
-                 Fix(m.iterations_eta1_other) + " / " + Fix(m.iterations_eta2_other),
-                 Fix(m.cost_eta1 / m.gn_cost, 4),
-                 Fix(m.cost_eta2 / m.gn_cost, 4), Fix(m.refined_cost / m.gn_cost, 6),
-                 Sci(m.rendezvous_bytes), Sci(m.dgs_bytes_eta1), Sci(m.refine_bytes),
-                 fmt::format("{} / {} / {} / {}", Fix(m.seconds_slam, 2), Fix(m.seconds_gn, 2),
-                             Fix(m.seconds_dgs_eta1, 2), Fix(m.seconds_refine, 2)),
-                 Fix(m.seconds, 2)};
-        break;
-      case TableKind::kPerception:
-        extra = {Fix(m.perception_frames), Fix(m.perception_detections),
-                 Fix(m.perception_true_detections),
-                 Fix(m.perception_accepted) + " (" + Fix(m.perception_accepted_true) + ")",
-                 Fix(m.perception_accepted_visible) + " of " + Fix(m.perception_true_visible) +
-                     " (" +
-                     Fix(100.0 * m.perception_accepted_visible / m.perception_true_visible, 1) +
-                     " %)",
-                 Fix(m.perception_rejected_inliers) + " (" +
-                     Fix(m.perception_rejected_inliers_false) + ")",
-                 Fix(100.0 * m.perception_median_error_m, 1) + " / " +
-                     Fix(m.perception_median_error_deg, 1),
-                 fmt::format("{} / {} / {} / {}", Fix(m.perception_ms_render, 0),
-                             Fix(m.perception_ms_detect, 0), Fix(m.perception_ms_segment, 0),
-                             Fix(m.perception_ms_register, 0)),
-                 MB(m.perception_pcd_bytes), MB(m.memory_obj_measured), Fix(m.gn_cost),
-                 Fix(m.refined_cost), Sci(m.ate_star_poses)};
-        break;
-      case TableKind::kRobust: {
-        double worst_ate = 0.0, worst_are = 0.0;
-        for (const RunMetrics& run : r.runs) {
-          worst_ate = std::max(worst_ate, run.robust_vs_free_ate);
-          worst_are = std::max(worst_are, run.robust_vs_free_are);
-        }
-        const bool unknown = !c.known_initial_poses;
-        extra = {unknown ? "unknown" : "known", Fix(c.outlier_fraction, 1),
-                 fmt::format("{} ({})", r.runs.size(), r.skipped.size()),
-                 Fix(m.inter_precision, 3) + " / " + Fix(m.inter_recall, 3),
-                 unknown ? fmt::format("{} / {} / {} / {} / {}", Fix(m.aligned),
-                                       Fix(m.refused_too_few), Fix(m.refused_ambiguous),
-                                       Fix(m.refused_contradicted), Fix(m.alignments_wrong))
-                         : "-",
-                 unknown && m.alignable > 0 ? Fix(100.0 * m.alignable_aligned / m.alignable, 1) + " %"
-                                            : "-"};
-        // What the robust solve measures: "-" when it did not run.
-        const std::vector<std::string> solved = {
-            Fix(m.wrong_factors) + " (" + Fix(m.injected) + ")",
-            Fix(m.outlier_precision, 3) + " / " + Fix(m.outlier_recall, 3),
-            Fix(m.wrong_observations),
-            Fix(m.observation_precision, 3) + " / " + Fix(m.observation_recall, 3),
-            Sci(m.ls_ate_poses) + " / " + Sci(m.robust_ate_poses) + " / " +
-                Sci(m.free_ate_poses),
-            Sci(m.ls_are_poses) + " / " + Sci(m.robust_are_poses) + " / " +
-                Sci(m.free_are_poses),
-            Sci(worst_ate) + " / " + Sci(worst_are), Sci(m.robust_extra_bytes)};
-        for (const std::string& cell : solved) extra.push_back(c.robust ? cell : "-");
-        break;
-      }
-    }
-    cells.insert(cells.end(), extra.begin(), extra.end());
+    const std::vector<std::string> more = TableCells(kind, r);
+    cells.insert(cells.end(), more.begin(), more.end());
     row(cells);
   }
   return out;
