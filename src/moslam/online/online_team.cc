@@ -169,21 +169,8 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<const ObjectSlam*> members;
   for (int r : part) members.push_back(&team.robots[static_cast<std::size_t>(r)]);
-  const auto in_part = [&](const Key& k) {
-    return std::binary_search(part.begin(), part.end(), k.robot);
-  };
-  // The pairs the group solves with: every pair among its robots (judged again when robust),
-  // and the accepted pairs with the robots out of range (as held factors).
-  std::vector<SharedObject> pairs;
-  {
-    std::set<std::pair<Key, Key>> aside;
-    for (const SharedObject& s : set_aside_) aside.insert(PairKey(s));
-    for (const SharedObject& s : team.shared) {
-      const bool among = in_part(s.alpha_object) && in_part(s.beta_object);
-      if (among || aside.count(PairKey(s)) == 0) pairs.push_back(s);
-    }
-  }
-  const GroupProblem problem = BuildGroupProblem(members, pairs, held_, options_.lambda);
+  const GroupProblem problem =
+      BuildGroupProblem(members, pairsFor(part, team), held_, options_.lambda);
   GroupSolveRecord rec;
   rec.step = step;
   rec.robots = part;
@@ -191,62 +178,89 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
   rec.team_factors = problem.team_factors;
   rec.borrowed = problem.borrowed;
   rec.initial_cost = problem.graph.cost(problem.initial);
-  Values solution;
-  if (!options_.robust) {
-    const DgsResult solved = RunDgs(problem.graph, problem.initial, options_.solver);
-    rec.rotation_sweeps = solved.rotation.iterations;
-    rec.pose_sweeps = solved.pose.iterations;
-    rec.refine_steps = solved.refine.iterations;
-    rec.refine_status = solved.refine.status;
-    rec.messages = solved.messages;
-    rec.bytes = solved.bytes;
-    rec.final_cost = problem.graph.cost(solved.values);
-    solution = solved.values;
+  const std::optional<Values> solution =
+      options_.robust ? solveRobust(problem, part, team, rec) : solveLeastSquares(problem, rec);
+  if (solution) {
+    applySolution(problem, *solution, step, team);
   } else {
-    // Robust: the object-object factors among the group's robots (their keys map back to the
-    // team's through part[]), the object-pose factors and loop-closure pairs of the robots' own
-    // graphs (the held factors are pose-object factors too, but not robust). The separator check
-    // tests the pairs in the robots' own maps, without the held factors (which pin a robot's
-    // landmarks to copies of earlier solves, so that its map's covariances no longer say how far
-    // they may be off: on chairs25, 6 robots, 10 runs, no wrong pair injected, right pairs set
-    // aside 10.6 -> 6.3 per run; and with the object-pose factors robust, 1.3).
-    const RobustGroupMasks masks = RobustGroupFactors(problem.graph, problem.team);
-    const std::vector<bool>& robust = masks.robust;
-    const std::vector<bool>& checked = masks.checked;
-    RobustDgsOptions o = *options_.robust;
-    o.dgs = options_.solver;
-    RobustDgsResult solved;
-    try {
-      solved = RunRobustDgs(problem.graph, problem.initial, robust, o, checked);
-    } catch (const UnderdeterminedError&) {
-      rec.unlinked = true;  // the maps stay; the pairs wait for the next meeting
-      rec.final_cost = rec.initial_cost;
-      rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      solves_.push_back(std::move(rec));
-      return;
-    }
-    rec.robust_rounds = solved.iterations;
-    rec.sweeps = solved.sweeps;
-    rec.bytes = solved.bytes();
-    rec.robust_extra_bytes = solved.weight_bytes + solved.control_bytes + solved.consistency_bytes;
-    const JudgedPairs judged = PairsJudged(problem.graph, solved.weights, part);
-    PairVerdicts verdicts = JudgePairs(team.shared, set_aside_, judged.judged, judged.rejected);
-    rec.rejected = verdicts.rejected;
-    rec.taken_back = verdicts.taken_back;
-    set_aside_ = std::move(verdicts.set_aside);
-    // The verdicts on the robots' own factors, kept in their maps until their next group solve.
-    for (std::size_t k = 0; k < part.size(); ++k) {
-      ObjectSlam& r = team.robots[static_cast<std::size_t>(part[k])];
-      std::vector<double> w(members[k]->numFactors(), 1.0);
-      for (std::uint32_t j : RejectedOwnFactors(solved.weights, problem.own_first[k], w.size())) {
-        w[j] = o.gnc.min_weight;
-        ++rec.observation_outliers;
-      }
-      r.setFactorWeights(std::move(w));
-    }
-    rec.final_cost = problem.graph.cost(solved.values);  // least-squares cost, every factor
-    solution = solved.values;
+    rec.unlinked = true;  // the maps stay; the pairs wait for the next meeting
+    rec.final_cost = rec.initial_cost;
   }
+  rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  solves_.push_back(std::move(rec));
+}
+
+std::vector<SharedObject> OnlineTeam::pairsFor(const std::vector<int>& part,
+                                               const MultiRobotSlamResult& team) const {
+  const auto in_part = [&](const Key& k) {
+    return std::binary_search(part.begin(), part.end(), k.robot);
+  };
+  std::set<std::pair<Key, Key>> aside;
+  for (const SharedObject& s : set_aside_) aside.insert(PairKey(s));
+  std::vector<SharedObject> pairs;
+  for (const SharedObject& s : team.shared) {
+    const bool among = in_part(s.alpha_object) && in_part(s.beta_object);
+    if (among || aside.count(PairKey(s)) == 0) pairs.push_back(s);
+  }
+  return pairs;
+}
+
+Values OnlineTeam::solveLeastSquares(const GroupProblem& problem, GroupSolveRecord& rec) const {
+  const DgsResult solved = RunDgs(problem.graph, problem.initial, options_.solver);
+  rec.rotation_sweeps = solved.rotation.iterations;
+  rec.pose_sweeps = solved.pose.iterations;
+  rec.refine_steps = solved.refine.iterations;
+  rec.refine_status = solved.refine.status;
+  rec.messages = solved.messages;
+  rec.bytes = solved.bytes;
+  rec.final_cost = problem.graph.cost(solved.values);
+  return solved.values;
+}
+
+std::optional<Values> OnlineTeam::solveRobust(const GroupProblem& problem,
+                                              const std::vector<int>& part,
+                                              MultiRobotSlamResult& team, GroupSolveRecord& rec) {
+  // The object-object factors among the group's robots (their keys map back to the team's
+  // through part[]), the object-pose factors and loop-closure pairs of the robots' own graphs
+  // (the held factors are pose-object factors too, but not robust). The separator check tests
+  // the pairs in the robots' own maps, without the held factors (which pin a robot's landmarks
+  // to copies of earlier solves, so that its map's covariances no longer say how far they may be
+  // off: on chairs25, 6 robots, 10 runs, no wrong pair injected, right pairs set aside 10.6 ->
+  // 6.3 per run; and with the object-pose factors robust, 1.3).
+  const RobustGroupMasks masks = RobustGroupFactors(problem.graph, problem.team);
+  RobustDgsOptions o = *options_.robust;
+  o.dgs = options_.solver;
+  RobustDgsResult solved;
+  try {
+    solved = RunRobustDgs(problem.graph, problem.initial, masks.robust, o, masks.checked);
+  } catch (const UnderdeterminedError&) {
+    return std::nullopt;  // the check left some robot of the group unlinked
+  }
+  rec.robust_rounds = solved.iterations;
+  rec.sweeps = solved.sweeps;
+  rec.bytes = solved.bytes();
+  rec.robust_extra_bytes = solved.weight_bytes + solved.control_bytes + solved.consistency_bytes;
+  const JudgedPairs judged = PairsJudged(problem.graph, solved.weights, part);
+  PairVerdicts verdicts = JudgePairs(team.shared, set_aside_, judged.judged, judged.rejected);
+  rec.rejected = verdicts.rejected;
+  rec.taken_back = verdicts.taken_back;
+  set_aside_ = std::move(verdicts.set_aside);
+  // The verdicts on the robots' own factors, kept in their maps until their next group solve.
+  for (std::size_t k = 0; k < part.size(); ++k) {
+    ObjectSlam& r = team.robots[static_cast<std::size_t>(part[k])];
+    std::vector<double> w(r.numFactors(), 1.0);
+    for (std::uint32_t j : RejectedOwnFactors(solved.weights, problem.own_first[k], w.size())) {
+      w[j] = o.gnc.min_weight;
+      ++rec.observation_outliers;
+    }
+    r.setFactorWeights(std::move(w));
+  }
+  rec.final_cost = problem.graph.cost(solved.values);  // least-squares cost, every factor
+  return solved.values;
+}
+
+void OnlineTeam::applySolution(const GroupProblem& problem, const Values& solution, int step,
+                               MultiRobotSlamResult& team) {
   const std::vector<SharedObject> accepted = AcceptedPairs(team.shared, set_aside_);
   for (GroupUpdate& u : SplitGroupSolution(problem, solution, accepted, step)) {
     HeldEstimates& h = held_[u.robot];
@@ -255,8 +269,6 @@ void OnlineTeam::solvePart(const std::vector<int>& part, int step, MultiRobotSla
     r.setEstimate(u.estimate);
     r.setTeamFactors(TeamFactors(u.robot, accepted, h, options_.lambda));
   }
-  rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  solves_.push_back(std::move(rec));
 }
 
 MultiRobotSlamConfig::OnRendezvous OnlineTeam::hook(

@@ -161,6 +161,18 @@ class OnlineTeam {
  private:
   // Solves one linked part of a group (2 or more robots) and updates its robots.
   void solvePart(const std::vector<int>& part, int step, MultiRobotSlamResult& team);
+  // The pairs the group solves with: every pair among its robots (judged again when robust), and
+  // the accepted pairs with the robots out of range (as held factors).
+  std::vector<SharedObject> pairsFor(const std::vector<int>& part,
+                                     const MultiRobotSlamResult& team) const;
+  Values solveLeastSquares(const GroupProblem& problem, GroupSolveRecord& rec) const;
+  // Judges the group's pairs and its robots' own factors; nullopt when the separator check left
+  // some robot of the group unlinked (nothing judged).
+  std::optional<Values> solveRobust(const GroupProblem& problem, const std::vector<int>& part,
+                                    MultiRobotSlamResult& team, GroupSolveRecord& rec);
+  // The solution into the group's robots: their maps, held copies and team factors.
+  void applySolution(const GroupProblem& problem, const Values& solution, int step,
+                     MultiRobotSlamResult& team);
 
   OnlineOptions options_;
   std::vector<GroupSolveRecord> solves_;
