@@ -67,7 +67,6 @@ void WriteEstimate(const std::string& dir, const PoseGraph& graph, const Values&
   WriteTumTrajectories(dir, values);
 }
 
-// --robust: GNC-TLS by the robots (distributed/robust_dgs.h) beside the centralized GNC.
 // The robots' robust solve against the centralized one of the same options.
 struct RobustComparison {
   long robust_factors = 0;
@@ -187,6 +186,7 @@ void PrintRobustDgs(const DgsArgs& a, const PoseGraph& graph, const RobustDgsOpt
       r.consistency_bytes, r.sweeps, r.seconds);
 }
 
+// --robust: GNC-TLS by the robots (distributed/robust_dgs.h) beside the centralized GNC.
 int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& initial,
                         bool planar, const DgsOptions& dgs,
                         std::chrono::steady_clock::time_point t_start) {

@@ -394,9 +394,6 @@ namespace {
 RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
                                const std::vector<bool>& robust, const RobustDgsOptions& options);
 
-// The re-tests of the check's rejects once the inliers' solve was kept (RunRobustDgs): one by one
-// (retest_left_out), then the robot pairs' groups (retest_groups). Updates r's weights and
-// estimate and counts into it (retests, group re-tests, sweeps and bytes).
 // The re-tests of the check's rejects by the team, counted as the robots send them: the
 // candidates one at a time (Retest), then each pair's runner-up group (RetestGroup).
 class ChecksRejectsRetest {
@@ -545,6 +542,9 @@ class ChecksRejectsRetest {
   std::uint32_t step_ = 0;  // the team's protocol steps so far
 };
 
+// The re-tests of the check's rejects once the inliers' solve was kept (RunRobustDgs): one by one
+// (retest_left_out), then the robot pairs' groups (retest_groups). Updates r's weights and
+// estimate and counts into it (retests, group re-tests, sweeps and bytes).
 void RetestChecksRejects(const PoseGraph& graph, const std::vector<bool>& robust,
                          const SeparatorConsistencyResult& check, const RobustDgsOptions& options,
                          RobustDgsResult& r) {
@@ -640,96 +640,127 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
 
 namespace {
 
-RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
-                               const std::vector<bool>& robust, const RobustDgsOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const std::vector<RelativePoseFactor>& factors = graph.factors();
-  const std::size_t n = factors.size();  // robust: one per factor (RunRobustDgs checked it)
-  DgsOptions dgs = options.dgs;
-  dgs.refine = true;
-
-  // Who owns which weight; the separators each owner sends, per (owner, other robot).
-  const std::vector<int> robots = RobotsOf(graph);
-  std::vector<int> owner(n);
-  std::map<std::pair<int, int>, std::vector<std::size_t>> separators;
-  for (std::size_t i = 0; i < n; ++i) {
-    const int a = factors[i].a().robot, b = factors[i].b().robot;
-    owner[i] = std::min(a, b);
-    if (robust[i] && a != b) separators[{std::min(a, b), std::max(a, b)}].push_back(i);
+// GNC-TLS by the robots: each owns the weights of its factors (a separator's: the lower robot's)
+// and sends a separator's to the other robot; the team's largest residual and undecided count
+// through the coordinator's reductions.
+class GncByRobots {
+ public:
+  GncByRobots(const PoseGraph& graph, const std::vector<bool>& robust,
+              const RobustDgsOptions& options)
+      : graph_(graph),
+        robust_(robust),
+        options_(options),
+        robots_(RobotsOf(graph)),
+        owner_(graph.factors().size()),
+        coordinator_(robots_, &out_.control_bytes) {
+    dgs_ = options.dgs;
+    dgs_.refine = true;
+    // Who owns which weight; the separators each owner sends, per (owner, other robot).
+    const std::vector<RelativePoseFactor>& factors = graph.factors();
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      const int a = factors[i].a().robot, b = factors[i].b().robot;
+      owner_[i] = std::min(a, b);
+      if (robust[i] && a != b) separators_[{std::min(a, b), std::max(a, b)}].push_back(i);
+    }
   }
 
-  RobustDgsResult out;
-  Coordinator coordinator(robots, &out.control_bytes);
-  auto solve = [&](const PoseGraph& g, const Values& start, RobustDgsRound& round) {
-    const DgsResult r = RunDgs(g, start, dgs);
+  RobustDgsResult run(const Values& initial) && {
+    const auto t0 = std::chrono::steady_clock::now();
+    out_.weights.assign(graph_.factors().size(), 1.0);
+    RobustDgsRound round0;
+    out_.values = solve(graph_, initial, round0);
+    round0.cost = graph_.cost(out_.values);
+    out_.rounds.push_back(round0);
+    GncSchedule schedule(options_.gnc);
+    std::vector<double> r2 = SquaredResiduals(graph_, out_.values);
+    const double max_r2 = coordinator_.reduce(perRobotMax(r2), 0, /*take_max=*/true);
+    if (schedule.start(max_r2)) {
+      for (std::uint32_t k = 1;; ++k) {
+        if (schedule.next(round(k, schedule, r2))) break;
+      }
+    }
+    out_.status = schedule.status();
+    out_.iterations = schedule.iterations();
+    out_.outliers = CountOutliers(robust_, out_.weights);
+    out_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return std::move(out_);
+  }
+
+ private:
+  Values solve(const PoseGraph& g, const Values& start, RobustDgsRound& round) {
+    const DgsResult r = RunDgs(g, start, dgs_);
     round.solve_bytes = r.bytes;
-    out.solve_bytes += r.bytes;
-    out.sweeps += r.rotation.iterations + r.pose.iterations + r.refine.sweeps;
+    out_.solve_bytes += r.bytes;
+    out_.sweeps += r.rotation.iterations + r.pose.iterations + r.refine.sweeps;
     return r.values;
-  };
+  }
+
   // Each robot's largest squared residual among the factors it owns (robust ones).
-  auto perRobotMax = [&](const std::vector<double>& r2) {
+  std::map<int, double> perRobotMax(const std::vector<double>& r2) const {
     std::map<int, double> m;
-    for (int r : robots) m[r] = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (robust[i]) m[owner[i]] = std::max(m[owner[i]], r2[i]);
+    for (int r : robots_) m[r] = 0.0;
+    for (std::size_t i = 0; i < r2.size(); ++i) {
+      if (robust_[i]) m[owner_[i]] = std::max(m[owner_[i]], r2[i]);
     }
     return m;
-  };
-
-  out.weights.assign(n, 1.0);
-  RobustDgsRound round0;
-  out.values = solve(graph, initial, round0);
-  round0.cost = graph.cost(out.values);
-  out.rounds.push_back(round0);
-  GncSchedule schedule(options.gnc);
-  std::vector<double> r2 = SquaredResiduals(graph, out.values);
-  const double max_r2 = coordinator.reduce(perRobotMax(r2), 0, /*take_max=*/true);
-  if (schedule.start(max_r2)) {
-    for (std::uint32_t k = 1;; ++k) {
-      RobustDgsRound round;
-      round.round = static_cast<int>(k);
-      round.mu = schedule.mu();
-      // Every robot sets the weights it owns and counts the undecided ones.
-      std::map<int, double> undecided;
-      for (int r : robots) undecided[r] = 0.0;
-      std::vector<double> owned(n, 1.0);
-      for (std::size_t i = 0; i < n; ++i) {
-        if (!robust[i]) continue;
-        owned[i] = schedule.weight(r2[i]);
-        if (!schedule.decided(owned[i])) undecided[owner[i]] += 1.0;
-      }
-      // The separators' weights to the other robot; the solve uses what arrived.
-      std::vector<double> used = owned;
-      for (const auto& [pair, list] : separators) {
-        WeightMessage m;
-        m.sender = pair.first;
-        m.receiver = pair.second;
-        m.round = k;
-        for (std::size_t i : list) m.weights.push_back(owned[i]);
-        const std::vector<std::uint8_t> wire = EncodeWeightMessage(m);
-        out.weight_bytes += static_cast<std::int64_t>(wire.size());
-        ++out.weight_messages;
-        const WeightMessage received = DecodeWeightMessage(wire);
-        for (std::size_t j = 0; j < list.size(); ++j) used[list[j]] = received.weights[j];
-      }
-      out.weights = used;
-      const PoseGraph weighted = WeightedGraph(graph, used, options.gnc.min_weight);
-      out.values = solve(weighted, out.values, round);
-      round.cost = weighted.cost(out.values);
-      r2 = SquaredResiduals(graph, out.values);
-      const double left = coordinator.reduce(undecided, k, /*take_max=*/false);
-      round.undecided = static_cast<int>(left);
-      round.outliers = CountOutliers(robust, used);
-      out.rounds.push_back(round);
-      if (schedule.next(left == 0.0)) break;
-    }
   }
-  out.status = schedule.status();
-  out.iterations = schedule.iterations();
-  out.outliers = CountOutliers(robust, out.weights);
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return out;
+
+  // GNC round k at the schedule's mu from the residuals r2 (updated to the round's estimate).
+  // Returns whether every weight is decided.
+  bool round(std::uint32_t k, const GncSchedule& schedule, std::vector<double>& r2) {
+    const std::size_t n = graph_.factors().size();
+    RobustDgsRound round;
+    round.round = static_cast<int>(k);
+    round.mu = schedule.mu();
+    // Every robot sets the weights it owns and counts the undecided ones.
+    std::map<int, double> undecided;
+    for (int r : robots_) undecided[r] = 0.0;
+    std::vector<double> owned(n, 1.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!robust_[i]) continue;
+      owned[i] = schedule.weight(r2[i]);
+      if (!schedule.decided(owned[i])) undecided[owner_[i]] += 1.0;
+    }
+    // The separators' weights to the other robot; the solve uses what arrived.
+    std::vector<double> used = owned;
+    for (const auto& [pair, list] : separators_) {
+      WeightMessage m;
+      m.sender = pair.first;
+      m.receiver = pair.second;
+      m.round = k;
+      for (std::size_t i : list) m.weights.push_back(owned[i]);
+      const std::vector<std::uint8_t> wire = EncodeWeightMessage(m);
+      out_.weight_bytes += static_cast<std::int64_t>(wire.size());
+      ++out_.weight_messages;
+      const WeightMessage received = DecodeWeightMessage(wire);
+      for (std::size_t j = 0; j < list.size(); ++j) used[list[j]] = received.weights[j];
+    }
+    out_.weights = used;
+    const PoseGraph weighted = WeightedGraph(graph_, used, options_.gnc.min_weight);
+    out_.values = solve(weighted, out_.values, round);
+    round.cost = weighted.cost(out_.values);
+    r2 = SquaredResiduals(graph_, out_.values);
+    const double left = coordinator_.reduce(undecided, k, /*take_max=*/false);
+    round.undecided = static_cast<int>(left);
+    round.outliers = CountOutliers(robust_, used);
+    out_.rounds.push_back(round);
+    return left == 0.0;
+  }
+
+  const PoseGraph& graph_;
+  const std::vector<bool>& robust_;  // one per factor (RunRobustDgs checked it)
+  const RobustDgsOptions& options_;
+  DgsOptions dgs_;  // the solves': options.dgs with the refinement
+  const std::vector<int> robots_;
+  std::vector<int> owner_;  // per factor: the robot that owns its weight
+  std::map<std::pair<int, int>, std::vector<std::size_t>> separators_;
+  RobustDgsResult out_;
+  Coordinator coordinator_;
+};
+
+RobustDgsResult RunGncByRobots(const PoseGraph& graph, const Values& initial,
+                               const std::vector<bool>& robust, const RobustDgsOptions& options) {
+  return GncByRobots(graph, robust, options).run(initial);
 }
 
 }  // namespace
