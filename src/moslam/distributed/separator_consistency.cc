@@ -169,12 +169,18 @@ Matrix12 PairBlock(const Eigen::MatrixXd& S, int p, int q) {
   return out;
 }
 
-}  // namespace
+// Robot a's view of the separators of a pair: each as a loop end (its measurement from A to B
+// and both maps' estimates), the index of its variables among each robot's separator
+// variables, and the two maps' joint covariances of those (zero: the maps taken as exact).
+struct PairView {
+  std::vector<SeparatorEnd> ends;
+  std::vector<int> ia, ib;
+  Eigen::MatrixXd SA, SB;
+};
 
-PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
-                                     const SeparatorCheckMap& a_map, const Message& b_estimates,
-                                     const Eigen::MatrixXd& b_covariance,
-                                     const SeparatorConsistencyOptions& options) {
+PairView ViewPair(const std::vector<RelativePoseFactor>& separators, const SeparatorCheckMap& a_map,
+                  const Message& b_estimates, const Eigen::MatrixXd& b_covariance,
+                  const SeparatorConsistencyOptions& options) {
   const int ra = a_map.robot(), rb = b_estimates.sender;
   const std::vector<Key> ka = SeparatorVariables(separators, ra);
   const std::vector<Key> kb = SeparatorVariables(separators, rb);
@@ -185,10 +191,11 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
                             std::to_string(kb.size()) +
                             " its separators with it touch (their subgraphs disagree)");
   }
-  // The maps' joint covariances (zero: the maps taken as exact).
+  PairView view;
   const auto na = 6 * static_cast<Eigen::Index>(ka.size());
   const auto nb = 6 * static_cast<Eigen::Index>(kb.size());
-  Eigen::MatrixXd SA = Eigen::MatrixXd::Zero(na, na), SB = Eigen::MatrixXd::Zero(nb, nb);
+  view.SA = Eigen::MatrixXd::Zero(na, na);
+  view.SB = Eigen::MatrixXd::Zero(nb, nb);
   if (options.map_uncertainty) {
     if (b_covariance.rows() != nb || b_covariance.cols() != nb) {
       throw InvalidInputError("separator check: robot " + std::to_string(rb) +
@@ -196,8 +203,8 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
                               std::to_string(b_covariance.rows()) + " for " +
                               std::to_string(kb.size()) + " variables");
     }
-    SB = b_covariance;
-    SA = a_map.covariance(ka);
+    view.SB = b_covariance;
+    view.SA = a_map.covariance(ka);
   }
   std::map<Key, int> a_index, b_index;
   for (std::size_t e = 0; e < ka.size(); ++e) a_index[ka[e]] = static_cast<int>(e);
@@ -206,23 +213,28 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
     b_index[kb[e]] = static_cast<int>(e);
     b_poses.push_back(b_estimates.pose(e));
   }
-  // Robot a's view of every separator.
-  std::vector<SeparatorEnd> ends;
-  std::vector<int> ia, ib;
   for (const RelativePoseFactor& f : separators) {
     const bool a_first = f.a().robot == ra;
     const Key key_a = a_first ? f.a() : f.b(), key_b = a_first ? f.b() : f.a();
-    ia.push_back(a_index.at(key_a));
-    ib.push_back(b_index.at(key_b));
+    view.ia.push_back(a_index.at(key_a));
+    view.ib.push_back(b_index.at(key_b));
     // The covariance of z (from A to B): the factor's, or when the factor runs from B to A
     // that of its inverse: (z Exp(d))^-1 = z^-1 Exp(-Ad(z) d), so Ad(z) Sigma Ad(z)^T.
     const Matrix6 sigma = f.information().inverse();
     const Matrix6 Ad = f.measured().Adjoint();
-    ends.push_back({a_first ? f.measured() : f.measured().inverse(),
-                    a_first ? sigma : Matrix6(Ad * sigma * Ad.transpose()), a_map.pose(key_a),
-                    b_poses[static_cast<std::size_t>(ib.back())]});
+    view.ends.push_back({a_first ? f.measured() : f.measured().inverse(),
+                         a_first ? sigma : Matrix6(Ad * sigma * Ad.transpose()), a_map.pose(key_a),
+                         b_poses[static_cast<std::size_t>(view.ib.back())]});
   }
-  // Object separators pairing one landmark with two different ones exclude each other.
+  return view;
+}
+
+// The pairwise consistency graph: separators i and j joined when their loop statistic is within
+// the threshold. Object separators pairing one landmark with two different ones exclude each
+// other (options.one_to_one_objects).
+ConsistencyGraph PairwiseConsistency(const std::vector<RelativePoseFactor>& separators,
+                                     const PairView& view,
+                                     const SeparatorConsistencyOptions& options) {
   auto exclusive = [&](std::size_t i, std::size_t j) {
     const RelativePoseFactor& fi = separators[i];
     const RelativePoseFactor& fj = separators[j];
@@ -230,34 +242,53 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
         !fj.a().isObject() || !fj.b().isObject()) {
       return false;
     }
-    return (ia[i] == ia[j]) != (ib[i] == ib[j]);
+    return (view.ia[i] == view.ia[j]) != (view.ib[i] == view.ib[j]);
   };
   ConsistencyGraph g(static_cast<int>(separators.size()));
   for (std::size_t i = 0; i < separators.size(); ++i) {
     for (std::size_t j = i + 1; j < separators.size(); ++j) {
       if (exclusive(i, j)) continue;
-      const double stat = LoopStatistic(ends[i], ends[j], PairBlock(SA, ia[i], ia[j]),
-                                        PairBlock(SB, ib[i], ib[j]));
+      const double stat =
+          LoopStatistic(view.ends[i], view.ends[j], PairBlock(view.SA, view.ia[i], view.ia[j]),
+                        PairBlock(view.SB, view.ib[i], view.ib[j]));
       if (stat <= options.threshold) g.connect(static_cast<int>(i), static_cast<int>(j));
     }
   }
+  return g;
+}
+
+// Every vertex of some clique of `largest` vertices: one with largest - 1 neighbours that agree
+// pairwise.
+std::vector<std::size_t> MembersOfLargestCliques(const ConsistencyGraph& g, int largest) {
+  std::vector<std::size_t> out;
+  const int n = g.size();
+  for (int v = 0; v < n; ++v) {
+    if (g.degree(v) < largest - 1) continue;
+    std::vector<bool> neighbours(static_cast<std::size_t>(n), false);
+    for (int u = 0; u < n; ++u) neighbours[static_cast<std::size_t>(u)] = g.adjacent(u, v);
+    if (largest == 1 ||
+        static_cast<int>(MaximumClique(g, neighbours).nodes.size()) >= largest - 1) {
+      out.push_back(static_cast<std::size_t>(v));
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
+                                     const SeparatorCheckMap& a_map, const Message& b_estimates,
+                                     const Eigen::MatrixXd& b_covariance,
+                                     const SeparatorConsistencyOptions& options) {
+  const PairView view = ViewPair(separators, a_map, b_estimates, b_covariance, options);
+  const ConsistencyGraph g = PairwiseConsistency(separators, view, options);
   PairConsistency out;
   const std::vector<int> best = MaximumClique(g).nodes;
   out.largest = static_cast<int>(best.size());
   if (out.largest >= options.min_support || out.largest < options.linked_min_support) {
     out.kept.assign(best.begin(), best.end());
   } else {
-    // Every separator of some largest set: one with largest - 1 neighbours that agree pairwise.
-    const int n = static_cast<int>(separators.size());
-    for (int v = 0; v < n; ++v) {
-      if (g.degree(v) < out.largest - 1) continue;
-      std::vector<bool> neighbours(static_cast<std::size_t>(n), false);
-      for (int u = 0; u < n; ++u) neighbours[static_cast<std::size_t>(u)] = g.adjacent(u, v);
-      if (out.largest == 1 ||
-          static_cast<int>(MaximumClique(g, neighbours).nodes.size()) >= out.largest - 1) {
-        out.kept.push_back(static_cast<std::size_t>(v));
-      }
-    }
+    out.kept = MembersOfLargestCliques(g, out.largest);  // ties of small sets: all to GNC
   }
   out.support.assign(separators.size(), 0);
   std::vector<bool> others(separators.size(), true);
