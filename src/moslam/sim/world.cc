@@ -232,125 +232,182 @@ void GeneratedWorldConfig::validate() const {
   }
 }
 
-World MakeGeneratedWorld(const GeneratedWorldConfig& config) {
-  config.validate();
-  World w;
-  w.name = "generated";
-  w.classes = StandardObjectClasses();
-  std::mt19937 rng(config.seed);
-  std::uniform_real_distribution<double> u01(0.0, 1.0);
-  const int nx = config.rooms_x, ny = config.rooms_y;
-  const double S = config.room_size, pitch = config.room_size + config.corridor_length;
-  const double q = S / 4.0;       // half side of each room's ring of nodes
-  const double inset = 0.8;       // door nodes sit this far inside the wall
-  auto room_id = [&](int i, int j) { return i * ny + j; };
-  auto centre = [&](int i, int j) { return Vector2(i * pitch + S / 2.0, j * pitch + S / 2.0); };
+namespace {
+
+// MakeGeneratedWorld in three stages drawn from one random sequence, in this order: the rooms
+// and their rings of navigation nodes, the doors between rooms, the furniture.
+class GeneratedWorldBuilder {
+ public:
+  explicit GeneratedWorldBuilder(const GeneratedWorldConfig& config)
+      : config_(config),
+        rng_(config.seed),
+        nx_(config.rooms_x),
+        ny_(config.rooms_y),
+        S_(config.room_size),
+        pitch_(config.room_size + config.corridor_length),
+        q_(S_ / 4.0),
+        ring_(static_cast<std::size_t>(nx_ * ny_)),
+        room_type_(ring_.size()) {
+    w_.name = "generated";
+    w_.classes = StandardObjectClasses();
+  }
+
+  World build() && {
+    rooms();
+    doors();
+    furnish();
+    return std::move(w_);
+  }
+
+ private:
+  int roomId(int i, int j) const { return i * ny_ + j; }
+  Vector2 centre(int i, int j) const {
+    return Vector2(i * pitch_ + S_ / 2.0, j * pitch_ + S_ / 2.0);
+  }
 
   // Room types and rings: nodes (c-q, c-q), (c+q, c-q), (c+q, c+q), (c-q, c+q).
-  const std::vector<std::string> types = {"living", "kitchen", "bedroom", "office"};
-  std::vector<std::array<int, 4>> ring(static_cast<std::size_t>(nx * ny));
-  std::vector<std::string> room_type(ring.size());
-  for (int i = 0; i < nx; ++i) {
-    for (int j = 0; j < ny; ++j) {
-      const auto r = static_cast<std::size_t>(room_id(i, j));
-      room_type[r] = types[std::uniform_int_distribution<std::size_t>(0, types.size() - 1)(rng)];
-      const Vector2 c = centre(i, j);
-      w.rooms.push_back({room_type[r] + "_" + std::to_string(r),
-                         Vector2(i * pitch, j * pitch), Vector2(i * pitch + S, j * pitch + S)});
-      ring[r] = {AddNode(w.navigation, c.x() - q, c.y() - q),
-                 AddNode(w.navigation, c.x() + q, c.y() - q),
-                 AddNode(w.navigation, c.x() + q, c.y() + q),
-                 AddNode(w.navigation, c.x() - q, c.y() + q)};
-      for (int k = 0; k < 4; ++k) w.navigation.edges.emplace_back(ring[r][k], ring[r][(k + 1) % 4]);
-    }
-  }
-  // Doors: a random spanning tree of the room grid (randomised Kruskal) plus extra doors.
-  struct Door { int a, b; bool along_x; };
-  std::vector<Door> candidates;
-  for (int i = 0; i < nx; ++i) {
-    for (int j = 0; j < ny; ++j) {
-      if (i + 1 < nx) candidates.push_back({room_id(i, j), room_id(i + 1, j), true});
-      if (j + 1 < ny) candidates.push_back({room_id(i, j), room_id(i, j + 1), false});
-    }
-  }
-  std::shuffle(candidates.begin(), candidates.end(), rng);
-  std::vector<int> parent(ring.size());
-  for (std::size_t r = 0; r < parent.size(); ++r) parent[r] = static_cast<int>(r);
-  auto find = [&](int x) {
-    while (parent[static_cast<std::size_t>(x)] != x) {
-      x = parent[static_cast<std::size_t>(x)] =
-          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
-    }
-    return x;
-  };
-  for (const Door& d : candidates) {
-    const int ra = find(d.a), rb = find(d.b);
-    const bool tree = ra != rb;
-    if (tree) parent[static_cast<std::size_t>(ra)] = rb;
-    if (!tree && u01(rng) >= config.extra_door_probability) continue;
-    // Door nodes just inside each room's wall, each joined to the two ring nodes on that side.
-    const auto& A = ring[static_cast<std::size_t>(d.a)];
-    const auto& B = ring[static_cast<std::size_t>(d.b)];
-    const Vector2 ca = w.navigation.nodes[static_cast<std::size_t>(A[0])] + Vector2(q, q);
-    const Vector2 cb = w.navigation.nodes[static_cast<std::size_t>(B[0])] + Vector2(q, q);
-    const Vector2 dir = d.along_x ? Vector2(1.0, 0.0) : Vector2(0.0, 1.0);
-    const Vector2 pa = ca + (S / 2.0 - inset) * dir, pb = cb - (S / 2.0 - inset) * dir;
-    const int na = AddNode(w.navigation, pa.x(), pa.y());
-    const int nb = AddNode(w.navigation, pb.x(), pb.y());
-    // Ring sides: +x side is nodes 1, 2; -x side 0, 3; +y side 2, 3; -y side 0, 1.
-    const std::pair<int, int> side_a = d.along_x ? std::pair{A[1], A[2]} : std::pair{A[2], A[3]};
-    const std::pair<int, int> side_b = d.along_x ? std::pair{B[0], B[3]} : std::pair{B[0], B[1]};
-    w.navigation.edges.emplace_back(na, side_a.first);
-    w.navigation.edges.emplace_back(na, side_a.second);
-    w.navigation.edges.emplace_back(nb, side_b.first);
-    w.navigation.edges.emplace_back(nb, side_b.second);
-    w.navigation.edges.emplace_back(na, nb);
-  }
-  // Furniture: per room, a random selection from its type's inventory, placed by rejection
-  // sampling away from the navigation edges and from each other, at a random yaw.
-  const std::map<std::string, std::vector<std::string>> inventory = {
-      {"living", {"sofa", "coffee_table", "tv", "armchair", "shelf", "plant", "lamp"}},
-      {"kitchen", {"fridge", "counter", "table", "chair", "chair", "plant"}},
-      {"bedroom", {"bed", "shelf", "lamp", "plant", "desk", "chair"}},
-      {"office", {"desk", "chair", "shelf", "plant", "lamp", "desk"}},
-  };
-  std::uniform_real_distribution<double> yaw(-kPi, kPi);
-  std::vector<Vector2> placed;
-  for (int i = 0; i < nx; ++i) {
-    for (int j = 0; j < ny; ++j) {
-      const auto r = static_cast<std::size_t>(room_id(i, j));
-      std::vector<std::string> items = inventory.at(room_type[r]);
-      std::shuffle(items.begin(), items.end(), rng);
-      const int count = std::uniform_int_distribution<int>(config.min_objects_per_room,
-                                                           config.max_objects_per_room)(rng);
-      const Vector2 lo(i * pitch + 0.4, j * pitch + 0.4);
-      const Vector2 hi(i * pitch + S - 0.4, j * pitch + S - 0.4);
-      for (int k = 0; k < count; ++k) {
-        const std::string& label = items[static_cast<std::size_t>(k) % items.size()];
-        for (int attempt = 0; attempt < 200; ++attempt) {
-          const Vector2 p(lo.x() + (hi.x() - lo.x()) * u01(rng),
-                          lo.y() + (hi.y() - lo.y()) * u01(rng));
-          bool ok = true;
-          for (const auto& [a, b] : w.navigation.edges) {
-            if (DistanceToSegment(p, w.navigation.nodes[static_cast<std::size_t>(a)],
-                                  w.navigation.nodes[static_cast<std::size_t>(b)]) <
-                config.object_clearance) {
-              ok = false;
-              break;
-            }
-          }
-          for (std::size_t m = 0; ok && m < placed.size(); ++m) {
-            if ((placed[m] - p).norm() < config.object_separation) ok = false;
-          }
-          if (!ok) continue;
-          placed.push_back(p);
-          AddObject(w, label, p.x(), p.y(), yaw(rng));
-          break;
+  void rooms() {
+    const std::vector<std::string> types = {"living", "kitchen", "bedroom", "office"};
+    for (int i = 0; i < nx_; ++i) {
+      for (int j = 0; j < ny_; ++j) {
+        const auto r = static_cast<std::size_t>(roomId(i, j));
+        room_type_[r] =
+            types[std::uniform_int_distribution<std::size_t>(0, types.size() - 1)(rng_)];
+        const Vector2 c = centre(i, j);
+        w_.rooms.push_back({room_type_[r] + "_" + std::to_string(r),
+                            Vector2(i * pitch_, j * pitch_),
+                            Vector2(i * pitch_ + S_, j * pitch_ + S_)});
+        ring_[r] = {AddNode(w_.navigation, c.x() - q_, c.y() - q_),
+                    AddNode(w_.navigation, c.x() + q_, c.y() - q_),
+                    AddNode(w_.navigation, c.x() + q_, c.y() + q_),
+                    AddNode(w_.navigation, c.x() - q_, c.y() + q_)};
+        for (int k = 0; k < 4; ++k) {
+          w_.navigation.edges.emplace_back(ring_[r][k], ring_[r][(k + 1) % 4]);
         }
       }
     }
   }
-  return w;
+
+  // Doors: a random spanning tree of the room grid (randomised Kruskal) plus extra doors.
+  void doors() {
+    struct Door {
+      int a, b;
+      bool along_x;
+    };
+    std::vector<Door> candidates;
+    for (int i = 0; i < nx_; ++i) {
+      for (int j = 0; j < ny_; ++j) {
+        if (i + 1 < nx_) candidates.push_back({roomId(i, j), roomId(i + 1, j), true});
+        if (j + 1 < ny_) candidates.push_back({roomId(i, j), roomId(i, j + 1), false});
+      }
+    }
+    std::shuffle(candidates.begin(), candidates.end(), rng_);
+    std::vector<int> parent(ring_.size());
+    for (std::size_t r = 0; r < parent.size(); ++r) parent[r] = static_cast<int>(r);
+    auto find = [&](int x) {
+      while (parent[static_cast<std::size_t>(x)] != x) {
+        x = parent[static_cast<std::size_t>(x)] =
+            parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+      }
+      return x;
+    };
+    for (const Door& d : candidates) {
+      const int ra = find(d.a), rb = find(d.b);
+      const bool tree = ra != rb;
+      if (tree) parent[static_cast<std::size_t>(ra)] = rb;
+      if (!tree && u01_(rng_) >= config_.extra_door_probability) continue;
+      addDoor(d.a, d.b, d.along_x);
+    }
+  }
+
+  // Door nodes just inside each room's wall, each joined to the two ring nodes on that side.
+  void addDoor(int room_a, int room_b, bool along_x) {
+    const double inset = 0.8;  // door nodes sit this far inside the wall
+    const auto& A = ring_[static_cast<std::size_t>(room_a)];
+    const auto& B = ring_[static_cast<std::size_t>(room_b)];
+    const Vector2 ca = w_.navigation.nodes[static_cast<std::size_t>(A[0])] + Vector2(q_, q_);
+    const Vector2 cb = w_.navigation.nodes[static_cast<std::size_t>(B[0])] + Vector2(q_, q_);
+    const Vector2 dir = along_x ? Vector2(1.0, 0.0) : Vector2(0.0, 1.0);
+    const Vector2 pa = ca + (S_ / 2.0 - inset) * dir, pb = cb - (S_ / 2.0 - inset) * dir;
+    const int na = AddNode(w_.navigation, pa.x(), pa.y());
+    const int nb = AddNode(w_.navigation, pb.x(), pb.y());
+    // Ring sides: +x side is nodes 1, 2; -x side 0, 3; +y side 2, 3; -y side 0, 1.
+    const std::pair<int, int> side_a = along_x ? std::pair{A[1], A[2]} : std::pair{A[2], A[3]};
+    const std::pair<int, int> side_b = along_x ? std::pair{B[0], B[3]} : std::pair{B[0], B[1]};
+    w_.navigation.edges.emplace_back(na, side_a.first);
+    w_.navigation.edges.emplace_back(na, side_a.second);
+    w_.navigation.edges.emplace_back(nb, side_b.first);
+    w_.navigation.edges.emplace_back(nb, side_b.second);
+    w_.navigation.edges.emplace_back(na, nb);
+  }
+
+  // Furniture: per room, a random selection from its type's inventory, placed by rejection
+  // sampling away from the navigation edges and from each other, at a random yaw.
+  void furnish() {
+    const std::map<std::string, std::vector<std::string>> inventory = {
+        {"living", {"sofa", "coffee_table", "tv", "armchair", "shelf", "plant", "lamp"}},
+        {"kitchen", {"fridge", "counter", "table", "chair", "chair", "plant"}},
+        {"bedroom", {"bed", "shelf", "lamp", "plant", "desk", "chair"}},
+        {"office", {"desk", "chair", "shelf", "plant", "lamp", "desk"}},
+    };
+    std::uniform_real_distribution<double> yaw(-kPi, kPi);
+    for (int i = 0; i < nx_; ++i) {
+      for (int j = 0; j < ny_; ++j) {
+        const auto r = static_cast<std::size_t>(roomId(i, j));
+        std::vector<std::string> items = inventory.at(room_type_[r]);
+        std::shuffle(items.begin(), items.end(), rng_);
+        const int count = std::uniform_int_distribution<int>(config_.min_objects_per_room,
+                                                             config_.max_objects_per_room)(rng_);
+        const Vector2 lo(i * pitch_ + 0.4, j * pitch_ + 0.4);
+        const Vector2 hi(i * pitch_ + S_ - 0.4, j * pitch_ + S_ - 0.4);
+        for (int k = 0; k < count; ++k) {
+          const std::string& label = items[static_cast<std::size_t>(k) % items.size()];
+          for (int attempt = 0; attempt < 200; ++attempt) {
+            const Vector2 p(lo.x() + (hi.x() - lo.x()) * u01_(rng_),
+                            lo.y() + (hi.y() - lo.y()) * u01_(rng_));
+            if (!clear(p)) continue;
+            placed_.push_back(p);
+            AddObject(w_, label, p.x(), p.y(), yaw(rng_));
+            break;
+          }
+        }
+      }
+    }
+  }
+
+  // Whether p keeps the clearance from every navigation edge and the separation from every
+  // object placed.
+  bool clear(const Vector2& p) const {
+    for (const auto& [a, b] : w_.navigation.edges) {
+      if (DistanceToSegment(p, w_.navigation.nodes[static_cast<std::size_t>(a)],
+                            w_.navigation.nodes[static_cast<std::size_t>(b)]) <
+          config_.object_clearance) {
+        return false;
+      }
+    }
+    for (const Vector2& m : placed_) {
+      if ((m - p).norm() < config_.object_separation) return false;
+    }
+    return true;
+  }
+
+  const GeneratedWorldConfig& config_;
+  std::mt19937 rng_;
+  std::uniform_real_distribution<double> u01_{0.0, 1.0};
+  const int nx_, ny_;
+  const double S_, pitch_;
+  const double q_;  // half side of each room's ring of nodes
+  std::vector<std::array<int, 4>> ring_;
+  std::vector<std::string> room_type_;
+  std::vector<Vector2> placed_;
+  World w_;
+};
+
+}  // namespace
+
+World MakeGeneratedWorld(const GeneratedWorldConfig& config) {
+  config.validate();
+  return GeneratedWorldBuilder(config).build();
 }
 
 GeneratedWorldConfig GeneratedWorldForTeam(int num_robots, unsigned seed) {
