@@ -32,6 +32,7 @@
 
 #include "moslam/common/scratch_dir_testing.h"
 #include "moslam/distributed/dgs_driver.h"
+#include "moslam/io/datasets_testing.h"
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/transport/dds_transport.h"
@@ -43,13 +44,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-std::string BlocksWorld(int robots) {
-  return std::string(MOSLAM_DATASETS_DIR) +
-         "/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/"
-         "blocks_world/" +
-         std::to_string(robots) + "robots";
-}
 
 fs::path FreshDir(const std::string& name) { return test::ScratchDir(name); }
 
@@ -226,7 +220,7 @@ class RobotProcesses {
 void KillAndRestartOne(int domain, int n, int victim, const std::string& name,
                        const std::vector<std::string>& solver, const std::string& at,
                        int min_replayed, Values* merged) {
-  const std::string data = BlocksWorld(n);
+  const std::string data = test::BlocksWorldFolder(n);
   const fs::path out = FreshDir(name);
   const auto deadline = Clock::now() + std::chrono::seconds(120);
   RobotProcesses robots(domain, n, out, [&](int r) {
@@ -254,8 +248,8 @@ void KillAndRestartOne(int domain, int n, int victim, const std::string& name,
 TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
   const fs::path out = FreshDir("loopback");
   const fs::path log = out / "team.log";
-  Child team({"team", "--data", BlocksWorld(4), "--robots", "4", "--domain", "50", "--out",
-              out.string(), "--timeout", "120", "--json"},
+  Child team({"team", "--data", test::BlocksWorldFolder(4), "--robots", "4", "--domain", "50",
+              "--out", out.string(), "--timeout", "120", "--json"},
              "", log);
   ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
   const nlohmann::json j = LastJson(team.output());
@@ -277,7 +271,7 @@ TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
 
 TEST(Team, TheWholeSolverOverDdsReachesTheCentralizedOptimum) {
   const fs::path out = FreshDir("whole");
-  Child team({"team", "--data", BlocksWorld(4), "--domain", "55", "--out", out.string(),
+  Child team({"team", "--data", test::BlocksWorldFolder(4), "--domain", "55", "--out", out.string(),
               "--timeout", "120", "--json", "--coarse", "--refine", "--stop", "error-bound"},
              "", out / "team.log");
   ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
@@ -304,7 +298,7 @@ TEST(Team, RobotZeroKilledInTheRefinementAndRestartedChangesNothing) {
   ASSERT_NO_FATAL_FAILURE(KillAndRestartOne(54, n, 0, "restart_refine",
                                             {"--coarse", "--refine", "--stop", "error-bound"},
                                             "progress: refine 12 ", 12, &merged));
-  const Dataset full = ReadG2oFolder(BlocksWorld(n));
+  const Dataset full = ReadG2oFolder(test::BlocksWorldFolder(n));
   DgsNodeOptions o;
   o.solver.coarse_correction = true;
   o.solver.refine = true;
@@ -322,7 +316,7 @@ TEST(Team, ARobotKilledMidRunAndRestartedLosesNothing) {
   Values merged;
   ASSERT_NO_FATAL_FAILURE(
       KillAndRestartOne(51, n, 2, "restart", {}, "progress: pose 20 ", 20, &merged));
-  const Dataset full = ReadG2oFolder(BlocksWorld(n));
+  const Dataset full = ReadG2oFolder(test::BlocksWorldFolder(n));
   const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(DgsNodeOptions{}));
   EXPECT_EQ(merged.size(), reference.values.size());
   EXPECT_LE(MaxPoseDifference(reference.values, merged), 1e-9);
@@ -330,7 +324,7 @@ TEST(Team, ARobotKilledMidRunAndRestartedLosesNothing) {
 
 TEST(Team, ARobotThatDiesForGoodIsNoticedAndTheOthersFinish) {
   const int domain = 52, n = 4, victim = 3;
-  const std::string data = BlocksWorld(n);
+  const std::string data = test::BlocksWorldFolder(n);
   const fs::path out = FreshDir("leave");
   const auto deadline = Clock::now() + std::chrono::seconds(120);
   RobotProcesses robots(domain, n, out, [&](int r) {

@@ -8,17 +8,11 @@
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/geometry/so3.h"
 #include "moslam/graph/pose_graph.h"
+#include "moslam/io/datasets_testing.h"
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
 
 namespace moslam::test {
-
-inline std::string BlocksWorldFolder(int robots) {
-  return std::string(MOSLAM_DATASETS_DIR) +
-         "/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/"
-         "blocks_world/" +
-         std::to_string(robots) + "robots";
-}
 
 inline constexpr int kBlocksWorldRobots[] = {2, 4, 9, 16, 25, 36, 49};
 

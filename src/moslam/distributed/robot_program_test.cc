@@ -61,8 +61,6 @@ TeamOutcome RunPrograms(const PoseGraph& graph, const Values& initial, const Dgs
   return outcome;
 }
 
-std::string BlocksWorld(int robots) { return test::BlocksWorldFolder(robots); }
-
 void ExpectSameAsDriver(const Dataset& data, const DgsOptions& options) {
   const DgsResult reference = RunDgs(data.graph, data.initial, options);
   const TeamOutcome team = RunPrograms(data.graph, data.initial, options);
@@ -106,7 +104,7 @@ DgsOptions Jacobi() {
 }
 
 TEST(RobotProgram, TwoLevelErrorBoundAndRefinementEqualTheDriver) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   DgsOptions o = Jacobi();
   o.coarse_correction = true;
   o.stopping = StageStopping::kErrorBound;
@@ -115,7 +113,7 @@ TEST(RobotProgram, TwoLevelErrorBoundAndRefinementEqualTheDriver) {
 }
 
 TEST(RobotProgram, OneLevelChangeRuleEqualsTheDriver) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   for (bool flagged : {true, false}) {
     SCOPED_TRACE(flagged ? "flagged" : "initial exchange");
     DgsOptions o = Jacobi();
@@ -125,7 +123,7 @@ TEST(RobotProgram, OneLevelChangeRuleEqualsTheDriver) {
 }
 
 TEST(RobotProgram, PoseStageAndRefinementVariantsEqualTheDriver) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   DgsOptions cg = Jacobi();
   cg.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
   cg.refine = true;
@@ -141,7 +139,7 @@ TEST(RobotProgram, PoseStageAndRefinementVariantsEqualTheDriver) {
 }
 
 TEST(RobotProgram, RefusesGaussSeidelOrderAndAUsedAgent) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(2));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   const std::vector<RobotSubgraph> parts = PartitionByRobot(data.graph);
   RobotAgent agent(parts[0].robot, parts[0].graph, data.initial, GaugeAnchor(data.graph));
   SharedBoard board(1);

@@ -6,19 +6,13 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/io/datasets_testing.h"
 #include "moslam/io/g2o.h"
 #include "moslam/robust/spoil.h"
 #include "moslam/solver/initialization.h"
 
 namespace moslam {
 namespace {
-
-std::string BlocksWorld(int robots) {
-  return std::string(MOSLAM_DATASETS_DIR) +
-         "/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/"
-         "blocks_world/" +
-         std::to_string(robots) + "robots";
-}
 
 double MaxDistance(const Values& a, const Values& b) {
   double d = 0.0;
@@ -81,7 +75,7 @@ TEST(GncOptions, RejectsBadFields) {
 }
 
 TEST(Spoil, AddsTheFractionDeterministically) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   SpoilOptions o;
   o.fraction = 0.7;
   o.seed = 3;
@@ -107,7 +101,7 @@ TEST(Spoil, AddsTheFractionDeterministically) {
 // optimum the separators' r^T Omega r is at most 0.15, the outliers' at least 4.9): the threshold
 // is set to 1, as a user sets it for data whose information is not its noise.
 TEST(SolveGnc, RejectsKnownOutliersAndReachesTheCleanOptimum) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   const Key anchor = GaugeAnchor(data.graph);
   const SE3 anchor_pose = data.initial.count(anchor) ? data.initial.at(anchor) : SE3();
   const OptimizerResult clean =
@@ -136,7 +130,7 @@ TEST(SolveGnc, RejectsKnownOutliersAndReachesTheCleanOptimum) {
 
 // Without outliers (blocks_world's residuals all below the threshold) GNC changes nothing.
 TEST(SolveGnc, WithoutOutliersReturnsTheLeastSquaresEstimate) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   const Values initial = ChordalInitialization(data.graph, SE3());
   const OptimizerResult ls = Optimize(data.graph, initial);
   GncOptions gnc;
@@ -197,7 +191,7 @@ TEST(ObjectFactors, MarksEveryFactorThatTouchesAnObject) {
 }
 
 TEST(SolveGnc, RejectsAMaskOfTheWrongSize) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(2));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   EXPECT_THROW(SolveGnc(data.graph, ChordalInitialization(data.graph, SE3()), {true}),
                InvalidInputError);
 }

@@ -30,13 +30,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string BlocksWorld(int robots) {
-  return std::string(MOSLAM_DATASETS_DIR) +
-         "/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/"
-         "blocks_world/" +
-         std::to_string(robots) + "robots";
-}
-
 struct Crash : std::runtime_error {
   Crash() : std::runtime_error("simulated crash") {}
 };
@@ -142,7 +135,7 @@ DgsNodeOptions Options() {
 }
 
 TEST(DgsNode, EqualsTheInProcessDriverInJacobiOrder) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   for (bool flagged : {true, false}) {
     SCOPED_TRACE(flagged ? "flagged initialisation" : "initial exchange");
     DgsNodeOptions o = Options();
@@ -170,7 +163,7 @@ TEST(DgsNode, EqualsTheInProcessDriverInJacobiOrder) {
 }
 
 TEST(DgsNode, ARobotThatCrashesAndRestartsFromItsJournalLosesNothing) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   const DgsNodeOptions base = Options();
   const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
   ASSERT_GT(reference.rotation.iterations, 6);
@@ -201,7 +194,7 @@ TEST(DgsNode, ARobotThatCrashesAndRestartsFromItsJournalLosesNothing) {
 }
 
 TEST(DgsNode, ACutLinkDelaysButDoesNotChangeTheResult) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   const DgsNodeOptions base = Options();
   const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
   InProcessNetwork net;
@@ -245,7 +238,7 @@ TEST(DgsNode, ACutLinkDelaysButDoesNotChangeTheResult) {
 }
 
 TEST(DgsNode, TheOthersFinishWithoutARobotThatLeaves) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   DgsNodeOptions base = Options();
   base.leave_timeout = std::chrono::milliseconds(200);
   // Robot 3 completes round 4 of the rotation stage and dies: for the others it is the driver's
@@ -284,7 +277,7 @@ TEST(DgsNode, TheOthersFinishWithoutARobotThatLeaves) {
 // than leaving them to solve with nothing of its variables (robot 0's absence would leave them
 // with no anchor). A team given that lacks the robot or a neighbour is refused.
 TEST(DgsNode, WithTheTeamGivenARobotThatNeverStepsStopsTheSolveForEveryRobot) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   DgsNodeOptions base = Options();
   base.team = {0, 1, 2, 3};
   base.leave_timeout = std::chrono::milliseconds(200);
@@ -341,7 +334,7 @@ DgsNodeOptions WholeSolver() {
 TEST(DgsNode, TheWholeSolverEqualsTheInProcessDriver) {
   for (int robots : {4, 9}) {
     SCOPED_TRACE(std::to_string(robots) + " robots");
-    const Dataset data = ReadG2oFolder(BlocksWorld(robots));
+    const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(robots));
     const DgsNodeOptions o = WholeSolver();
     const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(o));
     ASSERT_GT(reference.rotation.coarse_corrections, 0);
@@ -370,7 +363,7 @@ TEST(DgsNode, TheLowestRobotKilledInTheRefinementAndRestartedChangesNothing) {
   // No robot coordinates: every robot solves the coarse system and takes the step decisions
   // from the reports of all. Robot 0, the one a coordinator rule would pick, dies twice (in the
   // two-level stage and in the refinement's conjugate gradients) and restarts from its journal.
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   const DgsNodeOptions base = WholeSolver();
   const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
   const fs::path dir = FreshDir("restart_refine");
@@ -392,7 +385,7 @@ TEST(DgsNode, TheLowestRobotKilledInTheRefinementAndRestartedChangesNothing) {
 }
 
 TEST(DgsNode, TheOthersFinishTheRefinementWithoutARobotThatLeaves) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(4));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
   DgsNodeOptions base = WholeSolver();
   base.leave_timeout = std::chrono::milliseconds(200);
   const DgsResult reference = RunDgs(data.graph, data.initial, DriverOptions(base));
@@ -422,10 +415,10 @@ TEST(DgsNode, TheOthersFinishTheRefinementWithoutARobotThatLeaves) {
 }
 
 TEST(RobotData, EachRobotFileHoldsItsPartitionOfTheFolder) {
-  const Dataset folder = ReadG2oFolder(BlocksWorld(4));
-  EXPECT_EQ(CountRobotFiles(BlocksWorld(4)), 4);
+  const Dataset folder = ReadG2oFolder(test::BlocksWorldFolder(4));
+  EXPECT_EQ(CountRobotFiles(test::BlocksWorldFolder(4)), 4);
   for (const RobotSubgraph& part : PartitionByRobot(folder.graph)) {
-    const Dataset own = ReadRobotG2o(RobotFile(BlocksWorld(4), part.robot));
+    const Dataset own = ReadRobotG2o(RobotFile(test::BlocksWorldFolder(4), part.robot));
     ASSERT_EQ(own.graph.factors().size(), part.graph.factors().size());
     std::set<std::pair<Key, Key>> a, b;
     for (const auto& f : own.graph.factors()) a.insert({f.a(), f.b()});
@@ -436,7 +429,7 @@ TEST(RobotData, EachRobotFileHoldsItsPartitionOfTheFolder) {
       EXPECT_EQ(x.translation(), folder.initial.at(k).translation());
     }
   }
-  EXPECT_THROW(RobotFile(BlocksWorld(4), 4), InvalidInputError);
+  EXPECT_THROW(RobotFile(test::BlocksWorldFolder(4), 4), InvalidInputError);
 }
 
 // The weights every robot holds are the reference's for its factors (its subgraph, in graph
@@ -462,7 +455,7 @@ void ExpectReferenceWeights(const TeamResult& team, const PoseGraph& graph,
 // WeightsPackets, equal to RunRobustDgs without the separator check, also when a robot dies in a
 // GNC round and restarts from its journal.
 TEST(DgsNode, TheRobustSolveEqualsTheInProcessRobustDriverAndSurvivesARestart) {
-  const Dataset clean = ReadG2oFolder(BlocksWorld(4));
+  const Dataset clean = ReadG2oFolder(test::BlocksWorldFolder(4));
   SpoilOptions spoil;
   spoil.fraction = 0.5;
   spoil.seed = 2;
@@ -520,7 +513,7 @@ TEST(DgsNode, TheRobustSolveEqualsTheInProcessRobustDriverAndSurvivesARestart) {
 }
 
 TEST(DgsNode, RefusesTheJournalOfAnotherRun) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(2));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   const auto parts = PartitionByRobot(data.graph);
   const fs::path dir = FreshDir("foreign");
   InProcessNetwork net;
@@ -561,7 +554,7 @@ TEST(DgsNode, RefusesTheJournalOfAnotherRun) {
 }
 
 TEST(DgsNode, ValidatesOptions) {
-  const Dataset data = ReadG2oFolder(BlocksWorld(2));
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   const auto parts = PartitionByRobot(data.graph);
   InProcessNetwork net;
   auto t = net.connect(1);
@@ -600,7 +593,7 @@ RobustDgsResult RobustReference(const Dataset& data, const DgsNodeOptions& o) {
 TEST(DgsNode, TheSeparatorCheckOverTheTransportEqualsRunRobustDgs) {
   {
     SCOPED_TRACE("blocks_world 4, 90 % wrong separators, the maps taken as exact");
-    const Dataset clean = ReadG2oFolder(BlocksWorld(4));
+    const Dataset clean = ReadG2oFolder(test::BlocksWorldFolder(4));
     SpoilOptions spoil;
     spoil.fraction = 0.9;
     spoil.seed = 1;
