@@ -102,27 +102,90 @@ std::uint64_t FrontEndDigest(const RenderedPerceptionArgs& args) {
   return Fnv1a64(options, sizeof options, h);
 }
 
+// --perception visible: every object the frames show, measured with Gaussian noise.
+ExperimentConfig::Perceive VisiblePerception(const RenderedPerceptionArgs& args) {
+  VisibleSensingConfig config;
+  config.every = args.every;
+  config.noise.sigma_rotation_deg = args.visible_sigma_rotation_deg;
+  config.noise.sigma_translation = args.visible_sigma_translation;
+  config.keep_probability = args.visible_keep;
+  config.validate();
+  return [config](SimulationData& data, RunMetrics& m) {
+    const VisibleSensingStats v = MeasureVisibleObjects(data, config);
+    m.perception_frames = v.frames;
+    m.perception_ms_render = v.render_ms / std::max(1, v.frames);
+    fmt::print(stderr,
+               "visible, {} ({} robots): {} object measurements of the {} frames, of {} objects "
+               "seen >= {:.0f} % within {} m (sampled: {})\n",
+               data.world.name, data.numRobots(), v.measured, v.frames, v.seen_enough,
+               100.0 * config.min_visible_fraction, config.render.max_depth, v.replaced);
+  };
+}
+
+// The front-end's measurements of one run into its metrics.
+void PerceptionMetrics(const RenderedSensingStats& p, const SimulationData& data,
+                       const PointCloudModel& point_cloud, RunMetrics& m) {
+  const double frames = std::max(1, p.frames);
+  m.perception_frames = p.frames;
+  m.perception_detections = p.detections;
+  const AcceptanceCounts all = p.total();
+  m.perception_true_detections = all.true_detections;
+  m.perception_accepted = p.accepted;
+  m.perception_accepted_true = all.accepted;
+  m.perception_true_visible = all.true_visible;
+  m.perception_accepted_visible = all.accepted_visible;
+  m.perception_rejected_inliers = p.rejected_inliers;
+  m.perception_rejected_inliers_false = p.rejected_inliers_false;
+  m.perception_median_error_m = p.medianTranslationError();
+  m.perception_median_error_deg = p.medianRotationErrorDeg();
+  m.perception_ms_render = p.render_ms / frames;
+  m.perception_ms_detect = p.times.detect / frames;
+  m.perception_ms_segment = (p.times.prepare + p.times.segment) / frames;
+  m.perception_ms_register = p.times.register_ / frames;
+  m.perception_pcd_bytes =
+      static_cast<double>(p.valid_depth_points) * point_cloud.bytes_per_point / data.numRobots();
+}
+
+// One run's report (the tables average runs): acceptance per class and by the object's depth,
+// the accepted false detections and the accepted true ones far off.
+std::string PerceptionReport(const RenderedSensingStats& p, const SimulationData& data,
+                             double min_visible_fraction) {
+  std::string line = fmt::format(
+      "perception, {} ({} robots): accepted of true detections of objects >= {:.0f} % "
+      "visible (of all true detections), by class:",
+      data.world.name, data.numRobots(), 100.0 * min_visible_fraction);
+  for (const auto& [label, c] : p.by_class) {
+    line += fmt::format(" {} {}/{} (all {}/{})", label, c.accepted_visible, c.true_visible,
+                        c.accepted, c.true_detections);
+  }
+  line += "\nby the object's depth (m):";
+  for (const auto& [bin, c] : p.by_depth) {
+    line += fmt::format(" {}{} {}/{} (all {}/{})", bin,
+                        bin == RenderedSensingStats::kDepthBins - 1 ? "+" : "", c.accepted_visible,
+                        c.true_visible, c.accepted, c.true_detections);
+  }
+  // The accepted detections that are not true, against the nearest same-label object seen.
+  int near = 0;
+  std::string errors;
+  for (const auto& [t, r] : p.false_accepted_errors) {
+    near += t <= 0.1 && r <= 10.0 ? 1 : 0;
+    errors += fmt::format(" {:.2f} m / {:.0f} deg;", t, r);
+  }
+  line += fmt::format(
+      "\naccepted false detections: {}, {} of them within 10 cm / 10 deg of a "
+      "same-label object seen (nearest:{})",
+      p.false_accepted_errors.size(), near, errors);
+  line += fmt::format(
+      "\naccepted true detections more than 10 cm / 10 deg off: {} of {}, {} of "
+      "them within 10 cm of another same-label object seen",
+      p.accepted_true_off, p.total().accepted, p.accepted_true_other_object);
+  return line;
+}
+
 }  // namespace
 
 ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& args) {
-  if (args.visible) {
-    VisibleSensingConfig config;
-    config.every = args.every;
-    config.noise.sigma_rotation_deg = args.visible_sigma_rotation_deg;
-    config.noise.sigma_translation = args.visible_sigma_translation;
-    config.keep_probability = args.visible_keep;
-    config.validate();
-    return [config](SimulationData& data, RunMetrics& m) {
-      const VisibleSensingStats v = MeasureVisibleObjects(data, config);
-      m.perception_frames = v.frames;
-      m.perception_ms_render = v.render_ms / std::max(1, v.frames);
-      fmt::print(stderr,
-                 "visible, {} ({} robots): {} object measurements of the {} frames, of {} objects "
-                 "seen >= {:.0f} % within {} m (sampled: {})\n",
-                 data.world.name, data.numRobots(), v.measured, v.frames, v.seen_enough,
-                 100.0 * config.min_visible_fraction, config.render.max_depth, v.replaced);
-    };
-  }
+  if (args.visible) return VisiblePerception(args);
   pcl::console::setVerbosityLevel(pcl::console::L_ERROR);  // SAC-IA's per-sample warnings
   auto config = std::make_shared<RenderedSensingConfig>();
   config->perception.detector.model_path = args.model;
@@ -143,60 +206,13 @@ ExperimentConfig::Perceive MakeRenderedPerception(const RenderedPerceptionArgs& 
   }
   const PointCloudModel point_cloud;
   auto run = std::make_shared<int>(0);
-  // The front-end on the run's frames; returns the run's report (per class, by depth, off poses).
+  // The front-end on the run's frames; returns the run's report.
   ReportingPerceive perceive = [config, point_cloud, log, run, path = args.detection_log](
                                    SimulationData& data, RunMetrics& m) {
     const RenderedSensingStats p = PerceiveSimulation(data, *config);
     if (log) WriteDetectionLog(*log, path, (*run)++, data, p.records);
-    const double frames = std::max(1, p.frames);
-    m.perception_frames = p.frames;
-    m.perception_detections = p.detections;
-    const AcceptanceCounts all = p.total();
-    m.perception_true_detections = all.true_detections;
-    m.perception_accepted = p.accepted;
-    m.perception_accepted_true = all.accepted;
-    m.perception_true_visible = all.true_visible;
-    m.perception_accepted_visible = all.accepted_visible;
-    // Per class, to stderr (the tables average runs; this is one run's).
-    std::string line = fmt::format(
-        "perception, {} ({} robots): accepted of true detections of objects >= {:.0f} % "
-        "visible (of all true detections), by class:",
-        data.world.name, data.numRobots(), 100.0 * config->min_visible_fraction);
-    for (const auto& [label, c] : p.by_class) {
-      line += fmt::format(" {} {}/{} (all {}/{})", label, c.accepted_visible, c.true_visible,
-                          c.accepted, c.true_detections);
-    }
-    line += "\nby the object's depth (m):";
-    for (const auto& [bin, c] : p.by_depth) {
-      line += fmt::format(" {}{} {}/{} (all {}/{})", bin,
-                          bin == RenderedSensingStats::kDepthBins - 1 ? "+" : "",
-                          c.accepted_visible, c.true_visible, c.accepted, c.true_detections);
-    }
-    // The accepted detections that are not true, against the nearest same-label object seen.
-    int near = 0;
-    std::string errors;
-    for (const auto& [t, r] : p.false_accepted_errors) {
-      near += t <= 0.1 && r <= 10.0 ? 1 : 0;
-      errors += fmt::format(" {:.2f} m / {:.0f} deg;", t, r);
-    }
-    line += fmt::format("\naccepted false detections: {}, {} of them within 10 cm / 10 deg of a "
-                        "same-label object seen (nearest:{})",
-                        p.false_accepted_errors.size(), near, errors);
-    line += fmt::format("\naccepted true detections more than 10 cm / 10 deg off: {} of {}, {} of "
-                        "them within 10 cm of another same-label object seen",
-                        p.accepted_true_off, all.accepted, p.accepted_true_other_object);
-    m.perception_rejected_inliers = p.rejected_inliers;
-    m.perception_rejected_inliers_false = p.rejected_inliers_false;
-    m.perception_median_error_m = p.medianTranslationError();
-    m.perception_median_error_deg = p.medianRotationErrorDeg();
-    m.perception_ms_render = p.render_ms / frames;
-    m.perception_ms_detect = p.times.detect / frames;
-    m.perception_ms_segment = (p.times.prepare + p.times.segment) / frames;
-    m.perception_ms_register = p.times.register_ / frames;
-    m.perception_pcd_bytes = static_cast<double>(p.valid_depth_points) *
-                             point_cloud.bytes_per_point /
-                             data.numRobots();
-    return line;
+    PerceptionMetrics(p, data, point_cloud, m);
+    return PerceptionReport(p, data, config->min_visible_fraction);
   };
   const auto print = [](const std::string& report) { fmt::print(stderr, "{}\n", report); };
   if (args.perception_cache.empty()) {
