@@ -297,6 +297,68 @@ nlohmann::json SummaryJson(const PerceiveArgs& a, const PerceiveTotals& t,
   return summary;
 }
 
+// One perceived object as JSON (its pose, and against the world's objects when given), counted
+// into the totals.
+nlohmann::json ObjectRecord(const PerceivedObject& o, const TumFrame& f,
+                            const std::optional<World>& world, PerceiveTotals& t) {
+  ++t.detections;
+  t.by_class[o.detection.label].add(o);
+  t.by_class["all"].add(o);
+  if (o.status == PerceptionStatus::kTooFewInliers) ++t.gate_rejects;
+  if (o.accepted()) ++t.accepted;
+  nlohmann::json j = ObjectJson(o);
+  const bool has_pose = HasPose(o);
+  if (has_pose) j["camera_T_object"] = PoseJson(o.registration.camera_T_object);
+  if (!world || !f.world_T_camera || !has_pose) return j;
+  const GroundTruthError e =
+      AgainstWorld(*world, o.detection.label, *f.world_T_camera * o.registration.camera_T_object);
+  if (!e.object) return j;
+  if (o.accepted()) {
+    t.t_err.push_back(e.translation);
+    t.r_err.push_back(e.rotation_deg);
+    for (const char* key : {"all", o.detection.label.c_str()}) {
+      t.by_class[key].t_err.push_back(e.translation);
+      t.by_class[key].r_err.push_back(e.rotation_deg);
+    }
+  }
+  j["ground_truth"] = {{"object", e.object->id},
+                       {"translation_error", e.translation},
+                       {"rotation_error_deg", e.rotation_deg}};
+  return j;
+}
+
+// The frames perceived: every a.every-th, at most a.max_frames (0: all).
+std::vector<std::size_t> FramesToPerceive(const TumSequence& sequence, const PerceiveArgs& a) {
+  std::vector<std::size_t> frames;
+  for (std::size_t i = 0; i < sequence.frames.size(); i += static_cast<std::size_t>(a.every)) {
+    if (a.max_frames > 0 && static_cast<int>(frames.size()) >= a.max_frames) break;
+    frames.push_back(i);
+  }
+  return frames;
+}
+
+// The frame with its boxes and statuses drawn, into the --annotate folder.
+void WriteAnnotated(const PerceiveArgs& a, const TumFrame& f, RgbdFrame& frame,
+                    const FramePerception& seen) {
+  Annotate(frame.rgb, seen);
+  const std::string path =
+      (std::filesystem::path(a.annotate) / std::filesystem::path(f.rgb_file).filename()).string();
+  if (!cv::imwrite(path, frame.rgb)) throw Error("perceive: cannot write '" + path + "'");
+}
+
+void PrintPerceiveSummary(const PerceiveArgs& a, const PerceiveTotals& t, bool evaluated) {
+  const double nf = std::max<double>(1.0, static_cast<double>(t.frames));
+  fmt::print(
+      "{}: {} frames, {} detections, {} accepted, {} rejected by the 12-inlier gate; "
+      "ms/frame detect {:.1f}, segment {:.1f}, register {:.1f}\n",
+      a.sequence, t.frames, t.detections, t.accepted, t.gate_rejects, t.times.detect / nf,
+      (t.times.prepare + t.times.segment) / nf, t.times.register_ / nf);
+  if (evaluated) {
+    fmt::print("pose error against ground truth ({} objects): median {:.3f} m, {:.2f} deg\n",
+               t.t_err.size(), Median(t.t_err), Median(t.r_err));
+  }
+}
+
 int RunPerceive(const PerceiveArgs& a) {
   // SAC-IA warns on stderr for every relaxed sample distance; the statuses say what matters.
   pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
@@ -310,11 +372,7 @@ int RunPerceive(const PerceiveArgs& a) {
   }
   ObjectPerception perception(PerceiveConfig(a), world ? world->classes : StandardObjectClasses());
 
-  std::vector<std::size_t> frames;
-  for (std::size_t i = 0; i < sequence.frames.size(); i += static_cast<std::size_t>(a.every)) {
-    if (a.max_frames > 0 && static_cast<int>(frames.size()) >= a.max_frames) break;
-    frames.push_back(i);
-  }
+  const std::vector<std::size_t> frames = FramesToPerceive(sequence, a);
   Progress progress(static_cast<int>(frames.size()));
   nlohmann::json out_frames = nlohmann::json::array();
   PerceiveTotals t;
@@ -329,43 +387,10 @@ int RunPerceive(const PerceiveArgs& a) {
     t.times.segment += seen.times.segment;
     t.times.register_ += seen.times.register_;
     nlohmann::json objects = nlohmann::json::array();
-    for (const PerceivedObject& o : seen.objects) {
-      ++t.detections;
-      t.by_class[o.detection.label].add(o);
-      t.by_class["all"].add(o);
-      if (o.status == PerceptionStatus::kTooFewInliers) ++t.gate_rejects;
-      if (o.accepted()) ++t.accepted;
-      nlohmann::json j = ObjectJson(o);
-      const bool has_pose = HasPose(o);
-      if (has_pose) j["camera_T_object"] = PoseJson(o.registration.camera_T_object);
-      if (world && f.world_T_camera && has_pose) {
-        const GroundTruthError e = AgainstWorld(*world, o.detection.label,
-                                                *f.world_T_camera * o.registration.camera_T_object);
-        if (e.object) {
-          if (o.accepted()) {
-            t.t_err.push_back(e.translation);
-            t.r_err.push_back(e.rotation_deg);
-            for (const char* key : {"all", o.detection.label.c_str()}) {
-              t.by_class[key].t_err.push_back(e.translation);
-              t.by_class[key].r_err.push_back(e.rotation_deg);
-            }
-          }
-          j["ground_truth"] = {{"object", e.object->id},
-                               {"translation_error", e.translation},
-                               {"rotation_error_deg", e.rotation_deg}};
-        }
-      }
-      objects.push_back(std::move(j));
-    }
+    for (const PerceivedObject& o : seen.objects) objects.push_back(ObjectRecord(o, f, world, t));
     out_frames.push_back(
         {{"timestamp", f.rgb_timestamp}, {"rgb", f.rgb_file}, {"objects", std::move(objects)}});
-    if (!a.annotate.empty()) {
-      Annotate(frame.rgb, seen);
-      const std::string path =
-          (std::filesystem::path(a.annotate) / std::filesystem::path(f.rgb_file).filename())
-              .string();
-      if (!cv::imwrite(path, frame.rgb)) throw Error("perceive: cannot write '" + path + "'");
-    }
+    if (!a.annotate.empty()) WriteAnnotated(a, f, frame, seen);
     progress.update(static_cast<int>(n + 1), t.accepted);
   }
 
@@ -381,16 +406,7 @@ int RunPerceive(const PerceiveArgs& a) {
   if (a.json) {
     fmt::print("{}\n", summary.dump());
   } else {
-    const double nf = std::max<double>(1.0, static_cast<double>(t.frames));
-    fmt::print(
-        "{}: {} frames, {} detections, {} accepted, {} rejected by the 12-inlier gate; "
-        "ms/frame detect {:.1f}, segment {:.1f}, register {:.1f}\n",
-        a.sequence, t.frames, t.detections, t.accepted, t.gate_rejects, t.times.detect / nf,
-        (t.times.prepare + t.times.segment) / nf, t.times.register_ / nf);
-    if (world) {
-      fmt::print("pose error against ground truth ({} objects): median {:.3f} m, {:.2f} deg\n",
-                 t.t_err.size(), Median(t.t_err), Median(t.r_err));
-    }
+    PrintPerceiveSummary(a, t, world.has_value());
   }
   return 0;
 }
