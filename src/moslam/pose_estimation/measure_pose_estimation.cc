@@ -138,12 +138,13 @@ class Templates {
     if (it == built_.end()) it = built_.emplace(label, build(*world_.findClass(label))).first;
     return it->second;
   }
+
+ private:
   ObjectTemplate build(const ObjectClass& c) const {
     return MakeObjectTemplate(
         c.label, SampleMeshSurface(MakeObjectMesh(c), a_.template_spacing, 1u), a_.config.features);
   }
 
- private:
   const World& world_;
   const MeasureArgs& a_;
   std::map<std::string, ObjectTemplate> built_;
@@ -381,7 +382,7 @@ int main(int argc, char** argv) {
   const World world = MeasurementWorld(*cls, a.max_distance, a.dining);
   Templates templates(world, a);
   const auto t_template = std::chrono::steady_clock::now();
-  const ObjectTemplate tmpl = templates.build(*world.findClass(a.label));
+  const ObjectTemplate& tmpl = templates.of(a.label);  // shared with --dining's chairs
   std::printf(
       "template %s: %zu points, %zu keypoints, built in %.0f ms\n", a.label.c_str(), tmpl.size(),
       tmpl.keypoints->size(),
