@@ -316,6 +316,186 @@ std::vector<std::size_t> ConsistentPairs(
   return ConsistentSubset(a, b, indexed, config);
 }
 
+using LandmarkPair = std::pair<std::uint32_t, std::uint32_t>;  // (alpha's, beta's)
+
+// The two maps of a rendezvous, the landmarks their robots share already left out: what beta
+// matches under a transform of alpha's objects.
+struct MapPair {
+  const ObjectMapMessage& alpha;
+  const std::vector<ObjectMapEntry>& beta;
+  const AssociationGate& gate;
+  const std::vector<std::uint32_t>& alpha_taken;
+  const std::vector<std::uint32_t>& beta_taken;
+
+  std::vector<LandmarkPair> match(const SE3& b_T_a) const {
+    return MatchObjectMaps(alpha, b_T_a, beta, gate, alpha_taken, beta_taken);
+  }
+  int count(const SE3& b_T_a) const { return static_cast<int>(match(b_T_a).size()); }
+};
+
+struct ScoredAlignment {
+  SE3 b_T_a;
+  int matches = 0;  // MapPair::count under b_T_a
+};
+
+// Single-pair proposals (RendezvousConfig::refine_alignment): for each pair of one label within
+// the correction bound of the prior, the transform that makes the two coincide; the one under
+// which the most objects match (ties: the pair nearest the prior). Zero matches when no pair is
+// within the bound.
+ScoredAlignment BestProposal(const MapPair& maps, const SE3& prior,
+                             const RendezvousConfig& config) {
+  const std::set<std::uint32_t> at(maps.alpha_taken.begin(), maps.alpha_taken.end());
+  const std::set<std::uint32_t> bt(maps.beta_taken.begin(), maps.beta_taken.end());
+  AssociationGate wide;
+  wide.sigma = std::max(config.max_correction_m, 1e-9);
+  wide.sigma_rotation_deg = std::max(config.max_correction_deg, 1e-9);
+  wide.num_sigmas = 1.0;
+  ScoredAlignment best;
+  double best_score = 0.0;
+  for (const auto& a : maps.alpha.objects) {
+    if (at.count(a.landmark) != 0) continue;
+    const SE3 predicted = prior * a.pose;
+    for (const auto& b : maps.beta) {
+      double score = 0.0;
+      if (b.label != a.label || bt.count(b.landmark) != 0 ||
+          !wide.accepts(predicted, b.pose, &score)) {
+        continue;
+      }
+      const SE3 T = b.pose * a.pose.inverse();
+      const int n = maps.count(T);
+      if (n > best.matches || (n == best.matches && score < best_score)) {
+        best = {T, n};
+        best_score = score;
+      }
+    }
+  }
+  return best;
+}
+
+// `proposal` refined by the rigid fit of the positions it matches, when they fix a rotation and
+// the fit matches as many objects.
+ScoredAlignment RefinedByRigidFit(const MapPair& maps, const ScoredAlignment& proposal) {
+  std::map<std::uint32_t, Vector3> pa, pb;
+  for (const auto& o : maps.alpha.objects) pa[o.landmark] = o.pose.translation();
+  for (const auto& o : maps.beta) pb[o.landmark] = o.pose.translation();
+  std::vector<Vector3> src, dst;
+  for (const auto& [ka, kb] : maps.match(proposal.b_T_a)) {
+    src.push_back(pa.at(ka));
+    dst.push_back(pb.at(kb));
+  }
+  try {
+    const SE3 refined = AlignRigid(src, dst);
+    const int n = maps.count(refined);
+    if (n >= proposal.matches) return {refined, n};
+  } catch (const UnderdeterminedError&) {
+    // Collinear or too few matches: keep the single-pair proposal.
+  }
+  return proposal;
+}
+
+// The constellation's alignment (RendezvousConfig::refine_by_constellation) when more of the
+// matches under it agree pairwise than under `current`; else `current`.
+ScoredAlignment PreferConstellation(const MapPair& maps, const RendezvousConfig& config,
+                                    const ScoredAlignment& current) {
+  const std::vector<ConstellationObject> a = Constellation(maps.alpha.objects),
+                                         b = Constellation(maps.beta);
+  const ConstellationAlignment aligned = AlignConstellations(a, b, config.constellation);
+  if (aligned.status != AlignmentStatus::kAligned) return current;
+  const auto consistent = [&](const SE3& T) {
+    return ConsistentPairs(a, b, maps.match(T), config.constellation).size();
+  };
+  if (consistent(aligned.b_T_a) <= consistent(current.b_T_a)) return current;
+  return {aligned.b_T_a, maps.count(aligned.b_T_a)};
+}
+
+// The pairs robots a (alpha) and b (beta) share so far, in either role.
+std::set<LandmarkPair> SharedBefore(const std::vector<SharedObject>& shared, int a, int b) {
+  std::set<LandmarkPair> before;
+  for (const auto& s : shared) {
+    if (s.alpha_object.robot == a && s.beta_object.robot == b) {
+      before.emplace(static_cast<std::uint32_t>(s.alpha_object.index),
+                     static_cast<std::uint32_t>(s.beta_object.index));
+    } else if (s.alpha_object.robot == b && s.beta_object.robot == a) {
+      before.emplace(static_cast<std::uint32_t>(s.beta_object.index),
+                     static_cast<std::uint32_t>(s.alpha_object.index));
+    }
+  }
+  return before;
+}
+
+// Unknown initial poses: alpha's map aligned with beta's (`own`) from their objects alone, then
+// refused as contradicted when alpha's objects that fall in view of beta's poses mostly find no
+// object of their label there (RendezvousConfig::overlap).
+ConstellationAlignment AlignUnknown(const ObjectMapMessage& received,
+                                    const std::vector<ObjectMapEntry>& own, const ObjectSlam& beta,
+                                    const RendezvousConfig& config) {
+  ConstellationAlignment aligned = AlignConstellations(Constellation(received.objects),
+                                                       Constellation(own), config.constellation);
+  if (aligned.status != AlignmentStatus::kAligned || !config.overlap.enabled) return aligned;
+  const OverlapEvidence e = AlignmentOverlap(received.objects, aligned.b_T_a, beta, config.overlap);
+  if (e.seen >= config.overlap.min_seen &&
+      e.confirmed < config.overlap.min_confirmed_fraction * e.seen) {
+    aligned.status = AlignmentStatus::kContradicted;
+    aligned.reason = std::to_string(e.confirmed) + " of the " + std::to_string(e.seen) +
+                     " objects of robot " + std::to_string(received.sender) +
+                     " in view of this robot's poses have an object of their label within " +
+                     std::to_string(config.overlap.radius) + " m";
+    aligned.pairs.clear();
+    aligned.b_T_a = SE3();
+  }
+  return aligned;
+}
+
+// Consistency across rendezvous: the pairs shared before and the new ones of `reply`, checked
+// together; `reply` keeps the new ones in the largest consistent set and removes the old ones
+// outside it.
+void CheckAcrossRendezvous(const std::vector<ObjectMapEntry>& alpha_objects,
+                           const std::vector<ObjectMapEntry>& own,
+                           const std::set<LandmarkPair>& before, const ConstellationConfig& config,
+                           SharedObjectsMessage& reply) {
+  std::vector<LandmarkPair> all(before.begin(), before.end());
+  all.insert(all.end(), reply.pairs.begin(), reply.pairs.end());
+  const std::vector<std::size_t> kept =
+      ConsistentPairs(Constellation(alpha_objects), Constellation(own), all, config);
+  std::vector<bool> keep(all.size(), false);
+  for (std::size_t k : kept) keep[k] = true;
+  std::vector<LandmarkPair> added;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const bool old = i < before.size();
+    if (old && !keep[i]) reply.removed.push_back(all[i]);
+    if (!old && keep[i]) added.push_back(all[i]);
+  }
+  reply.pairs = std::move(added);
+}
+
+// Ground-truth association (RendezvousConfig::ground_truth_association, simulation only): each of
+// alpha's objects paired with beta's landmark of the same world object, landmarks the two robots
+// share already left out.
+SharedObjectsMessage GroundTruthAnswer(const ObjectMapMessage& received, const ObjectSlam& alpha,
+                                       const ObjectSlam& beta,
+                                       const std::vector<SharedObject>& already_shared) {
+  const int a = alpha.robot(), b = beta.robot();
+  std::vector<std::uint32_t> alpha_taken, beta_taken;
+  TakenLandmarks(already_shared, a, b, &alpha_taken, &beta_taken);
+  SharedObjectsMessage reply;
+  reply.sender = b;
+  reply.receiver = a;
+  const std::set<std::uint32_t> at(alpha_taken.begin(), alpha_taken.end());
+  std::set<std::uint32_t> bt(beta_taken.begin(), beta_taken.end());
+  for (const auto& o : received.objects) {
+    const int truth = alpha.landmarks().at(o.landmark).true_object;
+    if (truth < 0 || at.count(o.landmark) != 0) continue;
+    for (const auto& lm : beta.landmarks()) {
+      const auto l = static_cast<std::uint32_t>(lm.key.index);
+      if (lm.true_object == truth && bt.insert(l).second) {
+        reply.pairs.emplace_back(o.landmark, l);
+        break;
+      }
+    }
+  }
+  return reply;
+}
+
 }  // namespace
 
 SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
@@ -323,86 +503,17 @@ SE3 AlignObjectMaps(const ObjectMapMessage& from_alpha, const SE3& prior,
                     const std::vector<std::uint32_t>& alpha_taken,
                     const std::vector<std::uint32_t>& beta_taken, int* inliers) {
   config.validate();
-  const auto count = [&](const SE3& T) {
-    return static_cast<int>(MatchObjectMaps(from_alpha, T, beta_objects, config.gate,
-                                            alpha_taken, beta_taken).size());
-  };
-  SE3 best = prior;
-  int best_n = count(prior);
+  const MapPair maps{from_alpha, beta_objects, config.gate, alpha_taken, beta_taken};
+  ScoredAlignment best{prior, maps.count(prior)};
   if (config.refine_alignment) {
-    const std::set<std::uint32_t> at(alpha_taken.begin(), alpha_taken.end());
-    const std::set<std::uint32_t> bt(beta_taken.begin(), beta_taken.end());
-    AssociationGate wide;
-    wide.sigma = std::max(config.max_correction_m, 1e-9);
-    wide.sigma_rotation_deg = std::max(config.max_correction_deg, 1e-9);
-    wide.num_sigmas = 1.0;
-    SE3 proposal_best;
-    int proposal_n = 0;
-    double proposal_score = 0.0;
-    for (const auto& a : from_alpha.objects) {
-      if (at.count(a.landmark) != 0) continue;
-      const SE3 predicted = prior * a.pose;
-      for (const auto& b : beta_objects) {
-        double score = 0.0;
-        if (b.label != a.label || bt.count(b.landmark) != 0 ||
-            !wide.accepts(predicted, b.pose, &score)) {
-          continue;
-        }
-        const SE3 T = b.pose * a.pose.inverse();
-        const int n = count(T);
-        if (n > proposal_n || (n == proposal_n && score < proposal_score)) {
-          proposal_best = T;
-          proposal_n = n;
-          proposal_score = score;
-        }
-      }
-    }
-    if (proposal_n >= config.min_inliers && proposal_n > best_n) {
-      best = proposal_best;
-      best_n = proposal_n;
-      // Refine with the rigid fit of the matched positions (when they fix a rotation).
-      std::map<std::uint32_t, Vector3> pa, pb;
-      for (const auto& o : from_alpha.objects) pa[o.landmark] = o.pose.translation();
-      for (const auto& o : beta_objects) pb[o.landmark] = o.pose.translation();
-      std::vector<Vector3> src, dst;
-      for (const auto& [ka, kb] :
-           MatchObjectMaps(from_alpha, best, beta_objects, config.gate, alpha_taken, beta_taken)) {
-        src.push_back(pa.at(ka));
-        dst.push_back(pb.at(kb));
-      }
-      try {
-        const SE3 refined = AlignRigid(src, dst);
-        const int n = count(refined);
-        if (n >= best_n) {
-          best = refined;
-          best_n = n;
-        }
-      } catch (const UnderdeterminedError&) {
-        // Collinear or too few matches: keep the single-pair proposal.
-      }
+    const ScoredAlignment proposal = BestProposal(maps, prior, config);
+    if (proposal.matches >= config.min_inliers && proposal.matches > best.matches) {
+      best = RefinedByRigidFit(maps, proposal);
     }
   }
-  if (config.refine_by_constellation) {
-    const std::vector<ConstellationObject> a = Constellation(from_alpha.objects),
-                                           b = Constellation(beta_objects);
-    const ConstellationAlignment aligned = AlignConstellations(a, b, config.constellation);
-    if (aligned.status == AlignmentStatus::kAligned) {
-      const auto consistent = [&](const SE3& T) {
-        return ConsistentPairs(
-                   a, b,
-                   MatchObjectMaps(from_alpha, T, beta_objects, config.gate, alpha_taken,
-                                   beta_taken),
-                   config.constellation)
-            .size();
-      };
-      if (consistent(aligned.b_T_a) > consistent(best)) {
-        best = aligned.b_T_a;
-        best_n = count(best);
-      }
-    }
-  }
-  if (inliers != nullptr) *inliers = best_n;
-  return best;
+  if (config.refine_by_constellation) best = PreferConstellation(maps, config, best);
+  if (inliers != nullptr) *inliers = best.matches;
+  return best.b_T_a;
 }
 
 RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
@@ -422,24 +533,7 @@ RendezvousOutcome RunRendezvous(const ObjectSlam& alpha, const ObjectSlam& beta,
 
   SharedObjectsMessage reply;
   if (config.ground_truth_association) {
-    // Beta matches against its own map, excluding landmarks already shared with alpha.
-    std::vector<std::uint32_t> alpha_taken, beta_taken;
-    TakenLandmarks(already_shared, a, b, &alpha_taken, &beta_taken);
-    reply.sender = b;
-    reply.receiver = a;
-    const std::set<std::uint32_t> at(alpha_taken.begin(), alpha_taken.end());
-    std::set<std::uint32_t> bt(beta_taken.begin(), beta_taken.end());
-    for (const auto& o : received.objects) {
-      const int truth = alpha.landmarks().at(o.landmark).true_object;
-      if (truth < 0 || at.count(o.landmark) != 0) continue;
-      for (const auto& lm : beta.landmarks()) {
-        const auto l = static_cast<std::uint32_t>(lm.key.index);
-        if (lm.true_object == truth && bt.insert(l).second) {
-          reply.pairs.emplace_back(o.landmark, l);
-          break;
-        }
-      }
-    }
+    reply = GroundTruthAnswer(received, alpha, beta, already_shared);
   } else {
     ConstellationAlignment alignment;
     reply = AnswerObjectMap(received, beta, beta_T_alpha, already_shared, config, &alignment);
@@ -467,17 +561,7 @@ SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const Obj
   }
   std::vector<std::uint32_t> alpha_taken, beta_taken;
   TakenLandmarks(already_shared, a, b, &alpha_taken, &beta_taken);
-  // The pairs this robot pair shares so far, (alpha landmark, beta landmark).
-  std::set<std::pair<std::uint32_t, std::uint32_t>> before;
-  for (const auto& s : already_shared) {
-    if (s.alpha_object.robot == a && s.beta_object.robot == b) {
-      before.emplace(static_cast<std::uint32_t>(s.alpha_object.index),
-                     static_cast<std::uint32_t>(s.beta_object.index));
-    } else if (s.alpha_object.robot == b && s.beta_object.robot == a) {
-      before.emplace(static_cast<std::uint32_t>(s.beta_object.index),
-                     static_cast<std::uint32_t>(s.alpha_object.index));
-    }
-  }
+  const std::set<LandmarkPair> before = SharedBefore(already_shared, a, b);
   SharedObjectsMessage reply;
   reply.sender = b;
   reply.receiver = a;
@@ -490,23 +574,7 @@ SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const Obj
   } else {
     // Unknown initial poses: the whole maps aligned from their objects; the consistent set is
     // what this pair shares now.
-    ConstellationAlignment aligned =
-        AlignConstellations(Constellation(received.objects), Constellation(own),
-                            config.constellation);
-    if (aligned.status == AlignmentStatus::kAligned && config.overlap.enabled) {
-      const OverlapEvidence e =
-          AlignmentOverlap(received.objects, aligned.b_T_a, beta, config.overlap);
-      if (e.seen >= config.overlap.min_seen &&
-          e.confirmed < config.overlap.min_confirmed_fraction * e.seen) {
-        aligned.status = AlignmentStatus::kContradicted;
-        aligned.reason = std::to_string(e.confirmed) + " of the " + std::to_string(e.seen) +
-                         " objects of robot " + std::to_string(a) +
-                         " in view of this robot's poses have an object of their label within " +
-                         std::to_string(config.overlap.radius) + " m";
-        aligned.pairs.clear();
-        aligned.b_T_a = SE3();
-      }
-    }
+    const ConstellationAlignment aligned = AlignUnknown(received, own, beta, config);
     if (alignment) *alignment = aligned;
     if (aligned.status != AlignmentStatus::kAligned) return reply;  // refused: nothing changes
     std::vector<std::uint32_t> a_used = alpha_taken, b_used = beta_taken;
@@ -520,20 +588,7 @@ SharedObjectsMessage AnswerObjectMap(const ObjectMapMessage& received, const Obj
       reply.pairs.push_back(pair);
     }
   }
-  // Consistency across rendezvous: the pairs shared before and the new ones, checked together.
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> all(before.begin(), before.end());
-  all.insert(all.end(), reply.pairs.begin(), reply.pairs.end());
-  const std::vector<std::size_t> kept = ConsistentPairs(
-      Constellation(received.objects), Constellation(own), all, config.consistency);
-  std::vector<bool> keep(all.size(), false);
-  for (std::size_t k : kept) keep[k] = true;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> added;
-  for (std::size_t i = 0; i < all.size(); ++i) {
-    const bool old = i < before.size();
-    if (old && !keep[i]) reply.removed.push_back(all[i]);
-    if (!old && keep[i]) added.push_back(all[i]);
-  }
-  reply.pairs = std::move(added);
+  CheckAcrossRendezvous(received.objects, own, before, config.consistency, reply);
   return reply;
 }
 
