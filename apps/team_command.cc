@@ -409,6 +409,41 @@ OnlineComparison CompareWithTwin(const fs::path& out, const std::map<int, JsonFi
   return c;
 }
 
+// The in-process twin of the processes' online mission (online/online_team.h, RunOnline with
+// the processes' solver).
+OnlineRun RunOnlineTwin(const DgsNodeOptions& node, const ScenarioSpec& spec) {
+  OnlineOptions options;
+  options.solver = DriverOptions(node);
+  if (node.gnc) options.robust = ReferenceRobustOptions(node);  // its dgs: the solver
+  const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
+  options.lambda = config.rendezvous.lambda();
+  return RunOnline(SimulateScenario(spec), config, options);
+}
+
+void PrintOnlineReport(const ScenarioSpec& spec, double seconds, std::size_t solves, bool robust,
+                       const OnlineComparison& c, const nlohmann::json& j) {
+  fmt::print(
+      "{} with {} robots (seed {}, {} poses each), online, as processes on loopback: "
+      "{:.2f} s\n",
+      spec.scenario, spec.robots, spec.seed, spec.poses_per_robot, seconds);
+  fmt::print(
+      "{} rendezvous, {} group solves; {} saved maps against the in-process twin: largest "
+      "difference {:.3g}{}\n",
+      c.events, solves, c.maps, c.largest,
+      c.mismatched ? fmt::format(" ({} of other sizes)", c.mismatched) : "");
+  if (robust) {
+    fmt::print(
+        "robust: {} pairs set aside at the end (in-process twin {}), {} group solves left "
+        "unlinked by the separator check\n",
+        c.set_aside.size(), c.twin_set_aside.size(), c.unlinked);
+  }
+  fmt::print(
+      "DDS payload: objects {} B, group solves {} B; {:.1f} kB per group solve (point "
+      "clouds, one frame per robot: {:.0f} kB)\n",
+      c.objects_bytes, c.solve_bytes, j["dds_bytes_per_solve"].get<double>() / 1e3,
+      j["point_cloud_bytes_per_solve"].get<double>() / 1e3);
+}
+
 // `moslam team --scenario ... --online`: the robots map online as processes; compared with the
 // in-process twin (online/online_team.h, RunOnline with the processes' solver): the same group
 // solves, and every map each robot saved (after each solve, and at the end) equal to the twin's.
@@ -433,14 +468,9 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
     if (a.json) fmt::print("{}\n", j.dump());
     return 1;
   }
-  OnlineOptions twin_options;
   const DgsNodeOptions node = NodeOptions(OnlineSolveFlags(a.solve));
-  twin_options.solver = DriverOptions(node);
-  if (node.gnc) twin_options.robust = ReferenceRobustOptions(node);  // its dgs: the solver
-  const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
-  twin_options.lambda = config.rendezvous.lambda();
-  const OnlineRun twin = RunOnline(SimulateScenario(spec), config, twin_options);
-
+  const bool robust = node.gnc.has_value();
+  const OnlineRun twin = RunOnlineTwin(node, spec);
   const OnlineComparison c = CompareWithTwin(out, robots.summaries, twin);
   bool ok = c.same_solves;
   if (c.set_aside != c.twin_set_aside) {
@@ -457,7 +487,7 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
   ok = ok && c.mismatched == 0;
   j["rendezvous_events"] = c.events;
   j["group_solves"] = twin.solves.size();
-  j["robust"] = twin_options.robust.has_value();
+  j["robust"] = robust;
   j["set_aside"] = c.set_aside.size();  // pairs set aside at the end (--robust)
   j["in_process_set_aside"] = c.twin_set_aside.size();
   j["unlinked_solves"] = c.unlinked;  // group solves the check left unlinked (--robust)
@@ -467,29 +497,110 @@ int RunOnlineTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFla
   j["solve_dds_bytes"] = c.solve_bytes;
   j["dds_bytes_per_solve"] = static_cast<double>(c.objects_bytes + c.solve_bytes) / solves;
   j["point_cloud_bytes_per_solve"] = static_cast<double>(cloud_bytes) / solves;
-  fmt::print(
-      "{} with {} robots (seed {}, {} poses each), online, as processes on loopback: "
-      "{:.2f} s\n",
-      spec.scenario, n, spec.seed, spec.poses_per_robot, run.seconds);
-  fmt::print(
-      "{} rendezvous, {} group solves; {} saved maps against the in-process twin: largest "
-      "difference {:.3g}{}\n",
-      c.events, twin.solves.size(), c.maps, c.largest,
-      c.mismatched ? fmt::format(" ({} of other sizes)", c.mismatched) : "");
-  if (twin_options.robust) {
-    fmt::print(
-        "robust: {} pairs set aside at the end (in-process twin {}), {} group solves left "
-        "unlinked by the separator check\n",
-        c.set_aside.size(), c.twin_set_aside.size(), c.unlinked);
-  }
-  fmt::print(
-      "DDS payload: objects {} B, group solves {} B; {:.1f} kB per group solve (point "
-      "clouds, one frame per robot: {:.0f} kB)\n",
-      c.objects_bytes, c.solve_bytes, j["dds_bytes_per_solve"].get<double>() / 1e3,
-      j["point_cloud_bytes_per_solve"].get<double>() / 1e3);
+  PrintOnlineReport(spec, run.seconds, twin.solves.size(), robust, c, j);
   j["ok"] = ok;
   j["per_robot"] = robots.per_robot;
   fmt::print("maps in {}/robot<R>/maps\n", out.string());
+  if (a.json) fmt::print("{}\n", j.dump());
+  return ok ? 0 : 1;
+}
+
+// The rendezvous as the robots' summaries report them: the shared pairs (beta robot, beta
+// landmark, alpha robot, alpha landmark), the bytes and samples, the events (counted once, by
+// alpha).
+struct RendezvousTotals {
+  std::set<std::vector<std::uint64_t>> shared;
+  std::int64_t binary = 0, dds = 0, samples = 0;
+  int events = 0;
+};
+
+RendezvousTotals SumRendezvous(const std::map<int, JsonFields>& summaries) {
+  RendezvousTotals t;
+  for (const auto& [r, s] : summaries) {
+    for (const JsonFields& p : s.items("shared"))
+      t.shared.insert(p.as<std::vector<std::uint64_t>>());
+    t.binary += s.get<std::int64_t>("rendezvous_binary_bytes");
+    t.dds += s.get<std::int64_t>("rendezvous_dds_bytes");
+    t.samples += s.get<std::int64_t>("rendezvous_dds_samples");
+    for (const JsonFields& e : s.items("rendezvous")) t.events += e.get<int>("alpha") == r ? 1 : 0;
+  }
+  return t;
+}
+
+// The in-process pipeline on the processes' scenario (RunMultiRobotObjectSlam,
+// AssembleJointProblem, RunDgs in Jacobi order, or the robust solve), against the processes'
+// rendezvous and results; whether they agree.
+bool CompareScenarioWithInProcess(const TeamArgs& a, const ScenarioSpec& spec, const TeamResults& t,
+                                  const fs::path& out, nlohmann::json& j) {
+  const RendezvousTotals rdv = SumRendezvous(t.summaries);
+  const SimulationData data = SimulateScenario(spec);
+  const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
+  const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, config);
+  const JointProblem joint =
+      AssembleJointProblem(slam.robots, slam.shared, config.rendezvous.lambda());
+  std::set<std::vector<std::uint64_t>> reference_shared;
+  for (const SharedObject& o : slam.shared) {
+    reference_shared.insert({static_cast<std::uint64_t>(o.beta_object.robot), o.beta_object.index,
+                             static_cast<std::uint64_t>(o.alpha_object.robot),
+                             o.alpha_object.index});
+  }
+  j["rendezvous_events"] = rdv.events;
+  j["in_process_rendezvous_events"] = slam.rendezvous.size();
+  j["shared_objects"] = rdv.shared.size();
+  j["in_process_shared_objects"] = slam.shared.size();
+  j["shared_objects_equal"] = rdv.shared == reference_shared;
+  j["rendezvous_binary_bytes"] = rdv.binary;
+  j["in_process_rendezvous_bytes"] = slam.bytes;
+  j["rendezvous_dds_samples"] = rdv.samples;
+  j["rendezvous_dds_bytes"] = rdv.dds;
+  if (!joint.unanchored_robots.empty()) {
+    fmt::print(stderr, "moslam: in-process reference: robot {} is not linked to robot 0\n",
+               joint.unanchored_robots.front());
+    return false;
+  }
+  fmt::print(
+      "{} with {} robots (seed {}, {} poses each) as processes on loopback (domain {}): "
+      "{:.2f} s\n",
+      spec.scenario, spec.robots, spec.seed, spec.poses_per_robot, a.domain, t.seconds);
+  fmt::print(
+      "rendezvous: {} events, {} shared objects (in-process {}, {}), {} B in-process "
+      "encoding (in-process run {} B), {} B DDS payload in {} samples\n",
+      rdv.events, rdv.shared.size(), slam.shared.size(),
+      rdv.shared == reference_shared ? "the same pairs" : "DIFFERENT pairs", rdv.binary, slam.bytes,
+      rdv.dds, rdv.samples);
+  const DgsNodeOptions node = NodeOptions(a.solve);
+  const DgsResult reference = RunDgs(joint.graph, joint.initial, DriverOptions(node));
+  std::optional<RobustDgsResult> robust;
+  if (node.gnc) {  // as the robot sessions
+    robust = RunRobustDgs(joint.graph, joint.initial, ObjectFactors(joint.graph),
+                          ReferenceRobustOptions(node));
+  }
+  G2oWriteOptions write;
+  write.scheme = KeyScheme::kWithObjects;
+  CompareWithInProcess(t, joint.graph, reference, out, write, j, robust ? &*robust : nullptr);
+  return true;
+}
+
+// `moslam team --scenario ...` in batch mode: the robots map, meet and solve once at the end.
+int RunBatchScenarioTeam(const TeamArgs& a, const ScenarioSpec& spec, const ScenarioFlags& flags,
+                         const fs::path& out) {
+  const int n = spec.robots;
+  const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
+  bool ok = t.ok;
+  nlohmann::json j = ScenarioJson(spec);
+  j["robots"] = n;
+  j["poses_per_robot"] = spec.poses_per_robot;
+  j["domain"] = a.domain;
+  j["out"] = out.string();
+  j["seconds"] = t.seconds;
+  if (ok) {
+    ok = CompareScenarioWithInProcess(a, spec, t, out, j);
+  } else {
+    ReportFailedRobots(t.per_robot);
+  }
+  j["ok"] = ok;
+  j["per_robot"] = t.per_robot;
+  fmt::print("results in {}\n", out.string());
   if (a.json) fmt::print("{}\n", j.dump());
   return ok ? 0 : 1;
 }
@@ -502,90 +613,18 @@ int RunScenarioTeam(const TeamArgs& a) {
   const ScenarioSpec spec = flags.get();
   spec.validate();
   if (spec.robots > kMaxRobotsWithObjects) {
-    throw InvalidInputError(fmt::format("team: at most {} robots (results are g2o files with "
-                                        "objects), got --robots {}",
-                                        kMaxRobotsWithObjects, spec.robots));
+    throw InvalidInputError(
+        fmt::format("team: at most {} robots (results are g2o files with "
+                    "objects), got --robots {}",
+                    kMaxRobotsWithObjects, spec.robots));
   }
-  const int n = spec.robots;
-  const fs::path out = a.out.empty() ? fs::temp_directory_path() /
-                                           fmt::format("moslam_team_{}", ::getpid())
-                                     : fs::path(a.out);
+  const fs::path out = a.out.empty()
+                           ? fs::temp_directory_path() / fmt::format("moslam_team_{}", ::getpid())
+                           : fs::path(a.out);
   CheckScenarioFlags("team", a.online, spec);
   fs::create_directories(out);
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
-  const TeamResults t = RunTeamProcesses(a, out, n, ScenarioArgs(flags), true);
-  bool ok = t.ok;
-  std::set<std::vector<std::uint64_t>> shared;
-  std::int64_t rdv_binary = 0, rdv_dds = 0, rdv_samples = 0;
-  int events = 0;
-  for (const auto& [r, s] : t.summaries) {
-    for (const JsonFields& p : s.items("shared")) shared.insert(p.as<std::vector<std::uint64_t>>());
-    rdv_binary += s.get<std::int64_t>("rendezvous_binary_bytes");
-    rdv_dds += s.get<std::int64_t>("rendezvous_dds_bytes");
-    rdv_samples += s.get<std::int64_t>("rendezvous_dds_samples");
-    for (const JsonFields& e : s.items("rendezvous")) events += e.get<int>("alpha") == r ? 1 : 0;
-  }
-
-  nlohmann::json j = ScenarioJson(spec);
-  j["robots"] = n;
-  j["poses_per_robot"] = spec.poses_per_robot;
-  j["domain"] = a.domain;
-  j["out"] = out.string();
-  j["seconds"] = t.seconds;
-  if (ok) {
-    // The in-process pipeline on the same scenario.
-    const SimulationData data = SimulateScenario(spec);
-    const MultiRobotSlamConfig config = ScenarioSlamConfig(spec);
-    const MultiRobotSlamResult slam = RunMultiRobotObjectSlam(data, config);
-    const JointProblem joint =
-        AssembleJointProblem(slam.robots, slam.shared, config.rendezvous.lambda());
-    std::set<std::vector<std::uint64_t>> reference_shared;
-    for (const SharedObject& o : slam.shared) {
-      reference_shared.insert({static_cast<std::uint64_t>(o.beta_object.robot), o.beta_object.index,
-                               static_cast<std::uint64_t>(o.alpha_object.robot),
-                               o.alpha_object.index});
-    }
-    j["rendezvous_events"] = events;
-    j["in_process_rendezvous_events"] = slam.rendezvous.size();
-    j["shared_objects"] = shared.size();
-    j["in_process_shared_objects"] = slam.shared.size();
-    j["shared_objects_equal"] = shared == reference_shared;
-    j["rendezvous_binary_bytes"] = rdv_binary;
-    j["in_process_rendezvous_bytes"] = slam.bytes;
-    j["rendezvous_dds_samples"] = rdv_samples;
-    j["rendezvous_dds_bytes"] = rdv_dds;
-    if (!joint.unanchored_robots.empty()) {
-      ok = false;
-      fmt::print(stderr, "moslam: in-process reference: robot {} is not linked to robot 0\n",
-                 joint.unanchored_robots.front());
-    } else {
-      fmt::print("{} with {} robots (seed {}, {} poses each) as processes on loopback (domain {}): "
-                 "{:.2f} s\n",
-                 spec.scenario, n, spec.seed, spec.poses_per_robot, a.domain, t.seconds);
-      fmt::print("rendezvous: {} events, {} shared objects (in-process {}, {}), {} B in-process "
-                 "encoding (in-process run {} B), {} B DDS payload in {} samples\n",
-                 events, shared.size(), slam.shared.size(),
-                 shared == reference_shared ? "the same pairs" : "DIFFERENT pairs", rdv_binary,
-                 slam.bytes, rdv_dds, rdv_samples);
-      const DgsNodeOptions node = NodeOptions(a.solve);
-      const DgsResult reference = RunDgs(joint.graph, joint.initial, DriverOptions(node));
-      std::optional<RobustDgsResult> robust;
-      if (node.gnc) {  // as the robot sessions
-        robust = RunRobustDgs(joint.graph, joint.initial, ObjectFactors(joint.graph),
-                              ReferenceRobustOptions(node));
-      }
-      G2oWriteOptions write;
-      write.scheme = KeyScheme::kWithObjects;
-      CompareWithInProcess(t, joint.graph, reference, out, write, j, robust ? &*robust : nullptr);
-    }
-  } else {
-    ReportFailedRobots(t.per_robot);
-  }
-  j["ok"] = ok;
-  j["per_robot"] = t.per_robot;
-  fmt::print("results in {}\n", out.string());
-  if (a.json) fmt::print("{}\n", j.dump());
-  return ok ? 0 : 1;
+  return RunBatchScenarioTeam(a, spec, flags, out);
 }
 
 int RunTeam(const TeamArgs& args) {
