@@ -551,6 +551,55 @@ void RetestChecksRejects(const PoseGraph& graph, const std::vector<bool>& robust
   ChecksRejectsRetest(graph, robust, check, options, r).run();
 }
 
+// The separator check of RunRobustDgs on the factors of `checked` (all when empty); the others
+// are kept and tested by no loop. Everything kept when options.check_separators is off.
+SeparatorConsistencyResult CheckOnMask(const PoseGraph& graph, const std::vector<bool>& robust,
+                                       const std::vector<bool>& checked,
+                                       const RobustDgsOptions& options) {
+  const std::size_t n = graph.factors().size();
+  SeparatorConsistencyResult check;
+  check.kept.assign(n, true);
+  if (!options.check_separators) return check;
+  if (checked.empty()) return CheckSeparators(graph, options, robust);
+  std::vector<std::size_t> seen;
+  const PoseGraph sub = SubGraph(graph, checked, &seen);
+  const SeparatorConsistencyResult part = CheckSeparators(sub, options, Select(robust, seen));
+  check = part;
+  check.kept.assign(n, true);
+  check.support.assign(n, -1);
+  check.runner_up.assign(n, false);
+  for (std::size_t j = 0; j < seen.size(); ++j) {
+    check.kept[seen[j]] = part.kept[j];
+    check.support[seen[j]] = part.support[j];
+    check.runner_up[seen[j]] = part.runner_up[j];
+  }
+  return check;
+}
+
+// The inliers' solve from the rounds' estimate (DGS refined), kept when it lowers their cost
+// (KeepInlierSolve): r.polished, else r.polish_refused; nothing when the inliers leave a robot
+// unlinked. Counts its bytes and sweeps into r.
+void PolishInliers(const PoseGraph& graph, const RobustDgsOptions& options, RobustDgsResult& r) {
+  const PoseGraph final_graph = SubGraph(graph, Inliers(r.weights));
+  try {
+    DgsOptions dgs = options.dgs;
+    dgs.refine = true;
+    const DgsResult polish = RunDgs(final_graph, r.values, dgs);
+    r.solve_bytes += polish.bytes;
+    r.sweeps += polish.rotation.iterations + polish.pose.iterations + polish.refine.sweeps;
+    if (KeepInlierSolve(final_graph.cost(r.values), final_graph.cost(polish.values))) {
+      // A variable only rejected factors touch (a landmark whose observations and shared pairs
+      // were all rejected) is not in it: it keeps the rounds' estimate.
+      for (const auto& [k, x] : polish.values) r.values[k] = x;
+      r.polished = true;
+    } else {
+      r.polish_refused = true;
+    }
+  } catch (const UnderdeterminedError&) {
+    // The inliers leave a robot unlinked: keep the rounds' estimate.
+  }
+}
+
 }  // namespace
 
 RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
@@ -567,25 +616,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
     throw InvalidInputError("RunRobustDgs: the checked mask has " + std::to_string(checked.size()) +
                             " entries for " + std::to_string(n) + " factors");
   }
-  SeparatorConsistencyResult check;
-  check.kept.assign(n, true);
-  if (options.check_separators && checked.empty()) {
-    check = CheckSeparators(graph, options, robust);
-  } else if (options.check_separators) {
-    // The check on the factors it sees; the others are kept and tested by no loop.
-    std::vector<std::size_t> seen;
-    const PoseGraph sub = SubGraph(graph, checked, &seen);
-    const SeparatorConsistencyResult part = CheckSeparators(sub, options, Select(robust, seen));
-    check = part;
-    check.kept.assign(n, true);
-    check.support.assign(n, -1);
-    check.runner_up.assign(n, false);
-    for (std::size_t j = 0; j < seen.size(); ++j) {
-      check.kept[seen[j]] = part.kept[j];
-      check.support[seen[j]] = part.support[j];
-      check.runner_up[seen[j]] = part.runner_up[j];
-    }
-  }
+  const SeparatorConsistencyResult check = CheckOnMask(graph, robust, checked, options);
   std::vector<std::size_t> index;
   const PoseGraph kept = SubGraph(graph, check.kept, &index);
   RobustDgsResult r;
@@ -612,26 +643,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
   r.readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
   // The estimate of the inliers alone, where some weight is not 1 (the rounds kept a sliver,
   // min_weight, of every rejected factor) or some separator came back.
-  if (r.readmitted > 0 || !AllWeightsOne(r.weights)) {
-    const PoseGraph final_graph = SubGraph(graph, Inliers(r.weights));
-    try {
-      DgsOptions dgs = options.dgs;
-      dgs.refine = true;
-      const DgsResult polish = RunDgs(final_graph, r.values, dgs);
-      r.solve_bytes += polish.bytes;
-      r.sweeps += polish.rotation.iterations + polish.pose.iterations + polish.refine.sweeps;
-      if (KeepInlierSolve(final_graph.cost(r.values), final_graph.cost(polish.values))) {
-        // A variable only rejected factors touch (a landmark whose observations and shared pairs
-        // were all rejected) is not in it: it keeps the rounds' estimate.
-        for (const auto& [k, x] : polish.values) r.values[k] = x;
-        r.polished = true;
-      } else {
-        r.polish_refused = true;
-      }
-    } catch (const UnderdeterminedError&) {
-      // The inliers leave a robot unlinked: keep the rounds' estimate.
-    }
-  }
+  if (r.readmitted > 0 || !AllWeightsOne(r.weights)) PolishInliers(graph, options, r);
   if (options.retest_left_out && r.polished) RetestChecksRejects(graph, robust, check, options, r);
   r.outliers = CountOutliers(robust, r.weights);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
