@@ -60,8 +60,7 @@ void Progress(int done, int total) {
   }
 }
 
-int Run(const RenderArgs& a) {
-  using Clock = std::chrono::steady_clock;
+ScenarioViews MakeViews(const RenderArgs& a) {
   const bool yolo = a.format == "yolo";
   ScenarioViewsConfig vc;
   vc.scenario = a.scenario;
@@ -72,8 +71,10 @@ int Run(const RenderArgs& a) {
   vc.yaw_jitter_deg = a.yaw_jitter >= 0.0 ? a.yaw_jitter : (yolo ? 10.0 : 0.0);
   vc.pitch_jitter_deg = a.pitch_jitter >= 0.0 ? a.pitch_jitter : (yolo ? 3.0 : 0.0);
   vc.height_jitter_m = a.height_jitter >= 0.0 ? a.height_jitter : (yolo ? 0.05 : 0.0);
-  const ScenarioViews views = MakeScenarioViews(vc);
+  return MakeScenarioViews(vc);
+}
 
+RenderConfig MakeRenderConfig(const RenderArgs& a) {
   RenderConfig rc;
   rc.intrinsics = PinholeIntrinsics::FromHorizontalFov(a.width, a.height, a.hfov);
   rc.seed = a.seed;
@@ -83,37 +84,38 @@ int Run(const RenderArgs& a) {
     rc.depth_noise = false;
     rc.colour_noise_sigma = 0.0;
   }
-  const Renderer renderer(views.world, rc);
-  fmt::print("scenario {} (seed {}): {} objects, {} robots, {} views at {}x{} (hfov {} deg)\n",
-             a.scenario, a.seed, views.world.objects.size(), a.robots, views.views.size(),
-             a.width, a.height, a.hfov);
+  return rc;
+}
 
-  if (yolo) {
-    YoloLabelConfig lc;
-    lc.min_visible_pixels = a.min_pixels;
-    lc.min_in_image_fraction = a.min_in_image;
-    lc.min_labels_per_frame = a.min_labels;
-    const auto s = ExportYoloDataset(renderer, views, a.out, a.first_index, lc, Progress);
-    fmt::print("wrote {} frames ({:06d}-{:06d}) and {} labels to {} ({} views with fewer than {} "
-               "labels skipped)\n",
-               s.frames, a.first_index, a.first_index + std::max(0, s.frames - 1), s.labels, a.out,
-               s.skipped_frames, a.min_labels);
-    const auto classes = StandardObjectClasses();
-    std::string per_class;
-    for (std::size_t c = 0; c < classes.size(); ++c) {
-      per_class += fmt::format("{}{} {}", c == 0 ? "" : ", ", classes[c].label,
-                               s.labels_per_class[c]);
-    }
-    fmt::print("labels per class: {}\n", per_class);
-    fmt::print("{} visible objects not labelled (ignore regions) written to {}/ignore\n",
-               s.ignored, a.out);
-    fmt::print("render {:.2f} ms/frame, total (with PNG writing) {:.2f} ms/frame\n",
-               1e3 * s.render_seconds / std::max(1, s.frames),
-               1e3 * s.total_seconds / std::max(1, s.frames));
-    return 0;
+// --format yolo: the YOLO dataset (dataset_export.h) and its summary.
+void WriteYolo(const RenderArgs& a, const Renderer& renderer, const ScenarioViews& views) {
+  YoloLabelConfig lc;
+  lc.min_visible_pixels = a.min_pixels;
+  lc.min_in_image_fraction = a.min_in_image;
+  lc.min_labels_per_frame = a.min_labels;
+  const auto s = ExportYoloDataset(renderer, views, a.out, a.first_index, lc, Progress);
+  fmt::print(
+      "wrote {} frames ({:06d}-{:06d}) and {} labels to {} ({} views with fewer than {} "
+      "labels skipped)\n",
+      s.frames, a.first_index, a.first_index + std::max(0, s.frames - 1), s.labels, a.out,
+      s.skipped_frames, a.min_labels);
+  const auto classes = StandardObjectClasses();
+  std::string per_class;
+  for (std::size_t c = 0; c < classes.size(); ++c) {
+    per_class +=
+        fmt::format("{}{} {}", c == 0 ? "" : ", ", classes[c].label, s.labels_per_class[c]);
   }
+  fmt::print("labels per class: {}\n", per_class);
+  fmt::print("{} visible objects not labelled (ignore regions) written to {}/ignore\n", s.ignored,
+             a.out);
+  fmt::print("render {:.2f} ms/frame, total (with PNG writing) {:.2f} ms/frame\n",
+             1e3 * s.render_seconds / std::max(1, s.frames),
+             1e3 * s.total_seconds / std::max(1, s.frames));
+}
 
-  // TUM: one sequence per robot plus the world.
+// --format tum: one sequence per robot, and the world.
+void WriteTum(const RenderArgs& a, const Renderer& renderer, const ScenarioViews& views) {
+  using Clock = std::chrono::steady_clock;
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(a.out, ec);
@@ -129,7 +131,8 @@ int Run(const RenderArgs& a) {
       if (writer) writer->close();
       current_robot = v.robot;
       writer = std::make_unique<TumSequenceWriter>(
-          (fs::path(a.out) / fmt::format("robot{}", v.robot)).string(), rc.intrinsics);
+          (fs::path(a.out) / fmt::format("robot{}", v.robot)).string(),
+          renderer.config().intrinsics);
     }
     const auto t0 = Clock::now();
     const std::uint64_t key = static_cast<std::uint64_t>(v.robot) * 1000003ULL +
@@ -142,6 +145,19 @@ int Run(const RenderArgs& a) {
   if (writer) writer->close();
   fmt::print("wrote {} sequences ({} frames) and world.json to {}; render {:.2f} ms/frame\n",
              a.robots, frames, a.out, 1e3 * render_seconds / std::max(1, frames));
+}
+
+int Run(const RenderArgs& a) {
+  const ScenarioViews views = MakeViews(a);
+  const Renderer renderer(views.world, MakeRenderConfig(a));
+  fmt::print("scenario {} (seed {}): {} objects, {} robots, {} views at {}x{} (hfov {} deg)\n",
+             a.scenario, a.seed, views.world.objects.size(), a.robots, views.views.size(), a.width,
+             a.height, a.hfov);
+  if (a.format == "yolo") {
+    WriteYolo(a, renderer, views);
+  } else {
+    WriteTum(a, renderer, views);
+  }
   return 0;
 }
 

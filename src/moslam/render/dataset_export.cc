@@ -127,6 +127,45 @@ void WriteLines(const std::string& path, const std::vector<std::string>& lines) 
   if (!f) throw Error("cannot write '" + path + "'");
 }
 
+// The dataset's folders (images, labels, ignore) and its classes.txt.
+void PrepareDatasetFolder(const std::string& dir, const std::vector<ObjectClass>& classes) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(fs::path(dir) / "images", ec);
+  fs::create_directories(fs::path(dir) / "labels", ec);
+  if (!ec) fs::create_directories(fs::path(dir) / "ignore", ec);
+  if (ec) {
+    throw Error("cannot create '" + dir + "/images', '/labels' and '/ignore': " + ec.message());
+  }
+  std::ofstream f(fs::path(dir) / "classes.txt");
+  for (const auto& c : classes) f << c.label << "\n";
+  if (!f) throw Error("cannot write '" + dir + "/classes.txt'");
+}
+
+// A written frame's record in the frames file: its view and the ground truth of its objects.
+nlohmann::json FrameJson(int index, const View& v, const RenderedFrame& frame) {
+  nlohmann::json objects = nlohmann::json::array();
+  for (const auto& o : frame.objects) {
+    nlohmann::json j = PoseJson(o.camera_T_object);
+    j["id"] = o.id;
+    j["label"] = o.label;
+    j["box"] = {o.box.x, o.box.y, o.box.width, o.box.height};
+    j["visible_pixels"] = o.visible_pixels;
+    j["in_image_fraction"] = o.in_image_fraction;
+    objects.push_back(j);
+  }
+  return {{"index", index},
+          {"robot", v.robot},
+          {"step", v.step},
+          {"world_T_camera", PoseJson(frame.world_T_camera)},
+          {"camera_T_object", objects}};
+}
+
+nlohmann::json IntrinsicsJson(const PinholeIntrinsics& K) {
+  return {{"width", K.width}, {"height", K.height}, {"fx", K.fx},
+          {"fy", K.fy},       {"cx", K.cx},         {"cy", K.cy}};
+}
+
 }  // namespace
 
 std::vector<std::string> YoloLabelLines(const RenderedFrame& frame,
@@ -152,19 +191,8 @@ YoloExportSummary ExportYoloDataset(const Renderer& renderer, const ScenarioView
     throw InvalidInputError("ExportYoloDataset: frame indices must stay in [0, 999999]");
   }
   const auto t0 = Clock::now();
-  std::error_code ec;
-  fs::create_directories(fs::path(dir) / "images", ec);
-  fs::create_directories(fs::path(dir) / "labels", ec);
-  if (!ec) fs::create_directories(fs::path(dir) / "ignore", ec);
-  if (ec) {
-    throw Error("cannot create '" + dir + "/images', '/labels' and '/ignore': " + ec.message());
-  }
   const std::vector<ObjectClass> classes = StandardObjectClasses();
-  {
-    std::ofstream f(fs::path(dir) / "classes.txt");
-    for (const auto& c : classes) f << c.label << "\n";
-    if (!f) throw Error("cannot write '" + dir + "/classes.txt'");
-  }
+  PrepareDatasetFolder(dir, classes);
   YoloExportSummary s;
   s.labels_per_class.assign(classes.size(), 0);
   nlohmann::json frames = nlohmann::json::array();
@@ -195,35 +223,20 @@ YoloExportSummary ExportYoloDataset(const Renderer& renderer, const ScenarioView
     const auto ignore_lines = YoloIgnoreLines(frame, classes, labels);
     WriteLines((fs::path(dir) / "ignore" / (name + ".txt")).string(), ignore_lines);
     s.ignored += static_cast<int>(ignore_lines.size());
-    nlohmann::json objects = nlohmann::json::array();
-    for (const auto& o : frame.objects) {
-      nlohmann::json j = PoseJson(o.camera_T_object);
-      j["id"] = o.id;
-      j["label"] = o.label;
-      j["box"] = {o.box.x, o.box.y, o.box.width, o.box.height};
-      j["visible_pixels"] = o.visible_pixels;
-      j["in_image_fraction"] = o.in_image_fraction;
-      objects.push_back(j);
-    }
-    frames.push_back({{"index", index}, {"robot", v.robot}, {"step", v.step},
-                      {"world_T_camera", PoseJson(frame.world_T_camera)},
-                      {"camera_T_object", objects}});
+    frames.push_back(FrameJson(index, v, frame));
     ++s.frames;
     if (progress) progress(i + 1, total);
   }
-  const auto& K = renderer.config().intrinsics;
-  const nlohmann::json meta = {
-      {"scenario", views.config.scenario},
-      {"seed", views.config.seed},
-      {"robots", views.config.num_robots},
-      {"poses_per_robot", views.config.poses_per_robot},
-      {"intrinsics", {{"width", K.width}, {"height", K.height}, {"fx", K.fx}, {"fy", K.fy},
-                      {"cx", K.cx}, {"cy", K.cy}}},
-      {"min_visible_pixels", labels.min_visible_pixels},
-      {"min_in_image_fraction", labels.min_in_image_fraction},
-      {"min_labels_per_frame", labels.min_labels_per_frame},
-      {"skipped_views", s.skipped_frames},
-      {"frames", frames}};
+  const nlohmann::json meta = {{"scenario", views.config.scenario},
+                               {"seed", views.config.seed},
+                               {"robots", views.config.num_robots},
+                               {"poses_per_robot", views.config.poses_per_robot},
+                               {"intrinsics", IntrinsicsJson(renderer.config().intrinsics)},
+                               {"min_visible_pixels", labels.min_visible_pixels},
+                               {"min_in_image_fraction", labels.min_in_image_fraction},
+                               {"min_labels_per_frame", labels.min_labels_per_frame},
+                               {"skipped_views", s.skipped_frames},
+                               {"frames", frames}};
   const std::string meta_path =
       (fs::path(dir) / fmt::format("frames_{:06d}-{:06d}.json", first_index,
                                    first_index + std::max(0, s.frames - 1)))
