@@ -23,8 +23,26 @@ int Find(std::vector<int>& parent, int i) {
 LocalGraph::LocalGraph(int robot, const PoseGraph& subgraph, const Values& initial,
                        const Key& anchor)
     : robot_(robot), anchor_(anchor) {
+  const std::set<Key> own = takeFactors(subgraph);
+  if (own.empty()) {
+    throw UnderdeterminedError("DGS robot " + std::to_string(robot_) +
+                               ": its subgraph touches none of its variables");
+  }
+  numberNeighbours();
+  own_.assign(own.begin(), own.end());
+  owns_anchor_ = own.count(anchor_) > 0;
+  for (const Key& k : own_) {
+    const auto it = initial.find(k);
+    initial_[k] = it != initial.end() ? it->second : SE3();
+    if (k == anchor_) continue;
+    unknown_index_[k] = static_cast<int>(unknowns_.size());
+    unknowns_.push_back(k);
+  }
+  groupUnknowns();
+}
+
+std::set<Key> LocalGraph::takeFactors(const PoseGraph& subgraph) {
   std::set<Key> own;
-  std::vector<std::pair<Key, Key>> coupled;
   for (const RelativePoseFactor& f : subgraph.factors()) {
     const bool own_a = f.a().robot == robot_;
     const bool own_b = f.b().robot == robot_;
@@ -55,10 +73,10 @@ LocalGraph::LocalGraph(int robot, const PoseGraph& subgraph, const Values& initi
     priors_.push_back(p);
     own.insert(p.key());
   }
-  if (own.empty()) {
-    throw UnderdeterminedError("DGS robot " + std::to_string(robot_) +
-                               ": its subgraph touches none of its variables");
-  }
+  return own;
+}
+
+void LocalGraph::numberNeighbours() {
   for (auto& [r, keys] : shared_with_) {
     std::sort(keys.begin(), keys.end());
     keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
@@ -68,17 +86,9 @@ LocalGraph::LocalGraph(int robot, const PoseGraph& subgraph, const Values& initi
     neighbour_slot_[neighbour_list_[i]] = static_cast<int>(i);
   }
   for (Separator& sep : separators_) sep.slot = neighbour_slot_.at(sep.foreign);
-  own_.assign(own.begin(), own.end());
-  owns_anchor_ = own.count(anchor_) > 0;
-  for (const Key& k : own_) {
-    const auto it = initial.find(k);
-    initial_[k] = it != initial.end() ? it->second : SE3();
-    if (k == anchor_) continue;
-    unknown_index_[k] = static_cast<int>(unknowns_.size());
-    unknowns_.push_back(k);
-  }
+}
 
-  // Groups of unknowns through inner factors.
+void LocalGraph::groupUnknowns() {
   const int n = static_cast<int>(unknowns_.size());
   std::vector<int> parent(n);
   std::iota(parent.begin(), parent.end(), 0);

@@ -63,6 +63,13 @@ class LocalGraph {
   std::vector<bool> anchoredUnknowns(const std::vector<bool>& usable) const;
 
  private:
+  // Construction, in order. The factors and priors of `subgraph`, inner or separators (the
+  // robot's variables they touch returned); the neighbour variables' slots; the groups of unknowns
+  // through inner factors, which of them the anchor or a prior fixes, and their separators.
+  std::set<Key> takeFactors(const PoseGraph& subgraph);
+  void numberNeighbours();
+  void groupUnknowns();
+
   int robot_;
   Key anchor_;
   bool owns_anchor_ = false;
