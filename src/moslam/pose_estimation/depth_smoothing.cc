@@ -28,6 +28,59 @@ double RayPitch(const OrganizedCloud& cloud, const std::vector<int>& indices) {
   return 0.0;
 }
 
+// The smoothed inverse depth of segment point i (noise sigma at its depth): a weighted least
+// squares fit of q = 1 / z on (1, dx, dy) over the segment's points within config.radius
+// laterally (dx, dy in metres at its depth; weights Gaussian in that distance and in the depth
+// difference, range_sigmas * sigma), its constant term; the weighted mean when fewer than
+// min_neighbours points or too little lateral spread (a one-pixel-wide strip) leave the plane
+// undetermined.
+double FittedInverseDepth(const OrganizedCloud& cloud, const std::vector<char>& in_segment,
+                          std::size_t i, double pitch, double sigma,
+                          const DepthSmoothingConfig& config) {
+  const std::size_t w = cloud.width, h = cloud.height;
+  const double spatial_var = 0.25 * config.radius * config.radius;  // (radius / 2)^2
+  const OrganizedPoint& p = cloud[i];
+  const double z = p.z;
+  const double rx = p.x / z, ry = p.y / z;
+  const int window =
+      std::min(config.max_window, static_cast<int>(std::ceil(config.radius / (z * pitch))));
+  const double range_var = 2.0 * std::pow(config.range_sigmas * sigma, 2);
+  const int u0 = static_cast<int>(i % w), v0 = static_cast<int>(i / w);
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  int used = 0;
+  for (int v = std::max(0, v0 - window); v <= std::min(static_cast<int>(h) - 1, v0 + window); ++v) {
+    for (int u = std::max(0, u0 - window); u <= std::min(static_cast<int>(w) - 1, u0 + window);
+         ++u) {
+      const std::size_t j = static_cast<std::size_t>(v) * w + static_cast<std::size_t>(u);
+      if (!in_segment[j]) continue;
+      const OrganizedPoint& q = cloud[j];
+      const double dx = z * (q.x / q.z - rx), dy = z * (q.y / q.z - ry);
+      const double d2 = dx * dx + dy * dy;
+      if (d2 > config.radius * config.radius) continue;
+      const double dz = static_cast<double>(q.z) - z;
+      const double weight = std::exp(-0.5 * d2 / spatial_var - 0.5 * dz * dz / range_var);
+      const Eigen::Vector3d phi(1.0, dx, dy);
+      A.noalias() += weight * phi * phi.transpose();
+      b.noalias() += weight * phi / static_cast<double>(q.z);
+      ++used;
+    }
+  }
+  double inverse_depth = b(0) / A(0, 0);  // the weighted mean
+  if (used >= config.min_neighbours) {
+    // The fit needs lateral spread in both directions: the weighted covariance of (dx, dy)
+    // must not be degenerate (a one-pixel-wide strip).
+    const Eigen::Vector2d mean = A.block<2, 1>(1, 0) / A(0, 0);
+    const Eigen::Matrix2d cov = A.block<2, 2>(1, 1) / A(0, 0) - mean * mean.transpose();
+    const double min_spread = std::pow(0.1 * config.radius, 2);
+    if (cov.determinant() > min_spread * min_spread && cov.trace() > 2.0 * min_spread) {
+      const Eigen::Vector3d coefficients = A.ldlt().solve(b);
+      if (coefficients.allFinite() && coefficients(0) > 0.0) inverse_depth = coefficients(0);
+    }
+  }
+  return inverse_depth;
+}
+
 }  // namespace
 
 void DepthSmoothingConfig::validate(const std::string& prefix) const {
@@ -51,7 +104,7 @@ OrganizedCloud::Ptr SmoothAlongRays(const OrganizedCloud& cloud, const std::vect
         "SmoothAlongRays: the cloud is not organized (height " + std::to_string(cloud.height) +
         "); smoothing along rays needs the pixel grid of the RGB-D frame");
   }
-  const std::size_t w = cloud.width, h = cloud.height, n = cloud.size();
+  const std::size_t n = cloud.size();
   std::vector<char> in_segment(n, 0);
   for (int index : indices) {
     if (index < 0 || static_cast<std::size_t>(index) >= n || !Finite(cloud[index])) {
@@ -69,52 +122,13 @@ OrganizedCloud::Ptr SmoothAlongRays(const OrganizedCloud& cloud, const std::vect
   const double pitch = RayPitch(cloud, indices);
   if (!config.enabled || pitch <= 0.0) return out;
 
-  const double spatial_var = 0.25 * config.radius * config.radius;  // (radius / 2)^2
   for (std::size_t k = 0; k < indices.size(); ++k) {
     const auto i = static_cast<std::size_t>(indices[k]);
     const OrganizedPoint& p = cloud[i];
     const double z = p.z;
     const double sigma = noise.sigma(z);
     if (sigma < config.min_noise) continue;
-    const double rx = p.x / z, ry = p.y / z;
-    const int window = std::min(config.max_window,
-                                static_cast<int>(std::ceil(config.radius / (z * pitch))));
-    const double range_var = 2.0 * std::pow(config.range_sigmas * sigma, 2);
-    const int u0 = static_cast<int>(i % w), v0 = static_cast<int>(i / w);
-    // Weighted least squares of q = 1 / z on (1, dx, dy), dx and dy lateral metres at depth z.
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    int used = 0;
-    for (int v = std::max(0, v0 - window); v <= std::min(static_cast<int>(h) - 1, v0 + window);
-         ++v) {
-      for (int u = std::max(0, u0 - window); u <= std::min(static_cast<int>(w) - 1, u0 + window);
-           ++u) {
-        const std::size_t j = static_cast<std::size_t>(v) * w + static_cast<std::size_t>(u);
-        if (!in_segment[j]) continue;
-        const OrganizedPoint& q = cloud[j];
-        const double dx = z * (q.x / q.z - rx), dy = z * (q.y / q.z - ry);
-        const double d2 = dx * dx + dy * dy;
-        if (d2 > config.radius * config.radius) continue;
-        const double dz = static_cast<double>(q.z) - z;
-        const double weight = std::exp(-0.5 * d2 / spatial_var - 0.5 * dz * dz / range_var);
-        const Eigen::Vector3d phi(1.0, dx, dy);
-        A.noalias() += weight * phi * phi.transpose();
-        b.noalias() += weight * phi / static_cast<double>(q.z);
-        ++used;
-      }
-    }
-    double inverse_depth = b(0) / A(0, 0);  // the weighted mean
-    if (used >= config.min_neighbours) {
-      // The fit needs lateral spread in both directions: the weighted covariance of (dx, dy)
-      // must not be degenerate (a one-pixel-wide strip).
-      const Eigen::Vector2d mean = A.block<2, 1>(1, 0) / A(0, 0);
-      const Eigen::Matrix2d cov = A.block<2, 2>(1, 1) / A(0, 0) - mean * mean.transpose();
-      const double min_spread = std::pow(0.1 * config.radius, 2);
-      if (cov.determinant() > min_spread * min_spread && cov.trace() > 2.0 * min_spread) {
-        const Eigen::Vector3d coefficients = A.ldlt().solve(b);
-        if (coefficients.allFinite() && coefficients(0) > 0.0) inverse_depth = coefficients(0);
-      }
-    }
+    const double inverse_depth = FittedInverseDepth(cloud, in_segment, i, pitch, sigma, config);
     if (!(inverse_depth > 0.0) || !std::isfinite(inverse_depth)) continue;
     const float scale = static_cast<float>((1.0 / inverse_depth) / z);
     OrganizedPoint& o = (*out)[k];
