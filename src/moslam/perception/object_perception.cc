@@ -63,6 +63,59 @@ std::uint64_t MeshDigest(const Mesh& mesh, double spacing, unsigned seed) {
   return Fnv1a64(&seed, sizeof(seed), h);
 }
 
+// One detection through segmentation and registration against its class's template, then the
+// agreement of the registered template's projected box with the detection's box; the stages'
+// thread times in milliseconds.
+void PerceiveDetection(const PreparedFrame& prepared, const ObjectTemplate& object_template,
+                       const PinholeIntrinsics& intrinsics, const PerceptionConfig& config,
+                       PerceivedObject& o, double* segment_ms, double* register_ms) {
+  auto t0 = Clock::now();
+  o.segmentation = SegmentObject(prepared, o.detection.box, config.segmentation);
+  *segment_ms = MsSince(t0);
+  if (o.segmentation.status != SegmentationStatus::kOk) {
+    o.status = PerceptionStatus::kSegmentationFailed;
+    o.segmentation.segment.reset();
+    return;
+  }
+  t0 = Clock::now();
+  o.registration = RegisterTemplate(*o.segmentation.segment, object_template, config.registration);
+  *register_ms = MsSince(t0);
+  o.segmentation.segment.reset();
+  o.status = FromRegistration(o.registration.status);
+  if (o.registration.status == RegistrationStatus::kAccepted) {
+    o.box_agreement =
+        BoxIou(o.detection.box,
+               ProjectedBox(*object_template.cloud, o.registration.camera_T_object, intrinsics));
+    if (o.box_agreement < config.min_box_agreement) o.status = PerceptionStatus::kBoxMismatch;
+  }
+  if (o.accepted()) o.body_T_object = ObjectMeasurementInBody(o.registration.camera_T_object);
+}
+
+// fn(i) for every i in [0, n): on this thread when workers <= 1, else i on worker i % workers; an
+// exception of a worker is rethrown here once all have joined (the lowest worker's first).
+void ForEachOnWorkers(std::size_t n, std::size_t workers,
+                      const std::function<void(std::size_t)>& fn) {
+  if (workers <= 1) {
+    for (std::size_t i = 0; i < n; ++i) fn(i);
+    return;
+  }
+  std::vector<std::exception_ptr> errors(workers);
+  std::vector<std::thread> pool;
+  for (std::size_t w = 0; w < workers; ++w) {
+    pool.emplace_back([&, w] {
+      try {
+        for (std::size_t i = w; i < n; i += workers) fn(i);
+      } catch (...) {
+        errors[w] = std::current_exception();
+      }
+    });
+  }
+  for (std::thread& th : pool) th.join();
+  for (const std::exception_ptr& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+}
+
 }  // namespace
 
 cv::Rect2f ProjectedBox(const FeatureCloud& cloud, const SE3& camera_T_object,
@@ -225,55 +278,16 @@ FramePerception ObjectPerception::perceive(const RgbdFrame& frame) {
   }
   std::vector<double> segment_ms(detections.size(), 0.0), register_ms(detections.size(), 0.0);
   auto run = [&](std::size_t i) {
-    PerceivedObject& o = out.objects[i];
     if (!templates[i]) return;
-    auto t0 = Clock::now();
-    o.segmentation = SegmentObject(prepared, o.detection.box, config_.segmentation);
-    segment_ms[i] = MsSince(t0);
-    if (o.segmentation.status != SegmentationStatus::kOk) {
-      o.status = PerceptionStatus::kSegmentationFailed;
-      o.segmentation.segment.reset();
-      return;
-    }
-    t0 = Clock::now();
-    o.registration =
-        RegisterTemplate(*o.segmentation.segment, *templates[i], config_.registration);
-    register_ms[i] = MsSince(t0);
-    o.segmentation.segment.reset();
-    o.status = FromRegistration(o.registration.status);
-    if (o.registration.status == RegistrationStatus::kAccepted) {
-      o.box_agreement = BoxIou(
-          o.detection.box,
-          ProjectedBox(*templates[i]->cloud, o.registration.camera_T_object, frame.intrinsics));
-      if (o.box_agreement < config_.min_box_agreement) o.status = PerceptionStatus::kBoxMismatch;
-    }
-    if (o.accepted()) o.body_T_object = ObjectMeasurementInBody(o.registration.camera_T_object);
+    PerceiveDetection(prepared, *templates[i], frame.intrinsics, config_, out.objects[i],
+                      &segment_ms[i], &register_ms[i]);
   };
   const std::size_t workers =
       config_.registration.consensus == Consensus::kSacIa
           ? 1
           : std::min(detections.size(), static_cast<std::size_t>(config_.threads));
   t = Clock::now();
-  if (workers <= 1) {
-    for (std::size_t i = 0; i < detections.size(); ++i) run(i);
-  } else {
-    // Detection i on worker i % workers; an exception is carried to this thread.
-    std::vector<std::exception_ptr> errors(workers);
-    std::vector<std::thread> pool;
-    for (std::size_t w = 0; w < workers; ++w) {
-      pool.emplace_back([&, w] {
-        try {
-          for (std::size_t i = w; i < detections.size(); i += workers) run(i);
-        } catch (...) {
-          errors[w] = std::current_exception();
-        }
-      });
-    }
-    for (std::thread& th : pool) th.join();
-    for (const std::exception_ptr& e : errors) {
-      if (e) std::rethrow_exception(e);
-    }
-  }
+  ForEachOnWorkers(detections.size(), workers, run);
   // Wall clock of the parallel section, split between the stages by their summed thread times.
   const double wall = MsSince(t);
   double seg_sum = 0.0, reg_sum = 0.0;
