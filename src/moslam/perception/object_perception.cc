@@ -63,6 +63,47 @@ std::uint64_t MeshDigest(const Mesh& mesh, double spacing, unsigned seed) {
   return Fnv1a64(&seed, sizeof(seed), h);
 }
 
+// A template's source: a PCD override (`cloud`), or the class model, sampled only on a cache miss
+// (`sample`: sampling with visibility costs as much as the features), whose views give the
+// features when the class uses them (`model_class`). `digest` identifies it for the cache. Neither
+// cloud nor sample: the class has no template.
+struct TemplateSource {
+  std::optional<FeatureCloud> cloud;
+  std::function<FeatureCloud()> sample;
+  const ObjectClass* model_class = nullptr;
+  std::uint64_t digest = 0;
+};
+
+TemplateSource FindTemplateSource(const std::string& label, const PerceptionConfig& config,
+                                  const std::vector<ObjectClass>& classes) {
+  TemplateSource source;
+  const std::filesystem::path pcd =
+      config.templates_dir.empty() ? std::filesystem::path()
+                                   : std::filesystem::path(config.templates_dir) / (label + ".pcd");
+  if (!pcd.empty() && std::filesystem::exists(pcd)) {
+    source.cloud = ReadTemplateCloud(pcd.string());
+    source.digest = CloudDigest(*source.cloud);
+    return source;
+  }
+  for (const ObjectClass& c : classes) {
+    if (c.label != label) continue;
+    const Mesh mesh = MakeObjectMesh(c);
+    source.digest = MeshDigest(mesh, config.template_spacing, config.template_seed);
+    if (UsesViews(c, config.template_views)) {
+      source.model_class = &c;
+      source.digest =
+          ViewDigest(source.digest, config.template_views, config.segmentation.camera_height);
+    }
+    const double spacing = config.template_spacing;
+    const unsigned seed = config.template_seed;
+    source.sample = [mesh, label, spacing, seed] {
+      return ModelCloud(SampleVisibleSurface(mesh, spacing, seed), label);
+    };
+    break;
+  }
+  return source;
+}
+
 // One detection through segmentation and registration against its class's template, then the
 // agreement of the registered template's projected box with the detection's box; the stages'
 // thread times in milliseconds.
@@ -188,65 +229,7 @@ const ObjectTemplate* ObjectPerception::findTemplate(const std::string& label) {
   auto it = templates_.find(label);
   if (it != templates_.end()) return it->second ? &*it->second : nullptr;
   const auto t0 = Clock::now();
-  // The template's source: a PCD override, or the class model (sampled only on a cache miss:
-  // sampling with visibility costs as much as the features). `digest` identifies it for the cache.
-  std::optional<FeatureCloud> cloud;
-  std::function<FeatureCloud()> sample;
-  const ObjectClass* model_class = nullptr;  // its views give the features (template_views)
-  std::uint64_t digest = 0;
-  const std::filesystem::path pcd =
-      config_.templates_dir.empty()
-          ? std::filesystem::path()
-          : std::filesystem::path(config_.templates_dir) / (label + ".pcd");
-  if (!pcd.empty() && std::filesystem::exists(pcd)) {
-    cloud = ReadTemplateCloud(pcd.string());
-    digest = CloudDigest(*cloud);
-  } else {
-    for (const ObjectClass& c : classes_) {
-      if (c.label != label) continue;
-      const Mesh mesh = MakeObjectMesh(c);
-      digest = MeshDigest(mesh, config_.template_spacing, config_.template_seed);
-      if (UsesViews(c, config_.template_views)) {
-        model_class = &c;
-        digest = ViewDigest(digest, config_.template_views, config_.segmentation.camera_height);
-      }
-      sample = [this, mesh, label] {
-        return ModelCloud(
-            SampleVisibleSurface(mesh, config_.template_spacing, config_.template_seed), label);
-      };
-      break;
-    }
-  }
-  std::optional<ObjectTemplate> made;
-  if (cloud || sample) {
-    const FeatureConfig& features = config_.registration.features;
-    auto build = [&] {
-      if (model_class != nullptr) {
-        return MakeViewTemplate(*model_class, sample(), features, config_.template_views,
-                                config_.segmentation.camera_height);
-      }
-      return MakeObjectTemplate(label, cloud ? *cloud : sample(), features);
-    };
-    if (config_.template_cache_dir.empty()) {
-      made = build();
-    } else {
-      const TemplateCache cache(config_.template_cache_dir);
-      const std::uint64_t key = TemplateFingerprint(label, digest, features);
-      std::string why_not;
-      made = cache.load(label, key, features, &why_not);
-      if (made) {
-        ++templates_from_cache_;
-      } else {
-        if (!why_not.empty()) template_notes_.push_back(why_not);
-        made = build();
-        try {
-          cache.store(*made, key);
-        } catch (const InvalidInputError& e) {
-          template_notes_.push_back(e.what());  // perception goes on without the cache
-        }
-      }
-    }
-  }
+  std::optional<ObjectTemplate> made = makeTemplate(label);
   // A template from the cache has no feature index yet (the decoder stays free of PCL's k-d
   // trees); every registration of this class shares the one built here on first use.
   if (made && !made->feature_index) {
@@ -255,6 +238,36 @@ const ObjectTemplate* ObjectPerception::findTemplate(const std::string& label) {
   template_seconds_ += MsSince(t0) / 1000.0;
   it = templates_.emplace(label, std::move(made)).first;
   return it->second ? &*it->second : nullptr;
+}
+
+std::optional<ObjectTemplate> ObjectPerception::makeTemplate(const std::string& label) {
+  const TemplateSource source = FindTemplateSource(label, config_, classes_);
+  if (!source.cloud && !source.sample) return std::nullopt;
+  const FeatureConfig& features = config_.registration.features;
+  auto build = [&] {
+    if (source.model_class != nullptr) {
+      return MakeViewTemplate(*source.model_class, source.sample(), features,
+                              config_.template_views, config_.segmentation.camera_height);
+    }
+    return MakeObjectTemplate(label, source.cloud ? *source.cloud : source.sample(), features);
+  };
+  if (config_.template_cache_dir.empty()) return build();
+  const TemplateCache cache(config_.template_cache_dir);
+  const std::uint64_t key = TemplateFingerprint(label, source.digest, features);
+  std::string why_not;
+  std::optional<ObjectTemplate> made = cache.load(label, key, features, &why_not);
+  if (made) {
+    ++templates_from_cache_;
+    return made;
+  }
+  if (!why_not.empty()) template_notes_.push_back(why_not);
+  made = build();
+  try {
+    cache.store(*made, key);
+  } catch (const InvalidInputError& e) {
+    template_notes_.push_back(e.what());  // perception goes on without the cache
+  }
+  return made;
 }
 
 FramePerception ObjectPerception::perceive(const RgbdFrame& frame) {

@@ -126,6 +126,10 @@ class ObjectPerception {
   const std::vector<std::string>& templateNotes() const { return template_notes_; }
 
  private:
+  // The template of a class from the cache or built (and cached), without its feature index;
+  // nullopt when the class has none.
+  std::optional<ObjectTemplate> makeTemplate(const std::string& label);
+
   PerceptionConfig config_;
   std::vector<ObjectClass> classes_;
   Detector detector_;
