@@ -412,38 +412,29 @@ struct SignatureLess {
 
 std::string RobotFileName(std::size_t index) { return std::to_string(index) + ".g2o"; }
 
-// Merges the files of one dataset (`folder`: a distributed-mapper folder's): duplicate vertices
-// are rejected, the copy of an inter-robot edge that another file already holds is dropped,
-// dangling edges are rejected.
-Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>& names,
-                 bool folder) {
-  Dataset data;
-  data.files = names;
-  data.planar = files.front().dimension == 2;
+// Every file of a dataset 2D or 3D as the first (planar).
+void CheckOneDimension(const std::vector<FileRecords>& files, const std::vector<std::string>& names,
+                       bool planar) {
   for (std::size_t f = 1; f < files.size(); ++f) {
-    if ((files[f].dimension == 2) != data.planar) {
-      Fail({&names[f], 0}, std::string("a ") + (data.planar ? "3D" : "2D") +
-                               " file in a dataset whose first file is " +
-                               (data.planar ? "2D" : "3D") + ": one dataset is 2D or 3D");
+    if ((files[f].dimension == 2) != planar) {
+      Fail({&names[f], 0}, std::string("a ") + (planar ? "3D" : "2D") +
+                               " file in a dataset whose first file is " + (planar ? "2D" : "3D") +
+                               ": one dataset is 2D or 3D");
     }
   }
-  std::map<Key, Location> defined;
-  for (const FileRecords& file : files) {
-    data.plain_keys = data.plain_keys && file.plain_keys;
-    for (const VertexRecord& v : file.vertices) {
-      const auto [it, inserted] = defined.emplace(v.id.key, v.at);
-      if (!inserted) {
-        Fail(v.at,
-             "vertex " + Describe(v.id) + " is defined twice (first at " + Where(it->second) + ")");
-      }
-      data.initial.emplace(v.id.key, v.pose);
-    }
-  }
+}
 
+// The edges a dataset keeps (with their factors): every edge, but the copy of an inter-robot
+// edge that another file already holds (each copy matched once).
+struct KeptEdges {
+  std::vector<const EdgeRecord*> edges;
+  std::vector<const RelativePoseFactor*> factors;
+};
+
+KeptEdges DropSeparatorCopies(const std::vector<FileRecords>& files) {
   // Inter-robot edges kept so far, per file, with how many copies may still be matched.
   std::map<EdgeSignature, std::map<std::size_t, int>, SignatureLess> unmatched;
-  std::vector<const EdgeRecord*> kept;
-  std::vector<const RelativePoseFactor*> kept_factors;
+  KeptEdges kept;
   for (std::size_t f = 0; f < files.size(); ++f) {
     for (std::size_t i = 0; i < files[f].edges.size(); ++i) {
       const EdgeRecord& e = files[f].edges[i];
@@ -458,41 +449,72 @@ Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>
         }
         ++copies[f];
       }
-      kept.push_back(&e);
-      kept_factors.push_back(&files[f].factors[i]);
+      kept.edges.push_back(&e);
+      kept.factors.push_back(&files[f].factors[i]);
     }
   }
+  return kept;
+}
 
-  if (!defined.empty()) {
-    std::unordered_map<Key, int> degree;
-    for (const EdgeRecord* e : kept) {
-      ++degree[e->a.key];
-      ++degree[e->b.key];
-    }
-    for (const EdgeRecord* e : kept) {
-      for (const DecodedId* end : {&e->a, &e->b}) {
-        if (defined.count(end->key) == 0 && degree[end->key] == 1) {
-          std::string why = "dangling edge: " + Describe(*end) + " has no " +
-                            std::string(data.planar ? kVertex2Tag : kVertexTag) +
-                            " line in any file and no other edge connects it";
-          const auto robot = static_cast<std::size_t>(end->key.robot);
-          if (folder && robot >= files.size()) {  // a separator to a robot without its file
-            why += " (the folder holds " + RobotFileName(0) +
-                   (files.size() > 1 ? " .. " + RobotFileName(files.size() - 1) : std::string()) +
-                   " only: is " + RobotFileName(robot) + " missing?)";
-          }
-          Fail(e->at, why);
+// Rejects an edge to a variable that no vertex line defines and no other edge connects (when the
+// dataset defines vertices at all); in a folder, names the robot file that may be missing.
+void RejectDangling(const std::vector<const EdgeRecord*>& kept,
+                    const std::map<Key, Location>& defined, std::size_t files, bool folder,
+                    bool planar) {
+  if (defined.empty()) return;
+  std::unordered_map<Key, int> degree;
+  for (const EdgeRecord* e : kept) {
+    ++degree[e->a.key];
+    ++degree[e->b.key];
+  }
+  for (const EdgeRecord* e : kept) {
+    for (const DecodedId* end : {&e->a, &e->b}) {
+      if (defined.count(end->key) == 0 && degree[end->key] == 1) {
+        std::string why = "dangling edge: " + Describe(*end) + " has no " +
+                          std::string(planar ? kVertex2Tag : kVertexTag) +
+                          " line in any file and no other edge connects it";
+        const auto robot = static_cast<std::size_t>(end->key.robot);
+        if (folder && robot >= files) {  // a separator to a robot without its file
+          why += " (the folder holds " + RobotFileName(0) +
+                 (files > 1 ? " .. " + RobotFileName(files - 1) : std::string()) + " only: is " +
+                 RobotFileName(robot) + " missing?)";
         }
+        Fail(e->at, why);
       }
     }
   }
-  for (const EdgeRecord* e : kept) data.repaired_information += e->repaired ? 1 : 0;
+}
+
+// Merges the files of one dataset (`folder`: a distributed-mapper folder's): duplicate vertices
+// are rejected, the copy of an inter-robot edge that another file already holds is dropped,
+// dangling edges are rejected.
+Dataset Assemble(std::vector<FileRecords>& files, const std::vector<std::string>& names,
+                 bool folder) {
+  Dataset data;
+  data.files = names;
+  data.planar = files.front().dimension == 2;
+  CheckOneDimension(files, names, data.planar);
+  std::map<Key, Location> defined;
+  for (const FileRecords& file : files) {
+    data.plain_keys = data.plain_keys && file.plain_keys;
+    for (const VertexRecord& v : file.vertices) {
+      const auto [it, inserted] = defined.emplace(v.id.key, v.at);
+      if (!inserted) {
+        Fail(v.at,
+             "vertex " + Describe(v.id) + " is defined twice (first at " + Where(it->second) + ")");
+      }
+      data.initial.emplace(v.id.key, v.pose);
+    }
+  }
+  const KeptEdges kept = DropSeparatorCopies(files);
+  RejectDangling(kept.edges, defined, files.size(), folder, data.planar);
+  for (const EdgeRecord* e : kept.edges) data.repaired_information += e->repaired ? 1 : 0;
   if (files.size() == 1) {
     // One file keeps every edge: hand its factors over without copying them.
     data.graph = PoseGraph(std::move(files.front().factors));
   } else {
-    data.graph.reserve(kept_factors.size());
-    for (const RelativePoseFactor* f : kept_factors) data.graph.add(*f);
+    data.graph.reserve(kept.factors.size());
+    for (const RelativePoseFactor* f : kept.factors) data.graph.add(*f);
   }
   return data;
 }
