@@ -277,44 +277,10 @@ ControlMessage DgsDriver::sendControl(const ControlMessage& m, int /*to*/,
 void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
   using Clock = std::chrono::steady_clock;
   const double eta = stage == DgsStage::kRotation ? options_.eta_rotation : options_.eta_pose;
-  previous_.clear();
-  updateSilence(stage, 0);  // silences scheduled in an earlier stage that ended before them
-  for (int r : order_) {
-    if (!live(r)) continue;
-    RobotAgent& a = *agents_.at(r);
-    if (stage == DgsStage::kRotation) {
-      a.startRotation();
-    } else {
-      a.startPose();
-    }
-  }
-  auto record = [&](DgsIterationStats& stats) {
-    report.messages += stats.messages;
-    report.bytes += stats.bytes;
-    result_.messages += stats.messages;
-    result_.bytes += stats.bytes;
-    result_.history.push_back(stats);
-  };
+  startStage(stage);
   const bool by_cg = stage == DgsStage::kPose &&
                      options_.pose_solver == DgsOptions::PoseSolver::kConjugateGradient;
-  if (!options_.flagged_initialisation || by_cg) {
-    // Every robot starts knowing its neighbours' initial estimates (not initialised).
-    const auto start = Clock::now();
-    DgsIterationStats stats;
-    stats.stage = stage;
-    stats.iteration = 0;
-    std::vector<Wire> batch;
-    for (int r : order_) {
-      if (!live(r)) continue;
-      std::vector<Wire> wires = encodeOutgoing(r);
-      batch.insert(batch.end(), std::make_move_iterator(wires.begin()),
-                   std::make_move_iterator(wires.end()));
-    }
-    transmit(std::move(batch), stats);
-    stats.max_change = std::numeric_limits<double>::infinity();
-    stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    record(stats);
-  }
+  if (!options_.flagged_initialisation || by_cg) recordSweep(sendInitialEstimates(stage), report);
   if (by_cg) {
     runPoseByConjugateGradients(report);
     return;
@@ -327,14 +293,7 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     stats.stage = stage;
     stats.iteration = it;
     runSweeps(stage, stats, false);
-    StageStopRule rule(options_.stopping, eta);
-    for (int r : order_) {
-      if (!live(r)) continue;
-      const RobotAgent& a = *agents_.at(r);
-      constexpr double kInf = std::numeric_limits<double>::infinity();
-      rule.add(a.initialised(), a.initialised() ? a.lastChange() : kInf,
-               a.initialised() ? a.errorBound(options_.error_bound_window) : kInf);
-    }
+    const StageStopRule rule = stopRule(eta);
     stats.max_change = rule.maxChange();
     const bool stop = rule.converged();
     // Two-level: the correction belongs to this sweep (its messages, bytes and time).
@@ -342,7 +301,7 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
       ++report.coarse_corrections;
     }
     stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    record(stats);
+    recordSweep(stats, report);
     if (progress_.on_sweep) progress_.on_sweep(stats);
     report.iterations = it;
     report.final_change = stats.max_change;
@@ -352,6 +311,58 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
       break;
     }
   }
+}
+
+void DgsDriver::startStage(DgsStage stage) {
+  previous_.clear();
+  updateSilence(stage, 0);  // silences scheduled in an earlier stage that ended before them
+  for (int r : order_) {
+    if (!live(r)) continue;
+    RobotAgent& a = *agents_.at(r);
+    if (stage == DgsStage::kRotation) {
+      a.startRotation();
+    } else {
+      a.startPose();
+    }
+  }
+}
+
+DgsIterationStats DgsDriver::sendInitialEstimates(DgsStage stage) {
+  const auto start = std::chrono::steady_clock::now();
+  DgsIterationStats stats;
+  stats.stage = stage;
+  stats.iteration = 0;
+  std::vector<Wire> batch;
+  for (int r : order_) {
+    if (!live(r)) continue;
+    std::vector<Wire> wires = encodeOutgoing(r);
+    batch.insert(batch.end(), std::make_move_iterator(wires.begin()),
+                 std::make_move_iterator(wires.end()));
+  }
+  transmit(std::move(batch), stats);
+  stats.max_change = std::numeric_limits<double>::infinity();
+  stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
+StageStopRule DgsDriver::stopRule(double eta) const {
+  StageStopRule rule(options_.stopping, eta);
+  for (int r : order_) {
+    if (!live(r)) continue;
+    const RobotAgent& a = *agents_.at(r);
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    rule.add(a.initialised(), a.initialised() ? a.lastChange() : kInf,
+             a.initialised() ? a.errorBound(options_.error_bound_window) : kInf);
+  }
+  return rule;
+}
+
+void DgsDriver::recordSweep(const DgsIterationStats& stats, DgsStageReport& report) {
+  report.messages += stats.messages;
+  report.bytes += stats.bytes;
+  result_.messages += stats.messages;
+  result_.bytes += stats.bytes;
+  result_.history.push_back(stats);
 }
 
 CoarseMessage DgsDriver::sendCoarse(const CoarseMessage& m, int to, DgsIterationStats& stats) {

@@ -305,6 +305,13 @@ class DgsDriver {
     std::vector<std::uint8_t> bytes;
   };
   void runStage(DgsStage stage, DgsStageReport& report);
+  // A stage's start: the live agents start it; every robot's estimates sent (sweep 0, when the
+  // robots start knowing their neighbours' initial estimates); the stop rule over the live agents
+  // after a sweep; a sweep's traffic and history recorded.
+  void startStage(DgsStage stage);
+  DgsIterationStats sendInitialEstimates(DgsStage stage);
+  StageStopRule stopRule(double eta) const;
+  void recordSweep(const DgsIterationStats& stats, DgsStageReport& report);
   void updateSilence(DgsStage stage, int iteration);
   void transmit(std::vector<Wire> batch, DgsIterationStats& stats);
   // Encodes, counts and decodes one control message (the bytes a network would carry).
