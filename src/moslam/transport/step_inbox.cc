@@ -64,49 +64,9 @@ IngestNotes StepInbox::ingest(std::vector<Received> packets) {
   };
   for (Received& r : packets) {
     if (auto* st = std::get_if<StatusPacket>(&r.packet)) {
-      if (st->solve != solve_) continue;  // another solve (online mapping)
-      heard_.insert(r.sender);
-      // The most advanced status; `done` is final; a restart (higher incarnation) replaces
-      // what the robot reported before, a failure included.
-      const auto it = latest_.find(r.sender);
-      if (it == latest_.end()) {
-        latest_.emplace(r.sender, *st);
-      } else if (st->incarnation > it->second.incarnation ||
-                 (!it->second.done && (st->done || st->round >= it->second.round))) {
-        it->second = *st;
-      }
-      if (st->state == RobotState::kFailed) {
-        notes.lines.push_back(fmt::format("robot {} reports a failure", r.sender));
-      }
-      // A failure report is not the status of a step.
-      if (IsStage(st->stage) && st->state != RobotState::kFailed &&
-          st->state != RobotState::kDone && st->round > 0) {
-        statuses_[r.sender][st->round] = *st;
-        stepped_.insert(r.sender);
-      }
+      if (st->solve == solve_) takeStatus(r.sender, *st, notes);  // else another solve (online)
     } else if (auto* e = std::get_if<EstimatesPacket>(&r.packet)) {
-      if (e->solve != solve_) continue;
-      const Message& m = e->message;
-      std::string why;
-      if (!neighbours_.count(m.sender)) {
-        why = fmt::format("DGS estimates from robot {}, which is not a neighbour", m.sender);
-      } else {
-        for (const Key& k : m.keys) {
-          if (!neighbour_keys_.count(k)) {
-            why = fmt::format(
-                "DGS estimates from robot {} for {}, a variable this robot does "
-                "not use",
-                m.sender, ToString(k));
-            break;
-          }
-        }
-      }
-      if (!why.empty()) {
-        ++notes.rejected;
-        notes.lines.push_back("rejected: " + why);
-        continue;
-      }
-      estimates_[{e->round, m.sender}] = m;
+      if (e->solve == solve_) takeEstimates(*e, notes);
     } else if (auto* c = std::get_if<CoarsePacket>(&r.packet)) {
       if (c->solve != solve_) continue;
       coarse_[{c->round, c->message.sender}] = c->message;
@@ -120,6 +80,50 @@ IngestNotes StepInbox::ingest(std::vector<Received> packets) {
     // Object lists: rendezvous data, not used by the DGS protocol.
   }
   return notes;
+}
+
+void StepInbox::takeStatus(int sender, const StatusPacket& st, IngestNotes& notes) {
+  heard_.insert(sender);
+  // The most advanced status; `done` is final; a restart (higher incarnation) replaces what the
+  // robot reported before, a failure included.
+  const auto it = latest_.find(sender);
+  if (it == latest_.end()) {
+    latest_.emplace(sender, st);
+  } else if (st.incarnation > it->second.incarnation ||
+             (!it->second.done && (st.done || st.round >= it->second.round))) {
+    it->second = st;
+  }
+  if (st.state == RobotState::kFailed) {
+    notes.lines.push_back(fmt::format("robot {} reports a failure", sender));
+  }
+  // A failure report is not the status of a step.
+  if (IsStage(st.stage) && st.state != RobotState::kFailed && st.state != RobotState::kDone &&
+      st.round > 0) {
+    statuses_[sender][st.round] = st;
+    stepped_.insert(sender);
+  }
+}
+
+void StepInbox::takeEstimates(const EstimatesPacket& e, IngestNotes& notes) {
+  const Message& m = e.message;
+  std::string why;
+  if (!neighbours_.count(m.sender)) {
+    why = fmt::format("DGS estimates from robot {}, which is not a neighbour", m.sender);
+  } else {
+    for (const Key& k : m.keys) {
+      if (!neighbour_keys_.count(k)) {
+        why = fmt::format("DGS estimates from robot {} for {}, a variable this robot does not use",
+                          m.sender, ToString(k));
+        break;
+      }
+    }
+  }
+  if (!why.empty()) {
+    ++notes.rejected;
+    notes.lines.push_back("rejected: " + why);
+    return;
+  }
+  estimates_[{e.round, m.sender}] = m;
 }
 
 bool StepInbox::failed(int r) const {

@@ -66,6 +66,9 @@ class StepInbox {
   void prune(std::uint32_t s);
 
  private:
+  // ingest() of a status and of estimates of this solve.
+  void takeStatus(int sender, const StatusPacket& st, IngestNotes& notes);
+  void takeEstimates(const EstimatesPacket& e, IngestNotes& notes);
   const StatusPacket* statusOf(int r, std::uint32_t s) const;
   // Robot r, whose step status is `st`, sends this robot per-neighbour packets in the step: the
   // two are neighbours of each other's agents at work.
