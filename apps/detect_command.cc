@@ -156,6 +156,47 @@ void PrintMetrics(const DetectionMetrics& m, bool ignored_column) {
       m.mean_average_precision, m.ignored_detections, " (mAP)");
 }
 
+std::vector<GroundTruthBox> InPixels(const std::vector<YoloLabel>& labels, const cv::Mat& img) {
+  std::vector<GroundTruthBox> boxes;
+  for (const YoloLabel& l : labels) boxes.push_back(l.toPixels(img.cols, img.rows));
+  return boxes;
+}
+
+// --annotate: the image with the detections at or above the threshold, under its own name.
+void WriteAnnotated(const DetectArgs& a, const std::string& image_path, cv::Mat& img,
+                    std::vector<Detection> dets) {
+  dets.erase(
+      std::remove_if(dets.begin(), dets.end(),
+                     [&](const Detection& d) { return d.confidence < a.detector.threshold; }),
+      dets.end());
+  Annotate(img, dets);
+  const auto out = std::filesystem::path(a.annotate) / std::filesystem::path(image_path).filename();
+  cv::imwrite(out.string(), img);
+}
+
+// The text report: strict metrics, those with the ignore regions (when the dataset has them) and
+// the detector's time per frame.
+void PrintDatasetReport(const DetectArgs& a, const DetectionMetrics* with_ignore,
+                        const DetectionMetrics& m, double mean_ms, double median_ms) {
+  fmt::print("{}: {} frames, threshold {:.2f}, IoU {:.2f}\n", a.data, m.frames,
+             a.detector.threshold, a.iou);
+  fmt::print("strict (every detection that matches no label is a false positive):\n");
+  PrintMetrics(m, false);
+  if (with_ignore != nullptr) {
+    fmt::print(
+        "with ignore regions ({} boxes of visible, unlabelled objects in {}/ignore; a "
+        "detection on one is dropped, VOC 'difficult' style):\n",
+        with_ignore->ignore_boxes, a.data);
+    PrintMetrics(*with_ignore, true);
+  } else {
+    fmt::print("(no {}/ignore folder: strict metrics only)\n", a.data);
+  }
+  fmt::print(
+      "time per frame: mean {:.2f} ms, median {:.2f} ms (detect only, 1 thread unless "
+      "OpenCV uses more)\n",
+      mean_ms, median_ms);
+}
+
 int RunOnDataset(const DetectArgs& a) {
   const YoloDataset data = ReadYoloDataset(a.data);
   // Detections down to 0.01 enter the AP; precision and recall count those >= --threshold
@@ -178,22 +219,10 @@ int RunOnDataset(const DetectArgs& a) {
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<Detection> dets = detector.detect(img);
     times.push_back(MsSince(t0));
-    std::vector<GroundTruthBox> gt;
-    for (const YoloLabel& l : s.labels) gt.push_back(l.toPixels(img.cols, img.rows));
-    std::vector<GroundTruthBox> ignore;
-    for (const YoloLabel& l : s.ignore) ignore.push_back(l.toPixels(img.cols, img.rows));
+    const std::vector<GroundTruthBox> gt = InPixels(s.labels, img);
     evaluator.addFrame(dets, gt);
-    with_ignore.addFrame(dets, gt, ignore);
-    if (!a.annotate.empty()) {
-      dets.erase(std::remove_if(dets.begin(), dets.end(),
-                                [&](const Detection& d) {
-                                  return d.confidence < a.detector.threshold;
-                                }),
-                 dets.end());
-      Annotate(img, dets);
-      const auto out = std::filesystem::path(a.annotate) / std::filesystem::path(s.image_path).filename();
-      cv::imwrite(out.string(), img);
-    }
+    with_ignore.addFrame(dets, gt, InPixels(s.ignore, img));
+    if (!a.annotate.empty()) WriteAnnotated(a, s.image_path, img, std::move(dets));
   }
   const DetectionMetrics m = evaluator.compute();
   const DetectionMetrics mi = with_ignore.compute();
@@ -202,7 +231,7 @@ int RunOnDataset(const DetectArgs& a) {
   double mean = 0.0;
   for (double t : times) mean += t;
   mean /= static_cast<double>(times.size());
-  const double median = sorted[sorted.size() / 2];
+  const double median = sorted[sorted.size() / 2];  // the upper of two middles
   if (a.json) {
     nlohmann::json j = MetricsJson(m);
     j["data"] = a.data;
@@ -215,21 +244,7 @@ int RunOnDataset(const DetectArgs& a) {
     fmt::print("{}\n", j.dump());
     return 0;
   }
-  fmt::print("{}: {} frames, threshold {:.2f}, IoU {:.2f}\n", a.data, m.frames,
-             a.detector.threshold, a.iou);
-  fmt::print("strict (every detection that matches no label is a false positive):\n");
-  PrintMetrics(m, false);
-  if (data.has_ignore) {
-    fmt::print("with ignore regions ({} boxes of visible, unlabelled objects in {}/ignore; a "
-               "detection on one is dropped, VOC 'difficult' style):\n",
-               mi.ignore_boxes, a.data);
-    PrintMetrics(mi, true);
-  } else {
-    fmt::print("(no {}/ignore folder: strict metrics only)\n", a.data);
-  }
-  fmt::print("time per frame: mean {:.2f} ms, median {:.2f} ms (detect only, 1 thread unless "
-             "OpenCV uses more)\n",
-             mean, median);
+  PrintDatasetReport(a, data.has_ignore ? &mi : nullptr, m, mean, median);
   return 0;
 }
 
