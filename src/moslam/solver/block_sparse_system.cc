@@ -30,6 +30,48 @@ struct BlockSparseSystem::Impl {
   }
 };
 
+namespace {
+
+// Upper-triangle block pattern: per column block, its row blocks (row <= column, the diagonal
+// included), increasing and distinct.
+std::vector<std::vector<int>> UpperBlockPattern(int num_blocks,
+                                                const std::vector<std::pair<int, int>>& pairs) {
+  std::vector<std::vector<int>> rows_of_col(num_blocks);
+  for (int k = 0; k < num_blocks; ++k) rows_of_col[k].push_back(k);
+  for (const auto& [i, j] : pairs) {
+    if (i < 0 || j < 0 || i >= num_blocks || j >= num_blocks || i == j) {
+      throw std::invalid_argument("BlockSparseSystem: bad block pair");
+    }
+    rows_of_col[std::max(i, j)].push_back(std::min(i, j));
+  }
+  for (auto& rows : rows_of_col) {
+    std::sort(rows.begin(), rows.end());
+    rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
+  }
+  return rows_of_col;
+}
+
+// Compressed columns built directly: in scalar column cb * bs + c, the blocks of rows_of_col[cb]
+// in increasing order, each a run of bs rows (c + 1 for the diagonal block, whose upper
+// triangle only is stored), so block (rb, cb) starts its run in column c at a known offset. The
+// start of every scalar column in the value array, and the total last.
+std::vector<int> ColumnStarts(const std::vector<std::vector<int>>& rows_of_col, int bs) {
+  const int num_blocks = static_cast<int>(rows_of_col.size());
+  const int n = num_blocks * bs;
+  std::vector<int> col_nnz(static_cast<std::size_t>(n) + 1, 0);
+  for (int cb = 0; cb < num_blocks; ++cb) {
+    const auto& rows = rows_of_col[cb];
+    for (int c = 0; c < bs; ++c) {
+      col_nnz[static_cast<std::size_t>(cb * bs + c) + 1] =
+          static_cast<int>(rows.size() - 1) * bs + c + 1;
+    }
+  }
+  for (int k = 0; k < n; ++k) col_nnz[k + 1] += col_nnz[k];
+  return col_nnz;
+}
+
+}  // namespace
+
 BlockSparseSystem::BlockSparseSystem(int num_blocks, int block_size,
                                      const std::vector<std::pair<int, int>>& pairs)
     : num_blocks_(num_blocks), block_size_(block_size), impl_(std::make_unique<Impl>()) {
@@ -41,29 +83,8 @@ BlockSparseSystem::BlockSparseSystem(int num_blocks, int block_size,
   b_ = Eigen::VectorXd::Zero(n);
   Impl& im = *impl_;
 
-  // Upper-triangle block pattern: (row block, column block) with row <= column.
-  std::vector<std::vector<int>> rows_of_col(num_blocks);
-  for (int k = 0; k < num_blocks; ++k) rows_of_col[k].push_back(k);
-  for (const auto& [i, j] : pairs) {
-    if (i < 0 || j < 0 || i >= num_blocks || j >= num_blocks || i == j) {
-      throw std::invalid_argument("BlockSparseSystem: bad block pair");
-    }
-    rows_of_col[std::max(i, j)].push_back(std::min(i, j));
-  }
-  // Compressed columns built directly: in scalar column cb * bs + c, the blocks of rows_of_col[cb]
-  // in increasing order, each a run of bs rows (c + 1 for the diagonal block, whose upper
-  // triangle only is stored), so block (rb, cb) starts its run in column c at a known offset.
-  std::vector<int> col_nnz(static_cast<std::size_t>(n) + 1, 0);
-  for (int cb = 0; cb < num_blocks; ++cb) {
-    auto& rows = rows_of_col[cb];
-    std::sort(rows.begin(), rows.end());
-    rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
-    for (int c = 0; c < bs; ++c) {
-      col_nnz[static_cast<std::size_t>(cb * bs + c) + 1] =
-          static_cast<int>(rows.size() - 1) * bs + c + 1;
-    }
-  }
-  for (int k = 0; k < n; ++k) col_nnz[k + 1] += col_nnz[k];
+  const std::vector<std::vector<int>> rows_of_col = UpperBlockPattern(num_blocks, pairs);
+  const std::vector<int> col_nnz = ColumnStarts(rows_of_col, bs);
   im.H.resize(n, n);
   im.H.resizeNonZeros(col_nnz[static_cast<std::size_t>(n)]);
   std::copy(col_nnz.begin(), col_nnz.end(), im.H.outerIndexPtr());
