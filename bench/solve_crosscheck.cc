@@ -334,73 +334,36 @@ double ResidualSelfCheck() {
 
 // ---------------------------------------------------------------------------------------------
 
-json BenchDataset(const std::string& name, const std::string& path, int repeats, int warmup,
-                  double min_seconds, bool with_lm, bool with_two_threads) {
-  // cubicle.g2o holds information matrices that are indefinite through their translation-rotation
-  // coupling only; moslam rejects them by default. Both solvers get the same repaired matrices
-  // (coupling dropped on exactly those edges), counted in "repaired_information".
-  moslam::G2oReadOptions read_options;
-  read_options.drop_indefinite_coupling = true;
-  const moslam::Dataset dataset = moslam::ReadG2o(path, read_options);
-  const moslam::PoseGraph& graph = dataset.graph;
-  const moslam::Key anchor = moslam::GaugeAnchor(graph);
-  const auto anchor_it = dataset.initial.find(anchor);
-  const moslam::SE3 anchor_pose =
-      anchor_it != dataset.initial.end() ? anchor_it->second : moslam::SE3();
-  // The chordal relaxation runs in a child too: CHOLMOD uses OpenMP, and libgomp's thread pool
-  // does not survive a fork (a child of a process that already used it hangs in its first
-  // parallel region). The estimate comes back exactly (rotation matrices and translations as
-  // round-trip decimal doubles).
+// The chordal initialisation of `graph`, run in a child: CHOLMOD uses OpenMP, and libgomp's
+// thread pool does not survive a fork (a child of a process that already used it hangs in its
+// first parallel region). The estimate comes back exactly (rotation matrices and translations as
+// round-trip decimal doubles).
+struct ChordalStart {
+  moslam::Values values;
+  double seconds = 0.0;
+  double peak_mb = 0.0;
+};
+
+ChordalStart ChordalInChild(const moslam::PoseGraph& graph, const moslam::SE3& anchor_pose) {
   const ChildOutcome prep = RunInChild([&] {
     const auto start = Clock::now();
     const moslam::Values chordal = moslam::ChordalInitialization(graph, anchor_pose);
     return json{{"seconds", Seconds(start)}, {"values", ValuesToJson(chordal)}};
   });
-  const moslam::Values initial = ValuesFromJson(prep.result["values"]);
-  const double init_seconds = prep.result["seconds"].get<double>();
-  const double initial_cost = graph.cost(initial);
+  return {ValuesFromJson(prep.result["values"]), prep.result["seconds"].get<double>(),
+          prep.peak_mb};
+}
 
-  json row{{"dataset", name},
-           {"file", path},
-           {"poses", graph.keys().size()},
-           {"edges", graph.factors().size()},
-           {"priors", graph.priors().size()},
-           {"repaired_information", dataset.repaired_information},
-           {"initial_cost", initial_cost},
-           {"chordal_seconds", init_seconds},
-           {"chordal_peak_mb", prep.peak_mb},
-           {"repeats", repeats},
-           {"warmup", warmup},
-           {"min_seconds", min_seconds},
-           {"parent_rss_mb", CurrentRssMb()},
-           {"max_residual_diff_initial", MaxResidualDifference(graph, initial)},
-           {"ceres_gradient_max_at_initial", CeresGradientMaxAbs(graph, initial, anchor)}};
+struct Job {
+  std::string key;
+  std::function<json()> run;
+};
 
-  // Every timed run is a fresh child (after `warmup` untimed runs in it), and the solvers take
-  // turns, so a change of machine load over the benchmark affects them alike. Reported: the median
-  // time over the children, the largest peak memory.
-  struct Job {
-    std::string key;
-    std::function<json()> run;
-  };
-  std::vector<Job> jobs;
-  jobs.push_back(Job{"moslam_gn", [&] {
-                       return RunMoslam(graph, initial, anchor, moslam::Method::kGaussNewton, 1,
-                                        warmup, min_seconds);
-                     }});
-  if (with_lm) {
-    jobs.push_back(Job{"moslam_lm", [&] {
-                         return RunMoslam(graph, initial, anchor,
-                                          moslam::Method::kLevenbergMarquardt, 1, warmup,
-                                          min_seconds);
-                       }});
-  }
-  jobs.push_back(
-      Job{"ceres", [&] { return RunCeres(graph, initial, anchor, 1, 1, warmup, min_seconds); }});
-  if (with_two_threads) {
-    jobs.push_back(Job{
-        "ceres_2t", [&] { return RunCeres(graph, initial, anchor, 2, 1, warmup, min_seconds); }});
-  }
+// Every timed run is a fresh child (after `warmup` untimed runs in it), and the solvers take
+// turns, so a change of machine load over the benchmark affects them alike. Into row[job.key]: a
+// run's result, the median of each timing over the children, every wall time, the fastest, and
+// the largest peak memory.
+void TimeJobs(const std::string& name, const std::vector<Job>& jobs, int repeats, json& row) {
   const std::vector<std::string> timings = {"seconds", "optimizer_seconds", "linearize_seconds",
                                             "solve_seconds"};
   std::map<std::string, std::map<std::string, std::vector<double>>> samples;
@@ -427,7 +390,10 @@ json BenchDataset(const std::string& name, const std::string& path, int repeats,
     r["seconds_min"] = *std::min_element(wall.begin(), wall.end());
     r["peak_mb"] = peak[key];
   }
+}
 
+// The solvers against Ceres' final cost and time, into the row.
+void CompareWithCeres(double initial_cost, bool with_lm, json& row) {
   const json& gn = row["moslam_gn"];
   const json& ce = row["ceres"];
   const double ceres_final = ce["final_cost_moslam"].get<double>();
@@ -441,6 +407,61 @@ json BenchDataset(const std::string& name, const std::string& path, int repeats,
         RelDiff(row["moslam_lm"]["final_cost"].get<double>(), ceres_final);
     row["speedup_lm"] = ce["seconds"].get<double>() / row["moslam_lm"]["seconds"].get<double>();
   }
+}
+
+json BenchDataset(const std::string& name, const std::string& path, int repeats, int warmup,
+                  double min_seconds, bool with_lm, bool with_two_threads) {
+  // cubicle.g2o holds information matrices that are indefinite through their translation-rotation
+  // coupling only; moslam rejects them by default. Both solvers get the same repaired matrices
+  // (coupling dropped on exactly those edges), counted in "repaired_information".
+  moslam::G2oReadOptions read_options;
+  read_options.drop_indefinite_coupling = true;
+  const moslam::Dataset dataset = moslam::ReadG2o(path, read_options);
+  const moslam::PoseGraph& graph = dataset.graph;
+  const moslam::Key anchor = moslam::GaugeAnchor(graph);
+  const auto anchor_it = dataset.initial.find(anchor);
+  const moslam::SE3 anchor_pose =
+      anchor_it != dataset.initial.end() ? anchor_it->second : moslam::SE3();
+  const ChordalStart prep = ChordalInChild(graph, anchor_pose);
+  const moslam::Values& initial = prep.values;
+  const double initial_cost = graph.cost(initial);
+
+  json row{{"dataset", name},
+           {"file", path},
+           {"poses", graph.keys().size()},
+           {"edges", graph.factors().size()},
+           {"priors", graph.priors().size()},
+           {"repaired_information", dataset.repaired_information},
+           {"initial_cost", initial_cost},
+           {"chordal_seconds", prep.seconds},
+           {"chordal_peak_mb", prep.peak_mb},
+           {"repeats", repeats},
+           {"warmup", warmup},
+           {"min_seconds", min_seconds},
+           {"parent_rss_mb", CurrentRssMb()},
+           {"max_residual_diff_initial", MaxResidualDifference(graph, initial)},
+           {"ceres_gradient_max_at_initial", CeresGradientMaxAbs(graph, initial, anchor)}};
+
+  std::vector<Job> jobs;
+  jobs.push_back(Job{"moslam_gn", [&] {
+                       return RunMoslam(graph, initial, anchor, moslam::Method::kGaussNewton, 1,
+                                        warmup, min_seconds);
+                     }});
+  if (with_lm) {
+    jobs.push_back(Job{"moslam_lm", [&] {
+                         return RunMoslam(graph, initial, anchor,
+                                          moslam::Method::kLevenbergMarquardt, 1, warmup,
+                                          min_seconds);
+                       }});
+  }
+  jobs.push_back(
+      Job{"ceres", [&] { return RunCeres(graph, initial, anchor, 1, 1, warmup, min_seconds); }});
+  if (with_two_threads) {
+    jobs.push_back(Job{
+        "ceres_2t", [&] { return RunCeres(graph, initial, anchor, 2, 1, warmup, min_seconds); }});
+  }
+  TimeJobs(name, jobs, repeats, row);
+  CompareWithCeres(initial_cost, with_lm, row);
   return row;
 }
 
@@ -557,6 +578,41 @@ std::vector<std::string> FailedChecks(const json& rows) {
   return failures;
 }
 
+// The residual and stationarity cross-checks, printed; the failed checks, FailedChecks' with
+// them.
+std::vector<std::string> ReportChecks(const json& rows, double self_check) {
+  std::vector<std::string> failures = FailedChecks(rows);
+  std::cout << fmt::format(
+      "\nResidual cross-check: max |r_Ceres - r_moslam| = {:.1e} on synthetic edges with "
+      "rotation errors 0 .. pi - 1e-9; per dataset at the initial estimate:",
+      self_check);
+  for (const json& r : rows) {
+    const double d = r["max_residual_diff_initial"].get<double>();
+    std::cout << fmt::format(" {} {:.1e}", r["dataset"].get<std::string>(), d);
+    if (!(d <= 1e-9)) {
+      failures.push_back(
+          fmt::format("{}: edge residuals differ by {:.1e}", r["dataset"].get<std::string>(), d));
+    }
+  }
+  if (!(self_check <= 1e-9)) {
+    failures.push_back(fmt::format("synthetic residuals differ by {:.1e}", self_check));
+  }
+  std::cout << ".\nStationarity by Ceres' gradient (max |g| in Ceres' tangent coordinates) at the "
+               "initial estimate / moslam GN / moslam LM / Ceres final estimates:";
+  for (const json& r : rows) {
+    std::cout << fmt::format(
+        " {} {:.1e} / {:.1e} / {} / {:.1e};", r["dataset"].get<std::string>(),
+        r["ceres_gradient_max_at_initial"].get<double>(),
+        r["moslam_gn"]["ceres_gradient_max_at_final"].get<double>(),
+        r.contains("moslam_lm")
+            ? fmt::format("{:.1e}", r["moslam_lm"]["ceres_gradient_max_at_final"].get<double>())
+            : std::string("-"),
+        r["ceres"]["ceres_gradient_max_at_final"].get<double>());
+  }
+  std::cout << "\n\n";
+  return failures;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -605,36 +661,7 @@ int main(int argc, char** argv) {
                      }).result);
     }
     PrintTable(rows, !no_lm, !no_two_threads);
-    std::vector<std::string> failures = FailedChecks(rows);
-    std::cout << fmt::format(
-        "\nResidual cross-check: max |r_Ceres - r_moslam| = {:.1e} on synthetic edges with "
-        "rotation errors 0 .. pi - 1e-9; per dataset at the initial estimate:",
-        self_check);
-    for (const json& r : rows) {
-      const double d = r["max_residual_diff_initial"].get<double>();
-      std::cout << fmt::format(" {} {:.1e}", r["dataset"].get<std::string>(), d);
-      if (!(d <= 1e-9)) {
-        failures.push_back(
-            fmt::format("{}: edge residuals differ by {:.1e}", r["dataset"].get<std::string>(), d));
-      }
-    }
-    if (!(self_check <= 1e-9)) {
-      failures.push_back(fmt::format("synthetic residuals differ by {:.1e}", self_check));
-    }
-    std::cout
-        << ".\nStationarity by Ceres' gradient (max |g| in Ceres' tangent coordinates) at the "
-           "initial estimate / moslam GN / moslam LM / Ceres final estimates:";
-    for (const json& r : rows) {
-      std::cout << fmt::format(
-          " {} {:.1e} / {:.1e} / {} / {:.1e};", r["dataset"].get<std::string>(),
-          r["ceres_gradient_max_at_initial"].get<double>(),
-          r["moslam_gn"]["ceres_gradient_max_at_final"].get<double>(),
-          r.contains("moslam_lm")
-              ? fmt::format("{:.1e}", r["moslam_lm"]["ceres_gradient_max_at_final"].get<double>())
-              : std::string("-"),
-          r["ceres"]["ceres_gradient_max_at_final"].get<double>());
-    }
-    std::cout << "\n\n";
+    const std::vector<std::string> failures = ReportChecks(rows, self_check);
     if (failures.empty()) {
       std::cout << "All checks pass: residuals agree to 1e-9, initial costs to 1e-9 relative, "
                    "moslam reaches Ceres' final cost to 1e-6 wherever Ceres converges, and is at "
