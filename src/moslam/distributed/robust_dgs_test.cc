@@ -7,19 +7,12 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/dgs_test_util.h"
+#include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
 #include "moslam/solver/initialization.h"
 
 namespace moslam {
 namespace {
-
-double MaxDistance(const Values& a, const Values& b) {
-  double d = 0.0;
-  for (const auto& [k, x] : a) {
-    d = std::max(d, (x.translation() - b.at(k).translation()).norm());
-  }
-  return d;
-}
 
 // The robots' GNC on blocks_world in 4 robots with 70 % wrong separators: the same weights as the
 // centralized GNC, the clean optimum, and the weights counted on the wire.
@@ -50,7 +43,7 @@ TEST(RobustDgs, RejectsTheOutliersAsTheCentralizedGncDoes) {
     EXPECT_EQ(r.weights[i] < 0.5, spoiled.outlier[i]) << "factor " << i;
     EXPECT_EQ(r.weights[i] < 0.5, central.weights[i] < 0.5) << "factor " << i;
   }
-  EXPECT_LT(MaxDistance(r.values, clean.values), 1e-3);
+  EXPECT_LT(MaxPoseDifference(r.values, clean.values), 1e-3);
   EXPECT_NEAR(data.graph.cost(r.values), clean.final_cost, 1e-4 * clean.final_cost);
   // One weight message per pair of robots with separators per round, 8 bytes a weight.
   EXPECT_GT(r.weight_messages, 0);
@@ -160,7 +153,7 @@ TEST(SeparatorConsistency, TwoAgreeingSeparatorsOfLinkedRobotsAreLeftToGnc) {
   EXPECT_EQ(r.consistency_deferred, 2);
   EXPECT_GT(r.weights[last], 0.5);
   EXPECT_GT(r.weights[last - 1], 0.5);
-  EXPECT_LT(MaxDistance(r.values, truth), 1e-6);
+  EXPECT_LT(MaxPoseDifference(r.values, truth), 1e-6);
   check.linked_min_support = check.min_support;
   const SeparatorConsistencyResult strict = CheckSeparatorConsistency(right, check);
   EXPECT_EQ(strict.rejected, 2);
@@ -175,7 +168,7 @@ TEST(SeparatorConsistency, TwoAgreeingSeparatorsOfLinkedRobotsAreLeftToGnc) {
   const RobustDgsResult rw = RunRobustDgs(wrong, truth, robust_of_right, options);
   EXPECT_LT(rw.weights[last], 0.5);
   EXPECT_LT(rw.weights[last - 1], 0.5);
-  EXPECT_LT(MaxDistance(rw.values, truth), 1e-6);
+  EXPECT_LT(MaxPoseDifference(rw.values, truth), 1e-6);
 
   SeparatorConsistencyOptions bad;
   bad.linked_min_support = 4;
@@ -216,7 +209,7 @@ TEST(SeparatorConsistency, TiedLargestSetsOfLinkedRobotsAreAllLeftToGnc) {
         EXPECT_LT(r.weights[first + k], 0.5) << "wrong separator " << k;
       }
     }
-    EXPECT_LT(MaxDistance(r.values, truth), 1e-6);
+    EXPECT_LT(MaxPoseDifference(r.values, truth), 1e-6);
   }
 }
 
@@ -249,7 +242,7 @@ TEST(SeparatorConsistency, TheRunnerUpIsTheLargestConsistentSetOfTheLeftOut) {
   for (std::size_t k = 0; k < order.size(); ++k) {
     EXPECT_EQ(r.weights[first + k] > 0.5, k < 4) << "separator " << k;
   }
-  EXPECT_LT(MaxDistance(r.values, truth), 1e-6);
+  EXPECT_LT(MaxPoseDifference(r.values, truth), 1e-6);
   options.retest_groups = false;
   const RobustDgsResult without = RunRobustDgs(graph, truth, DefaultRobustFactors(graph), options);
   EXPECT_EQ(without.group_retests, 0);
@@ -365,7 +358,7 @@ TEST(RobustDgs, RetestBringsBackARightSeparatorTheCheckLeftOutAndNotAWrongOne) {
   const RobustDgsResult plain = RunRobustDgs(g, initial, robust, options);
   EXPECT_EQ(plain.weights[first + 2], 0.0);
   EXPECT_EQ(plain.readmitted, 0);
-  EXPECT_GT(MaxDistance(plain.values, optimum), 0.05);
+  EXPECT_GT(MaxPoseDifference(plain.values, optimum), 0.05);
 
   options.retest_left_out = true;
   options.retest_groups = false;
@@ -376,7 +369,7 @@ TEST(RobustDgs, RetestBringsBackARightSeparatorTheCheckLeftOutAndNotAWrongOne) {
   for (std::size_t s = 0; s < wrong.size(); ++s) {
     EXPECT_EQ(r.weights[first + s], wrong[s] ? 0.0 : 1.0) << "separator " << s;
   }
-  EXPECT_LT(MaxDistance(r.values, optimum), 1e-6);
+  EXPECT_LT(MaxPoseDifference(r.values, optimum), 1e-6);
   // Each re-test: a solve, a weight message and a reduction of F (the first for F0).
   EXPECT_GT(r.solve_bytes, plain.solve_bytes);
   EXPECT_EQ(r.weight_messages, plain.weight_messages + 2);
@@ -388,7 +381,7 @@ TEST(RobustDgs, RetestBringsBackARightSeparatorTheCheckLeftOutAndNotAWrongOne) {
   for (std::size_t i = 0; i < r.weights.size(); ++i) {
     EXPECT_EQ(central.weights[i] < 0.5, r.weights[i] < 0.5) << "factor " << i;
   }
-  EXPECT_LT(MaxDistance(central.values, optimum), 1e-6);
+  EXPECT_LT(MaxPoseDifference(central.values, optimum), 1e-6);
 
   // The three left out (the near miss and the two 30 deg ones) agree with fewer than
   // min_support of one another: no group to re-test, nothing changes.
@@ -421,7 +414,7 @@ TEST(RobustDgs, WithTheSeparatorCheckReachesTheCleanOptimumAtNinetyPercent) {
   }
   EXPECT_GT(r.consistency_rejected, spoiled.added * 9 / 10);
   EXPECT_GT(r.consistency_bytes, 0);
-  EXPECT_LT(MaxDistance(r.values, clean.values), 1e-3);
+  EXPECT_LT(MaxPoseDifference(r.values, clean.values), 1e-3);
   EXPECT_NEAR(data.graph.cost(r.values), clean.final_cost, 1e-4 * clean.final_cost);
 }
 
@@ -442,7 +435,7 @@ TEST(RobustDgs, WithoutOutliersIsTheLeastSquaresSolve) {
   EXPECT_EQ(r.weight_bytes, 0);
   // The same optimum (the separator check may set aside a right separator, which then comes
   // back: one more solve, to the refinement's tolerance).
-  EXPECT_LT(MaxDistance(r.values, ls.values), 1e-6);
+  EXPECT_LT(MaxPoseDifference(r.values, ls.values), 1e-6);
 }
 
 // Two robots that map the same four objects, noise-free; robot 0 closed a loop wrongly (its
@@ -496,11 +489,11 @@ TEST(RobustDgs, ARobotsWrongLoopClosurePairIsRejectedWhenRobust) {
   const RobustDgsResult r = RunRobustDgs(g, truth, robust, options);
   EXPECT_LT(r.weights[wrong], 0.5);
   EXPECT_EQ(r.outliers, 1);
-  EXPECT_LT(MaxDistance(r.values, truth), 1e-6);
+  EXPECT_LT(MaxPoseDifference(r.values, truth), 1e-6);
   std::vector<bool> before = robust;
   before[wrong] = false;
   const RobustDgsResult bent = RunRobustDgs(g, truth, before, options);
-  EXPECT_GT(MaxDistance(bent.values, truth), 0.1);
+  EXPECT_GT(MaxPoseDifference(bent.values, truth), 0.1);
 }
 
 // Two robots linked by one or two separators: the check keeps none (too few to confirm one

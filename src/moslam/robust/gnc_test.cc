@@ -8,19 +8,12 @@
 #include "moslam/common/errors.h"
 #include "moslam/io/datasets_testing.h"
 #include "moslam/io/g2o.h"
+#include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
 #include "moslam/solver/initialization.h"
 
 namespace moslam {
 namespace {
-
-double MaxDistance(const Values& a, const Values& b) {
-  double d = 0.0;
-  for (const auto& [k, x] : a) {
-    d = std::max(d, (x.translation() - b.at(k).translation()).norm());
-  }
-  return d;
-}
 
 TEST(TlsWeight, OneBelowZeroAboveContinuousBetween) {
   const double c2 = 10.0;
@@ -122,7 +115,7 @@ TEST(SolveGnc, RejectsKnownOutliersAndReachesTheCleanOptimum) {
   EXPECT_EQ(missed, 0);
   EXPECT_EQ(false_rejections, 0);
   EXPECT_EQ(r.outliers, spoiled.added);
-  EXPECT_LT(MaxDistance(r.values, clean.values), 1e-3);
+  EXPECT_LT(MaxPoseDifference(r.values, clean.values), 1e-3);
   EXPECT_NEAR(data.graph.cost(r.values), clean.final_cost, 1e-4 * clean.final_cost);
   // The least-squares estimate, for contrast, is bent by the outliers.
   EXPECT_GT(r.least_squares_cost, 10.0 * clean.final_cost);
@@ -138,7 +131,7 @@ TEST(SolveGnc, WithoutOutliersReturnsTheLeastSquaresEstimate) {
   const GncResult r = SolveGnc(data.graph, initial, DefaultRobustFactors(data.graph), gnc);
   EXPECT_EQ(r.status, GncStatus::kAllInliers);
   EXPECT_EQ(r.outliers, 0);
-  EXPECT_LT(MaxDistance(r.values, ls.values), 1e-9);
+  EXPECT_LT(MaxPoseDifference(r.values, ls.values), 1e-9);
 }
 
 // A landmark whose only factor is rejected keeps an estimate (the rounds'), though the inliers'
