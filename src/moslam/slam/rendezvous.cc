@@ -424,8 +424,9 @@ std::set<LandmarkPair> SharedBefore(const std::vector<SharedObject>& shared, int
 }
 
 // Unknown initial poses: alpha's map aligned with beta's (`own`) from their objects alone, then
-// refused as contradicted when alpha's objects that fall in view of beta's poses mostly find no
-// object of their label there (RendezvousConfig::overlap).
+// refused as contradicted when, of alpha's objects the alignment puts in view of beta's poses (at
+// least overlap.min_seen of them), fewer than overlap.min_confirmed_fraction have an object of
+// their label within overlap.radius in beta's map (RendezvousConfig::overlap).
 ConstellationAlignment AlignUnknown(const ObjectMapMessage& received,
                                     const std::vector<ObjectMapEntry>& own, const ObjectSlam& beta,
                                     const RendezvousConfig& config) {
