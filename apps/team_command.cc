@@ -517,8 +517,9 @@ struct RendezvousTotals {
 RendezvousTotals SumRendezvous(const std::map<int, JsonFields>& summaries) {
   RendezvousTotals t;
   for (const auto& [r, s] : summaries) {
-    for (const JsonFields& p : s.items("shared"))
+    for (const JsonFields& p : s.items("shared")) {
       t.shared.insert(p.as<std::vector<std::uint64_t>>());
+    }
     t.binary += s.get<std::int64_t>("rendezvous_binary_bytes");
     t.dds += s.get<std::int64_t>("rendezvous_dds_bytes");
     t.samples += s.get<std::int64_t>("rendezvous_dds_samples");

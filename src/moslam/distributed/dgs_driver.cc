@@ -280,6 +280,7 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
   startStage(stage);
   const bool by_cg = stage == DgsStage::kPose &&
                      options_.pose_solver == DgsOptions::PoseSolver::kConjugateGradient;
+  // Sweep 0: every robot starts knowing its neighbours' initial estimates (not initialised).
   if (!options_.flagged_initialisation || by_cg) recordSweep(sendInitialEstimates(stage), report);
   if (by_cg) {
     runPoseByConjugateGradients(report);

@@ -412,7 +412,7 @@ struct SignatureLess {
 
 std::string RobotFileName(std::size_t index) { return std::to_string(index) + ".g2o"; }
 
-// Every file of a dataset 2D or 3D as the first (planar).
+// Fails unless every file of the dataset has the first file's dimension (planar: 2D).
 void CheckOneDimension(const std::vector<FileRecords>& files, const std::vector<std::string>& names,
                        bool planar) {
   for (std::size_t f = 1; f < files.size(); ++f) {

@@ -132,8 +132,8 @@ void PerceiveDetection(const PreparedFrame& prepared, const ObjectTemplate& obje
   if (o.accepted()) o.body_T_object = ObjectMeasurementInBody(o.registration.camera_T_object);
 }
 
-// fn(i) for every i in [0, n): on this thread when workers <= 1, else i on worker i % workers; an
-// exception of a worker is rethrown here once all have joined (the lowest worker's first).
+// fn(i) for every i in [0, n): on this thread when workers <= 1, else i on worker i % workers.
+// Once all have joined, the exception of the lowest-numbered worker that threw is rethrown here.
 void ForEachOnWorkers(std::size_t n, std::size_t workers,
                       const std::function<void(std::size_t)>& fn) {
   if (workers <= 1) {
