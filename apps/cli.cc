@@ -58,7 +58,10 @@ CLI::Validator InRange(double lo, double hi) {
                      fmt::format("a number in [{}, {}]", lo, hi), fmt::format("[{} - {}]", lo, hi));
 }
 
-Commands::Commands(CLI::App& app) : app_(app) { app_.require_subcommand(1); }
+Commands::Commands(CLI::App& app) : app_(app) {
+  app_.require_subcommand(1);
+  app_.set_version_flag("--version", std::string("moslam ") + MOSLAM_VERSION);
+}
 
 void Commands::add(Runner run) {
   runners_.emplace_back(app_.get_subcommands([](const CLI::App*) { return true; }).back(),

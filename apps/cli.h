@@ -24,7 +24,7 @@ using Runner = std::function<int()>;
 // The subcommands of one executable and what runs them.
 class Commands {
  public:
-  // `app` requires exactly one subcommand.
+  // `app` requires exactly one subcommand, or --version (prints "moslam <version>", exit 0).
   explicit Commands(CLI::App& app);
   // `run` runs the subcommand added to the app last.
   void add(Runner run);

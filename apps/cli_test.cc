@@ -114,6 +114,12 @@ TEST(Cli, FolderSolvesLikeItsFullGraph) {
               1e-9 * b["final_cost"].get<double>());
 }
 
+TEST(Cli, VersionNamesTheProjectsVersion) {
+  const CommandResult version = RunMoslam("--version");
+  EXPECT_EQ(version.exit_code, 0);
+  EXPECT_EQ(LastLine(version.out), std::string("moslam ") + MOSLAM_VERSION);
+}
+
 TEST(Cli, UsageErrorsAndMissingFiles) {
   EXPECT_NE(RunMoslam("solve").exit_code, 0);
   EXPECT_NE(RunMoslam("solve x.g2o --method newton").exit_code, 0);
