@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -10,10 +11,12 @@
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <string>
 
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/io/g2o.h"
 
 namespace {
 
@@ -352,6 +355,58 @@ TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
   EXPECT_EQ(k["retests"], 0);
   EXPECT_EQ(k["outliers"], 14);
   EXPECT_LT(k["bytes"].get<long long>(), j["bytes"].get<long long>());
+  fs::remove_all(dir);
+}
+
+// The largest distance between the positions of two estimates' poses (keys of `a`, all in `b`).
+double MaxPositionDifference(const moslam::Values& a, const moslam::Values& b) {
+  double worst = 0.0;
+  for (const auto& [key, pose] : a) {
+    worst = std::max(worst, (pose.translation() - b.at(key).translation()).norm());
+  }
+  return worst;
+}
+
+// `solve --robust`, the centralized reference of `dgs --robust`, on the spoiled blocks_world of
+// the test above: it rejects exactly the separators `spoil` wrote to outliers.txt, and the
+// estimate it writes is the clean folder's least-squares optimum; on the clean folder it rejects
+// nothing and equals least squares.
+TEST(CliSolve, RobustRejectsTheSpoiledSeparatorsAndReachesTheCleanOptimum) {
+  const fs::path dir = moslam::test::ScratchDir("solve_spoiled");
+  fs::remove_all(dir);
+  const fs::path spoiled = dir / "spoiled", robust_out = dir / "robust", clean_out = dir / "clean";
+  const CommandResult spoil = RunMoslam(
+      "spoil " + kBlocksWorld + "4robots --fraction 0.3 --seed 1 --out " + spoiled.string());
+  ASSERT_EQ(spoil.exit_code, 0) << spoil.out;
+  const std::string options = " --robust --gnc-threshold 1 --separator-test measurement --json";
+  const CommandResult r =
+      RunMoslam("solve " + spoiled.string() + options + " --out " + robust_out.string() + "/");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto robust = nlohmann::json::parse(LastLine(r.out))["robust"];
+  std::set<std::pair<std::string, std::string>> rejected, injected;
+  for (const auto& pair : robust["rejected"]) {
+    rejected.insert({pair[0].get<std::string>(), pair[1].get<std::string>()});
+  }
+  std::ifstream list(spoiled / "outliers.txt");
+  for (std::string a, b; list >> a >> b;) injected.insert({a, b});
+  EXPECT_EQ(injected.size(), 14u);
+  EXPECT_EQ(rejected, injected);
+  EXPECT_EQ(robust["outliers"], 14);
+
+  const CommandResult clean =
+      RunMoslam("solve " + kBlocksWorld + "4robots --json --out " + clean_out.string() + "/");
+  ASSERT_EQ(clean.exit_code, 0) << clean.out;
+  const moslam::Values clean_estimate = moslam::ReadG2o(clean_out.string()).initial;
+  ASSERT_EQ(clean_estimate.size(), 64u);
+  EXPECT_LE(MaxPositionDifference(clean_estimate, moslam::ReadG2o(robust_out.string()).initial),
+            1e-5);
+
+  const CommandResult on_clean = RunMoslam("solve " + kBlocksWorld + "4robots" + options);
+  ASSERT_EQ(on_clean.exit_code, 0) << on_clean.out;
+  const auto k = nlohmann::json::parse(LastLine(on_clean.out));
+  EXPECT_EQ(k["robust"]["outliers"], 0);
+  EXPECT_NEAR(k["final_cost"].get<double>(),
+              nlohmann::json::parse(LastLine(clean.out))["final_cost"].get<double>(), 1e-9);
   fs::remove_all(dir);
 }
 
