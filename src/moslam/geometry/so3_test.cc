@@ -38,6 +38,17 @@ TEST(SO3, LogOfRotationByPiHasNormPi) {
   EXPECT_NEAR(std::abs(w.x()), kPi, 1e-12);
 }
 
+TEST(SO3, VeeInvertsHatAndReadsTheCrossProduct) {
+  const Vector3 w(0.3, -1.2, 2.5);
+  EXPECT_EQ(SO3::Vee(SO3::Hat(w)), w);
+  const Vector3 v(-0.7, 0.4, 1.1);
+  EXPECT_LT((SO3::Hat(w) * v - w.cross(v)).norm(), 1e-15);
+  // The axis of a small rotation: (R - R^T) / 2 = Hat(sin(theta) axis).
+  const Vector3 small(1e-4, -2e-4, 3e-4);
+  const Matrix3 R = SO3::Exp(small).matrix();
+  EXPECT_LT((SO3::Vee((R - R.transpose()) / 2.0) - small).norm(), 1e-11);
+}
+
 TEST(SO3, ExpIsOrthonormal) {
   const SO3 R = SO3::Exp(Vector3(0.3, -2.0, 1.1));
   EXPECT_LT((R.matrix() * R.matrix().transpose() - Matrix3::Identity()).norm(), 1e-14);

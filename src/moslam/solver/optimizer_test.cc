@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <iterator>
+#include <map>
 #include <random>
 
 #include "moslam/common/errors.h"
@@ -74,6 +76,22 @@ TEST(Optimizer, ChordalInitialisationIsExactOnNoiseFreeGraphs) {
     EXPECT_LT(MaxPoseError(ChordalInitialization(s.graph, anchor, c), s.ground_truth), 1e-9);
   }
   EXPECT_LT(MaxPoseError(OdometryInitialization(s.graph, anchor), s.ground_truth), 1e-9);
+}
+
+// Stage 2 alone: given the true rotations, the translations of a noise-free graph are exact (the
+// anchor's translation as given); a rotation missing for a variable is an input error.
+TEST(Optimizer, TranslationsGivenTheTrueRotationsAreExact) {
+  SyntheticGraphOptions o;
+  o.num_robots = 2;
+  const SyntheticGraph s = MakeSyntheticGraph(o);
+  std::map<Key, SO3> rotations;
+  for (const auto& [key, pose] : s.ground_truth) rotations.emplace(key, pose.rotation());
+  const Key anchor = GaugeAnchor(s.graph);
+  const Values t =
+      TranslationsGivenRotations(s.graph, rotations, s.ground_truth.at(anchor).translation());
+  EXPECT_LT(MaxPoseError(t, s.ground_truth), 1e-9);
+  rotations.erase(std::prev(rotations.end()));
+  EXPECT_THROW(TranslationsGivenRotations(s.graph, rotations), InvalidInputError);
 }
 
 TEST(Optimizer, GaussNewtonAndLevenbergMarquardtReachTheSameMinimum) {
