@@ -8,6 +8,7 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/coarse_system.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/dgs_test_util.h"
@@ -103,6 +104,42 @@ INSTANTIATE_TEST_SUITE_P(Datasets, RefineSplit,
                            return std::string(param_info.param.first) + "_" +
                                   std::to_string(param_info.param.second);
                          });
+
+// A prior on a pose of a robot other than the gauge's enters both DGS stages (its rotation and
+// pose terms, robot_agent.cc) and the refinement as it enters the centralized solves: the
+// two-stage estimate is the centralized two-stage one, the refined one the optimum of the cost
+// with the prior; and the prior moves the estimate (so the test could fail).
+TEST(Refine, APriorOnAnotherRobotsPoseEntersEveryStage) {
+  SyntheticGraphOptions so;
+  so.num_robots = 3;
+  so.poses_per_robot = 12;
+  so.sigma_rotation = 0.03;
+  so.sigma_translation = 0.08;
+  so.seed = 8;
+  const SyntheticGraph sg = MakeSyntheticGraph(so);
+  PoseGraph with_prior = sg.graph;
+  const Key held = Key::Pose(2, 6);
+  const SE3 pulled = sg.ground_truth.at(held) *
+                     SE3::Exp((Vector6() << 0.05, -0.04, 0.08, 0.3, -0.2, 0.25).finished());
+  with_prior.add(PriorFactor(held, pulled, 400.0 * Matrix6::Identity()));
+
+  const TwoStageResult central = CentralizedTwoStage(with_prior, sg.ground_truth);
+  const TwoStageResult without = CentralizedTwoStage(sg.graph, sg.ground_truth);
+  EXPECT_GT(CompareEstimates(without.values, central.values).poses.ate, 1e-3);
+  DgsOptions tight;
+  tight.eta_rotation = tight.eta_pose = 1e-10;
+  tight.max_iterations = 20000;
+  const DgsResult two_stage = RunDgs(with_prior, sg.ground_truth, tight);
+  EXPECT_EQ(two_stage.pose.status, StageStatus::kConverged);
+  EXPECT_LE(CompareEstimates(two_stage.values, central.values).poses.ate, 1e-6);
+
+  const OptimizerResult gn = CentralizedGaussNewton(with_prior, sg.ground_truth);
+  ASSERT_EQ(gn.termination, TerminationStatus::kConverged);
+  const DgsResult refined = RunDgs(with_prior, sg.ground_truth, Refined());
+  EXPECT_EQ(refined.refine.status, StageStatus::kConverged);
+  EXPECT_LE(Relative(with_prior.cost(refined.values), gn.final_cost), kCostTolerance);
+  EXPECT_LE(CompareEstimates(refined.values, gn.values).poses.ate, 1e-4);
+}
 
 // One robot owning everything: each step's sweeps solve the whole system exactly, so the
 // refinement is centralized Gauss-Newton, iterate for iterate.
