@@ -252,8 +252,8 @@ ExperimentResult RunExperiment(const ExperimentConfig& config,
 RunMetrics MeanOf(const std::vector<RunMetrics>& runs);
 
 enum class TableKind { kAccuracy, kAssociation, kMemory, kScale, kPerception, kRobust };
-// "accuracy" | "association" | "memory" | "scale" | "perception"; throws InvalidInputError
-// otherwise.
+// "accuracy" | "association" | "memory" | "scale" | "perception" | "robust"; throws
+// InvalidInputError otherwise.
 TableKind TableKindFromString(const std::string& text);
 
 // One Markdown table, one row per result (its mean), with a header for `kind`.

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -69,6 +70,23 @@ TEST(SimulationExperiment, RobustSolveRejectsInjectedWrongAssociations) {
   EXPECT_LT(m.robust_ate_poses, 0.5 * m.ls_ate_poses);
   EXPECT_LT(m.robust_vs_free_ate, 0.1);
   EXPECT_GT(m.robust_extra_bytes, 0.0);
+
+  // Its row of `--table robust`: the configuration, then what the robust solve measured; "-"
+  // for the solve's cells of a least-squares row.
+  ExperimentResult r;
+  r.config = c;
+  r.runs = {m};
+  r.mean = MeanOf(r.runs);
+  const std::string table = FormatMarkdownTable({r}, TableKind::kRobust);
+  EXPECT_NE(table.find("| house | 2 | 5 | 0.20 | known | 0.5 | 1 (0) |"), std::string::npos)
+      << table;
+  char outliers[64];
+  std::snprintf(outliers, sizeof(outliers), "| %.3f / %.3f |", m.outlier_precision,
+                m.outlier_recall);
+  EXPECT_NE(table.find(outliers), std::string::npos) << table;
+  r.config.robust = false;
+  EXPECT_NE(FormatMarkdownTable({r}, TableKind::kRobust).find("| - | - | - | - | - |"),
+            std::string::npos);
 }
 
 // No wrong association anywhere (generated: the robots' own maps hold none; no injected pair):
