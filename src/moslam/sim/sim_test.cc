@@ -299,6 +299,28 @@ TEST(Robots, RendezvousWhenWithinRangeEveryMinGapSteps) {
   EXPECT_THROW(DetectRendezvous(t, c), InvalidInputError);
 }
 
+// Bad trajectory and rendezvous settings are input errors that name the field, before any work.
+TEST(Robots, BadConfigsThrowNamingTheField) {
+  const World world = MakeChairs25World();
+  auto trajectories = [&](auto change, const char* field) {
+    TrajectoryConfig t;
+    change(t);
+    return test::ThrowsNaming([&] { GenerateTrajectories(world, t); }, field);
+  };
+  EXPECT_TRUE(trajectories([](TrajectoryConfig& t) { t.step_length = 0.0; }, "step_length"));
+  EXPECT_TRUE(trajectories([](TrajectoryConfig& t) { t.poses_per_robot = 0; }, "poses_per_robot"));
+  EXPECT_TRUE(
+      trajectories([](TrajectoryConfig& t) { t.camera_height = std::nan(""); }, "camera_height"));
+  const std::vector<Trajectory> paths(2, Trajectory(3, SE3()));
+  RendezvousDetectionConfig r;
+  EXPECT_NO_THROW(DetectRendezvous(paths, r));
+  r.communication_range = -1.0;
+  EXPECT_TRUE(test::ThrowsNaming([&] { DetectRendezvous(paths, r); }, "communication_range"));
+  r = RendezvousDetectionConfig();
+  r.min_steps_between_events = 0;
+  EXPECT_TRUE(test::ThrowsNaming([&] { DetectRendezvous(paths, r); }, "min_steps_between_events"));
+}
+
 // ---------------------------------------------------------------------------------- sensing
 
 TEST(Sensing, CameraFrustumAndRange) {

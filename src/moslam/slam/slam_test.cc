@@ -679,6 +679,23 @@ TEST(Rendezvous, AlignmentAbsorbsDriftBeyondTheGate) {
   refined.max_correction_m = 1.0;
   AlignObjectMaps(t.alpha, prior, t.beta, refined, {}, {}, &inliers);
   EXPECT_EQ(inliers, 0);
+  // Settings no alignment can use are input errors naming the field.
+  auto refused = [&](auto change, const char* field) {
+    RendezvousConfig bad = paper;
+    change(bad);
+    return test::ThrowsNaming([&] { AlignObjectMaps(t.alpha, prior, t.beta, bad); }, field);
+  };
+  EXPECT_TRUE(refused([](RendezvousConfig& c) { c.max_correction_m = -1.0; }, "max_correction_m"));
+  EXPECT_TRUE(refused([](RendezvousConfig& c) { c.max_correction_deg = std::nan(""); },
+                      "max_correction_deg"));
+  EXPECT_TRUE(refused([](RendezvousConfig& c) { c.min_inliers = 0; }, "min_inliers"));
+  EXPECT_TRUE(refused([](RendezvousConfig& c) { c.lambda_sigma_translation = 0.0; },
+                      "lambda_sigma_translation"));
+  EXPECT_TRUE(refused(
+      [](RendezvousConfig& c) {
+        c.lambda_sigma_rotation_deg = std::numeric_limits<double>::infinity();
+      },
+      "lambda_sigma_rotation_deg"));
 }
 
 // Two maps of a grid of chairs (rows 2.5 m apart, columns 1.2 m, facing one way), beta's frame

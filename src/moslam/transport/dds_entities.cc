@@ -98,12 +98,6 @@ void Writer::write(const void* sample) {
   if (rc < 0) throw DdsError("write", rc);
 }
 
-int Writer::matchedReaders() const {
-  dds_publication_matched_status_t st;
-  if (dds_get_publication_matched_status(handle_, &st) < 0) return 0;
-  return static_cast<int>(st.current_count);
-}
-
 Reader::Reader(const Participant& participant, const Topic& topic, const Qos& qos)
     : Entity(Check(dds_create_reader(participant.get(), topic.get(), qos.get(), nullptr),
                    "create reader")) {}

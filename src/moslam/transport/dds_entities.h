@@ -93,8 +93,6 @@ class Writer : public Entity {
  public:
   Writer(const Participant& participant, const Topic& topic, const Qos& qos);
   void write(const void* sample);
-  // Number of matched readers now.
-  int matchedReaders() const;
 };
 
 class Reader : public Entity {
