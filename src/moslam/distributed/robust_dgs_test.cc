@@ -6,7 +6,9 @@
 #include <random>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/distributed/dgs_test_util.h"
+#include "moslam/distributed/separator_consistency.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
 #include "moslam/solver/initialization.h"
@@ -247,6 +249,47 @@ TEST(SeparatorConsistency, TheRunnerUpIsTheLargestConsistentSetOfTheLeftOut) {
   const RobustDgsResult without = RunRobustDgs(graph, truth, DefaultRobustFactors(graph), options);
   EXPECT_EQ(without.group_retests, 0);
   EXPECT_LT(without.weight_messages, r.weight_messages);
+}
+
+// What robot a reads from robot b for the check (b's estimates of the variables their separators
+// touch, and their covariance) is refused, naming the mismatch, unless it is exactly that; a map
+// asked for a variable it lacks refuses too. The well-formed message passes the three separators.
+TEST(SeparatorConsistency, APeersMessageThatDoesNotFitTheSeparatorsIsRefused) {
+  const Values truth = ThreeRobotTruth();
+  const PoseGraph graph = ThreeRobotGraph(truth, {{0, 1, SE3()}, {1, 0, SE3()}, {3, 5, SE3()}});
+  std::vector<RelativePoseFactor> separators;
+  for (const RelativePoseFactor& f : graph.factors()) {
+    if (f.a().robot == 0 && f.b().robot == 2) separators.push_back(f);
+  }
+  ASSERT_EQ(separators.size(), 3u);
+  const SeparatorCheckMap a_map(graph, 0, {}, GncOptions(), true);
+  const SeparatorCheckMap b_map(graph, 2, {}, GncOptions(), true);
+  const std::vector<Key> kb = SeparatorVariables(separators, 2);
+  ASSERT_EQ(kb.size(), 3u);
+  const Message sent = b_map.estimates(kb);
+  const Eigen::MatrixXd covariance = b_map.covariance(kb);
+  const SeparatorConsistencyOptions options;
+  EXPECT_EQ(ConsistentSeparators(separators, a_map, sent, covariance, options).largest, 3);
+
+  const Message fewer = b_map.estimates({kb[0], kb[1]});
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] { ConsistentSeparators(separators, a_map, fewer, covariance, options); },
+      "robot 2 sent robot 0 estimates of 2 variables for the 3"));
+  Message rotations = sent;
+  rotations.stage = DgsStage::kRotation;
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] { ConsistentSeparators(separators, a_map, rotations, covariance, options); },
+      "robot 2 sent robot 0 estimates"));
+  const Eigen::MatrixXd small = covariance.topLeftCorner(6, 6);
+  EXPECT_TRUE(
+      test::ThrowsNaming([&] { ConsistentSeparators(separators, a_map, sent, small, options); },
+                         "covariance of dimension 6 for 3 variables"));
+  SeparatorConsistencyOptions measurement_only = options;
+  measurement_only.map_uncertainty = false;  // the covariance is not read then
+  EXPECT_EQ(ConsistentSeparators(separators, a_map, sent, small, measurement_only).largest, 3);
+
+  EXPECT_TRUE(test::ThrowsNaming([&] { a_map.pose(kb[0]); }, "robot 0's map lacks"));
+  EXPECT_TRUE(test::ThrowsNaming([&] { a_map.estimates({kb[0]}); }, "robot 0's map lacks"));
 }
 
 // Object separators are associations, one to one: robot 1's landmark of one object wrongly paired
