@@ -8,6 +8,7 @@
 #include <string>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 
 namespace moslam {
 namespace {
@@ -294,12 +295,25 @@ TEST(SimulationExperiment, TableFormattingAndJson) {
 }
 
 TEST(SimulationExperiment, RejectsBadConfig) {
-  ExperimentConfig c = Tiny();
-  c.scenario = "moon";
-  EXPECT_THROW(c.validate(), InvalidInputError);
-  c = Tiny();
-  c.runs = 0;
-  EXPECT_THROW(c.validate(), InvalidInputError);
+  EXPECT_NO_THROW(Tiny().validate());
+  const double nan = std::nan("");
+  auto refused = [](auto change, const char* field) {
+    ExperimentConfig c = Tiny();
+    change(c);
+    return test::ThrowsNaming([&] { c.validate(); }, field);
+  };
+  using C = ExperimentConfig;
+  EXPECT_TRUE(refused([](C& c) { c.scenario = "moon"; }, "scenario"));
+  EXPECT_TRUE(refused([](C& c) { c.robots = 0; }, "robots"));
+  EXPECT_TRUE(refused([](C& c) { c.runs = 0; }, "runs"));
+  EXPECT_TRUE(refused([&](C& c) { c.sigma_rotation_deg = nan; }, "sigma_rotation_deg"));
+  EXPECT_TRUE(refused([](C& c) { c.sigma_translation = -0.1; }, "sigma_translation"));
+  EXPECT_TRUE(refused([](C& c) { c.outlier_fraction = 1.0; }, "outlier_fraction"));
+  EXPECT_TRUE(refused([](C& c) { c.gnc_threshold = -1.0; }, "gnc_threshold"));
+  EXPECT_TRUE(refused([&](C& c) { c.exclusion_radius = nan; }, "exclusion_radius"));
+  EXPECT_TRUE(refused([](C& c) { c.ambiguity_ratio = 1.0; }, "ambiguity_ratio"));
+  EXPECT_TRUE(refused([](C& c) { c.poses_per_robot = 1; }, "poses_per_robot"));
+  EXPECT_TRUE(refused([](C& c) { c.point_cloud.bytes_per_point = 0.0; }, "point-cloud model"));
   EXPECT_THROW(InformationModeFromString("unit"), InvalidInputError);
   EXPECT_EQ(InformationModeFromString("fixed"), InformationMode::kFixed);
   EXPECT_THROW(TableKindFromString("plots"), InvalidInputError);
