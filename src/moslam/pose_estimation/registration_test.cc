@@ -580,6 +580,52 @@ TEST(ObjectTemplate, SavesAndLoadsPcd) {
   EXPECT_THROW(LoadObjectTemplate(bad, "missing"), InvalidInputError);
 }
 
+// A template file whose points no template can be made of is refused naming the file and why:
+// no colour, a non-finite point, a normal that is not a unit vector, too few points.
+TEST(ObjectTemplate, RefusesPcdFilesNamingWhatIsWrong) {
+  const std::string path = std::string(MOSLAM_BINARY_DIR) + "/pose_template_refused.pcd";
+  // An ASCII PCD of `fields`, one point per line of `rows`.
+  auto write = [&](const std::string& fields, const std::vector<std::string>& rows) {
+    std::istringstream names(fields);
+    int n = 0;
+    for (std::string f; names >> f;) ++n;
+    std::string ones, fours, types;
+    for (int i = 0; i < n; ++i) {
+      ones += " 1";
+      fours += " 4";
+      types += " F";
+    }
+    std::ofstream out(path);
+    out << "# .PCD v0.7\nVERSION 0.7\nFIELDS " << fields << "\nSIZE" << fours << "\nTYPE" << types
+        << "\nCOUNT" << ones << "\nWIDTH " << rows.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0"
+        << "\nPOINTS " << rows.size() << "\nDATA ascii\n";
+    for (const std::string& r : rows) out << r << "\n";
+  };
+  // Points 10 cm apart on a line, facing +z (rgb 0: black).
+  auto line = [](int count, const std::string& normal) {
+    std::vector<std::string> rows;
+    for (int i = 0; i < count; ++i) rows.push_back(std::to_string(0.1 * i) + " 0 0 0 " + normal);
+    return rows;
+  };
+  const std::string all = "x y z rgb normal_x normal_y normal_z";
+  auto refused = [&](const std::string& why) {
+    return test::ThrowsNaming([&] { LoadObjectTemplate(path, "refused"); }, why);
+  };
+  write("x y z normal_x normal_y normal_z", {"0 0 0 0 0 1"});
+  EXPECT_TRUE(refused("lacks the field 'rgb'"));
+  std::vector<std::string> rows = line(40, "0 0 1");
+  rows[7] = "nan 0 0 0 0 0 1";
+  write(all, rows);
+  EXPECT_TRUE(refused("point 7 has a non-finite coordinate or normal"));
+  write(all, line(40, "0 0 2"));
+  EXPECT_TRUE(refused("is not a unit vector"));
+  write(all, line(3, "0 0 1"));
+  EXPECT_TRUE(refused("points after voxelling; need at least 10"));
+  write(all, {});
+  EXPECT_TRUE(refused(path));
+  std::remove(path.c_str());
+}
+
 TEST(ObjectTemplate, AssemblesFeaturesComputedElsewhereAndRefusesMismatches) {
   const ObjectTemplate& t = TestTemplate();
   const ObjectTemplate a =
