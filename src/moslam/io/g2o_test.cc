@@ -427,6 +427,19 @@ TEST(G2oReject, MissingFileNamesThePath) {
   }
 }
 
+// A folder given as a file and a file given as a folder: each reader says which it needs.
+TEST(G2oReject, AFolderAsAFileAndAFileAsAFolder) {
+  const fs::path dir = ScratchDir("folder_or_file");
+  const fs::path file = dir / "one.g2o";
+  std::ofstream(file) << kV0 + kV1 + kE01;
+  EXPECT_TRUE(test::ThrowsNaming<G2oParseError>([&] { ReadG2oFile(dir.string()); },
+                                                "is a folder, not a g2o file"));
+  EXPECT_TRUE(test::ThrowsNaming<G2oParseError>([&] { ReadG2oFolder(file.string()); },
+                                                "is not a folder of per-robot files"));
+  EXPECT_EQ(ReadG2o(file.string()).graph.factors().size(), 1u);
+  fs::remove_all(dir);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Writing
 
