@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 
 #include "moslam/common/errors.h"
 #include "moslam/common/scratch_dir_testing.h"
@@ -59,6 +60,18 @@ TEST(TumSequence, WriteReadRoundTrip) {
     EXPECT_EQ(cv::countNonZero(f.depth == 0.0f), cv::countNonZero(frames[i].rgbd.depth == 0.0f));
   }
   EXPECT_THROW(LoadTumFrame(s, 3), InvalidInputError);
+
+  // Images a frame cannot be made of are refused naming the file: an 8-bit depth image, a
+  // colour image of another size than the intrinsics', a missing image.
+  const fs::path depth0 = dir / s.frames[0].depth_file;
+  cv::imwrite(depth0.string(), cv::Mat(120, 160, CV_8UC1, cv::Scalar(7)));
+  EXPECT_TRUE(test::ThrowsNaming([&] { LoadTumFrame(s, 0); },
+                                 depth0.string() + ": depth must be a 16-bit single-channel PNG"));
+  cv::imwrite((dir / s.frames[1].rgb_file).string(), cv::Mat(60, 80, CV_8UC3, cv::Scalar(1, 2, 3)));
+  EXPECT_TRUE(test::ThrowsNaming([&] { LoadTumFrame(s, 1); },
+                                 "images are 80x60 / 160x120, the intrinsics say 160x120"));
+  fs::remove(dir / s.frames[2].rgb_file);
+  EXPECT_TRUE(test::ThrowsNaming([&] { LoadTumFrame(s, 2); }, "cannot read the colour image"));
 }
 
 // A hand-written sequence: association by nearest timestamp within the tolerance.
