@@ -24,19 +24,29 @@
 
 namespace moslam {
 
-// The file's bytes, or nullopt: no such file (`why_not` left empty), or one that cannot be read
-// (`why_not` names it and says why).
+// The file's bytes, or nullopt: no such file (`why_not` left empty), or one that cannot be read,
+// a folder among them (`why_not` names it and says why).
 inline std::optional<std::string> ReadWholeFile(const std::string& path,
                                                 std::string* why_not = nullptr) {
   if (why_not) why_not->clear();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return std::nullopt;
+  if (std::filesystem::is_directory(path, ec)) {
+    if (why_not) *why_not = path + ": is a folder, not a file";
+    return std::nullopt;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     if (why_not) *why_not = path + ": cannot be opened";
     return std::nullopt;
   }
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string bytes;
+  try {  // libstdc++'s filebuf throws from a failed read(2) (EIO, EISDIR) rather than set badbit
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  } catch (const std::ios_base::failure& e) {
+    if (why_not) *why_not = path + ": read error: " + e.what();
+    return std::nullopt;
+  }
   if (in.bad()) {
     if (why_not) *why_not = path + ": read error";
     return std::nullopt;

@@ -44,6 +44,31 @@ std::vector<std::string> Entries(const std::filesystem::path& dir) {
   return names;
 }
 
+// What cannot be read or written is said, naming the path, and a failed write leaves nothing
+// behind: a folder read as a file; a file written where a file stands in the way of its folder,
+// or where a folder stands.
+TEST(WholeFile, ReadAndWriteFailuresNameThePathAndLeaveNothing) {
+  const std::filesystem::path dir = test::ScratchDir("failures");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "a_folder");
+  std::string why;
+  EXPECT_FALSE(ReadWholeFile((dir / "a_folder").string(), &why).has_value());
+  EXPECT_EQ(why, (dir / "a_folder").string() + ": is a folder, not a file");
+  EXPECT_TRUE(test::ThrowsNaming([&] { ReadWholeFileOrThrow((dir / "a_folder").string()); },
+                                 (dir / "a_folder").string()));
+
+  WriteWholeFile((dir / "a_file").string(), "x", "test");
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] { WriteWholeFile((dir / "a_file" / "inside.bin").string(), "y", "writer"); },
+      "writer: cannot create '" + (dir / "a_file").string() + "'"));
+  EXPECT_TRUE(
+      test::ThrowsNaming([&] { WriteWholeFile((dir / "a_folder").string(), "z", "writer"); },
+                         "writer: cannot rename into '" + (dir / "a_folder").string() + "'"));
+  EXPECT_EQ(Entries(dir), (std::vector<std::string>{"a_file", "a_folder"}));
+  EXPECT_EQ(ReadWholeFileOrThrow((dir / "a_file").string()), "x");
+  std::filesystem::remove_all(dir);
+}
+
 TEST(ReplaceDirectory, PutsTheNewFolderInPlaceOfTheOldAndLeavesNothingElse) {
   const std::filesystem::path dir = test::ScratchDir();
   FolderWith(dir / "map", "old.g2o", "old");

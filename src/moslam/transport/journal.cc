@@ -1,14 +1,12 @@
 #include "moslam/transport/journal.h"
 
-
 #include <array>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 
 namespace moslam {
 namespace {
@@ -42,12 +40,11 @@ std::uint32_t Crc32(const std::uint8_t* data, std::size_t size) {
 }
 
 Journal::Journal(const std::string& path) : path_(path) {
-  std::vector<std::uint8_t> bytes;
-  if (std::filesystem::exists(path_)) {
-    std::ifstream in(path_, std::ios::binary);
-    if (!in) throw Error("journal " + path_ + ": cannot be read");
-    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  }
+  std::string why;
+  const std::optional<std::string> text = ReadWholeFile(path_, &why);
+  if (!text && !why.empty()) throw Error("journal " + why);
+  const std::vector<std::uint8_t> bytes =
+      text ? std::vector<std::uint8_t>(text->begin(), text->end()) : std::vector<std::uint8_t>();
   std::size_t good = 0;
   while (bytes.size() - good >= 8) {
     const std::uint32_t length = ReadU32(bytes.data() + good);
@@ -59,7 +56,11 @@ Journal::Journal(const std::string& path) : path_(path) {
     good += 8 + length;
   }
   truncated_ = static_cast<std::int64_t>(bytes.size() - good);
-  if (truncated_ > 0) std::filesystem::resize_file(path_, good);
+  if (truncated_ > 0) {
+    std::error_code ec;
+    std::filesystem::resize_file(path_, good, ec);
+    if (ec) throw Error("journal " + path_ + ": cannot cut its torn tail (" + ec.message() + ")");
+  }
   file_ = std::fopen(path_.c_str(), "ab");
   if (!file_) {
     throw Error("journal " + path_ + ": cannot be opened for writing (" +

@@ -1,23 +1,24 @@
 // The in-process transport (delivery, history for late joiners, cuts, validation of received
 // packets) and the journal (records survive a reopen; a torn tail is cut).
-#include <gtest/gtest.h>
+#include "moslam/transport/transport.h"
 
-#include <functional>
+#include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 
 #include "moslam/common/errors.h"
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/journal.h"
 #include "moslam/transport/solve_record.h"
 #include "moslam/transport/step_record.h"
-#include "moslam/transport/transport.h"
 
 namespace moslam {
 namespace {
@@ -586,6 +587,15 @@ TEST_F(JournalTest, StopsAtACorruptRecord) {
   Journal j(path_.string());
   EXPECT_TRUE(j.records().empty());
   EXPECT_EQ(j.truncatedBytes(), 2 * (8 + 3));
+}
+
+// A journal path that is a folder (a robot's --state-dir given where its journal file goes) is
+// an error of the library's own type naming it, not an I/O exception of the standard library.
+TEST_F(JournalTest, AFolderIsRefusedNamingIt) {
+  std::filesystem::create_directories(path_);
+  EXPECT_TRUE(test::ThrowsNaming<Error>([&] { Journal j(path_.string()); },
+                                        path_.string() + ": is a folder, not a file"));
+  std::filesystem::remove_all(path_);
 }
 
 TEST(Crc32, MatchesTheStandardCheckValue) {
