@@ -123,6 +123,23 @@ TEST(Cli, VersionNamesTheProjectsVersion) {
   EXPECT_EQ(LastLine(version.out), std::string("moslam ") + MOSLAM_VERSION);
 }
 
+// Where an output folder cannot be made (a file in its way), the command says so as an input
+// error, not as an internal one.
+TEST(Cli, AnOutputFolderBlockedByAFileIsAnInputError) {
+  const fs::path dir = moslam::test::ScratchDir("blocked_out");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path file = dir / "a_file";
+  std::ofstream(file) << "x";
+  const CommandResult r = RunMoslam("solve " MOSLAM_DATASETS_DIR "/pgo/smallGrid3D.g2o --out " +
+                                    (file / "result.g2o").string());
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("moslam: error: solve --out: cannot create '" + file.string() + "'"),
+            std::string::npos)
+      << r.out;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, UsageErrorsAndMissingFiles) {
   EXPECT_NE(RunMoslam("solve").exit_code, 0);
   EXPECT_NE(RunMoslam("solve x.g2o --method newton").exit_code, 0);

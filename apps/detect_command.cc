@@ -16,6 +16,7 @@
 #include "commands.h"
 #include "detector_flags.h"
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/detection/detector.h"
 #include "moslam/detection/evaluation.h"
 #include "moslam/detection/yolo_dataset.h"
@@ -212,7 +213,7 @@ int RunOnDataset(const DetectArgs& a) {
   eo.confidence_threshold = a.detector.threshold;
   DetectionEvaluator evaluator(data.class_names, eo);    // strict: labels only
   DetectionEvaluator with_ignore(data.class_names, eo);  // plus DIR/ignore/ regions
-  if (!a.annotate.empty()) std::filesystem::create_directories(a.annotate);
+  if (!a.annotate.empty()) CreateFolder(a.annotate, "detect --annotate");
   std::vector<double> times;
   for (const YoloSample& s : data.samples) {
     cv::Mat img = ReadImage(s.image_path);

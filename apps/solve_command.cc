@@ -6,14 +6,15 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
-#include "robust_flags.h"
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
+#include "moslam/distributed/robust_dgs.h"
 #include "moslam/io/g2o.h"
 #include "moslam/io/tum.h"
-#include "moslam/distributed/robust_dgs.h"
 #include "moslam/robust/gnc.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/optimizer.h"
+#include "robust_flags.h"
 
 namespace moslam::cli {
 namespace {
@@ -90,7 +91,7 @@ void WriteEstimate(const SolveArgs& a, const Dataset& data, const Values& values
       WriteG2oFolder(a.out, data.graph, values, w);
     } else {
       const auto parent = std::filesystem::path(a.out).parent_path();
-      if (!parent.empty()) std::filesystem::create_directories(parent);
+      if (!parent.empty()) CreateFolder(parent, "solve --out");
       WriteG2oFile(a.out, data.graph, values, w);
     }
   }

@@ -15,6 +15,7 @@
 #include "child_processes.h"
 #include "commands.h"
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/partition.h"
 #include "moslam/distributed/robust_dgs.h"
@@ -71,7 +72,7 @@ std::map<int, int> RunRobotProcesses(const std::vector<std::vector<std::string>>
   std::map<pid_t, int> children;
   for (int r = 0; r < n; ++r) {
     const fs::path dir = out / fmt::format("robot{}", r);
-    fs::create_directories(dir);
+    CreateFolder(dir, "team");
     children[SpawnSelf(argvs[static_cast<std::size_t>(r)], dir / "log.txt")] = r;
   }
   return WaitForChildren(children, Ms(timeout));
@@ -623,7 +624,7 @@ int RunScenarioTeam(const TeamArgs& a) {
                            ? fs::temp_directory_path() / fmt::format("moslam_team_{}", ::getpid())
                            : fs::path(a.out);
   CheckScenarioFlags("team", a.online, spec);
-  fs::create_directories(out);
+  CreateFolder(out, "team --out");
   if (a.online) return RunOnlineTeam(a, spec, flags, out);
   return RunBatchScenarioTeam(a, spec, flags, out);
 }
@@ -636,7 +637,7 @@ int RunTeam(const TeamArgs& args) {
   const fs::path out = a.out.empty() ? fs::temp_directory_path() /
                                            fmt::format("moslam_team_{}", ::getpid())
                                      : fs::path(a.out);
-  fs::create_directories(out);
+  CreateFolder(out, "team --out");
   if (fs::is_regular_file(a.data)) {
     // A single-robot file: split into --robots contiguous blocks of poses, one file each.
     if (a.robots < 1) throw InvalidInputError("team: a single g2o file needs --robots N");

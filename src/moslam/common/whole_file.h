@@ -79,16 +79,30 @@ auto ReadDecodedFile(const std::string& path, std::string* why_not, Decode&& dec
   }
 }
 
+// Creates the folder `dir` and its parents (nothing when they exist). Throws InvalidInputError,
+// prefixed with `who`, naming the folder and why when it cannot (a file in the way, no right),
+// where std::filesystem would throw its own filesystem_error.
+inline void CreateFolder(const std::filesystem::path& dir, const std::string& who) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw InvalidInputError(who + ": cannot create '" + dir.string() + "': " + ec.message());
+}
+
+// Removes `path` and all it holds (nothing when it does not exist). Throws Error, prefixed with
+// `who`, naming it and why when it cannot.
+inline void RemoveAll(const std::filesystem::path& path, const std::string& who) {
+  std::error_code ec;
+  std::filesystem::remove_all(path, ec);
+  if (ec) throw Error(who + ": cannot remove '" + path.string() + "': " + ec.message());
+}
+
 // Writes `bytes` to `path`, creating its folder. Throws InvalidInputError, prefixed with `who`,
 // naming the path when it cannot; the target is then unchanged.
 inline void WriteWholeFile(const std::string& path, std::string_view bytes,
                            const std::string& who) {
   std::error_code ec;
   const std::filesystem::path dir = std::filesystem::path(path).parent_path();
-  if (!dir.empty()) {
-    std::filesystem::create_directories(dir, ec);
-    if (ec) throw InvalidInputError(who + ": cannot create '" + dir.string() + "': " + ec.message());
-  }
+  if (!dir.empty()) CreateFolder(dir, who);
   const std::string tmp = path + ".tmp" + std::to_string(::getpid());
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);

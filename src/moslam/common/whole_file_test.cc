@@ -66,6 +66,15 @@ TEST(WholeFile, ReadAndWriteFailuresNameThePathAndLeaveNothing) {
                          "writer: cannot rename into '" + (dir / "a_folder").string() + "'"));
   EXPECT_EQ(Entries(dir), (std::vector<std::string>{"a_file", "a_folder"}));
   EXPECT_EQ(ReadWholeFileOrThrow((dir / "a_file").string()), "x");
+  // Folders: created with their parents, or an error of the library's type naming the one in the
+  // way (std::filesystem's own would escape as filesystem_error).
+  CreateFolder(dir / "new" / "deeper", "test");
+  EXPECT_TRUE(std::filesystem::is_directory(dir / "new" / "deeper"));
+  EXPECT_TRUE(test::ThrowsNaming([&] { CreateFolder(dir / "a_file" / "sub", "maker"); },
+                                 "maker: cannot create '" + (dir / "a_file" / "sub").string()));
+  RemoveAll(dir / "new", "test");
+  RemoveAll(dir / "never_there", "test");
+  EXPECT_FALSE(std::filesystem::exists(dir / "new"));
   std::filesystem::remove_all(dir);
 }
 

@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/distributed/robot_agent.h"
 #include "moslam/io/g2o.h"
 #include "moslam/transport/group_formation.h"
@@ -171,7 +172,7 @@ class DgsNode::Impl final : public TeamChannel {
       if (k.isObject()) g2o_options_.scheme = KeyScheme::kWithObjects;
     }
     if (!options_.state_dir.empty()) {
-      std::filesystem::create_directories(options_.state_dir);
+      CreateFolder(options_.state_dir, "DGS node state");
       const std::uint64_t fingerprint =
           RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_,
                          options_.separator_check, options_.checked, options_.retest_left_out,

@@ -129,11 +129,11 @@ std::optional<SessionSolve> OnlineGroupSolves::solve(ObjectSlam& slam, int t) {
                                       "its first step",
                                       t));
       }
-      if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);
+      if (!solve_dir.empty()) RemoveAll(solve_dir, "group solve");
     }
   }
   const SolveRecord done = recordSolved(slam, t, robots, *part, *result);
-  if (!solve_dir.empty()) std::filesystem::remove_all(solve_dir);  // the record replaces it
+  if (!solve_dir.empty()) RemoveAll(solve_dir, "group solve");  // the record replaces it
   return finish(slam, t, robots, done, transport.stats() - before, t0, false);
 }
 
@@ -304,8 +304,8 @@ void SaveSessionMap(const std::string& state_dir, const ObjectSlam& slam, const 
   if (state_dir.empty()) return;
   const std::filesystem::path dir = std::filesystem::path(state_dir) / "maps";
   const std::filesystem::path tmp = dir / (name + ".tmp"), final_dir = dir / name;
-  std::filesystem::remove_all(tmp);
-  std::filesystem::create_directories(tmp);
+  RemoveAll(tmp, "robot map");
+  CreateFolder(tmp, "robot map");
   G2oWriteOptions write;
   write.scheme = KeyScheme::kWithObjects;
   WriteG2oFile((tmp / "map.g2o").string(), slam.graph(), slam.estimate(), write);

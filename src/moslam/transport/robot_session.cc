@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/sim/world.h"
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/event_record.h"
@@ -279,7 +280,7 @@ class RobotSession::Impl {
   // without a state directory.
   std::unique_ptr<transport_detail::SessionJournal> openJournal() const {
     if (options_.dgs.state_dir.empty()) return nullptr;
-    std::filesystem::create_directories(options_.dgs.state_dir);
+    CreateFolder(options_.dgs.state_dir, "robot state");
     transport_detail::SessionJournalRun run;
     run.robot = robot_;
     run.fingerprint = transport_detail::SessionFingerprint(data_, options_);
