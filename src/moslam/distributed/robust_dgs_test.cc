@@ -245,6 +245,13 @@ TEST(SeparatorConsistency, TheRunnerUpIsTheLargestConsistentSetOfTheLeftOut) {
     EXPECT_EQ(r.weights[first + k] > 0.5, k < 4) << "separator " << k;
   }
   EXPECT_LT(MaxPoseDifference(r.values, truth), 1e-6);
+  // The centralized reference re-tests the same group and makes the same decisions.
+  const GncResult central = SolveRobustCentralized(
+      graph, [&](const PoseGraph&) { return truth; }, DefaultRobustFactors(graph), options);
+  for (std::size_t i = 0; i < r.weights.size(); ++i) {
+    EXPECT_EQ(central.weights[i] < 0.5, r.weights[i] < 0.5) << "factor " << i;
+  }
+  EXPECT_LT(MaxPoseDifference(central.values, truth), 1e-6);
   options.retest_groups = false;
   const RobustDgsResult without = RunRobustDgs(graph, truth, DefaultRobustFactors(graph), options);
   EXPECT_EQ(without.group_retests, 0);
