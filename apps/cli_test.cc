@@ -770,6 +770,16 @@ TEST(CliDetect, EvaluatesARenderedDatasetAndDetectsOnAnImage) {
   EXPECT_GT(ignore["ignore_boxes"].get<int>(), 0);
   EXPECT_GE(ignore["precision"].get<double>(), m["precision"].get<double>());
   EXPECT_EQ(ignore["recall"], m["recall"]);
+  // Without --json: the same counts as a table per protocol.
+  const CommandResult table = RunMoslam("detect --data " + dir.string());
+  ASSERT_EQ(table.exit_code, 0) << table.out;
+  EXPECT_NE(table.out.find("strict (every detection that matches no label"), std::string::npos)
+      << table.out;
+  EXPECT_NE(table.out.find("with ignore regions"), std::string::npos) << table.out;
+  char all[64];
+  std::snprintf(all, sizeof(all), "%6d %6d", m["true_positives"].get<int>(),
+                m["false_positives"].get<int>());
+  EXPECT_NE(table.out.find(all), std::string::npos) << all << " not in\n" << table.out;
 
   const fs::path annotated = dir / "annotated.png";
   const CommandResult image =
@@ -826,6 +836,16 @@ TEST(CliPerceive, EvaluatesThePosesAgainstTheWorldAndWritesEveryFrame) {
   int images = 0;
   for ([[maybe_unused]] const auto& entry : fs::directory_iterator(annotated)) ++images;
   EXPECT_EQ(images, 3);
+  // Without --json: the summary's counts and errors in words.
+  const CommandResult words = RunMoslam("perceive " + (dir / "robot0").string() + " --world " +
+                                        (dir / "world.json").string() + " --template-cache none");
+  ASSERT_EQ(words.exit_code, 0) << words.out;
+  EXPECT_NE(
+      words.out.find("3 frames, " + std::to_string(s["detections"].get<int>()) + " detections, " +
+                     std::to_string(s["accepted"].get<int>()) + " accepted"),
+      std::string::npos)
+      << words.out;
+  EXPECT_NE(words.out.find("pose error against ground truth"), std::string::npos) << words.out;
   fs::remove_all(dir);
 }
 
