@@ -743,6 +743,13 @@ TEST(CliExecutables, PerceptionAndRobotCommandsRunThroughMoslam) {
       << committed.out;
 }
 
+// `moslam render` of one robot's first `poses` views of chairs25 into `dir` (`format`: yolo or
+// tum).
+CommandResult RenderChairs25(const fs::path& dir, const std::string& format, int poses) {
+  return RunMoslam("render --scenario chairs25 --robots 1 --poses " + std::to_string(poses) +
+                   " --format " + format + " --out " + dir.string());
+}
+
 // `detect` on rendered frames (a YOLO-layout dataset `render` writes, with ignore regions): the
 // evaluation's counts agree with its precision and recall, the committed detector finds most
 // chairs (0.84 / 0.84 strict, 0.93 / 0.84 with the ignore regions on this seed, measured), and
@@ -750,10 +757,7 @@ TEST(CliExecutables, PerceptionAndRobotCommandsRunThroughMoslam) {
 TEST(CliDetect, EvaluatesARenderedDatasetAndDetectsOnAnImage) {
   const fs::path dir = moslam::test::ScratchDir("detect");
   fs::remove_all(dir);
-  const CommandResult render = RunMoslam(
-      "render --scenario chairs25 --robots 1 --poses 4 "
-      "--format yolo --out " +
-      dir.string());
+  const CommandResult render = RenderChairs25(dir, "yolo", 4);
   ASSERT_EQ(render.exit_code, 0) << render.out;
   const CommandResult data = RunMoslam("detect --data " + dir.string() + " --json");
   ASSERT_EQ(data.exit_code, 0) << data.out;
@@ -804,10 +808,7 @@ TEST(CliDetect, EvaluatesARenderedDatasetAndDetectsOnAnImage) {
 TEST(CliPerceive, EvaluatesThePosesAgainstTheWorldAndWritesEveryFrame) {
   const fs::path dir = moslam::test::ScratchDir("perceive_world");
   fs::remove_all(dir);
-  const CommandResult render = RunMoslam(
-      "render --scenario chairs25 --robots 1 --poses 3 "
-      "--format tum --out " +
-      dir.string());
+  const CommandResult render = RenderChairs25(dir, "tum", 3);
   ASSERT_EQ(render.exit_code, 0) << render.out;
   const fs::path out = dir / "perceived.json", annotated = dir / "annotated";
   const CommandResult r =
@@ -854,8 +855,7 @@ TEST(CliPerceive, EvaluatesThePosesAgainstTheWorldAndWritesEveryFrame) {
 TEST(CliPerceive, TakesTheDetectorsOperatingPoint) {
   const fs::path dir = moslam::test::ScratchDir("perceive");
   fs::remove_all(dir);
-  const CommandResult render = RunMoslam("render --scenario chairs25 --robots 1 --poses 1 "
-                                         "--format tum --out " + dir.string());
+  const CommandResult render = RenderChairs25(dir, "tum", 1);
   ASSERT_EQ(render.exit_code, 0) << render.out;
   const std::string seq = (dir / "robot0").string();
   const CommandResult fallback = RunMoslam("perceive " + seq + " --template-cache none --json");
