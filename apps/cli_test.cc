@@ -592,6 +592,15 @@ TEST(CliSimulate, BadInputExitsOneWithAClearMessage) {
   EXPECT_NE(mismatch.out.find("--sigma-trans"), std::string::npos) << mismatch.out;
   EXPECT_NE(RunMoslam("simulate --scenario mars").exit_code, 0);
   EXPECT_NE(RunMoslam("simulate --robots 0").exit_code, 0);
+  // A plot that cannot be written is refused before the runs (10 of house's would take a minute).
+  const std::string runs = "simulate --scenario house --robots 6 --runs 10 --plot ";
+  const CommandResult no_folder = RunMoslam(runs + "/nonexistent/moslam/plot.svg");
+  EXPECT_EQ(no_folder.exit_code, 1) << no_folder.out;
+  EXPECT_NE(no_folder.out.find("no folder '/nonexistent/moslam' to write it in"), std::string::npos)
+      << no_folder.out;
+  const CommandResult folder = RunMoslam(runs + moslam::test::ScratchDir("plot_folder").string());
+  EXPECT_EQ(folder.exit_code, 1) << folder.out;
+  EXPECT_NE(folder.out.find("is a folder; give a file name"), std::string::npos) << folder.out;
 }
 
 // --detection-log: every detection of every run as a JSON line, with its ground-truth evaluation;

@@ -29,8 +29,10 @@ SplitGraph SplitIntoRobots(const PoseGraph& graph, const Values& initial, int nu
   }
   const int n = static_cast<int>(keys.size());
   if (num_robots < 1 || num_robots > n) {
-    throw InvalidInputError("split into robots: cannot split " + std::to_string(n) +
-                            " poses among " + std::to_string(num_robots) + " robots");
+    throw InvalidInputError("split into robots: the factors join " + std::to_string(n) +
+                            " poses (vertices without a factor do not count): cannot split them "
+                            "among " +
+                            std::to_string(num_robots) + " robots");
   }
   SplitGraph out;
   std::map<Key, Key> new_key;
