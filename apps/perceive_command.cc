@@ -17,6 +17,7 @@
 // label: world_T_camera * camera_T_object vs world_T_object. A progress bar goes to stderr when
 // it is a terminal (one line per 10% otherwise).
 #include <fmt/core.h>
+#include <pcl/console/print.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -30,13 +31,13 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <pcl/console/print.h>
 #include <string>
 #include <vector>
 
 #include "commands.h"
 #include "detector_flags.h"
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/perception/object_perception.h"
 #include "moslam/render/tum_sequence.h"
 
@@ -365,11 +366,7 @@ int RunPerceive(const PerceiveArgs& a) {
   const TumSequence sequence = ReadTumSequence(a.sequence);
   std::optional<World> world;
   if (!a.world.empty()) world = LoadWorld(a.world);
-  if (!a.annotate.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(a.annotate, ec);
-    if (ec) throw Error("perceive: cannot create '" + a.annotate + "': " + ec.message());
-  }
+  if (!a.annotate.empty()) CreateFolder(a.annotate, "perceive --annotate");
   ObjectPerception perception(PerceiveConfig(a), world ? world->classes : StandardObjectClasses());
 
   const std::vector<std::size_t> frames = FramesToPerceive(sequence, a);

@@ -21,6 +21,7 @@
 
 #include "commands.h"
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/render/dataset_export.h"
 #include "moslam/render/renderer.h"
 #include "moslam/render/tum_sequence.h"
@@ -117,9 +118,7 @@ void WriteYolo(const RenderArgs& a, const Renderer& renderer, const ScenarioView
 void WriteTum(const RenderArgs& a, const Renderer& renderer, const ScenarioViews& views) {
   using Clock = std::chrono::steady_clock;
   namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(a.out, ec);
-  if (ec) throw Error("cannot create '" + a.out + "': " + ec.message());
+  CreateFolder(a.out, "render --out");
   SaveWorld((fs::path(a.out) / "world.json").string(), views.world);
   double render_seconds = 0.0;
   int frames = 0;

@@ -24,6 +24,7 @@
 #include <utility>
 
 #include "moslam/common/number_text.h"
+#include "moslam/common/whole_file.h"
 
 namespace moslam {
 namespace {
@@ -753,9 +754,8 @@ void WriteG2oFolder(const std::string& dir, const PoseGraph& graph, const Values
     }
   }
 
+  CreateFolder(dir, "WriteG2oFolder");
   std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw Error("cannot create folder '" + dir + "': " + ec.message());
   // A stale k.g2o with k >= N would be read back as part of this dataset.
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const long long index = RobotFileIndex(it->path().filename().string());

@@ -18,6 +18,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/common/number_text.h"
+#include "moslam/common/whole_file.h"
 
 namespace moslam {
 namespace {
@@ -74,9 +75,7 @@ void WriteTrajectory(const std::string& path,
 }  // namespace
 
 std::vector<std::string> WriteTumTrajectories(const std::string& dir, const Values& values) {
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw Error("cannot create folder '" + dir + "': " + ec.message());
+  CreateFolder(dir, "WriteTumTrajectories");
   // Values is ordered by robot, then poses before objects, then index.
   std::vector<std::string> written;
   auto it = values.begin();

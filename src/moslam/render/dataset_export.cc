@@ -1,15 +1,17 @@
 #include "moslam/render/dataset_export.h"
 
+#include <fmt/core.h>
+
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <fmt/core.h>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/sim/robots.h"
 
 namespace moslam {
@@ -130,12 +132,8 @@ void WriteLines(const std::string& path, const std::vector<std::string>& lines) 
 // The dataset's folders (images, labels, ignore) and its classes.txt.
 void PrepareDatasetFolder(const std::string& dir, const std::vector<ObjectClass>& classes) {
   namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(fs::path(dir) / "images", ec);
-  fs::create_directories(fs::path(dir) / "labels", ec);
-  if (!ec) fs::create_directories(fs::path(dir) / "ignore", ec);
-  if (ec) {
-    throw Error("cannot create '" + dir + "/images', '/labels' and '/ignore': " + ec.message());
+  for (const char* folder : {"images", "labels", "ignore"}) {
+    CreateFolder(fs::path(dir) / folder, "YOLO dataset");
   }
   std::ofstream f(fs::path(dir) / "classes.txt");
   for (const auto& c : classes) f << c.label << "\n";

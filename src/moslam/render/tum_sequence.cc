@@ -298,10 +298,8 @@ TumSequenceWriter::TumSequenceWriter(const std::string& directory,
   if (!(depth_scale > 0.0) || !std::isfinite(depth_scale)) {
     throw InvalidInputError("TumSequenceWriter: depth_scale must be positive and finite");
   }
-  std::error_code ec;
-  fs::create_directories(fs::path(dir_) / "rgb", ec);
-  fs::create_directories(fs::path(dir_) / "depth", ec);
-  if (ec) throw Error("cannot create '" + dir_ + "/rgb' and '/depth': " + ec.message());
+  CreateFolder(fs::path(dir_) / "rgb", "TumSequenceWriter");
+  CreateFolder(fs::path(dir_) / "depth", "TumSequenceWriter");
   std::ofstream cam(fs::path(dir_) / "camera.txt");
   cam << "# pinhole intrinsics (pixels) and depth PNG units per metre\n"
       << "# fx fy cx cy width height depth_scale\n"

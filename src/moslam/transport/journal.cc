@@ -4,6 +4,9 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <optional>
+#include <string>
+#include <utility>
 
 #include "moslam/common/errors.h"
 #include "moslam/common/whole_file.h"
@@ -41,16 +44,16 @@ std::uint32_t Crc32(const std::uint8_t* data, std::size_t size) {
 
 Journal::Journal(const std::string& path) : path_(path) {
   std::string why;
-  const std::optional<std::string> text = ReadWholeFile(path_, &why);
+  std::optional<std::string> text = ReadWholeFile(path_, &why);
   if (!text && !why.empty()) throw Error("journal " + why);
-  const std::vector<std::uint8_t> bytes =
-      text ? std::vector<std::uint8_t>(text->begin(), text->end()) : std::vector<std::uint8_t>();
+  const std::string bytes = text ? std::move(*text) : std::string();
+  const auto* data = reinterpret_cast<const std::uint8_t*>(bytes.data());
   std::size_t good = 0;
   while (bytes.size() - good >= 8) {
-    const std::uint32_t length = ReadU32(bytes.data() + good);
-    const std::uint32_t crc = ReadU32(bytes.data() + good + 4);
+    const std::uint32_t length = ReadU32(data + good);
+    const std::uint32_t crc = ReadU32(data + good + 4);
     if (length > kMaxJournalRecord || bytes.size() - good - 8 < length) break;
-    const std::uint8_t* payload = bytes.data() + good + 8;
+    const std::uint8_t* payload = data + good + 8;
     if (Crc32(payload, length) != crc) break;
     records_.emplace_back(payload, payload + length);
     good += 8 + length;
