@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
-#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +16,7 @@
 
 #include "moslam/common/scratch_dir_testing.h"
 #include "moslam/io/g2o.h"
+#include "moslam/metrics/metrics.h"
 
 namespace {
 
@@ -375,15 +375,6 @@ TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
   fs::remove_all(dir);
 }
 
-// The largest distance between the positions of two estimates' poses (keys of `a`, all in `b`).
-double MaxPositionDifference(const moslam::Values& a, const moslam::Values& b) {
-  double worst = 0.0;
-  for (const auto& [key, pose] : a) {
-    worst = std::max(worst, (pose.translation() - b.at(key).translation()).norm());
-  }
-  return worst;
-}
-
 // `solve --robust`, the centralized reference of `dgs --robust`, on the spoiled blocks_world of
 // the test above: it rejects exactly the separators `spoil` wrote to outliers.txt, and the
 // estimate it writes is the clean folder's least-squares optimum; on the clean folder it rejects
@@ -415,7 +406,7 @@ TEST(CliSolve, RobustRejectsTheSpoiledSeparatorsAndReachesTheCleanOptimum) {
   ASSERT_EQ(clean.exit_code, 0) << clean.out;
   const moslam::Values clean_estimate = moslam::ReadG2o(clean_out.string()).initial;
   ASSERT_EQ(clean_estimate.size(), 64u);
-  EXPECT_LE(MaxPositionDifference(clean_estimate, moslam::ReadG2o(robust_out.string()).initial),
+  EXPECT_LE(moslam::MaxPoseDifference(moslam::ReadG2o(robust_out.string()).initial, clean_estimate),
             1e-5);
 
   const CommandResult on_clean = RunMoslam("solve " + kBlocksWorld + "4robots" + options);
