@@ -177,6 +177,22 @@ TEST(Cli, AFileOfVerticesAloneHasNothingToSolve) {
   EXPECT_NE(r.out.find("the graph has no factors"), std::string::npos) << r.out;
 }
 
+TEST(CliDgs, AGraphItsMeasurementsFitExactlyReportsNoCostRatio) {
+  const fs::path exact = moslam::test::ScratchDir("exact_fit") / "exact_fit.g2o";
+  std::ofstream(exact) << kV << Edge("0 1");  // the edge is the vertices' relative pose
+  const CommandResult text = RunMoslam("dgs " + exact.string() + " --robots 2 --refine");
+  const CommandResult json = RunMoslam("dgs " + exact.string() + " --robots 2 --refine --json");
+  fs::remove(exact);
+  EXPECT_EQ(text.exit_code, 0) << text.out;
+  EXPECT_NE(text.out.find("cost: two-stage 0, final 0, centralized GN 0\n"), std::string::npos)
+      << text.out;
+  EXPECT_EQ(text.out.find("nan"), std::string::npos) << text.out;
+  ASSERT_EQ(json.exit_code, 0) << json.out;
+  const nlohmann::json j = nlohmann::json::parse(LastLine(json.out));
+  EXPECT_TRUE(j.at("final_cost_ratio").is_null()) << j.dump();
+  EXPECT_EQ(j.at("final_cost").get<double>(), 0.0);
+}
+
 TEST(Cli, ANumberOutOfRangeSaysWhatTheOptionNeeds) {
   const CommandResult zero = RunMoslam("simulate --robots 0");
   EXPECT_NE(zero.exit_code, 0);
@@ -289,6 +305,15 @@ TEST(CliDgs, BadInputExitsOneWithAClearMessage) {
   const CommandResult gamma = RunMoslam("dgs " + kBlocksWorld + "2robots --refine-gamma 2");
   EXPECT_EQ(gamma.exit_code, 1);
   EXPECT_NE(gamma.out.find("refinement.gamma"), std::string::npos) << gamma.out;
+  // Refused, not read as "the solver's default".
+  for (const char* tolerance : {"-1", "nan"}) {
+    const CommandResult linear =
+        RunMoslam("dgs " + kBlocksWorld + "2robots --refine " + "--refine-linear-tol " + tolerance);
+    EXPECT_EQ(linear.exit_code, 1) << tolerance;
+    EXPECT_NE(linear.out.find("refinement.sweep_tolerance must be finite and >= 0"),
+              std::string::npos)
+        << linear.out;
+  }
   const CommandResult too_many =
       RunMoslam("dgs " MOSLAM_DATASETS_DIR "/pgo/tinyGrid3D.g2o --robots 20");  // 9 poses
   EXPECT_EQ(too_many.exit_code, 1);

@@ -304,8 +304,8 @@ nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInp
       {"centralized_iterations", central.iterations},
       {"centralized_termination", ToString(central.termination)},
       {"centralized_seconds", run.central_seconds},
-      {"two_stage_cost_ratio", run.two_stage_cost / central.final_cost},
-      {"final_cost_ratio", run.final_cost / central.final_cost},
+      {"two_stage_cost_ratio", Number(run.two_stage_cost / central.final_cost)},  // 0/0: null
+      {"final_cost_ratio", Number(run.final_cost / central.final_cost)},
       {"iterations_rotation", r.rotation.iterations},
       {"iterations_pose", r.pose.iterations},
       {"iterations_refine", iterations_refine},
@@ -390,11 +390,16 @@ void PrintDgsSummary(const DgsArgs& a, const DgsRun& run) {
                r.refine.iterations, r.refine.sweeps);
   }
   fmt::print("\n");
-  fmt::print(
-      "cost: two-stage {:.10g} ({:.6f} x centralized), final {:.10g} ({:.6f} x), "
-      "centralized GN {:.10g}\n",
-      run.two_stage_cost, run.two_stage_cost / central_cost, run.final_cost,
-      run.final_cost / central_cost, central_cost);
+  if (central_cost > 0.0) {
+    fmt::print(
+        "cost: two-stage {:.10g} ({:.6f} x centralized), final {:.10g} ({:.6f} x), "
+        "centralized GN {:.10g}\n",
+        run.two_stage_cost, run.two_stage_cost / central_cost, run.final_cost,
+        run.final_cost / central_cost, central_cost);
+  } else {  // the measurements agree exactly: no ratio
+    fmt::print("cost: two-stage {:.10g}, final {:.10g}, centralized GN {:.10g}\n",
+               run.two_stage_cost, run.final_cost, central_cost);
+  }
   fmt::print("vs centralized GN (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses",
              run.errors.poses.ate, run.errors.poses.are_deg, run.errors.poses.count);
   if (run.errors.objects.count > 0) {

@@ -26,9 +26,9 @@ DgsOptions SolverArgs::options(SweepOrder order) const {
   o.refinement.max_iterations = refine_max_iterations;
   o.refinement.relative_cost_tolerance = refine_tolerance;
   o.refinement.max_sweeps = refine_max_sweeps;
-  if (refine_linear_tolerance >= 0.0) {
-    o.refinement.sweep_tolerance = refine_linear_tolerance;
-    o.refinement.cg_tolerance = refine_linear_tolerance;
+  if (refine_linear_tolerance) {  // validate() refuses a negative or non-finite one
+    o.refinement.sweep_tolerance = *refine_linear_tolerance;
+    o.refinement.cg_tolerance = *refine_linear_tolerance;
   }
   o.refinement.gamma = refine_gamma;
   o.validate();
@@ -46,9 +46,9 @@ std::vector<std::string> SolverArgs::args() const {
       std::to_string(refine_max_iterations), "--refine-tol", fmt::format("{}", refine_tolerance),
       "--refine-max-sweeps", std::to_string(refine_max_sweeps), "--refine-gamma",
       fmt::format("{}", refine_gamma)};
-  if (refine_linear_tolerance >= 0.0) {
+  if (refine_linear_tolerance) {
     a.push_back("--refine-linear-tol");
-    a.push_back(fmt::format("{}", refine_linear_tolerance));
+    a.push_back(fmt::format("{}", *refine_linear_tolerance));
   }
   if (no_flagged) a.push_back("--no-flagged");
   if (weighted) a.push_back("--weighted");

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,7 +29,7 @@ struct SolverArgs {
   int refine_max_iterations = 100;
   double refine_tolerance = 1e-10;
   int refine_max_sweeps = 1000;
-  double refine_linear_tolerance = -1.0;  // < 0: the solver's default
+  std::optional<double> refine_linear_tolerance;  // unset: the solver's default
   double refine_gamma = 1.0;
 
   // The options these flags give (`order` as given); validated (InvalidInputError).
