@@ -61,11 +61,22 @@ TeamSummaries ReadTeamSummaries(const fs::path& out, int n, const std::map<int, 
   for (int r = 0; r < n; ++r) {
     const fs::path dir = out / fmt::format("robot{}", r);
     const auto code = exit_codes.find(r);
-    const int exit_code = code == exit_codes.end() ? 0 : code->second;
     const fs::path file = dir / "summary.json";
-    if (exit_code != 0 || !fs::exists(file)) {
+    const bool finished = fs::exists(file);
+    if ((code != exit_codes.end() && code->second != 0) || !finished) {
       t.ok = false;
-      t.failed[r] = {{"robot", r}, {"exit_code", exit_code}, {"log", (dir / "log.txt").string()}};
+      nlohmann::json& f = t.failed[r];
+      f = {{"robot", r}};
+      if (code != exit_codes.end()) f["exit_code"] = code->second;
+      if (code != exit_codes.end() && code->second == -1) {
+        f["reason"] = "killed at the timeout";
+      } else if (code != exit_codes.end() && code->second != 0) {
+        f["reason"] = fmt::format("exit {}", code->second);
+      } else {
+        f["reason"] = fmt::format("no {} (it has not finished)", file.string());
+      }
+      const fs::path log = dir / "log.txt";
+      if (fs::exists(log)) f["log"] = log.string();
       continue;
     }
     t.summaries.emplace(r, JsonFields::Parse(ReadWholeFileOrThrow(file.string()), file.string()));

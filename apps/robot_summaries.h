@@ -103,13 +103,15 @@ class JsonFields {
 // robots that did not.
 struct TeamSummaries {
   bool ok = true;
-  std::map<int, nlohmann::json> failed;  // robot -> {robot, exit_code, log}
+  // robot -> {robot, reason; exit_code when known, log when it exists}
+  std::map<int, nlohmann::json> failed;
   std::map<int, JsonFields> summaries;   // robot -> its summary, those that finished
 };
 
-// Reads <out>/robot<R>/summary.json for R = 0 .. n-1; `exit_codes` holds the robots' exit codes
-// (a robot absent from it exited 0). Throws InvalidInputError when a summary cannot be read or is
-// not JSON.
+// Reads <out>/robot<R>/summary.json for R = 0 .. n-1; `exit_codes` holds the exit codes of the
+// robots this process ran (-1: killed at the timeout; a robot absent from it was started
+// elsewhere, `team --collect`: it finished when its summary is there). Throws InvalidInputError
+// when a summary cannot be read or is not JSON.
 TeamSummaries ReadTeamSummaries(const std::filesystem::path& out, int n,
                                 const std::map<int, int>& exit_codes);
 

@@ -37,6 +37,7 @@ class TeamFolder : public ::testing::Test {
     const fs::path dir = out_ / ("robot" + std::to_string(robot));
     fs::create_directories(dir);
     std::ofstream(dir / "summary.json") << text;
+    std::ofstream(dir / "log.txt") << "robot " << robot << "\n";
   }
   fs::path out_;
 };
@@ -52,9 +53,25 @@ TEST_F(TeamFolder, ReadsEveryFinishedRobotAndListsTheOthers) {
   ASSERT_EQ(solves.size(), 1u);
   EXPECT_EQ(solves[0].get<std::vector<int>>("robots"), (std::vector<int>{0, 2}));
   ASSERT_EQ(t.failed.size(), 2u);
-  EXPECT_EQ(t.failed.at(1)["exit_code"], 0);  // no summary written
+  // Robot 1 (no summary) was not run by this process: no exit code, and no log to point at.
+  EXPECT_FALSE(t.failed.at(1).contains("exit_code")) << t.failed.at(1).dump();
+  EXPECT_FALSE(t.failed.at(1).contains("log")) << t.failed.at(1).dump();
+  EXPECT_EQ(t.failed.at(1)["reason"],
+            "no " + (out_ / "robot1" / "summary.json").string() + " (it has not finished)");
   EXPECT_EQ(t.failed.at(2)["exit_code"], 1);
-  EXPECT_NE(t.failed.at(1)["log"].get<std::string>().find("robot1"), std::string::npos);
+  EXPECT_EQ(t.failed.at(2)["reason"], "exit 1");
+  EXPECT_NE(t.failed.at(2)["log"].get<std::string>().find("robot2"), std::string::npos);
+}
+
+TEST_F(TeamFolder, ARobotKilledAtTheTimeoutOrExitingZeroWithoutASummarySaysSo) {
+  write(0, "{}");
+  fs::create_directories(out_ / "robot1");
+  const TeamSummaries t = ReadTeamSummaries(out_, 2, {{0, -1}, {1, 0}});
+  EXPECT_FALSE(t.ok);
+  ASSERT_EQ(t.failed.size(), 2u);
+  EXPECT_EQ(t.failed.at(0)["reason"], "killed at the timeout");
+  EXPECT_EQ(t.failed.at(1)["exit_code"], 0);
+  EXPECT_NE(t.failed.at(1)["reason"].get<std::string>().find("summary.json"), std::string::npos);
 }
 
 TEST_F(TeamFolder, EveryRobotFinishedIsOk) {

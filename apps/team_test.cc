@@ -269,6 +269,31 @@ TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
   fs::remove_all(out);
 }
 
+// `team --collect` before the robots started elsewhere finished: it names each one and why, and
+// points at no log the collecting process never wrote.
+TEST(Team, CollectingRobotsThatHaveNotFinishedSaysWhichAndWhy) {
+  const fs::path out = FreshDir("collect_unfinished");
+  Child team(
+      {"team", "--data", test::BlocksWorldFolder(2), "--out", out.string(), "--collect", "--json"},
+      "", out / "team.log");
+  EXPECT_EQ(team.wait(Clock::now() + std::chrono::seconds(60)), 1) << team.output();
+  const nlohmann::json j = LastJson(team.output());
+  ASSERT_TRUE(j.is_object()) << team.output();
+  EXPECT_FALSE(j["ok"].get<bool>());
+  std::ifstream log_file(out / "team.log");
+  const std::string log((std::istreambuf_iterator<char>(log_file)),
+                        std::istreambuf_iterator<char>());
+  for (int r = 0; r < 2; ++r) {
+    const std::string summary = (out / ("robot" + std::to_string(r)) / "summary.json").string();
+    EXPECT_NE(log.find("moslam: robot " + std::to_string(r) + " failed: no " + summary +
+                       " (it has not finished)\n"),
+              std::string::npos)
+        << log;
+  }
+  EXPECT_EQ(log.find("log.txt"), std::string::npos) << log;
+  fs::remove_all(out);
+}
+
 TEST(Team, TheWholeSolverOverDdsReachesTheCentralizedOptimum) {
   const fs::path out = FreshDir("whole");
   Child team({"team", "--data", test::BlocksWorldFolder(4), "--domain", "55", "--out", out.string(),
