@@ -44,6 +44,11 @@ CommandResult RunMoslam(const std::string& args) {
   return RunShell(std::string(MOSLAM_BINARY) + " " + args);
 }
 
+std::string ReadBytes(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
 std::string LastLine(const std::string& s) {
   std::istringstream in(s);
   std::string line, last;
@@ -382,8 +387,9 @@ TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
   const CommandResult spoil =
       RunMoslam("spoil " + kBlocksWorld + "4robots --fraction 0.3 --seed 1 --out " + dir.string());
   ASSERT_EQ(spoil.exit_code, 0) << spoil.out;
-  const std::string robust = "dgs " + dir.string() +
-                             " --robust --gnc-threshold 1 --separator-test measurement --json";
+  const std::string command =
+      "dgs " + dir.string() + " --robust --gnc-threshold 1 --separator-test measurement";
+  const std::string robust = command + " --json";
   const CommandResult r = RunMoslam(robust);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(LastLine(r.out));
@@ -397,6 +403,17 @@ TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
   EXPECT_EQ(k["retests"], 0);
   EXPECT_EQ(k["outliers"], 14);
   EXPECT_LT(k["bytes"].get<long long>(), j["bytes"].get<long long>());
+  // Without --json: the same counts as a report.
+  const CommandResult text = RunMoslam(command);
+  ASSERT_EQ(text.exit_code, 0) << text.out;
+  EXPECT_EQ(text.out.find('{'), std::string::npos) << text.out;
+  for (const std::string& line :
+       {std::string("robots' GNC:     all inliers after 0 round(s); 14 rejected in all (0 weight"),
+        std::string("separator check: 14 rejected before GNC"),
+        std::string("re-tested against the joint estimate: 1 left-out separator(s), 0 back"),
+        "traffic: " + std::to_string(j["bytes"].get<long long>()) + " bytes"}) {
+    EXPECT_NE(text.out.find(line), std::string::npos) << line << " not in\n" << text.out;
+  }
   fs::remove_all(dir);
 }
 
@@ -799,8 +816,11 @@ TEST(CliDetect, EvaluatesARenderedDatasetAndDetectsOnAnImage) {
   EXPECT_GT(ignore["ignore_boxes"].get<int>(), 0);
   EXPECT_GE(ignore["precision"].get<double>(), m["precision"].get<double>());
   EXPECT_EQ(ignore["recall"], m["recall"]);
-  // Without --json: the same counts as a table per protocol.
-  const CommandResult table = RunMoslam("detect --data " + dir.string());
+  // Without --json: the same counts as a table per protocol; --annotate: every image annotated
+  // under its own name.
+  const fs::path annotated_folder = dir / "annotated";
+  const CommandResult table =
+      RunMoslam("detect --data " + dir.string() + " --annotate " + annotated_folder.string());
   ASSERT_EQ(table.exit_code, 0) << table.out;
   EXPECT_NE(table.out.find("strict (every detection that matches no label"), std::string::npos)
       << table.out;
@@ -809,6 +829,13 @@ TEST(CliDetect, EvaluatesARenderedDatasetAndDetectsOnAnImage) {
   std::snprintf(all, sizeof(all), "%6d %6d", m["true_positives"].get<int>(),
                 m["false_positives"].get<int>());
   EXPECT_NE(table.out.find(all), std::string::npos) << all << " not in\n" << table.out;
+  int drawn_on = 0;  // images whose annotated copy differs (both PNGs written by OpenCV)
+  for (const fs::directory_entry& image : fs::directory_iterator(dir / "images")) {
+    const fs::path copy = annotated_folder / image.path().filename();
+    ASSERT_TRUE(fs::exists(copy)) << copy << " not written";
+    drawn_on += ReadBytes(copy) != ReadBytes(image.path()) ? 1 : 0;
+  }
+  EXPECT_GT(drawn_on, 0);
 
   const fs::path annotated = dir / "annotated.png";
   const CommandResult image =

@@ -159,11 +159,11 @@ void PrintRobustDgs(const DgsArgs& a, const PoseGraph& graph, const RobustDgsOpt
              graph.keys().size(), graph.factors().size(), c.robust_factors,
              options.gnc.threshold2());
   fmt::print(
-      "centralized GNC: {} after {} round(s), {} rejected, cost of the kept factors "
-      "{:.10g}\n",
+      "centralized GNC: {} after {} round(s); {} rejected in all (the separator check's and "
+      "GNC's), cost of the kept factors {:.10g}\n",
       ToString(central.status), central.iterations, central.outliers, c.central_cost);
   fmt::print(
-      "robots' GNC:     {} after {} round(s), {} rejected ({} weight(s) differ from "
+      "robots' GNC:     {} after {} round(s); {} rejected in all ({} weight(s) differ from "
       "the centralized), cost of the kept factors {:.10g} ({:.3e} relative)\n",
       ToString(r.status), r.iterations, r.outliers, c.disagree, c.cost,
       c.central_cost > 0 ? c.cost / c.central_cost - 1.0 : 0.0);
