@@ -685,6 +685,11 @@ void ExperimentConfig::validate() const {
   if (runs < 1) {
     throw InvalidInputError("experiment: runs must be at least 1, got " + std::to_string(runs));
   }
+  if (seed > std::numeric_limits<unsigned>::max() - static_cast<unsigned>(runs - 1)) {
+    throw InvalidInputError(
+        fmt::format("experiment: the runs' seeds, seed {} .. seed + {}, pass the largest seed {}",
+                    seed, runs - 1, std::numeric_limits<unsigned>::max()));
+  }
   if (!(sigma_rotation_deg >= 0.0) || !std::isfinite(sigma_rotation_deg)) {
     throw InvalidInputError("experiment: sigma_rotation_deg must be finite and >= 0");
   }

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -306,6 +307,17 @@ TEST(SimulationExperiment, RejectsBadConfig) {
   EXPECT_TRUE(refused([](C& c) { c.scenario = "moon"; }, "scenario"));
   EXPECT_TRUE(refused([](C& c) { c.robots = 0; }, "robots"));
   EXPECT_TRUE(refused([](C& c) { c.runs = 0; }, "runs"));
+  // The runs' seeds seed .. seed + runs - 1 would wrap around to 0.
+  EXPECT_TRUE(refused(
+      [](C& c) {
+        c.seed = std::numeric_limits<unsigned>::max();
+        c.runs = 2;
+      },
+      "seeds"));
+  ExperimentConfig last = Tiny();
+  last.seed = std::numeric_limits<unsigned>::max() - 1;
+  last.runs = 2;
+  EXPECT_NO_THROW(last.validate());
   EXPECT_TRUE(refused([&](C& c) { c.sigma_rotation_deg = nan; }, "sigma_rotation_deg"));
   EXPECT_TRUE(refused([](C& c) { c.sigma_translation = -0.1; }, "sigma_translation"));
   EXPECT_TRUE(refused([](C& c) { c.outlier_fraction = 1.0; }, "outlier_fraction"));
