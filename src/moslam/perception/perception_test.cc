@@ -1,14 +1,16 @@
 // The front-end chain on rendered frames, with the committed detector model.
-#include "moslam/perception/object_perception.h"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
-
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <string>
+#include <vector>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/scratch_dir_testing.h"
+#include "moslam/perception/object_perception.h"
 #include "moslam/perception/rendered_sensing.h"
 #include "moslam/render/renderer.h"
 
@@ -79,6 +81,43 @@ TEST(Perception, RecoversTheChairPoseFromARenderedFrame) {
   EXPECT_EQ(strictly.objects.front().status, PerceptionStatus::kBoxMismatch);
   EXPECT_DOUBLE_EQ(strictly.objects.front().box_agreement, o.box_agreement);
   EXPECT_TRUE(ToObjectDetections(strictly).empty());
+}
+
+// With a template cache: the first front-end builds the chair's template and stores it, the next
+// one loads it and measures the same pose; a cache file that does not decode, or a cache that
+// cannot be written, is a note, and the template is built as without a cache.
+TEST(Perception, ATemplateFromTheCacheMeasuresAsTheOneBuilt) {
+  const World w = OneObject("chair", 2.0, 0.6);
+  const RenderedFrame frame = Renderer(w, RenderConfig{}).render(kBody, 1);
+  const std::filesystem::path cache = test::ScratchDir("templates");
+  PerceptionConfig config = CommittedModel();
+  config.template_cache_dir = cache.string();
+  auto perceive = [&](const PerceptionConfig& c, int from_cache, std::size_t notes) {
+    ObjectPerception perception(c, w.classes);
+    const FramePerception seen = perception.perceive(frame.rgbd);
+    EXPECT_EQ(perception.templatesFromCache(), from_cache);
+    EXPECT_EQ(perception.templateNotes().size(), notes)
+        << (perception.templateNotes().empty() ? "" : perception.templateNotes().front());
+    EXPECT_EQ(seen.objects.size(), 1u);
+    return seen.objects.empty() ? PerceivedObject{} : seen.objects.front();
+  };
+  const PerceivedObject built = perceive(config, 0, 0);
+  ASSERT_TRUE(built.accepted()) << ToString(built.status);
+  std::vector<std::filesystem::path> stored;
+  for (const auto& entry : std::filesystem::directory_iterator(cache)) stored.push_back(entry);
+  ASSERT_EQ(stored.size(), 1u);
+  auto same = [&](const PerceivedObject& o) {
+    EXPECT_EQ(o.status, built.status);
+    EXPECT_EQ(o.registration.inliers, built.registration.inliers);
+    EXPECT_EQ(o.body_T_object.matrix(), built.body_T_object.matrix());
+  };
+  same(perceive(config, 1, 0));
+  std::ofstream(stored.front(), std::ios::binary | std::ios::trunc) << "not a template";
+  same(perceive(config, 0, 1));  // and stored again:
+  same(perceive(config, 1, 0));
+  PerceptionConfig unwritable = config;
+  unwritable.template_cache_dir = stored.front().string() + "/below_a_file";
+  same(perceive(unwritable, 0, 1));
 }
 
 // A unit cube 2 m ahead: its pixel box by the pinhole model; behind the camera, empty; partly
