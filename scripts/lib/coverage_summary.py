@@ -1,7 +1,8 @@
 """Line and function coverage of moslam's own code (src/ and apps/, tests left out) from the
 .gcda files a coverage build's test run wrote: runs gcov in JSON mode on each, then prints the
-totals, the files with most lines never run, and every function never run.
-Usage: python3 coverage_summary.py BUILD_DIR REPO_DIR"""
+totals, the files with most lines never run, and every function never run; with FILEs (paths
+as listed), the lines of each never run, with their text.
+Usage: python3 coverage_summary.py BUILD_DIR REPO_DIR [FILE ...]"""
 import collections
 import glob
 import gzip
@@ -23,7 +24,7 @@ def own(path, repo):
     return rel
 
 
-def main(build, repo):
+def main(build, repo, listed):
     build, repo = os.path.realpath(build), os.path.realpath(repo)
     gcdas = glob.glob(os.path.join(build, '**', '*.gcda'), recursive=True)
     if not gcdas:
@@ -66,9 +67,17 @@ def main(build, repo):
     print('\nfunctions never run:')
     for path, line, name in never:
         print('  %s:%d %s' % (path, line, name[:110]))
+    for path in listed:
+        if path not in lines:
+            sys.exit('%s: no coverage data (not built into the coverage build, or not ours)' % path)
+        with open(os.path.join(repo, path)) as f:
+            text = f.read().splitlines()
+        print('\nlines of %s never run:' % path)
+        for n in sorted(k for k, c in lines[path].items() if c == 0):
+            print('  %5d  %s' % (n, text[n - 1].strip() if n <= len(text) else '?'))
 
 
 if __name__ == '__main__':
-    if len(sys.argv) != 3:
+    if len(sys.argv) < 3:
         sys.exit(__doc__)
-    main(sys.argv[1], sys.argv[2])
+    main(sys.argv[1], sys.argv[2], sys.argv[3:])
