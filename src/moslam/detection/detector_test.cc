@@ -174,8 +174,8 @@ TEST(DetectorFlipTest, TheMirrorImageGivesTheMirroredDetections) {
   ASSERT_FALSE(d.empty());
   ASSERT_EQ(d.size(), m.size());
   for (const Detection& x : d) {
-    const cv::Rect2f expected(image.cols - x.box.x - x.box.width, x.box.y, x.box.width,
-                              x.box.height);
+    const cv::Rect2f expected(static_cast<float>(image.cols) - x.box.x - x.box.width, x.box.y,
+                              x.box.width, x.box.height);
     int found = 0;
     for (const Detection& y : m) {
       found += y.class_id == x.class_id && std::abs(y.confidence - x.confidence) < 1e-5f &&
@@ -332,6 +332,20 @@ TEST(DetectorTrainedModel, CommittedModelLoadsWithItsClasses) {
     EXPECT_GE(d.confidence, 0.3f);
     EXPECT_GE(d.box.x, 0.0f);
     EXPECT_LE(d.box.x + d.box.width, 320.0f + 1e-3f);
+  }
+  EXPECT_EQ(detector.config().input_width, 320);
+  // An input size its layers cannot take: the run at loading fails with the size and the likely
+  // cause, not OpenCV's assertion alone.
+  c.input_width = 33;
+  c.input_height = 17;
+  try {
+    Detector wrong_size(c);
+    ADD_FAILURE() << "no exception";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("failed to run on a 33x17 input (is the configured "
+                                         "input size right for this model?)"),
+              std::string::npos)
+        << e.what();
   }
 }
 
