@@ -5,8 +5,10 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/partition.h"
@@ -268,6 +270,36 @@ TEST(RobotAgent, StateMachineRejectsOutOfOrderCalls) {
   AgentOptions bad;
   bad.gamma = 2.0;
   EXPECT_THROW(RobotAgent(0, parts[0].graph, gt, GaugeAnchor(g), bad), InvalidInputError);
+}
+
+// The calls of the two-level correction and of conjugate gradients, each made where the agent
+// cannot answer it: refused, naming the call and what must come first.
+TEST(RobotAgent, CoarseAndConjugateGradientCallsOutOfOrderAreRefused) {
+  Values gt;
+  const PoseGraph g = test::ChainOfRobots(2, 3, &gt);
+  const std::vector<RobotSubgraph> parts = PartitionByRobot(g);
+  RobotAgent a(0, parts[0].graph, gt, GaugeAnchor(g));
+  using test::ThrowsNaming;
+  const std::map<int, Eigen::MatrixXd> none;
+  EXPECT_TRUE(ThrowsNaming([&] { a.coarseShare(); }, "coarseShare() before a solve"));
+  EXPECT_TRUE(ThrowsNaming([&] { a.applyCoarse(none); }, "applyCoarse() in state idle"));
+  a.startRotation();
+  EXPECT_TRUE(ThrowsNaming([&] { a.coarseShare(); }, "coarseShare() before a solve"));
+  a.startPose();
+  EXPECT_TRUE(ThrowsNaming([&] { a.applyCoarse(none); }, "in stage 2 before coarseShare()"));
+  EXPECT_TRUE(ThrowsNaming([&] { a.firstDirection(); }, "before startPreconditioner()"));
+  EXPECT_TRUE(ThrowsNaming([&] { a.refineCoarseMatrix(); }, "outside a conjugate-gradient"));
+  EXPECT_TRUE(ThrowsNaming([&] { a.refineCoarseResidual(); }, "before refineCoarseMatrix()"));
+  EXPECT_TRUE(ThrowsNaming([&] { a.applyRefineCoarse(none); }, "before refineCoarseMatrix()"));
+  a.finish();
+  a.startRefine();
+  EXPECT_TRUE(ThrowsNaming([&] { a.startPreconditioner(); }, "before beginStep()"));
+  EXPECT_TRUE(ThrowsNaming([&] { a.curvature(); }, "curvature() before beginStep()"));
+  a.beginStep(0.0);
+  a.startPreconditioner();
+  EXPECT_TRUE(ThrowsNaming([&] { a.refineCoarseResidual(); }, "before refineCoarseMatrix()"));
+  EXPECT_NO_THROW(a.refineCoarseMatrix());
+  EXPECT_NO_THROW(a.refineCoarseResidual());
 }
 
 // The centralized two-stage estimate is a fixed point of every robot's local solves: given the
