@@ -1,6 +1,8 @@
 // The DGS protocol node (dgs_node.h) over the in-process transport, one thread per robot: the
 // result equals the in-process driver's (Jacobi) whatever the timing, and survives a robot
 // crashing and restarting from its journal, a cut link, and a robot that leaves for good.
+#include "moslam/transport/dgs_node.h"
+
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -13,6 +15,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/partition.h"
@@ -21,7 +24,6 @@
 #include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
 #include "moslam/solver/initialization.h"
-#include "moslam/transport/dgs_node.h"
 #include "moslam/transport/in_process_transport.h"
 #include "moslam/transport/robot_data.h"
 
@@ -319,6 +321,27 @@ TEST(DgsNode, WithTheTeamGivenARobotThatNeverStepsStopsTheSolveForEveryRobot) {
   EXPECT_THROW(lacking.run(), InvalidInputError);
   o.team = {1, 0};
   EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+}
+
+// Without the team given, a robot forms it from the statuses it hears: alone, it gives up at the
+// join timeout naming the robots it never heard; a team without robot 0 (whose first pose fixes
+// the gauge) is refused.
+TEST(DgsNode, ATeamThatNeverFormsOrLacksRobotZeroIsRefusedNamingWhy) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
+  const auto parts = PartitionByRobot(data.graph);
+  InProcessNetwork net;
+  auto t = net.connect(1, {[](const std::string&) {}});
+  DgsNodeOptions o = Options();
+  o.join_timeout = std::chrono::milliseconds(300);
+  DgsNode alone(1, parts[1].graph, data.initial, *t, o);
+  EXPECT_TRUE(test::ThrowsNaming<Error>(
+      [&] { alone.run(); },
+      "robot 1: the team did not form within 300 ms: no status from robot(s) 0"));
+  o.team = {1, 2, 3};
+  DgsNode no_gauge(1, parts[1].graph, data.initial, *t, o);
+  EXPECT_TRUE(test::ThrowsNaming<UnderdeterminedError>(
+      [&] { no_gauge.run(); },
+      "its team 1, 2, 3 has no robot 0, whose first pose fixes the gauge"));
 }
 
 // The whole solver: the two-level stages with the error-bound rule, then the refinement.
