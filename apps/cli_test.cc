@@ -417,6 +417,34 @@ TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
   fs::remove_all(dir);
 }
 
+// `spoil` of a single-robot 2D file (CSAIL, 10 %): wrong loop closures, written back in 2D;
+// `solve --robust` rejects exactly the ones listed in outliers.txt.
+TEST(CliSolve, RobustRejectsTheWrongLoopClosuresSpoilAddsToOneRobot) {
+  const fs::path spoiled = moslam::test::ScratchDir("spoiled");
+  const CommandResult spoil = RunMoslam("spoil " MOSLAM_DATASETS_DIR
+                                        "/pgo/CSAIL.g2o --fraction "
+                                        "0.1 --seed 1 --out " +
+                                        spoiled.string());
+  ASSERT_EQ(spoil.exit_code, 0) << spoil.out;
+  EXPECT_NE(spoil.out.find("128 loop closures, 14 wrong ones added"), std::string::npos)
+      << spoil.out;
+  std::ifstream file(spoiled / "0.g2o");
+  std::string tag;
+  file >> tag;
+  EXPECT_EQ(tag, "EDGE_SE2");
+  const CommandResult r = RunMoslam("solve " + spoiled.string() + " --robust --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto robust = nlohmann::json::parse(LastLine(r.out))["robust"];
+  std::set<std::pair<std::string, std::string>> rejected, injected;
+  for (const auto& pair : robust["rejected"]) {
+    rejected.insert({pair[0].get<std::string>(), pair[1].get<std::string>()});
+  }
+  std::ifstream list(spoiled / "outliers.txt");
+  for (std::string a, b; list >> a >> b;) injected.insert({a, b});
+  EXPECT_EQ(injected.size(), 14u);
+  EXPECT_EQ(rejected, injected);
+}
+
 // `solve --robust`, the centralized reference of `dgs --robust`, on the spoiled blocks_world of
 // the test above: it rejects exactly the separators `spoil` wrote to outliers.txt, and the
 // estimate it writes is the clean folder's least-squares optimum; on the clean folder it rejects

@@ -27,9 +27,11 @@ int RunSpoil(const SpoilArgs& a) {
   SpoilOptions options;
   options.fraction = a.fraction;
   options.seed = a.seed;
+  options.planar = data.planar;
   const SpoiledGraph spoiled = SpoilSeparators(data.graph, options);
   G2oWriteOptions w;
   w.scheme = a.read.scheme;
+  w.planar = data.planar;
   WriteG2oFolder(a.out, spoiled.graph, data.initial, w);
   const std::string list = (std::filesystem::path(a.out) / "outliers.txt").string();
   std::ofstream file(list);
@@ -40,9 +42,9 @@ int RunSpoil(const SpoilArgs& a) {
   }
   file.close();
   if (!file) throw Error("spoil: could not write " + list);
-  fmt::print("{}: {} separators, {} wrong ones added ({:.1f} % of {}); written to {}\n", a.input,
-             spoiled.separators, spoiled.added,
-             100.0 * spoiled.added / std::max(1, spoiled.added + spoiled.separators),
+  fmt::print("{}: {} {}, {} wrong ones added ({:.1f} % of {}); written to {}\n", a.input,
+             spoiled.separators, spoiled.single_robot ? "loop closures" : "separators",
+             spoiled.added, 100.0 * spoiled.added / std::max(1, spoiled.added + spoiled.separators),
              spoiled.added + spoiled.separators, a.out);
   return 0;
 }
@@ -53,10 +55,12 @@ Runner RegisterSpoil(CLI::App& app) {
   auto args = std::make_shared<SpoilArgs>();
   CLI::App* sub = app.add_subcommand(
       "spoil",
-      "Add wrong inter-robot loop closures to a multi-robot pose graph (outlier experiments)");
+      "Add wrong loop closures (outlier experiments): between robots to a multi-robot pose "
+      "graph, between poses that are not consecutive to a single-robot one");
   sub->add_option("input", args->input, "g2o file or distributed-mapper folder")->required();
   sub->add_option("--fraction", args->fraction,
-                  "fraction of the separators of the result that are wrong, in [0, 1)")
+                  "fraction of the separators (one robot: loop closures) of the result that "
+                  "are wrong, in [0, 1)")
       ->check(InRange(0.0, 0.999))
       ->capture_default_str();
   sub->add_option("--seed", args->seed, "random seed")->capture_default_str();

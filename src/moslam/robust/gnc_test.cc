@@ -121,6 +121,44 @@ TEST(SolveGnc, RejectsKnownOutliersAndReachesTheCleanOptimum) {
   EXPECT_GT(r.least_squares_cost, 10.0 * clean.final_cost);
 }
 
+// One robot (CSAIL, a 2D file: a planar graph): the wrong factors are loop closures between two
+// of its poses that are not consecutive, in the plane; at 10 % the robust solve, which makes
+// the loop closures robust, rejects exactly them and lands on the clean optimum (6.8e-9 m).
+TEST(SolveGnc, OneRobotsWrongLoopClosuresAreRejected) {
+  const Dataset data = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/CSAIL.g2o");
+  ASSERT_TRUE(data.planar);
+  SpoilOptions spoil;
+  spoil.fraction = 0.1;
+  spoil.planar = true;
+  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
+  EXPECT_TRUE(spoiled.single_robot);
+  EXPECT_EQ(spoiled.separators, 128);  // CSAIL's loop closures
+  EXPECT_EQ(spoiled.added, 14);        // round(0.1 / 0.9 * 128)
+  const std::vector<bool> robust = DefaultRobustFactors(spoiled.graph);
+  for (std::size_t i = 0; i < spoiled.graph.factors().size(); ++i) {
+    if (!spoiled.outlier[i]) continue;
+    const RelativePoseFactor& f = spoiled.graph.factors()[i];
+    EXPECT_TRUE(f.a().isPose() && f.b().isPose() && f.a().robot == 0 && f.b().robot == 0);
+    EXPECT_GT(std::abs(static_cast<double>(f.a().index) - static_cast<double>(f.b().index)), 1.0);
+    EXPECT_TRUE(robust[i]);
+    EXPECT_EQ(f.measured().translation().z(), 0.0);
+    EXPECT_LT(SO3::Log(f.measured().rotation()).head<2>().norm(), 1e-12);
+  }
+  const Values initial = ChordalInitialization(spoiled.graph, SE3());
+  const GncResult r = SolveGnc(spoiled.graph, initial, robust, GncOptions());
+  std::size_t wrong_kept = 0, right_rejected = 0;
+  for (std::size_t i = 0; i < r.weights.size(); ++i) {
+    wrong_kept += spoiled.outlier[i] && r.weights[i] >= 0.5;
+    right_rejected += !spoiled.outlier[i] && r.weights[i] < 0.5;
+  }
+  EXPECT_EQ(wrong_kept, 0u);
+  EXPECT_EQ(right_rejected, 0u);
+  const OptimizerResult clean = Optimize(data.graph, ChordalInitialization(data.graph, SE3()));
+  EXPECT_LT(MaxPoseDifference(r.values, clean.values), 1e-6);
+  // A graph without a pose has nothing to spoil.
+  EXPECT_THROW(SpoilSeparators(PoseGraph(), spoil), InvalidInputError);
+}
+
 // Without outliers (blocks_world's residuals all below the threshold) GNC changes nothing.
 TEST(SolveGnc, WithoutOutliersReturnsTheLeastSquaresEstimate) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));

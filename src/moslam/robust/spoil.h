@@ -7,6 +7,11 @@
 // translation of the length of a random existing separator in a uniformly random direction, and
 // that separator's information: plausible to anything that looks at one factor alone.
 // Deterministic for a seed.
+//
+// A graph of one robot: its loop closures take the separators' place (the factors between two
+// of its poses that are not consecutive, which the robust solve treats as robust: gnc.h,
+// DefaultRobustFactors), and each wrong one joins two of its poses that are not consecutive: the
+// random loop closures of the robust single-robot benchmarks (e.g. INTEL, M3500 with outliers).
 #pragma once
 
 #include <cstdint>
@@ -19,6 +24,9 @@ namespace moslam {
 struct SpoilOptions {
   double fraction = 0.5;   // of the separators after spoiling, in [0, 1)
   std::uint32_t seed = 1;
+  // The wrong factors in the x-y plane, as a planar graph's (2D g2o files): a rotation about z
+  // by a uniform angle, a translation in a uniform direction of the plane.
+  bool planar = false;
   // Throws InvalidInputError naming the bad field.
   void validate() const;
 };
@@ -26,12 +34,13 @@ struct SpoilOptions {
 struct SpoiledGraph {
   PoseGraph graph;              // the input's factors, then the outliers
   std::vector<bool> outlier;    // per factor of graph
-  int separators = 0;           // of the input
+  int separators = 0;           // of the input (one robot: its loop closures)
   int added = 0;
+  bool single_robot = false;  // the graph has one robot with poses: loop closures imitated
 };
 
-// Throws InvalidInputError when the graph has fewer than two robots with poses or no separator
-// (nothing to imitate).
+// Throws InvalidInputError when the graph has no pose or nothing to imitate (no separator; one
+// robot: no loop closure).
 SpoiledGraph SpoilSeparators(const PoseGraph& graph, const SpoilOptions& options);
 
 }  // namespace moslam
