@@ -69,8 +69,9 @@ inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
       ->check(NonNegative())
       ->capture_default_str();
   sub->add_option("--separator-support", args->separator_support,
-                  "--robust: before GNC, keep of each robot pair's separators the largest "
-                  "pairwise consistent set if it has at least this many (0: no check)")
+                  "--robust: before GNC, keep of each robot pair's separators (single robot: of "
+                  "its loop closures) the largest pairwise consistent set if it has at least this "
+                  "many (0: no check)")
       ->check(NonNegative())
       ->capture_default_str();
   AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);

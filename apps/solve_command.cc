@@ -124,7 +124,9 @@ nlohmann::json SolveJson(const SolveArgs& a, const Dataset& data, const Optimize
       {"total_seconds", times.total},
   };
   if (a.robust) {
+    const std::vector<bool> robust = DefaultRobustFactors(data.graph);
     nlohmann::json r = {{"status", ToString(gnc.status)},
+                        {"robust_factors", std::count(robust.begin(), robust.end(), true)},
                         {"rounds", gnc.iterations},
                         {"outliers", gnc.outliers},
                         {"least_squares_cost", gnc.least_squares_cost},
@@ -218,9 +220,9 @@ Runner RegisterSolve(CLI::App& app) {
   sub->add_flag("--json", args->json, "print one JSON object as the last line");
   sub->add_flag("-v,--verbose", args->verbose, "one line per iteration on stderr");
   sub->add_flag("--robust", args->robust,
-                "the inter-robot factors (single robot: the loop closures) checked for pairwise "
-                "consistency per robot pair, then graduated non-convexity with a truncated "
-                "least-squares cost on them; the rest least squares");
+                "the inter-robot factors checked for pairwise consistency per robot pair (single "
+                "robot: its loop closures, through its odometry), then graduated non-convexity "
+                "with a truncated least-squares cost on them; the rest least squares");
   AddRobustSolveFlags(sub, &args->robust_args);
   return [args] { return RunSolve(*args); };
 }

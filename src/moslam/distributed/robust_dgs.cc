@@ -9,6 +9,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
 #include "moslam/distributed/robust_program.h"
+#include "moslam/robust/loop_consistency.h"
 
 namespace moslam {
 
@@ -31,7 +32,26 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
                                            const std::vector<bool>& robust) {
   SeparatorConsistencyOptions c = options.consistency;
   if (c.threshold == 0.0) c.threshold = options.gnc.threshold2();
-  return CheckSeparatorConsistency(graph, c, robust, options.gnc);
+  std::set<int> robots;
+  for (const Key& k : graph.keys()) {
+    if (k.isPose()) robots.insert(k.robot);
+  }
+  if (robots.size() != 1 || robust.empty()) {
+    return CheckSeparatorConsistency(graph, c, robust, options.gnc);
+  }
+  // One robot: no separator; its loop closures are checked through its odometry instead.
+  OdometryCheckOptions o;
+  o.threshold = c.threshold;
+  o.min_support = c.min_support;
+  o.odometry_uncertainty = c.map_uncertainty;
+  const OdometryCheckResult odometry = CheckLoopClosuresByOdometry(graph, robust, o);
+  SeparatorConsistencyResult out;
+  out.kept = odometry.kept;
+  out.separators = odometry.loop_closures;
+  out.rejected = odometry.rejected;
+  out.support.assign(graph.factors().size(), -1);  // nothing for the re-tests of robot pairs
+  out.runner_up.assign(graph.factors().size(), false);
+  return out;
 }
 
 namespace {

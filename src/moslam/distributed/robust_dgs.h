@@ -128,7 +128,10 @@ struct RobustDgsResult {
 };
 
 // The pairwise check as the robust solves apply it: its threshold from GNC's when 0, each
-// robot's map robust in the intra-robot factors `robust` marks.
+// robot's map robust in the intra-robot factors `robust` marks. A graph whose poses are one
+// robot's has no separator: its loop closures `robust` marks are checked through its odometry
+// instead (robust/loop_consistency.h, with the check's threshold, min_support and map_uncertainty
+// as odometry_uncertainty).
 SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustDgsOptions& options,
                                            const std::vector<bool>& robust = {});
 

@@ -1,9 +1,7 @@
 #include "moslam/distributed/separator_consistency.h"
 
-#include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <algorithm>
-#include <limits>
 #include <map>
 #include <memory>
 #include <set>
@@ -11,6 +9,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
 #include "moslam/graph/robot_groups.h"
+#include "moslam/robust/loop_consistency.h"
 #include "moslam/robust/max_clique.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/marginals.h"
@@ -122,41 +121,6 @@ std::vector<Key> SeparatorVariables(const std::vector<RelativePoseFactor>& separ
 
 namespace {
 
-// The consistency statistic of separators i and j (see the header): e^T Sigma_e^-1 e of the loop
-//   L = P1 P2 P3 P4 P5 P6 = z_i^-1 A_i^-1 A_j z_j B_j^-1 B_i.
-// A right perturbation x Exp(d) of P_k's variable moves to the right end of L as
-//   Ad(T_k^-1) d, T_k = P_{k+1} ... P6 (P3, P4, P6: the variable itself), and a variable that
-// enters inverted (P1, P2, P5: Exp(-d) P_k) as -Ad(S_k^-1) d, S_k = P_k ... P6.
-struct SeparatorEnd {
-  SE3 z;             // measurement from A to B
-  Matrix6 sigma_z;   // its covariance
-  SE3 A, B;          // the two robots' local estimates of its variables
-};
-using Matrix12 = Eigen::Matrix<double, 12, 12>;
-double LoopStatistic(const SeparatorEnd& i, const SeparatorEnd& j, const Matrix12& SA,
-                     const Matrix12& SB) {
-  const SE3 P[6] = {i.z.inverse(), i.A.inverse(), j.A, j.z, j.B.inverse(), i.B};
-  SE3 suffix[7];  // suffix[k] = P_k ... P6 (0-based), suffix[6] = identity
-  for (int k = 5; k >= 0; --k) suffix[k] = P[k] * suffix[k + 1];
-  const SE3& L = suffix[0];
-  auto inverted = [&](int k) -> Matrix6 { return -suffix[k].inverse().Adjoint(); };
-  auto direct = [&](int k) -> Matrix6 { return suffix[k + 1].inverse().Adjoint(); };
-  const Matrix6 Jzi = inverted(0), Jzj = direct(3);
-  Eigen::Matrix<double, 6, 12> JA, JB;
-  JA << inverted(1), direct(2);  // (A_i, A_j)
-  JB << direct(5), inverted(4);  // (B_i, B_j)
-  Matrix6 S = Jzi * i.sigma_z * Jzi.transpose() + Jzj * j.sigma_z * Jzj.transpose() +
-              JA * SA * JA.transpose() + JB * SB * JB.transpose();
-  Matrix6 Jl;
-  const Vector6 e = SE3::Log(L, &Jl);  // Jr^-1(e): e's change for a right perturbation of L
-  S = Jl * S * Jl.transpose();
-  const Eigen::LDLT<Matrix6> ldlt(S);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
-    return std::numeric_limits<double>::infinity();
-  }
-  return e.dot(ldlt.solve(e));
-}
-
 // Rows and columns (6 each) of blocks p and q of a joint covariance.
 Matrix12 PairBlock(const Eigen::MatrixXd& S, int p, int q) {
   Matrix12 out;
@@ -173,7 +137,7 @@ Matrix12 PairBlock(const Eigen::MatrixXd& S, int p, int q) {
 // and both maps' estimates), the index of its variables among each robot's separator
 // variables, and the two maps' joint covariances of those (zero: the maps taken as exact).
 struct PairView {
-  std::vector<SeparatorEnd> ends;
+  std::vector<LoopEnd> ends;
   std::vector<int> ia, ib;
   Eigen::MatrixXd SA, SB;
 };
