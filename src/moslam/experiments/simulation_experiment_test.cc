@@ -295,6 +295,25 @@ TEST(SimulationExperiment, TableFormattingAndJson) {
   EXPECT_EQ(j["rows"][0]["mean"].size() * sizeof(double), sizeof(RunMetrics));
 }
 
+// Runs in which a robot never meets one linked to robot 0 (chairs25, 2 robots of 5 poses: only
+// seed 4 of seeds 1-6 has a rendezvous, measured): an error naming the run, unless
+// skip_unlinked, which leaves them out and lists them; when every run is left out, an error.
+TEST(SimulationExperiment, UnlinkedRunsAreAnErrorOrSkippedAndListed) {
+  ExperimentConfig c = Tiny();
+  c.poses_per_robot = 5;
+  c.seed = 1;
+  c.runs = 6;
+  EXPECT_TRUE(test::ThrowsNaming<UnlinkedRobotError>([&] { RunExperiment(c); },
+                                                     "experiment chairs25 with 2 robots, seed 1"));
+  c.skip_unlinked = true;
+  const ExperimentResult r = RunExperiment(c);
+  EXPECT_EQ(r.skipped, (std::vector<int>{0, 1, 2, 4, 5}));
+  EXPECT_EQ(r.runs.size(), 1u);
+  c.runs = 3;
+  EXPECT_TRUE(test::ThrowsNaming<UnderdeterminedError>([&] { RunExperiment(c); },
+                                                       "every run left a robot unlinked"));
+}
+
 TEST(SimulationExperiment, RejectsBadConfig) {
   EXPECT_NO_THROW(Tiny().validate());
   const double nan = std::nan("");
