@@ -923,6 +923,14 @@ TEST(CliDetect, EvaluatesARenderedDatasetAndDetectsOnAnImage) {
     EXPECT_FALSE(d["label"].get<std::string>().empty());
   }
   EXPECT_GT(fs::file_size(annotated), 0u);
+  // An annotated image whose extension names no format OpenCV writes: a clear error.
+  const CommandResult unknown =
+      RunMoslam("detect --image " + (dir / "images" / "000000.png").string() + " --annotate " +
+                (dir / "annotated.xyz").string());
+  EXPECT_EQ(unknown.exit_code, 1) << unknown.out;
+  EXPECT_NE(unknown.out.find("moslam: error: cannot write annotated image"), std::string::npos)
+      << unknown.out;
+  EXPECT_NE(unknown.out.find("no writer for its extension"), std::string::npos) << unknown.out;
   fs::remove_all(dir);
 }
 

@@ -90,6 +90,19 @@ void Annotate(cv::Mat& img, const std::vector<Detection>& dets) {
   }
 }
 
+// Writes an annotated image, its format chosen by the path's extension. Throws InvalidInputError
+// when it cannot (no folder, no right, an extension OpenCV has no writer for).
+void WriteAnnotatedImage(const std::string& path, const cv::Mat& img) {
+  bool written = false;
+  std::string why;
+  try {
+    written = cv::imwrite(path, img);
+  } catch (const cv::Exception& e) {
+    why = ": OpenCV has no writer for its extension (.png, .jpg, .bmp, ...): " + e.err;
+  }
+  if (!written) throw InvalidInputError("cannot write annotated image '" + path + "'" + why);
+}
+
 int RunOnImage(const DetectArgs& a) {
   Detector detector(MakeConfig(a, a.detector.threshold));
   cv::Mat img = ReadImage(a.image);
@@ -98,9 +111,7 @@ int RunOnImage(const DetectArgs& a) {
   const double ms = MsSince(t0);
   if (!a.annotate.empty()) {
     Annotate(img, dets);
-    if (!cv::imwrite(a.annotate, img)) {
-      throw InvalidInputError("cannot write annotated image '" + a.annotate + "'");
-    }
+    WriteAnnotatedImage(a.annotate, img);
   }
   if (a.json) {
     nlohmann::json j = {{"image", a.image}, {"ms", ms}, {"detections", nlohmann::json::array()}};
@@ -172,7 +183,7 @@ void WriteAnnotated(const DetectArgs& a, const std::string& image_path, cv::Mat&
       dets.end());
   Annotate(img, dets);
   const auto out = std::filesystem::path(a.annotate) / std::filesystem::path(image_path).filename();
-  cv::imwrite(out.string(), img);
+  WriteAnnotatedImage(out.string(), img);
 }
 
 // The text report: strict metrics, those with the ignore regions (when the dataset has them) and
