@@ -53,6 +53,18 @@ CLI::Validator NonNegative() {
   return NumberCheck([](double v) { return v >= 0.0; }, "a number >= 0", "NONNEGATIVE");
 }
 
+void CheckOutputFile(const std::string& path, const std::string& option) {
+  const std::filesystem::path file(path), folder = file.parent_path();
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec)) {
+    throw InvalidInputError(option + " '" + path + "' is a folder; give a file name");
+  }
+  if (!folder.empty() && !std::filesystem::is_directory(folder, ec)) {
+    throw InvalidInputError(option + " '" + path + "': no folder '" + folder.string() +
+                            "' to write it in");
+  }
+}
+
 CLI::Validator InRange(double lo, double hi) {
   return NumberCheck([lo, hi](double v) { return v >= lo && v <= hi; },
                      fmt::format("a number in [{}, {}]", lo, hi), fmt::format("[{} - {}]", lo, hi));

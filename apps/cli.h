@@ -65,6 +65,11 @@ CLI::Validator NonNegative();
 // prints doubles as "0.000000 to 0.999000". Integer options keep CLI::Range.
 CLI::Validator InRange(double lo, double hi);
 
+// Checked before the work whose result the file `path` (given as `option`) would hold: throws
+// InvalidInputError when it is a folder or its folder does not exist, which would fail the write
+// only at the end.
+void CheckOutputFile(const std::string& path, const std::string& option);
+
 // Replaces the process with `executable` found beside the running one, with the same arguments.
 // Returns only on failure, by throwing moslam::Error naming the path it tried and the likely
 // cause.

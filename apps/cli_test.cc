@@ -1012,6 +1012,15 @@ TEST(CliPerceive, TakesTheDetectorsOperatingPoint) {
   const CommandResult bad = RunMoslam("perceive " + seq + " --nms 2");
   EXPECT_NE(bad.exit_code, 0) << bad.out;
   EXPECT_NE(bad.out.find("--nms"), std::string::npos) << bad.out;
+  // An --out that cannot be written is refused before the frames are perceived.
+  const CommandResult out =
+      RunMoslam("perceive " + seq + " --out " + (dir / "no" / "x.json").string());
+  EXPECT_EQ(out.exit_code, 1) << out.out;
+  EXPECT_NE(out.out.find("moslam: error: perceive: --out '" + (dir / "no" / "x.json").string() +
+                         "': no folder"),
+            std::string::npos)
+      << out.out;
+  EXPECT_EQ(out.out.find("perceive: 1/1 frames"), std::string::npos) << out.out;
   fs::remove_all(dir);
 }
 

@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "cli.h"
 #include "commands.h"
 #include "detector_flags.h"
 #include "moslam/common/errors.h"
@@ -363,6 +364,7 @@ void PrintPerceiveSummary(const PerceiveArgs& a, const PerceiveTotals& t, bool e
 int RunPerceive(const PerceiveArgs& a) {
   // SAC-IA warns on stderr for every relaxed sample distance; the statuses say what matters.
   pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
+  if (!a.out.empty()) CheckOutputFile(a.out, "perceive: --out");
   const TumSequence sequence = ReadTumSequence(a.sequence);
   std::optional<World> world;
   if (!a.world.empty()) world = LoadWorld(a.world);

@@ -36,13 +36,13 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "cli.h"
 #include "commands.h"
 #include "moslam/common/errors.h"
 #include "moslam/experiments/online_experiment.h"
@@ -143,17 +143,7 @@ void CheckSimulateArgs(const SimulateArgs& a) {
         "simulate: --detection-log and --perception-cache together: a run "
         "replayed from the cache has no detection records; drop one");
   }
-  if (!a.plot.empty()) {  // checked before the runs, which a plot that cannot be written would cost
-    const std::filesystem::path plot(a.plot), folder = plot.parent_path();
-    std::error_code ec;
-    if (std::filesystem::is_directory(plot, ec)) {
-      throw InvalidInputError("simulate: --plot '" + a.plot + "' is a folder; give a file name");
-    }
-    if (!folder.empty() && !std::filesystem::is_directory(folder, ec)) {
-      throw InvalidInputError("simulate: --plot '" + a.plot + "': no folder '" + folder.string() +
-                              "' to write it in");
-    }
-  }
+  if (!a.plot.empty()) CheckOutputFile(a.plot, "simulate: --plot");
   if (a.rendezvous_constellation.value_or(false) && a.initial_poses == "unknown") {
     throw InvalidInputError(std::string("simulate: ") + kConstellationNeedsKnownPoses);
   }
