@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <map>
 #include <string>
@@ -54,7 +55,7 @@ namespace {
 Matrix6 Covariance(const RelativePoseFactor& f) {
   const Eigen::LDLT<Matrix6> ldlt(f.information());
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
-    throw InvalidInputError("odometry check: the factor " + ToString(f.a()) + " - " +
+    throw InvalidInputError("odometry chain: the factor " + ToString(f.a()) + " - " +
                             ToString(f.b()) +
                             " has an information matrix that is not positive "
                             "definite");
@@ -66,14 +67,13 @@ Matrix6 Covariance(const RelativePoseFactor& f) {
 
 OdometryChain::OdometryChain(const PoseGraph& graph, bool uncertainty) {
   std::map<std::uint64_t, const RelativePoseFactor*> step;  // index -> factor to index + 1
-  int robot = -1;
   for (const Key& k : graph.keys()) {
     if (!k.isPose()) continue;
-    if (robot >= 0 && k.robot != robot) {
-      throw InvalidInputError("odometry check: the graph's poses belong to more than one robot (" +
-                              std::to_string(robot) + " and " + std::to_string(k.robot) + ")");
+    if (robot_ >= 0 && k.robot != robot_) {
+      throw InvalidInputError("odometry chain: the graph's poses belong to more than one robot (" +
+                              std::to_string(robot_) + " and " + std::to_string(k.robot) + ")");
     }
-    robot = k.robot;
+    robot_ = k.robot;
     nodes_.emplace(k.index, Node{});
   }
   for (const RelativePoseFactor& f : graph.factors()) {
@@ -110,7 +110,9 @@ OdometryChain::OdometryChain(const PoseGraph& graph, bool uncertainty) {
   }
 }
 
-bool OdometryChain::has(const Key& k) const { return k.isPose() && nodes_.count(k.index) > 0; }
+bool OdometryChain::has(const Key& k) const {
+  return k.isPose() && k.robot == robot_ && nodes_.count(k.index) > 0;
+}
 
 int OdometryChain::stretch(const Key& k) const { return node(k).stretch; }
 
@@ -133,7 +135,7 @@ Matrix12 OdometryChain::joint(const Key& p, const Key& q) const {
 }
 
 const OdometryChain::Node& OdometryChain::node(const Key& k) const {
-  const auto it = k.isPose() ? nodes_.find(k.index) : nodes_.end();
+  const auto it = k.isPose() && k.robot == robot_ ? nodes_.find(k.index) : nodes_.end();
   if (it == nodes_.end()) {
     throw InvalidInputError("odometry chain: no pose " + ToString(k));
   }

@@ -51,7 +51,7 @@ double LoopStatistic(const LoopEnd& i, const LoopEnd& j, const Matrix12& SA, con
 class OdometryChain {
  public:
   OdometryChain(const PoseGraph& graph, bool uncertainty);
-  bool has(const Key& k) const;  // a pose of the graph
+  bool has(const Key& k) const;  // a pose of the graph (of its robot)
   // InvalidInputError for a key that is not a pose of the graph:
   int stretch(const Key& k) const;
   const SE3& pose(const Key& k) const;
@@ -66,6 +66,7 @@ class OdometryChain {
     Matrix6 S = Matrix6::Zero();
   };
   const Node& node(const Key& k) const;
+  int robot_ = -1;  // whose poses
   std::map<std::uint64_t, Node> nodes_;
 };
 

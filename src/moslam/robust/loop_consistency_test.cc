@@ -86,6 +86,8 @@ TEST(OdometryChain, AGapStartsAStretchAndBadKeysAreRefused) {
       test::ThrowsNaming([&] { chain.joint(Key::Pose(0, 1), Key::Pose(0, 7)); }, "two stretches"));
   EXPECT_TRUE(test::ThrowsNaming([&] { chain.pose(Key::Pose(0, 5)); }, "no pose"));
   EXPECT_FALSE(chain.has(Key::Object(0, 1)));
+  EXPECT_FALSE(chain.has(Key::Pose(1, 1)));  // another robot's
+  EXPECT_TRUE(test::ThrowsNaming([&] { chain.pose(Key::Pose(1, 1)); }, "no pose"));
   g.add(RelativePoseFactor(Key::Pose(0, 0), Key::Pose(1, 0), SE3(), Matrix6::Identity()));
   EXPECT_TRUE(test::ThrowsNaming([&] { OdometryChain(g, true); }, "more than one robot"));
 }
