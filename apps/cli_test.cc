@@ -450,6 +450,23 @@ TEST(CliDgs, RobustRetestsTheChecksRejectsUnlessToldNot) {
   fs::remove_all(dir);
 }
 
+// The factors a robust solve's JSON lists as rejected, and those `spoil` wrote to outliers.txt in
+// `folder`, as pairs of key names.
+using FactorPairs = std::set<std::pair<std::string, std::string>>;
+FactorPairs RejectedPairs(const nlohmann::json& robust) {
+  FactorPairs out;
+  for (const auto& pair : robust["rejected"]) {
+    out.insert({pair[0].get<std::string>(), pair[1].get<std::string>()});
+  }
+  return out;
+}
+FactorPairs SpoiledPairs(const fs::path& folder) {
+  FactorPairs out;
+  std::ifstream list(folder / "outliers.txt");
+  for (std::string a, b; list >> a >> b;) out.insert({a, b});
+  return out;
+}
+
 // `spoil` of a single-robot 2D file (CSAIL, 30 %): wrong loop closures, written back in 2D;
 // `solve --robust` at threshold 5 (CSAIL's information is far larger than its noise), its loop
 // closures checked through the odometry, rejects exactly the ones listed in outliers.txt and
@@ -473,19 +490,14 @@ TEST(CliSolve, RobustRejectsTheWrongLoopClosuresSpoilAddsToOneRobot) {
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto robust = nlohmann::json::parse(LastLine(r.out))["robust"];
   EXPECT_EQ(robust["robust_factors"], 183);
-  std::set<std::pair<std::string, std::string>> rejected, injected;
-  for (const auto& pair : robust["rejected"]) {
-    rejected.insert({pair[0].get<std::string>(), pair[1].get<std::string>()});
-  }
-  std::ifstream list(spoiled / "outliers.txt");
-  for (std::string a, b; list >> a >> b;) injected.insert({a, b});
+  const FactorPairs rejected = RejectedPairs(robust);
+  const FactorPairs injected = SpoiledPairs(spoiled);
   EXPECT_EQ(injected.size(), 55u);
   EXPECT_EQ(rejected, injected);
   ASSERT_EQ(RunMoslam("solve " + csail + " --out " + clean_out.string() + "/").exit_code, 0);
-  // The spoiled folder names robot 0's poses as Symbols, the clean file as plain integers.
-  moslam::Values clean, estimate;
-  for (const auto& [k, x] : moslam::ReadG2o(clean_out.string()).initial) clean.emplace(k, x);
-  for (const auto& [k, x] : moslam::ReadG2o(robust_out.string()).initial) estimate.emplace(k, x);
+  // Robot 0's poses, as Symbols in the spoiled folder and plain integers in the clean file.
+  const moslam::Values clean = moslam::ReadG2o(clean_out.string()).initial;
+  const moslam::Values estimate = moslam::ReadG2o(robust_out.string()).initial;
   ASSERT_EQ(clean.size(), estimate.size());
   EXPECT_LE(moslam::MaxPoseDifference(estimate, clean), 1e-6);
 }
@@ -506,12 +518,8 @@ TEST(CliSolve, RobustRejectsTheSpoiledSeparatorsAndReachesTheCleanOptimum) {
       RunMoslam("solve " + spoiled.string() + options + " --out " + robust_out.string() + "/");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto robust = nlohmann::json::parse(LastLine(r.out))["robust"];
-  std::set<std::pair<std::string, std::string>> rejected, injected;
-  for (const auto& pair : robust["rejected"]) {
-    rejected.insert({pair[0].get<std::string>(), pair[1].get<std::string>()});
-  }
-  std::ifstream list(spoiled / "outliers.txt");
-  for (std::string a, b; list >> a >> b;) injected.insert({a, b});
+  const FactorPairs rejected = RejectedPairs(robust);
+  const FactorPairs injected = SpoiledPairs(spoiled);
   EXPECT_EQ(injected.size(), 14u);
   EXPECT_EQ(rejected, injected);
   EXPECT_EQ(robust["outliers"], 14);
