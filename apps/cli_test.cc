@@ -490,6 +490,8 @@ TEST(CliSolve, RobustRejectsTheWrongLoopClosuresSpoilAddsToOneRobot) {
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto robust = nlohmann::json::parse(LastLine(r.out))["robust"];
   EXPECT_EQ(robust["robust_factors"], 183);
+  EXPECT_EQ(robust["check_checked"], 183);  // every loop closure, through the odometry
+  EXPECT_EQ(robust["check_rejected"], 55);
   const FactorPairs rejected = RejectedPairs(robust);
   const FactorPairs injected = SpoiledPairs(spoiled);
   EXPECT_EQ(injected.size(), 55u);
@@ -523,6 +525,8 @@ TEST(CliSolve, RobustRejectsTheSpoiledSeparatorsAndReachesTheCleanOptimum) {
   EXPECT_EQ(injected.size(), 14u);
   EXPECT_EQ(rejected, injected);
   EXPECT_EQ(robust["outliers"], 14);
+  EXPECT_EQ(robust["check_checked"], 46);  // the separators of the 4 robots' pairs
+  EXPECT_EQ(robust["check_rejected"], 14);
 
   const CommandResult clean =
       RunMoslam("solve " + kBlocksWorld + "4robots --json --out " + clean_out.string() + "/");

@@ -58,7 +58,7 @@ Values InitialEstimate(const Dataset& data, const std::string& how) {
 // process, as an OptimizerResult beside GNC's own report.
 OptimizerResult SolveRobust(const SolveArgs& a, const Dataset& data, const Values& initial,
                             const std::vector<bool>& robust_mask, const OptimizerOptions& options,
-                            GncResult& gnc) {
+                            GncResult& gnc, SeparatorConsistencyResult& check) {
   RobustDgsOptions robust_options;  // the same check and GNC as `moslam dgs --robust`
   a.robust_args.applyTo(&robust_options);
   // The initialisation of the factors the separator check keeps (--init file: the file's).
@@ -69,7 +69,8 @@ OptimizerResult SolveRobust(const SolveArgs& a, const Dataset& data, const Value
     d.initial = data.initial;
     return InitialEstimate(d, a.init);
   };
-  gnc = SolveRobustCentralized(data.graph, initialize, robust_mask, robust_options, options);
+  gnc =
+      SolveRobustCentralized(data.graph, initialize, robust_mask, robust_options, options, &check);
   OptimizerResult result;
   result.values = gnc.values;
   result.termination = TerminationStatus::kConverged;
@@ -103,7 +104,8 @@ struct SolveTimes {
 };
 
 nlohmann::json SolveJson(const SolveArgs& a, const Dataset& data, const OptimizerResult& result,
-                         const GncResult& gnc, const SolveTimes& times) {
+                         const GncResult& gnc, const SeparatorConsistencyResult& check,
+                         const SolveTimes& times) {
   nlohmann::json j = {
       {"input", a.input},
       {"variables", data.graph.keys().size()},
@@ -127,6 +129,8 @@ nlohmann::json SolveJson(const SolveArgs& a, const Dataset& data, const Optimize
     const std::vector<bool> robust = DefaultRobustFactors(data.graph);
     nlohmann::json r = {{"status", ToString(gnc.status)},
                         {"robust_factors", std::count(robust.begin(), robust.end(), true)},
+                        {"check_checked", check.separators},  // separators, or loop closures
+                        {"check_rejected", check.rejected},
                         {"rounds", gnc.iterations},
                         {"outliers", gnc.outliers},
                         {"least_squares_cost", gnc.least_squares_cost},
@@ -170,22 +174,25 @@ int RunSolve(const SolveArgs& a) {
     }
   }
   GncResult gnc;
+  SeparatorConsistencyResult check;  // --robust: the pairwise check before GNC
   const std::vector<bool> robust_mask =
       a.robust ? DefaultRobustFactors(data.graph) : std::vector<bool>{};
   const OptimizerResult result =
-      a.robust ? SolveRobust(a, data, initial, robust_mask, options, gnc) : optimizer.optimize();
+      a.robust ? SolveRobust(a, data, initial, robust_mask, options, gnc, check)
+               : optimizer.optimize();
   times.total = Since(t_start);
   WriteEstimate(a, data, result.values);
 
   if (a.json) {
-    fmt::print("{}\n", SolveJson(a, data, result, gnc, times).dump());
+    fmt::print("{}\n", SolveJson(a, data, result, gnc, check, times).dump());
   } else if (a.robust) {
-    fmt::print("robust (GNC-TLS, threshold {:g}): {} after {} weighted solve(s), {} of {} robust "
-               "factor(s) rejected; cost of all factors {:.10g} (least squares {:.10g}) in "
-               "{:.3f} s\n",
-               GncOptions{a.robust_args.gnc_threshold}.threshold2(), ToString(gnc.status),
-               gnc.iterations, gnc.outliers, std::count(robust_mask.begin(), robust_mask.end(), true),
-               result.final_cost, gnc.least_squares_cost, gnc.seconds);
+    fmt::print(
+        "robust (GNC-TLS, threshold {:g}): {} after {} weighted solve(s), {} of {} robust "
+        "factor(s) rejected ({} of {} checked by the pairwise check before GNC); cost of "
+        "all factors {:.10g} (least squares {:.10g}) in {:.3f} s\n",
+        GncOptions{a.robust_args.gnc_threshold}.threshold2(), ToString(gnc.status), gnc.iterations,
+        gnc.outliers, std::count(robust_mask.begin(), robust_mask.end(), true), check.rejected,
+        check.separators, result.final_cost, gnc.least_squares_cost, gnc.seconds);
   } else {
     fmt::print("{} after {} iteration(s): cost {:.6f} -> {:.10g} in {:.3f} s\n",
                ToString(result.termination), result.iterations, result.initial_cost,

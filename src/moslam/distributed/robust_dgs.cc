@@ -298,12 +298,14 @@ std::vector<bool> Select(const std::vector<bool>& mask, const std::vector<std::s
 GncResult SolveRobustCentralized(const PoseGraph& graph,
                                  const std::function<Values(const PoseGraph&)>& initialize,
                                  const std::vector<bool>& robust, const RobustDgsOptions& options,
-                                 const OptimizerOptions& solver) {
+                                 const OptimizerOptions& solver,
+                                 SeparatorConsistencyResult* check_out) {
   options.validate();
   if (!options.check_separators) {
     return SolveGnc(graph, initialize(graph), robust, options.gnc, solver);
   }
   const SeparatorConsistencyResult check = CheckSeparators(graph, options, robust);
+  if (check_out) *check_out = check;
   std::vector<std::size_t> index;
   const PoseGraph kept = SubGraph(graph, check.kept, &index);
   GncResult r = SolveGnc(kept, initialize(kept), Select(robust, index), options.gnc, solver);

@@ -137,11 +137,13 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustD
 
 // The centralized reference of RunRobustDgs: the same separator check, then SolveGnc on the
 // factors it kept (weights 0 for the others), from initialize(kept graph) (e.g. its chordal
-// initialisation: that of the whole graph would carry the rejected factors' pull).
+// initialisation: that of the whole graph would carry the rejected factors' pull). `check`
+// (optional) receives what the check found (untouched without options.check_separators).
 GncResult SolveRobustCentralized(const PoseGraph& graph,
                                  const std::function<Values(const PoseGraph&)>& initialize,
                                  const std::vector<bool>& robust, const RobustDgsOptions& options,
-                                 const OptimizerOptions& solver = {});
+                                 const OptimizerOptions& solver = {},
+                                 SeparatorConsistencyResult* check = nullptr);
 
 // robust[i]: whether factor i of `graph` is robust (size = number of factors). checked (empty:
 // every factor): the factors the separator check sees, its robots' maps and separators; the others
