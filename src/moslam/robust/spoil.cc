@@ -83,15 +83,15 @@ SpoiledGraph SpoilSeparators(const PoseGraph& graph, const SpoilOptions& options
     if (single_robot && (a.index + 1 == b.index || b.index + 1 == a.index || a == b)) continue;
     if (!linked.insert({std::min(a, b), std::max(a, b)}).second) continue;
     const RelativePoseFactor& like = graph.factors()[separators[uniform(separators.size())]];
-    // A uniformly random rotation: the axis uniform on the sphere, the angle with density
-    // (1 - cos t) / pi on [0, pi] (by rejection).
     SO3 R;
     Vector3 t;
-    if (options.planar) {
+    if (options.planar) {  // a uniform rotation about z, a uniform direction in the plane
       const double angle = M_PI * (2.0 * unit(rng) - 1.0), heading = 2.0 * M_PI * unit(rng);
       R = SO3::Exp(Vector3(0.0, 0.0, angle));
       t = like.measured().translation().norm() * Vector3(std::cos(heading), std::sin(heading), 0.0);
     } else {
+      // A uniformly random rotation: the axis uniform on the sphere, the angle with density
+      // (1 - cos t) / pi on [0, pi] (by rejection).
       double angle = 0.0;
       for (;;) {
         angle = M_PI * unit(rng);
