@@ -61,20 +61,18 @@ TeamSummaries ReadTeamSummaries(const fs::path& out, int n, const std::map<int, 
   for (int r = 0; r < n; ++r) {
     const fs::path dir = out / fmt::format("robot{}", r);
     const auto code = exit_codes.find(r);
+    const bool ran = code != exit_codes.end();  // by this process: its exit code is known
+    const int exit_code = ran ? code->second : 0;
     const fs::path file = dir / "summary.json";
-    const bool finished = fs::exists(file);
-    if ((code != exit_codes.end() && code->second != 0) || !finished) {
+    if (exit_code != 0 || !fs::exists(file)) {
       t.ok = false;
       nlohmann::json& f = t.failed[r];
       f = {{"robot", r}};
-      if (code != exit_codes.end()) f["exit_code"] = code->second;
-      if (code != exit_codes.end() && code->second == -1) {
-        f["reason"] = "killed at the timeout";
-      } else if (code != exit_codes.end() && code->second != 0) {
-        f["reason"] = fmt::format("exit {}", code->second);
-      } else {
-        f["reason"] = fmt::format("no {} (it has not finished)", file.string());
-      }
+      if (ran) f["exit_code"] = exit_code;
+      f["reason"] = exit_code == -1  ? std::string("killed at the timeout")
+                    : exit_code != 0 ? fmt::format("exit {}", exit_code)
+                                     : fmt::format("no {} ({})", file.string(),
+                                                   ran ? "it exited 0" : "it has not finished");
       const fs::path log = dir / "log.txt";
       if (fs::exists(log)) f["log"] = log.string();
       continue;
