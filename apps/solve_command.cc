@@ -104,8 +104,8 @@ struct SolveTimes {
 };
 
 nlohmann::json SolveJson(const SolveArgs& a, const Dataset& data, const OptimizerResult& result,
-                         const GncResult& gnc, const SeparatorConsistencyResult& check,
-                         const SolveTimes& times) {
+                         const std::vector<bool>& robust, const GncResult& gnc,
+                         const SeparatorConsistencyResult& check, const SolveTimes& times) {
   nlohmann::json j = {
       {"input", a.input},
       {"variables", data.graph.keys().size()},
@@ -126,7 +126,6 @@ nlohmann::json SolveJson(const SolveArgs& a, const Dataset& data, const Optimize
       {"total_seconds", times.total},
   };
   if (a.robust) {
-    const std::vector<bool> robust = DefaultRobustFactors(data.graph);
     nlohmann::json r = {{"status", ToString(gnc.status)},
                         {"robust_factors", std::count(robust.begin(), robust.end(), true)},
                         {"check_checked", check.separators},  // separators, or loop closures
@@ -184,7 +183,7 @@ int RunSolve(const SolveArgs& a) {
   WriteEstimate(a, data, result.values);
 
   if (a.json) {
-    fmt::print("{}\n", SolveJson(a, data, result, gnc, check, times).dump());
+    fmt::print("{}\n", SolveJson(a, data, result, robust_mask, gnc, check, times).dump());
   } else if (a.robust) {
     fmt::print(
         "robust (GNC-TLS, threshold {:g}): {} after {} weighted solve(s), {} of {} robust "
