@@ -504,6 +504,50 @@ TEST(CliSolve, RobustRejectsTheWrongLoopClosuresSpoilAddsToOneRobot) {
   EXPECT_LE(moslam::MaxPoseDifference(estimate, clean), 1e-6);
 }
 
+// A pair of key names as the indices of their poses (the robot letter dropped): a split file's
+// keys name its blocks, the spoiled folder's robot 0.
+std::set<std::pair<long, long>> PoseIndices(const FactorPairs& pairs) {
+  std::set<std::pair<long, long>> out;
+  for (const auto& [a, b] : pairs) {
+    const long i = std::stol(a.substr(1)), j = std::stol(b.substr(1));
+    out.insert({std::min(i, j), std::max(i, j)});
+  }
+  return out;
+}
+
+// `dgs <one robot's file> --robots 2 --robust`: the file's loop closures are the robust factors,
+// in a block (29 of the 55 wrong ones: each robot checks its own through its odometry) or between
+// the two (26: the separator check), and the odometry stays least squares, from one block to the
+// next too. The robots reject exactly the wrong ones and reach the clean file's optimum, as
+// `solve --robust` does (above). Before, only the factors between the blocks were robust (the
+// odometry between them included), and the wrong loop closures inside a block bent the map.
+TEST(CliDgs, RobustOnASplitFileRejectsTheWrongLoopClosuresInAndBetweenBlocks) {
+  const fs::path dir = moslam::test::ScratchDir("split_robust");
+  const fs::path spoiled = dir / "spoiled", robust_out = dir / "robust", clean_out = dir / "clean";
+  const std::string csail = MOSLAM_DATASETS_DIR "/pgo/CSAIL.g2o";
+  ASSERT_EQ(
+      RunMoslam("spoil " + csail + " --fraction 0.3 --seed 1 --out " + spoiled.string()).exit_code,
+      0);
+  const CommandResult r =
+      RunMoslam("dgs " + (spoiled / "0.g2o").string() +
+                " --robots 2 --robust --gnc-threshold 5 --json --out " + robust_out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(LastLine(r.out));
+  EXPECT_EQ(j["robust_factors"], 183);  // the loop closures: not the odometry
+  EXPECT_EQ(j["outliers"], 55);
+  EXPECT_EQ(j["weights_disagreeing"], 0);
+  EXPECT_EQ(PoseIndices(RejectedPairs(j)), PoseIndices(SpoiledPairs(spoiled)));
+  ASSERT_EQ(RunMoslam("solve " + csail + " --out " + clean_out.string() + "/").exit_code, 0);
+  const moslam::Values clean = moslam::ReadG2o(clean_out.string()).initial;
+  moslam::Values estimate;  // the blocks' poses as robot 0's
+  for (const auto& [k, x] : moslam::ReadG2o(robust_out.string()).initial) {
+    estimate[moslam::Key::Pose(0, k.index)] = x;
+  }
+  ASSERT_EQ(clean.size(), estimate.size());
+  EXPECT_LE(moslam::MaxPoseDifference(estimate, clean), 1e-6);
+  fs::remove_all(dir);
+}
+
 // `solve --robust`, the centralized reference of `dgs --robust`, on the spoiled blocks_world of
 // the test above: it rejects exactly the separators `spoil` wrote to outliers.txt, and the
 // estimate it writes is the clean folder's least-squares optimum; on the clean folder it rejects

@@ -188,13 +188,12 @@ void PrintRobustDgs(const DgsArgs& a, const PoseGraph& graph, const RobustDgsOpt
 
 // --robust: GNC-TLS by the robots (distributed/robust_dgs.h) beside the centralized GNC.
 int RunRobustDgsCommand(const DgsArgs& a, const PoseGraph& graph, const Values& initial,
-                        bool planar, const DgsOptions& dgs,
+                        const std::vector<bool>& robust, bool planar, const DgsOptions& dgs,
                         std::chrono::steady_clock::time_point t_start) {
   RobustDgsOptions options;
   options.dgs = dgs;
   a.robust_args.applyTo(&options);
   options.validate();
-  const std::vector<bool> robust = DefaultRobustFactors(graph);
   const Key anchor = GaugeAnchor(graph);
   const auto anchor_it = initial.find(anchor);
   const SE3 anchor_pose = anchor_it != initial.end() ? anchor_it->second : SE3();
@@ -218,6 +217,11 @@ struct DgsInput {
   Dataset data;  // as read (planar, repaired information)
   PoseGraph graph;
   Values initial;
+  // The factors --robust makes robust: DefaultRobustFactors of the graph read, for a split file
+  // its loop closures, in a block (each robot checks its own through its odometry) or between two
+  // (separators, which the separator check tests); the odometry stays least squares, from one
+  // block to the next too.
+  std::vector<bool> robust;
 };
 
 DgsInput ReadDgsInput(const DgsArgs& a) {
@@ -225,6 +229,7 @@ DgsInput ReadDgsInput(const DgsArgs& a) {
   in.data = ReadG2o(a.input, a.read);
   in.graph = in.data.graph;
   in.initial = in.data.initial;
+  in.robust = DefaultRobustFactors(in.graph);  // the same factors in the same order once split
   if (a.robots == 0) return in;
   if (std::filesystem::is_directory(a.input)) {
     throw InvalidInputError("--robots " + std::to_string(a.robots) +
@@ -420,7 +425,7 @@ int RunDgsCommand(const DgsArgs& a_in) {
   const DgsOptions options =
       a.solver.options(a.order == "jacobi" ? SweepOrder::kJacobi : SweepOrder::kGaussSeidel);
   if (a.robust) {
-    return RunRobustDgsCommand(a, graph, in.initial, in.data.planar, options, t_start);
+    return RunRobustDgsCommand(a, graph, in.initial, in.robust, in.data.planar, options, t_start);
   }
 
   // The reference: centralized Gauss-Newton from the chordal initialisation, in the same gauge

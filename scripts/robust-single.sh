@@ -3,17 +3,21 @@
 # fraction P and GNC threshold: `moslam spoil` adds wrong loop closures between poses that are not
 # consecutive (seeded; in the plane for 2D files), `moslam solve --robust` solves them with GNC-TLS
 # alone (--separator-support 0) and with the loop closures first checked pairwise through the
-# odometry (robust/loop_consistency.h), and each estimate is compared with the clean file's
-# optimum (`moslam solve --out`, the same gauge: no alignment).
+# odometry (robust/loop_consistency.h), `moslam dgs --robots R --robust` splits the file into R
+# robots that solve it (each checks its own loop closures through its odometry, the separator
+# check those between two), and each estimate is compared with the clean file's optimum
+# (`moslam solve --out`, the same gauge: no alignment).
 # Environment: BUILD_DIR / MOSLAM (scripts/lib/moslam.sh), SEED (default 1), DATASETS (files of
-# ../shared/datasets/pgo without .g2o), FRACTIONS, THRESHOLDS (0: GNC's default, 22.46), JSON
-# (default docs/robust_single.json). Writes JSON and prints the Markdown table.
+# ../shared/datasets/pgo without .g2o), FRACTIONS, THRESHOLDS (0: GNC's default, 22.46), ROBOTS
+# (default 4; empty: no dgs), JSON (default docs/robust_single.json). Writes JSON and prints the
+# Markdown table.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib/moslam.sh"
 SEED="${SEED:-1}"
 DATASETS="${DATASETS:-input_INTEL_g2o CSAIL}"
 FRACTIONS="${FRACTIONS:-0.1 0.3 0.5 0.7}"
 THRESHOLDS="${THRESHOLDS:-0 5}"
+ROBOTS="${ROBOTS-4}"
 JSON="${JSON:-$ROOT/docs/robust_single.json}"
 DATA="$ROOT/../shared/datasets/pgo"
 WORK="$(mktemp -d)"
@@ -32,9 +36,15 @@ for d in $DATASETS; do
         --out "$run.alone/" | tail -n 1 > "$run.alone.json"
       "$MOSLAM" solve "$spoiled" --robust --gnc-threshold "$c" --json --out "$run.checked/" \
         | tail -n 1 > "$run.checked.json"
+      dgs=()
+      for r in $ROBOTS; do
+        "$MOSLAM" dgs "$spoiled/0.g2o" --robots "$r" --robust --gnc-threshold "$c" --json \
+          --out "$run.dgs$r" | tail -n 1 > "$run.dgs$r.json"
+        dgs+=("$r" "$run.dgs$r.json" "$run.dgs$r")
+      done
       rows+=("$(python3 "$ROOT/scripts/lib/robust_single_row.py" "$d" "$p" "$c" \
         "$spoiled/outliers.txt" "$WORK/clean_$d.g2o" "$run.alone.json" "$run.alone" \
-        "$run.checked.json" "$run.checked")")
+        "$run.checked.json" "$run.checked" "${dgs[@]}")")
     done
   done
 done
@@ -43,12 +53,19 @@ echo "Command: \`scripts/robust-single.sh\` (seed $SEED)"
 echo
 python3 - "$JSON" <<'PY'
 import json, sys
-print("| dataset | P | GNC threshold | loop closures (wrong) | GNC alone: wrong kept / right rejected | largest position error (m) | with the check: wrong kept / right rejected | largest position error (m) |")
-print("|---|---:|---:|---|---|---:|---|---:|")
-for r in json.load(open(sys.argv[1])):
-    a, c = r["gnc_alone"], r["checked"]
+rows = json.load(open(sys.argv[1]))
+robots = list(rows[0]["dgs"]) if rows else []
+head = ["dataset", "P", "GNC threshold", "loop closures (wrong)",
+        "GNC alone: wrong kept / right rejected", "largest position error (m)",
+        "with the check: wrong kept / right rejected", "largest position error (m)"]
+for n in robots:
+    head += [f"dgs, {n} robots: wrong kept / right rejected", "largest position error (m)"]
+print("| " + " | ".join(head) + " |")
+print("|---|---:|---:|---|" + "---|---:|" * (2 + len(robots)))
+cell = lambda j: f"{j['wrong_kept']} / {j['right_rejected']} | {j['max_position_difference']:.2g}"
+for r in rows:
     t = r["gnc_threshold"] or 22.46
+    cells = [cell(r["gnc_alone"]), cell(r["checked"])] + [cell(r["dgs"][n]) for n in robots]
     print(f"| {r['dataset']} | {r['fraction']} | {t:g} | {r['loop_closures']} ({r['wrong']}) | "
-          f"{a['wrong_kept']} / {a['right_rejected']} | {a['max_position_difference']:.2g} | "
-          f"{c['wrong_kept']} / {c['right_rejected']} | {c['max_position_difference']:.2g} |")
+          + " | ".join(cells) + " |")
 PY

@@ -36,14 +36,22 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
   for (const Key& k : graph.keys()) {
     if (k.isPose()) robots.insert(k.robot);
   }
-  if (robots.size() != 1 || robust.empty()) {
-    return CheckSeparatorConsistency(graph, c, robust, options.gnc);
-  }
-  // One robot: no separator; its loop closures are checked through its odometry instead.
   OdometryCheckOptions o;
   o.threshold = c.threshold;
   o.min_support = c.min_support;
   o.odometry_uncertainty = c.map_uncertainty;
+  if (robots.size() != 1 || robust.empty()) {
+    SeparatorConsistencyResult out = CheckSeparatorConsistency(graph, c, robust, options.gnc);
+    if (robust.empty()) return out;
+    // Each robot's own loop closures, through its own odometry (none in object SLAM, whose robust
+    // factors touch objects; g2o folders mark only their separators).
+    const OdometryCheckResult own = CheckEachRobotsLoopClosures(graph, robust, o);
+    for (std::size_t i = 0; i < out.kept.size(); ++i) out.kept[i] = out.kept[i] && own.kept[i];
+    out.separators += own.loop_closures;
+    out.rejected += own.rejected;
+    return out;
+  }
+  // One robot: no separator; its loop closures are checked through its odometry instead.
   const OdometryCheckResult odometry = CheckLoopClosuresByOdometry(graph, robust, o);
   SeparatorConsistencyResult out;
   out.kept = odometry.kept;

@@ -131,7 +131,9 @@ struct RobustDgsResult {
 // robot's map robust in the intra-robot factors `robust` marks. A graph whose poses are one
 // robot's has no separator: its loop closures `robust` marks are checked through its odometry
 // instead (robust/loop_consistency.h, with the check's threshold, min_support and map_uncertainty
-// as odometry_uncertainty).
+// as odometry_uncertainty). In a team's graph, the loop closures `robust` marks between two poses
+// of one robot are checked so too, each robot through its own odometry
+// (CheckEachRobotsLoopClosures), beside the separators; `separators` and `rejected` count both.
 SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustDgsOptions& options,
                                            const std::vector<bool>& robust = {});
 

@@ -39,7 +39,10 @@ RobustRobot::RobustRobot(const RobustRobotProblem& problem, const RobustProgramO
     }
     if (a == b) continue;
     std::vector<std::size_t>& list = pairs_[a == p_.robot ? b : a];  // every neighbour
-    if (p_.checked.empty() || p_.checked[i]) list.push_back(i);
+    // The check tests the robust separators (a least-squares one is kept untested).
+    if ((p_.checked.empty() || p_.checked[i]) && (p_.robust.empty() || p_.robust[i])) {
+      list.push_back(i);
+    }
     shared_[a == p_.robot ? b : a].push_back(i);
   }
   full_ = MakeRobustIndex(p_.robot, p_.subgraph, p_.robust);

@@ -270,13 +270,16 @@ namespace {
 
 using RobotPair = std::pair<int, int>;
 
-// The separators of each robot pair (lower robot first), as factor indices.
+// The robust separators (every one when `robust` is empty) of each robot pair (lower robot
+// first), as factor indices.
 std::map<RobotPair, std::vector<std::size_t>> SeparatorsByPair(
-    const std::vector<RelativePoseFactor>& factors) {
+    const std::vector<RelativePoseFactor>& factors, const std::vector<bool>& robust) {
   std::map<RobotPair, std::vector<std::size_t>> pairs;
   for (std::size_t i = 0; i < factors.size(); ++i) {
     const int a = factors[i].a().robot, b = factors[i].b().robot;
-    if (a != b) pairs[{std::min(a, b), std::max(a, b)}].push_back(i);
+    if (a != b && (robust.empty() || robust[i])) {
+      pairs[{std::min(a, b), std::max(a, b)}].push_back(i);
+    }
   }
   return pairs;
 }
@@ -297,7 +300,7 @@ class CentralizedCheck {
   }
 
   SeparatorConsistencyResult run() && {
-    const auto pairs = SeparatorsByPair(graph_.factors());
+    const auto pairs = SeparatorsByPair(graph_.factors(), robust_);
     for (const auto& [pair, list] : pairs) out_.separators += static_cast<int>(list.size());
     for (const auto& [pair, list] : pairs) checkPair(pair, list);
     std::vector<int> robots;

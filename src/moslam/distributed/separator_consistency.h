@@ -146,8 +146,10 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
                                      const Eigen::MatrixXd& b_covariance,
                                      const SeparatorConsistencyOptions& options);
 
-// robust (empty, or one flag per factor of graph): the intra-robot factors it marks (object
-// measurements) are robust in each robot's own map too: the map is then its GNC-TLS estimate
+// robust (empty, or one flag per factor of graph): the separators it marks are the ones checked
+// (a separator it does not mark is kept untested: the odometry between two blocks of a split
+// file); the intra-robot factors it marks (object measurements) are robust in each robot's own
+// map too: the map is then its GNC-TLS estimate
 // (robust/gnc.h, with `local`) and its covariances those of the weighted graph, so that a wrong
 // association inside one robot's map does not make every separator of that robot disagree.
 // Throws InvalidInputError (bad options, a mask of the wrong size) and what the local solves throw.

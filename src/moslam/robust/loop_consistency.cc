@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <set>
 #include <string>
 
 #include "moslam/common/errors.h"
@@ -190,6 +191,46 @@ OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
   for (std::size_t i : checked) out.kept[i] = false;
   for (int v : best.nodes) out.kept[checked[static_cast<std::size_t>(v)]] = true;
   out.rejected = n - out.largest;
+  return out;
+}
+
+OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
+                                                const std::vector<bool>& robust,
+                                                const OdometryCheckOptions& options) {
+  options.validate();
+  const std::vector<RelativePoseFactor>& factors = graph.factors();
+  if (robust.size() != factors.size()) {
+    throw InvalidInputError("odometry check: " + std::to_string(robust.size()) +
+                            " robust flags for " + std::to_string(factors.size()) + " factors");
+  }
+  // Per robot with a loop closure to check: its own factors (indices into the graph).
+  std::map<int, std::vector<std::size_t>> own;
+  std::set<int> checking;
+  for (std::size_t i = 0; i < factors.size(); ++i) {
+    const Key a = factors[i].a(), b = factors[i].b();
+    if (a.robot != b.robot) continue;
+    own[a.robot].push_back(i);
+    if (robust[i] && a.isPose() && b.isPose()) checking.insert(a.robot);
+  }
+  OdometryCheckResult out;
+  out.kept.assign(factors.size(), true);
+  for (int robot : checking) {
+    const std::vector<std::size_t>& index = own.at(robot);
+    PoseGraph mine;
+    std::vector<bool> mine_robust;
+    for (std::size_t i : index) {
+      mine.add(factors[i]);
+      mine_robust.push_back(robust[i]);
+    }
+    const OdometryCheckResult r = CheckLoopClosuresByOdometry(mine, mine_robust, options);
+    for (std::size_t j = 0; j < index.size(); ++j) out.kept[index[j]] = r.kept[j];
+    out.loop_closures += r.loop_closures;
+    out.rejected += r.rejected;
+    out.largest = std::max(out.largest, r.largest);
+    out.exact = out.exact && r.exact;
+    out.pairs += r.pairs;
+    out.untestable += r.untestable;
+  }
   return out;
 }
 

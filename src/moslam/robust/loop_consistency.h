@@ -104,4 +104,13 @@ OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
                                                 const std::vector<bool>& robust,
                                                 const OdometryCheckOptions& options = {});
 
+// The same check run by each robot of a team on its own loop closures (the factors `robust` marks
+// that join two of its poses), through its own odometry: what it needs is its own, nothing crosses
+// the network. Factors between two robots are kept and not checked (separator_consistency.h checks
+// those). The counts add over the robots; largest is the largest of their sets, exact whether
+// every search finished. A robot with no such loop closure costs nothing.
+OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
+                                                const std::vector<bool>& robust,
+                                                const OdometryCheckOptions& options = {});
+
 }  // namespace moslam

@@ -179,5 +179,72 @@ TEST(CheckLoopClosuresByOdometry, TooFewAgreeingLoopClosuresDecideNothing) {
   EXPECT_FALSE(confirmed.kept.back());
 }
 
+// Each robot checks its own loop closures through its own odometry: robot 1's wrong one is
+// rejected, robot 0's right ones kept, and a separator (even a wrong one) is not this check's to
+// judge. The result is each robot's own check, put back in the graph's order.
+TEST(CheckEachRobotsLoopClosures, EachRobotChecksItsOwnThroughItsOwnOdometry) {
+  std::mt19937 rng(9);
+  PoseGraph team;
+  std::vector<bool> robust;
+  PoseGraph robot1;  // robot 1's factors alone, as it holds them
+  std::vector<bool> robot1_robust;
+  const auto pose = [](int robot, int index) {
+    return Key::Pose(robot, static_cast<std::uint64_t>(index));
+  };
+  for (int robot = 0; robot < 2; ++robot) {
+    Values chained;
+    const PoseGraph odometry = Odometry(12, rng, &chained);
+    std::vector<RelativePoseFactor> own;
+    for (const RelativePoseFactor& f : odometry.factors()) {
+      own.emplace_back(pose(robot, static_cast<int>(f.a().index)),
+                       pose(robot, static_cast<int>(f.b().index)), f.measured(), f.information());
+    }
+    const auto loop = [&](int a, int b, const SE3& error) {
+      const SE3 z = chained.at(pose(0, a)).inverse() * chained.at(pose(0, b)) * error;
+      return RelativePoseFactor(pose(robot, a), pose(robot, b), z, Matrix6::Identity());
+    };
+    const std::size_t odometry_factors = own.size();
+    for (const auto& [a, b] : {std::pair{0, 6}, {2, 9}, {4, 11}}) own.push_back(loop(a, b, SE3()));
+    if (robot == 1) own.push_back(loop(1, 7, SE3(SO3(), Vector3(20.0, 0.0, 0.0))));
+    for (std::size_t i = 0; i < own.size(); ++i) {
+      team.add(own[i]);
+      robust.push_back(i >= odometry_factors);
+      if (robot == 1) {
+        robot1.add(own[i]);
+        robot1_robust.push_back(i >= odometry_factors);
+      }
+    }
+  }
+  // A wrong separator: kept here.
+  team.add(RelativePoseFactor(pose(0, 3), pose(1, 4), SE3(SO3(), Vector3(50.0, 0.0, 0.0)),
+                              Matrix6::Identity()));
+  robust.push_back(true);
+
+  const OdometryCheckResult r = CheckEachRobotsLoopClosures(team, robust);
+  EXPECT_EQ(r.loop_closures, 7);
+  EXPECT_EQ(r.rejected, 1);
+  EXPECT_EQ(r.largest, 3);
+  EXPECT_TRUE(r.exact);
+  EXPECT_EQ(r.pairs, 3 + 6);
+  const OdometryCheckResult alone = CheckLoopClosuresByOdometry(robot1, robot1_robust);
+  ASSERT_EQ(alone.rejected, 1);
+  const std::size_t robot0_factors = team.factors().size() - robot1.factors().size() - 1;
+  for (std::size_t i = 0; i < team.factors().size(); ++i) {
+    const bool expected =
+        i < robot0_factors || i + 1 == team.factors().size() || alone.kept[i - robot0_factors];
+    EXPECT_EQ(r.kept[i], expected) << i;
+  }
+  EXPECT_FALSE(r.kept[team.factors().size() - 2]);  // robot 1's wrong loop closure
+
+  // No loop closure of a robot's own: nothing checked.
+  std::vector<bool> separators_only(robust.size(), false);
+  separators_only.back() = true;
+  const OdometryCheckResult none = CheckEachRobotsLoopClosures(team, separators_only);
+  EXPECT_EQ(none.loop_closures, 0);
+  EXPECT_EQ(none.pairs, 0);
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] { CheckEachRobotsLoopClosures(team, std::vector<bool>(3, true)); }, "robust flags"));
+}
+
 }  // namespace
 }  // namespace moslam
