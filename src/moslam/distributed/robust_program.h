@@ -66,7 +66,11 @@
 //       reaches robot 0 through the kept separators (as for the inliers' solve, step 4); if one
 //       does not, every robot stops there (RobustProgramResult::unlinked).
 // With RobustRobotProblem::checked, the maps of C1 are made of the checked factors only and only
-// checked separators are tested (the others are kept).
+// checked separators are tested (the others are kept). Only robust separators are tested (a
+// least-squares one is kept). Not here: RunRobustDgs's check of each robot's own loop closures
+// through its odometry (CheckEachRobotsLoopClosures), for robust factors between two poses of one
+// robot; with such a mask the two differ (no caller of the program marks them: g2o folders mark
+// their separators, object SLAM the factors that touch objects).
 // The separators it leaves out are left out of every solve; after GNC, before the readmission,
 // the higher robot of each pair sends the lower its estimates of their variables in the
 // separators left out, so that those whose residual is within c2 come back as in RunRobustDgs.
