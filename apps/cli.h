@@ -14,6 +14,7 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,14 @@ CLI::Validator InRange(double lo, double hi);
 // InvalidInputError when it is a folder or its folder does not exist, which would fail the write
 // only at the end.
 void CheckOutputFile(const std::string& path, const std::string& option);
+
+// A cost against the centralized optimum's, as `cost / central`, or none when the optimum's is at
+// rounding level: below 1e-20 (residuals below 1e-10), what double rounding leaves of measurements
+// that fit exactly (7e-30 for a ten-pose chain), a ratio to which says nothing.
+inline std::optional<double> CostRatio(double cost, double central) {
+  if (!(central >= 1e-20)) return std::nullopt;
+  return cost / central;
+}
 
 // Replaces the process with `executable` found beside the running one, with the same arguments.
 // Returns only on failure, by throwing moslam::Error naming the path it tried and the likely

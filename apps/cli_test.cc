@@ -198,6 +198,36 @@ TEST(CliDgs, AGraphItsMeasurementsFitExactlyReportsNoCostRatio) {
   EXPECT_EQ(j.at("final_cost").get<double>(), 0.0);
 }
 
+// Measurements that fit exactly but whose centralized optimum rounding leaves at 7e-30 (a ten-pose
+// chain with loops): no ratio to it either (it printed 2.6e21 x centralized, and the robust line
+// -1 relative).
+TEST(CliDgs, ACentralizedCostAtRoundingLevelReportsNoRatio) {
+  const fs::path file = moslam::test::ScratchDir("rounding_fit") / "loops.g2o";
+  {
+    std::ofstream out(file);
+    for (int i = 0; i < 10; ++i) out << "VERTEX_SE2 " << i << " " << i << " 0 0\n";
+    for (int i = 0; i < 9; ++i) out << "EDGE_SE2 " << i << " " << i + 1 << " 1 0 0 1 0 0 1 0 1\n";
+    for (int i = 0; i < 6; ++i) out << "EDGE_SE2 " << i << " " << i + 3 << " 3 0 0 1 0 0 1 0 1\n";
+  }
+  const std::string dgs = "dgs " + file.string() + " --robots 3";
+  const CommandResult text = RunMoslam(dgs + " --refine");
+  ASSERT_EQ(text.exit_code, 0) << text.out;
+  EXPECT_EQ(text.out.find("x centralized"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find(", centralized GN 7."), std::string::npos) << text.out;
+  const CommandResult json = RunMoslam(dgs + " --json");
+  ASSERT_EQ(json.exit_code, 0) << json.out;
+  const nlohmann::json j = nlohmann::json::parse(LastLine(json.out));
+  EXPECT_GT(j.at("centralized_cost").get<double>(), 0.0);
+  EXPECT_TRUE(j.at("two_stage_cost_ratio").is_null()) << j.dump();
+  EXPECT_TRUE(j.at("final_cost_ratio").is_null()) << j.dump();
+  const CommandResult robust = RunMoslam(dgs + " --robust");
+  ASSERT_EQ(robust.exit_code, 0) << robust.out;
+  EXPECT_NE(robust.out.find("cost of the kept factors 0 (the centralized's at rounding level)"),
+            std::string::npos)
+      << robust.out;
+  fs::remove_all(file.parent_path());
+}
+
 TEST(Cli, ANumberOutOfRangeSaysWhatTheOptionNeeds) {
   const CommandResult zero = RunMoslam("simulate --robots 0");
   EXPECT_NE(zero.exit_code, 0);

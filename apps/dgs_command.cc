@@ -9,10 +9,10 @@
 #include <filesystem>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 
+#include "cli.h"
 #include "commands.h"
-#include "robust_flags.h"
-#include "solver_flags.h"
 #include "moslam/common/errors.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_driver.h"
@@ -24,6 +24,8 @@
 #include "moslam/metrics/metrics.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/optimizer.h"
+#include "robust_flags.h"
+#include "solver_flags.h"
 
 namespace moslam::cli {
 namespace {
@@ -48,6 +50,8 @@ double Since(std::chrono::steady_clock::time_point t0) {
 nlohmann::json Number(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
+
+nlohmann::json Number(std::optional<double> v) { return v ? Number(*v) : nlohmann::json(nullptr); }
 
 double StageSeconds(const DgsResult& r, DgsStage stage) {
   double s = 0.0;
@@ -162,11 +166,12 @@ void PrintRobustDgs(const DgsArgs& a, const PoseGraph& graph, const RobustDgsOpt
       "centralized GNC: {} after {} round(s); {} rejected in all (the separator check's and "
       "GNC's), cost of the kept factors {:.10g}\n",
       ToString(central.status), central.iterations, central.outliers, c.central_cost);
+  const std::optional<double> ratio = CostRatio(c.cost, c.central_cost);
   fmt::print(
       "robots' GNC:     {} after {} round(s); {} rejected in all ({} weight(s) differ from "
-      "the centralized), cost of the kept factors {:.10g} ({:.3e} relative)\n",
+      "the centralized), cost of the kept factors {:.10g} ({})\n",
       ToString(r.status), r.iterations, r.outliers, c.disagree, c.cost,
-      c.central_cost > 0 ? c.cost / c.central_cost - 1.0 : 0.0);
+      ratio ? fmt::format("{:.3e} relative", *ratio - 1.0) : "the centralized's at rounding level");
   fmt::print("vs centralized GNC (no alignment): ATE* {:.3e} m, ARE* {:.3e} deg over {} poses\n",
              c.errors.poses.ate, c.errors.poses.are_deg, c.errors.poses.count);
   fmt::print(
@@ -309,8 +314,8 @@ nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInp
       {"centralized_iterations", central.iterations},
       {"centralized_termination", ToString(central.termination)},
       {"centralized_seconds", run.central_seconds},
-      {"two_stage_cost_ratio", Number(run.two_stage_cost / central.final_cost)},  // 0/0: null
-      {"final_cost_ratio", Number(run.final_cost / central.final_cost)},
+      {"two_stage_cost_ratio", Number(CostRatio(run.two_stage_cost, central.final_cost))},
+      {"final_cost_ratio", Number(CostRatio(run.final_cost, central.final_cost))},
       {"iterations_rotation", r.rotation.iterations},
       {"iterations_pose", r.pose.iterations},
       {"iterations_refine", iterations_refine},
@@ -395,7 +400,7 @@ void PrintDgsSummary(const DgsArgs& a, const DgsRun& run) {
                r.refine.iterations, r.refine.sweeps);
   }
   fmt::print("\n");
-  if (central_cost > 0.0) {
+  if (CostRatio(0.0, central_cost)) {
     fmt::print(
         "cost: two-stage {:.10g} ({:.6f} x centralized), final {:.10g} ({:.6f} x), "
         "centralized GN {:.10g}\n",

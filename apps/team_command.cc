@@ -13,6 +13,7 @@
 #include <set>
 
 #include "child_processes.h"
+#include "cli.h"
 #include "commands.h"
 #include "moslam/common/errors.h"
 #include "moslam/common/whole_file.h"
@@ -229,14 +230,14 @@ void CompareWithCentralized(const TeamResults& t, const PoseGraph& graph,
   j["refine_final_cost"] = t.refine_cost;
   j["in_process_refine_final_cost"] = reference.refine.final_cost;
   j["cost_centralized"] = central.final_cost;
-  j["cost_relative_to_centralized"] =
-      (j["cost"].get<double>() - central.final_cost) / central.final_cost;
+  const std::optional<double> ratio = CostRatio(j["cost"].get<double>(), central.final_cost);
+  j["cost_relative_to_centralized"] = ratio ? nlohmann::json(*ratio - 1.0) : nullptr;
   fmt::print(
       "refinement: {} steps (in-process {}), cost F = {:.12g} (in-process {:.12g}, "
-      "centralized optimum {:.12g}: {:+.2e} relative)\n",
+      "centralized optimum {:.12g}: {})\n",
       t.refine_steps, reference.refine.iterations, j["cost"].get<double>(),
       reference.refine.final_cost, central.final_cost,
-      j["cost_relative_to_centralized"].get<double>());
+      ratio ? fmt::format("{:+.2e} relative", *ratio - 1.0) : "at rounding level");
 }
 
 // The team's estimate against the in-process driver's on the same graph (and, with the
