@@ -51,7 +51,7 @@ class RobustRobot {
   Values& values() { return values_; }
   // The whole subgraph's robust factors.
   const RobustIndex& index() const { return full_; }
-  // Per neighbour: the separators with it the check sees (every neighbour has an entry).
+  // Per neighbour: the robust separators with it the check sees (every neighbour has an entry).
   const std::map<int, std::vector<std::size_t>>& checkedPairs() const { return pairs_; }
 
   // An agent of the whole subgraph, not solved, so that the next step reaches every neighbour
@@ -94,7 +94,7 @@ class RobustRobot {
   TeamChannel& channel_;
   DgsOptions solver_;  // options.solver with the refinement on
   RobustIndex full_;
-  std::map<int, std::vector<std::size_t>> pairs_;   // per neighbour: every checked separator
+  std::map<int, std::vector<std::size_t>> pairs_;   // per neighbour: the checked robust separators
   std::map<int, std::vector<std::size_t>> shared_;  // per neighbour: every separator
   Values values_;
   RobustProgramResult out_;
