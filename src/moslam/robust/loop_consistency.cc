@@ -143,15 +143,25 @@ const OdometryChain::Node& OdometryChain::node(const Key& k) const {
   return it->second;
 }
 
+namespace {
+
+void CheckInputs(const PoseGraph& graph, const std::vector<bool>& robust,
+                 const OdometryCheckOptions& options) {
+  options.validate();
+  if (robust.size() != graph.factors().size()) {
+    throw InvalidInputError("odometry check: " + std::to_string(robust.size()) +
+                            " robust flags for " + std::to_string(graph.factors().size()) +
+                            " factors");
+  }
+}
+
+}  // namespace
+
 OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
                                                 const std::vector<bool>& robust,
                                                 const OdometryCheckOptions& options) {
-  options.validate();
+  CheckInputs(graph, robust, options);
   const std::vector<RelativePoseFactor>& factors = graph.factors();
-  if (robust.size() != factors.size()) {
-    throw InvalidInputError("odometry check: " + std::to_string(robust.size()) +
-                            " robust flags for " + std::to_string(factors.size()) + " factors");
-  }
   const OdometryChain chain(graph, options.odometry_uncertainty);
   OdometryCheckResult out;
   out.kept.assign(factors.size(), true);
@@ -197,12 +207,8 @@ OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
 OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
                                                 const std::vector<bool>& robust,
                                                 const OdometryCheckOptions& options) {
-  options.validate();
+  CheckInputs(graph, robust, options);
   const std::vector<RelativePoseFactor>& factors = graph.factors();
-  if (robust.size() != factors.size()) {
-    throw InvalidInputError("odometry check: " + std::to_string(robust.size()) +
-                            " robust flags for " + std::to_string(factors.size()) + " factors");
-  }
   // Per robot with a loop closure to check: its own factors (indices into the graph).
   std::map<int, std::vector<std::size_t>> own;
   std::set<int> checking;
