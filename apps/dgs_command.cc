@@ -505,7 +505,8 @@ Runner RegisterDgs(CLI::App& app) {
   AddG2oReadFlags(sub, &args->read);
   sub->add_flag("--robust", args->robust,
                 "outlier-robust: graduated non-convexity with a truncated least-squares cost on "
-                "the inter-robot factors, run by the robots (implies --refine)");
+                "the inter-robot factors (one robot's file: its loop closures, each robot "
+                "checking its own through its odometry), run by the robots (implies --refine)");
   AddRobustSolveFlags(sub, &args->robust_args);
   sub->add_option("--out", args->out,
                   "write the distributed estimate into this folder: 0.g2o .. N-1.g2o (each "
