@@ -12,6 +12,7 @@
 #include "moslam/common/whole_file.h"
 #include "moslam/io/g2o.h"
 #include "moslam/online/online_team.h"
+#include "moslam/robust/gnc.h"
 #include "moslam/transport/dds_transport.h"
 #include "moslam/transport/dgs_node.h"
 #include "moslam/transport/robot_data.h"
@@ -258,6 +259,7 @@ int RunRobot(const RobotArgs& a) {
   const std::string file = RobotFile(a.data, a.robot);
   const Dataset data = ReadRobotG2o(file);
   DgsNodeOptions options = NodeOptions(a.solve);
+  if (a.solve.robust_loop_closures) options.robust = LoopClosureFactors(data.graph);
   options.state_dir = a.out;
   if (a.progress) {
     options.on_round = [](const DgsNodeRound& r) {

@@ -13,11 +13,21 @@ void AddSolveFlags(CLI::App* sub, SolveFlags& f) {
   sub->add_flag("--robust", f.robust,
                 "GNC-TLS around the solver, run by the robots (weights on the wire), after the "
                 "pairwise check of the separators (map covariances on the wire), as `moslam dgs "
-                "--robust`: the separators robust, and with --scenario the object measurements "
-                "too (the refinement is forced on); with --online at every group solve, as "
+                "--robust`: the separators robust (the loop closures with --robust-loop-closures), "
+                "and with --scenario the object measurements too (the refinement is forced on); "
+                "with --online at every group solve, as "
                 "`moslam simulate --online --robust` (pairs rejected set aside until their robots "
                 "meet again)");
   AddRobustSolveFlags(sub, &f.robust_args);
+  CLI::Option* loops =
+      sub->add_flag("--robust-loop-closures", f.robust_loop_closures,
+                    "With --robust on g2o data: the robust factors are the loop closures (every "
+                    "factor but those between poses of consecutive indices, whatever their "
+                    "robots), not the separators, and each robot checks its own through its "
+                    "odometry: a single robot's file split among robots, as `moslam dgs <file> "
+                    "--robots N --robust` (`moslam team` with a single file implies it)")
+          ->needs(sub->get_option("--robust"));
+  if (CLI::Option* scenario = sub->get_option_no_throw("--scenario")) loops->excludes(scenario);
   sub->add_option("--leave-timeout", f.leave_timeout,
                   "Seconds a waited-for robot may be unreachable before it counts as gone (one "
                   "never heard from too: start every robot within this of its first rendezvous)")
@@ -73,6 +83,7 @@ std::vector<std::string> SolveArgs(const SolveFlags& f) {
   if (f.robust) {
     a.push_back("--robust");
     for (const std::string& s : f.robust_args.args()) a.push_back(s);
+    if (f.robust_loop_closures) a.push_back("--robust-loop-closures");
   }
   return a;
 }

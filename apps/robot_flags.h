@@ -25,8 +25,12 @@ struct SolveFlags {
   double stall_timeout = 300.0;
   bool robust = false;
   RobustSolveArgs robust_args;  // --separator-test, --gnc-threshold, --separator-support
+  // --robust-loop-closures (g2o data): the robust factors are the loop closures (gnc.h,
+  // LoopClosureFactors), not the separators.
+  bool robust_loop_closures = false;
 };
 
+// After AddScenarioFlags: --robust-loop-closures excludes --scenario.
 void AddSolveFlags(CLI::App* sub, SolveFlags& f);
 std::chrono::milliseconds Ms(double seconds);
 DgsNodeOptions NodeOptions(const SolveFlags& f);

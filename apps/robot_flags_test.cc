@@ -44,6 +44,7 @@ TEST(RobotFlags, EveryFlagOfTheRobotsParserIsForwardedAndReadsBack) {
   f.robust_args.retest_left_out = false;
   f.robust_args.retest_groups = false;
   f.robust_args.gnc_threshold = 9.5;
+  f.robust_loop_closures = true;  // g2o data only; forwarded alike
   ScenarioFlags s;
   s.name = "house";
   s.spec.robots = 3;
@@ -69,6 +70,26 @@ TEST(RobotFlags, EveryFlagOfTheRobotsParserIsForwardedAndReadsBack) {
     }
   }
   EXPECT_EQ(Reparsed(forwarded), forwarded);
+}
+
+// The loop closures robust: g2o data only, and only with --robust (a scenario's robust factors
+// are its object factors).
+TEST(RobotFlags, RobustLoopClosuresNeedRobustAndRefuseAScenario) {
+  const auto parse = [](std::vector<std::string> args) {
+    CLI::App app;
+    SolveFlags f;
+    ScenarioFlags s;
+    AddScenarioFlags(&app, s, true);
+    AddSolveFlags(&app, f);
+    std::reverse(args.begin(), args.end());
+    app.parse(args);
+    return f.robust_loop_closures;
+  };
+  EXPECT_TRUE(parse({"--robust", "--robust-loop-closures"}));
+  EXPECT_FALSE(parse({"--robust"}));
+  EXPECT_THROW(parse({"--robust-loop-closures"}), CLI::RequiresError);
+  EXPECT_THROW(parse({"--scenario", "house", "--robust", "--robust-loop-closures"}),
+               CLI::ExcludesError);
 }
 
 }  // namespace

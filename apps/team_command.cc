@@ -644,6 +644,8 @@ int RunTeam(const TeamArgs& args) {
     WriteG2oFolder(folder.string(), split.graph, split.initial);
     fmt::print("{} split into {} robots: {}\n", a.data, a.robots, folder.string());
     a.data = folder.string();
+    // Robust: the file's loop closures, as `moslam dgs <file> --robots N --robust`.
+    a.solve.robust_loop_closures = a.solve.robust;
   }
   if (a.prepare_only) return 0;
   const int files = CountRobotFiles(a.data);
@@ -670,7 +672,9 @@ int RunTeam(const TeamArgs& args) {
     const DgsResult reference = RunDgs(full.graph, full.initial, DriverOptions(node));
     std::optional<RobustDgsResult> robust;
     if (node.gnc) {  // as the nodes
-      robust = RunRobustDgs(full.graph, full.initial, SeparatorFactors(full.graph),
+      robust = RunRobustDgs(full.graph, full.initial,
+                            a.solve.robust_loop_closures ? LoopClosureFactors(full.graph)
+                                                         : SeparatorFactors(full.graph),
                             ReferenceRobustOptions(node));
     }
     CompareWithInProcess(t, full.graph, reference, out, G2oWriteOptions{}, j,

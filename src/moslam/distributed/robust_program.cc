@@ -11,6 +11,7 @@
 #include "moslam/distributed/retest_program.h"
 #include "moslam/distributed/robust_robot.h"
 #include "moslam/distributed/separator_check_program.h"
+#include "moslam/robust/loop_consistency.h"
 
 namespace moslam {
 
@@ -61,6 +62,7 @@ class RobustProgram {
           RunSeparatorCheck(p_, robot_.checkedPairs(), consistency_, options_.gnc, robot_.link());
       out.check_rejected += verdict.rejected;
       out.check_deferred += verdict.deferred;
+      checkOwnLoopClosures(verdict.kept);
     }
     const std::vector<bool>& kept = verdict.kept;
     if (check && verdict.rejected_by_team > 0.0 && !robot_.linked(kept)) {
@@ -130,6 +132,24 @@ class RobustProgram {
   }
 
  private:
+  // Its own loop closures (robust factors between two of its poses) checked through its own
+  // odometry, as RunRobustDgs checks each robot's (CheckEachRobotsLoopClosures): nothing crosses
+  // the network. Those it rejects are left out of `kept` and counted in check_rejected.
+  void checkOwnLoopClosures(std::vector<bool>& kept) {
+    const std::vector<bool> all(p_.subgraph.factors().size(), true);
+    std::vector<std::size_t> seen;  // the factors it checks, as RunRobustDgs (CheckOnMask)
+    const PoseGraph sub = SubGraph(p_.subgraph, p_.checked.empty() ? all : p_.checked, &seen);
+    std::vector<bool> robust;
+    for (std::size_t i : seen) robust.push_back(p_.robust[i]);
+    OdometryCheckOptions o;
+    o.threshold = consistency_.threshold;
+    o.min_support = consistency_.min_support;
+    o.odometry_uncertainty = consistency_.map_uncertainty;
+    const OdometryCheckResult own = CheckEachRobotsLoopClosures(sub, robust, o);
+    for (std::size_t j = 0; j < seen.size(); ++j) kept[seen[j]] = kept[seen[j]] && own.kept[j];
+    robot_.result().check_rejected += own.rejected;
+  }
+
   // After GNC: the higher robot of each pair sends the lower its estimates of its variables in
   // the robust separators the check left out (empty messages elsewhere), for their residuals.
   void fetchLeftOut(const std::vector<bool>& kept) {

@@ -67,10 +67,15 @@
 //       does not, every robot stops there (RobustProgramResult::unlinked).
 // With RobustRobotProblem::checked, the maps of C1 are made of the checked factors only and only
 // checked separators are tested (the others are kept). Only robust separators are tested (a
-// least-squares one is kept). Not here: RunRobustDgs's check of each robot's own loop closures
-// through its odometry (CheckEachRobotsLoopClosures), for robust factors between two poses of one
-// robot; with such a mask the two differ (no caller of the program marks them: g2o folders mark
-// their separators, object SLAM the factors that touch objects).
+// least-squares one is kept).
+//   C5. beside the separators, each robot checks its own loop closures (the robust factors between
+//       two of its poses, checked ones only with `checked`) through its own odometry, as
+//       RunRobustDgs does (CheckEachRobotsLoopClosures): nothing crosses the network. Object
+//       SLAM marks none (its robust factors touch objects); a single robot's file split among
+//       robots marks its loop closures (LoopClosureFactors). Those it rejects are not in C4's
+//       team sum and C4's flood does not see them: a robot whose own loop closures alone link
+//       some of its poses (a gap in its odometry) and that loses them here is not stopped there
+//       (RunRobustDgs throws UnderdeterminedError).
 // The separators it leaves out are left out of every solve; after GNC, before the readmission,
 // the higher robot of each pair sends the lower its estimates of their variables in the
 // separators left out, so that those whose residual is within c2 come back as in RunRobustDgs.
@@ -169,10 +174,10 @@ struct RobustProgramResult {
   std::vector<RobotProgramResult> solves;  // least squares, the rounds, the inlier solve
   std::int64_t weight_messages = 0;  // WeightMessages sent (the check's verdicts included), and
   std::int64_t weight_bytes = 0;     // their binary size
-  // The separator check: the separators to robots of higher id it left out, and of those, the
-  // ones of pairs too small to confirm themselves kept for GNC (their largest sets); the messages
-  // it sent for it (map estimates, covariances, the estimates for the readmission) and their
-  // bytes.
+  // The separator check: the separators to robots of higher id it left out (and its own loop
+  // closures, C5), and of those, the ones of pairs too small to confirm themselves kept for GNC
+  // (their largest sets); the messages it sent for it (map estimates, covariances, the estimates
+  // for the readmission) and their bytes.
   int check_rejected = 0;
   int check_deferred = 0;
   std::int64_t check_messages = 0;

@@ -132,16 +132,21 @@ std::vector<bool> SeparatorFactors(const PoseGraph& graph) {
   return out;
 }
 
-std::vector<bool> DefaultRobustFactors(const PoseGraph& graph) {
-  if (graph.numRobots() > 1) return SeparatorFactors(graph);
+std::vector<bool> LoopClosureFactors(const PoseGraph& graph) {
   std::vector<bool> out;
   out.reserve(graph.factors().size());
   for (const RelativePoseFactor& f : graph.factors()) {
     const Key a = f.a(), b = f.b();
-    const bool consecutive = a.kind == b.kind && (a.index + 1 == b.index || b.index + 1 == a.index);
+    const bool consecutive =
+        a.isPose() && b.isPose() && (a.index + 1 == b.index || b.index + 1 == a.index);
     out.push_back(!consecutive);
   }
   return out;
+}
+
+std::vector<bool> DefaultRobustFactors(const PoseGraph& graph) {
+  if (graph.numRobots() > 1) return SeparatorFactors(graph);
+  return LoopClosureFactors(graph);
 }
 
 std::vector<bool> ObjectFactors(const PoseGraph& graph) {

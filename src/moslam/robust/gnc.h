@@ -102,8 +102,13 @@ int CountOutliers(const std::vector<bool>& robust, const std::vector<double>& we
 
 // The factors between two robots (inter-robot loop closures, shared objects).
 std::vector<bool> SeparatorFactors(const PoseGraph& graph);
+// The loop closures of a chain of poses: every factor but those between two poses of consecutive
+// indices, whatever their robots (SplitIntoRobots keeps the pose indices, so on a single robot's
+// file split among robots these are the file's loop closures, in a block or between blocks, and
+// each robot finds its own in its own factors).
+std::vector<bool> LoopClosureFactors(const PoseGraph& graph);
 // The factors robust by default: those between two robots (inter-robot loop closures, shared
-// objects); in a single-robot graph, the loop closures (poses not consecutive).
+// objects); in a single-robot graph, the loop closures (LoopClosureFactors).
 std::vector<bool> DefaultRobustFactors(const PoseGraph& graph);
 // The factors robust in object SLAM: every factor that touches an object landmark (the shared
 // objects' object-object factors between robots, the robots' object measurements, and their own

@@ -221,6 +221,28 @@ TEST(ObjectFactors, MarksEveryFactorThatTouchesAnObject) {
   EXPECT_TRUE(ObjectFactors(PoseGraph()).empty());
 }
 
+// A chain of poses split among robots keeps its indices: the factors between consecutive poses
+// are its odometry whatever their robots (the one between two blocks too), every other factor a
+// loop closure, objects' factors included. DefaultRobustFactors takes them for one robot.
+TEST(LoopClosureFactors, AreTheFactorsNotBetweenConsecutivePoses) {
+  PoseGraph g;
+  const Matrix6 info = Matrix6::Identity();
+  g.add(RelativePoseFactor(Key::Pose(0, 3), Key::Pose(0, 4), SE3(), info));  // odometry
+  g.add(RelativePoseFactor(Key::Pose(1, 6), Key::Pose(1, 5), SE3(), info));  // odometry, reversed
+  g.add(RelativePoseFactor(Key::Pose(0, 4), Key::Pose(1, 5), SE3(), info));  // between blocks
+  g.add(RelativePoseFactor(Key::Pose(0, 0), Key::Pose(0, 4), SE3(), info));  // in a block
+  g.add(RelativePoseFactor(Key::Pose(0, 2), Key::Pose(1, 6), SE3(), info));  // across blocks
+  g.add(RelativePoseFactor(Key::Object(0, 0), Key::Object(0, 1), SE3(), info));  // objects
+  g.add(RelativePoseFactor(Key::Pose(0, 0), Key::Object(0, 1), SE3(), info));
+  EXPECT_EQ(LoopClosureFactors(g),
+            (std::vector<bool>{false, false, false, true, true, true, true}));
+  EXPECT_EQ(SeparatorFactors(g),
+            (std::vector<bool>{false, false, true, false, true, false, false}));
+  PoseGraph one;
+  for (std::size_t i : {0, 3, 5, 6}) one.add(g.factors()[i]);
+  EXPECT_EQ(DefaultRobustFactors(one), (std::vector<bool>{false, true, true, true}));
+}
+
 TEST(SolveGnc, RejectsAMaskOfTheWrongSize) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   EXPECT_THROW(SolveGnc(data.graph, ChordalInitialization(data.graph, SE3()), {true}),

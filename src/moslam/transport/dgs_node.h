@@ -80,6 +80,8 @@ struct DgsNodeOptions {
   // exchanged in WeightsPackets; the refinement is forced on); none: least squares.
   std::optional<GncOptions> gnc;
   // With gnc: which factors of the subgraph are robust (one flag each); empty: the separators.
+  // Robust factors between two of the robot's own poses are checked through its odometry
+  // (robust_program.h, C5) when separator_check is set.
   std::vector<bool> robust;
   // With separator_check: the factors the check sees (RobustRobotProblem::checked; one flag
   // each); empty: all. A check that leaves a robot unlinked ends the solve with
