@@ -103,7 +103,8 @@ nlohmann::json Summary(const RobotArgs& a, const DgsNodeResult& r) {
     j["weight_messages"] = r.weight_messages;
     j["weight_binary_bytes"] = r.weight_binary_bytes;
     j["dds_weight_bytes"] = r.transport.weights_bytes;
-    // The separator check: separators to higher robots it left out, and the messages it sent
+    // The separator check: separators to higher robots it left out (and its own loop closures,
+    // robust_program.h C5), and the messages it sent
     // for it (map estimates, covariances, estimates for the readmission).
     j["check_rejected"] = r.robust->check_rejected;
     j["check_deferred"] = r.robust->check_deferred;

@@ -207,7 +207,7 @@ void CompareRobust(const TeamResults& t, const RobustDgsResult& in_process, nloh
   j["in_process_group_retests"] = in_process.group_retests;
   j["in_process_group_readmitted"] = in_process.group_readmitted;
   fmt::print(
-      "separator check: {} separators left out (in-process {}); {} B binary for it "
+      "separator check: {} left out before GNC (in-process {}); {} B binary for it "
       "(in-process {} B), {} B CDR payload of covariances\n",
       check_rejected, in_process.consistency_rejected, check_binary, in_process.consistency_bytes,
       check_dds);
