@@ -248,15 +248,27 @@ void KillAndRestartOne(int domain, int n, int victim, const std::string& name,
   fs::remove_all(out);
 }
 
+// `moslam team` in DDS domain `domain` writing to `out` (its log in out/team.log), with `args`
+// after the common flags, waited for: its JSON summary, null when it failed (reported).
+nlohmann::json RunTeamCommand(const fs::path& out, int domain,
+                              const std::vector<std::string>& args) {
+  std::vector<std::string> argv = {"team",  "--domain",   std::to_string(domain),
+                                   "--out", out.string(), "--timeout",
+                                   "120",   "--json"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  Child team(argv, "", out / "team.log");
+  const int code = team.wait(Clock::now() + std::chrono::seconds(150));
+  EXPECT_EQ(code, 0) << team.output();
+  nlohmann::json j = LastJson(team.output());
+  EXPECT_TRUE(j.is_object()) << team.output();
+  return code == 0 && j.is_object() ? j : nlohmann::json();
+}
+
 TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
   const fs::path out = FreshDir("loopback");
-  const fs::path log = out / "team.log";
-  Child team({"team", "--data", test::BlocksWorldFolder(4), "--robots", "4", "--domain", "50",
-              "--out", out.string(), "--timeout", "120", "--json"},
-             "", log);
-  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
-  const nlohmann::json j = LastJson(team.output());
-  ASSERT_TRUE(j.is_object()) << team.output();
+  const nlohmann::json j =
+      RunTeamCommand(out, 50, {"--data", test::BlocksWorldFolder(4), "--robots", "4"});
+  ASSERT_TRUE(j.is_object());
   EXPECT_TRUE(j["ok"].get<bool>());
   EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
   EXPECT_NEAR(j["cost"].get<double>(), j["cost_in_process"].get<double>(), 1e-9);
@@ -291,12 +303,9 @@ TEST(Team, ARobustSplitFileChecksEachRobotsOwnLoopClosuresAsInProcess) {
   write.planar = csail.planar;
   const fs::path file = out / "spoiled.g2o";
   WriteG2oFile(file.string(), spoiled.graph, csail.initial, write);
-  Child team({"team", "--data", file.string(), "--robots", "2", "--robust", "--gnc-threshold", "5",
-              "--domain", "60", "--out", (out / "team").string(), "--timeout", "120", "--json"},
-             "", out / "team.log");
-  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
-  const nlohmann::json j = LastJson(team.output());
-  ASSERT_TRUE(j.is_object()) << team.output();
+  const nlohmann::json j = RunTeamCommand(
+      out, 60, {"--data", file.string(), "--robots", "2", "--robust", "--gnc-threshold", "5"});
+  ASSERT_TRUE(j.is_object());
   EXPECT_TRUE(j["ok"].get<bool>());
   EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
   EXPECT_EQ(j["in_process_outliers"].get<int>(), spoiled.added);
@@ -305,7 +314,7 @@ TEST(Team, ARobustSplitFileChecksEachRobotsOwnLoopClosuresAsInProcess) {
   // The merged map is the clean file's least-squares optimum.
   const Values clean = Optimize(csail.graph, ChordalInitialization(csail.graph, SE3())).values;
   Values merged;  // the blocks' poses as the file's
-  for (const auto& [k, x] : ReadG2oFile((out / "team" / "merged.g2o").string()).initial) {
+  for (const auto& [k, x] : ReadG2oFile((out / "merged.g2o").string()).initial) {
     merged[Key::Pose(0, k.index)] = x;
   }
   ASSERT_EQ(merged.size(), clean.size());
@@ -340,12 +349,10 @@ TEST(Team, CollectingRobotsThatHaveNotFinishedSaysWhichAndWhy) {
 
 TEST(Team, TheWholeSolverOverDdsReachesTheCentralizedOptimum) {
   const fs::path out = FreshDir("whole");
-  Child team({"team", "--data", test::BlocksWorldFolder(4), "--domain", "55", "--out", out.string(),
-              "--timeout", "120", "--json", "--coarse", "--refine", "--stop", "error-bound"},
-             "", out / "team.log");
-  ASSERT_EQ(team.wait(Clock::now() + std::chrono::seconds(150)), 0) << team.output();
-  const nlohmann::json j = LastJson(team.output());
-  ASSERT_TRUE(j.is_object()) << team.output();
+  const nlohmann::json j = RunTeamCommand(
+      out, 55,
+      {"--data", test::BlocksWorldFolder(4), "--coarse", "--refine", "--stop", "error-bound"});
+  ASSERT_TRUE(j.is_object());
   EXPECT_TRUE(j["ok"].get<bool>());
   EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
   EXPECT_EQ(j["rotation_rounds"], j["in_process_rotation_iterations"]);
@@ -451,16 +458,9 @@ const std::vector<std::string> kLeaveAfter2s = {"--leave-timeout", "2"};
 nlohmann::json RunScenarioTeam(const fs::path& out, int domain,
                                const std::vector<std::string>& extra,
                                const std::vector<std::string>& scenario = kScenario) {
-  std::vector<std::string> args = {"team", "--domain", std::to_string(domain), "--out",
-                                   out.string(), "--timeout", "120", "--json"};
-  args.insert(args.end(), extra.begin(), extra.end());
+  std::vector<std::string> args = extra;
   args.insert(args.end(), scenario.begin(), scenario.end());
-  Child team(args, "", out / "team.log");
-  const int code = team.wait(Clock::now() + std::chrono::seconds(150));
-  EXPECT_EQ(code, 0) << team.output();
-  nlohmann::json j = LastJson(team.output());
-  EXPECT_TRUE(j.is_object()) << team.output();
-  return code == 0 && j.is_object() ? j : nlohmann::json();
+  return RunTeamCommand(out, domain, args);
 }
 
 TEST(Team, AScenarioAsProcessesEqualsTheInProcessPipeline) {
