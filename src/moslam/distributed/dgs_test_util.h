@@ -107,4 +107,38 @@ inline PoseGraph DriftingPairWithANearMiss(std::vector<bool>* wrong) {
   return g;
 }
 
+// The same pair, and two wrong loop closures of robot 1 (the last two factors): between its poses
+// 0-59 and 5-50, its dead reckoning moved 3 m and far tighter than its odometry. Two are fewer than
+// the odometry check's min_support, so its own check neither confirms nor rejects them, and
+// GNC-TLS on robot 1's map alone takes them, which bends the map by metres. `wrong` flags the
+// separators as DriftingPairWithWrongSeparators does; `robust` gets one flag per factor: the
+// separators and the two loop closures.
+inline PoseGraph DriftingPairWithBendingLoopClosures(std::vector<bool>* wrong,
+                                                     std::vector<bool>* robust) {
+  PoseGraph g = DriftingPairWithWrongSeparators(wrong);
+  const auto pose = [](int i) { return Key::Pose(1, static_cast<std::uint64_t>(i)); };
+  const auto dead_reckoning = [&](int from, int to) {
+    SE3 x;
+    for (const RelativePoseFactor& f : g.factors()) {  // robot 1's odometry, in pose order
+      if (f.a().robot == 1 && f.b().robot == 1 && f.b().index == f.a().index + 1 &&
+          f.a().index >= static_cast<std::uint64_t>(from) &&
+          f.b().index <= static_cast<std::uint64_t>(to)) {
+        x = x * f.measured();
+      }
+    }
+    return x;
+  };
+  Vector6 d;
+  d << Vector3::Constant(1e5), Vector3::Constant(1e4);
+  robust->clear();
+  for (const RelativePoseFactor& f : g.factors()) robust->push_back(f.a().robot != f.b().robot);
+  for (const auto& [a, b] : {std::pair{0, 59}, {5, 50}}) {
+    g.add(RelativePoseFactor(pose(a), pose(b),
+                             dead_reckoning(a, b) * SE3(SO3(), Vector3(-3.0, 0.0, 0.0)),
+                             Matrix6(d.asDiagonal())));
+    robust->push_back(true);
+  }
+  return g;
+}
+
 }  // namespace moslam::test

@@ -27,6 +27,17 @@ void RobustDgsOptions::validate() const {
   }
 }
 
+namespace {
+
+// mask[i] for each i of index, in order.
+std::vector<bool> Select(const std::vector<bool>& mask, const std::vector<std::size_t>& index) {
+  std::vector<bool> out;
+  for (std::size_t i : index) out.push_back(mask[i]);
+  return out;
+}
+
+}  // namespace
+
 SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
                                            const RobustDgsOptions& options,
                                            const std::vector<bool>& robust) {
@@ -41,11 +52,32 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
   o.min_support = c.min_support;
   o.odometry_uncertainty = c.map_uncertainty;
   if (robots.size() != 1 || robust.empty()) {
-    SeparatorConsistencyResult out = CheckSeparatorConsistency(graph, c, robust, options.gnc);
-    if (robust.empty()) return out;
-    // Each robot's own loop closures, through its own odometry (none in object SLAM, whose robust
-    // factors touch objects; g2o folders mark only their separators).
+    if (robust.empty()) return CheckSeparatorConsistency(graph, c, robust, options.gnc);
+    // Each robot's own loop closures first, through its own odometry (none in object SLAM, whose
+    // robust factors touch objects; g2o folders mark only their separators).
     const OdometryCheckResult own = CheckEachRobotsLoopClosures(graph, robust, o);
+    SeparatorConsistencyResult out;
+    if (std::all_of(own.confirmed.begin(), own.confirmed.end(), [](bool k) { return k; })) {
+      out = CheckSeparatorConsistency(graph, c, robust, options.gnc);
+    } else {
+      // The robots' maps hold only the loop closures their check confirmed: one it could not
+      // confirm (too few agreeing, or rejected) would bend its robot's map and turn right
+      // separators away (INTEL split among 4 robots, docs/robustness-log.md).
+      std::vector<std::size_t> index;
+      const PoseGraph trusted = SubGraph(graph, own.confirmed, &index);
+      const SeparatorConsistencyResult part =
+          CheckSeparatorConsistency(trusted, c, Select(robust, index), options.gnc);
+      out = part;
+      const std::size_t n = graph.factors().size();
+      out.kept.assign(n, true);
+      out.support.assign(n, -1);
+      out.runner_up.assign(n, false);
+      for (std::size_t j = 0; j < index.size(); ++j) {
+        out.kept[index[j]] = part.kept[j];
+        out.support[index[j]] = part.support[j];
+        out.runner_up[index[j]] = part.runner_up[j];
+      }
+    }
     for (std::size_t i = 0; i < out.kept.size(); ++i) out.kept[i] = out.kept[i] && own.kept[i];
     out.separators += own.loop_closures;
     out.rejected += own.rejected;
@@ -292,12 +324,6 @@ std::vector<bool> LeftOut(const SeparatorConsistencyResult& check, const std::ve
   for (std::size_t i = 0; i < out.size(); ++i) {
     out[i] = robust[i] && !check.kept[i] && weights[i] < 0.5;
   }
-  return out;
-}
-
-std::vector<bool> Select(const std::vector<bool>& mask, const std::vector<std::size_t>& index) {
-  std::vector<bool> out;
-  for (std::size_t i : index) out.push_back(mask[i]);
   return out;
 }
 

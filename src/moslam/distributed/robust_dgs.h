@@ -133,7 +133,9 @@ struct RobustDgsResult {
 // instead (robust/loop_consistency.h, with the check's threshold, min_support and map_uncertainty
 // as odometry_uncertainty). In a team's graph, the loop closures `robust` marks between two poses
 // of one robot are checked so too, each robot through its own odometry
-// (CheckEachRobotsLoopClosures), beside the separators; `separators` and `rejected` count both.
+// (CheckEachRobotsLoopClosures), first: the maps the separators are judged on then hold only the
+// loop closures that check confirmed (OdometryCheckResult::confirmed; those it could not confirm,
+// too few to agree, stay for GNC but do not bend the map). `separators` and `rejected` count both.
 SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustDgsOptions& options,
                                            const std::vector<bool>& robust = {});
 

@@ -377,6 +377,43 @@ TEST(SeparatorConsistency, MapUncertaintyKeepsRightSeparatorsAcrossDrift) {
   EXPECT_EQ(exact_maps.messages, 1);
 }
 
+// Robot 1 with two wrong loop closures its own check can neither confirm nor reject (fewer than
+// min_support): they stay for GNC, but the map robot 1 is judged on leaves them out. Taken in
+// (CheckSeparatorConsistency on the whole graph, as before), they bend the map by metres and the
+// pairwise test turns right separators away (INTEL split among 4 robots: 55-143 right ones).
+TEST(CheckSeparators, JudgesSeparatorsOnMapsWithoutLoopClosuresTheirCheckCouldNotConfirm) {
+  std::vector<bool> wrong, robust;
+  const PoseGraph g = test::DriftingPairWithBendingLoopClosures(&wrong, &robust);
+  const std::size_t n = g.factors().size();
+  const std::size_t first = n - 2 - wrong.size();
+  RobustDgsOptions options;
+  const SeparatorConsistencyResult check = CheckSeparators(g, options, robust);
+  for (std::size_t s = 0; s < wrong.size(); ++s) {
+    EXPECT_EQ(check.kept[first + s], !wrong[s]) << "separator " << s;
+  }
+  EXPECT_TRUE(check.kept[n - 2]);  // left to GNC
+  EXPECT_TRUE(check.kept[n - 1]);
+  EXPECT_EQ(check.rejected, 2);
+  EXPECT_EQ(check.separators, static_cast<int>(wrong.size()) + 2);
+
+  SeparatorConsistencyOptions c;
+  c.threshold = options.gnc.threshold2();
+  const SeparatorConsistencyResult bent = CheckSeparatorConsistency(g, c, robust, options.gnc);
+  int right_rejected = 0;
+  for (std::size_t s = 0; s < wrong.size(); ++s) {
+    right_rejected += !wrong[s] && !bent.kept[first + s] ? 1 : 0;
+  }
+  EXPECT_GE(right_rejected, 3);
+
+  // The robust solve then rejects the wrong separators and keeps the right ones. (The two loop
+  // closures are GNC's to judge: here the two robots' drift absorbs their 3 m, and it keeps them.)
+  options.dgs.order = SweepOrder::kJacobi;
+  const RobustDgsResult r = RunRobustDgs(g, ChordalInitialization(g, SE3()), robust, options);
+  for (std::size_t s = 0; s < wrong.size(); ++s) {
+    EXPECT_EQ(r.weights[first + s] < 0.5, static_cast<bool>(wrong[s])) << "separator " << s;
+  }
+}
+
 // The re-test (RobustDgsOptions::retest_left_out) on two drifting robots: a pairwise test
 // stricter than the joint one (threshold 12 against c2 22.46, as when the first-order map
 // covariances are too small) leaves out right separator 2, whose residual at the estimate without

@@ -58,11 +58,23 @@ class RobustProgram {
     verdict.kept.assign(n, true);
     if (check) {
       robot_.reachEveryNeighbour();
-      verdict =
-          RunSeparatorCheck(p_, robot_.checkedPairs(), consistency_, options_.gnc, robot_.link());
-      out.check_rejected += verdict.rejected;
+      const OdometryCheckResult own = checkOwnLoopClosures();
+      // Its map for the check holds only the loop closures its own check confirmed.
+      RobustRobotProblem trusted;
+      const bool all_trusted =
+          std::all_of(own.confirmed.begin(), own.confirmed.end(), [](bool c) { return c; });
+      if (!all_trusted) {
+        trusted = p_;
+        trusted.checked = own.confirmed;
+        for (std::size_t i = 0; i < p_.checked.size(); ++i) {
+          trusted.checked[i] = trusted.checked[i] && p_.checked[i];
+        }
+      }
+      verdict = RunSeparatorCheck(all_trusted ? p_ : trusted, robot_.checkedPairs(), consistency_,
+                                  options_.gnc, robot_.link());
+      for (std::size_t i = 0; i < n; ++i) verdict.kept[i] = verdict.kept[i] && own.kept[i];
+      out.check_rejected += verdict.rejected + own.rejected;
       out.check_deferred += verdict.deferred;
-      checkOwnLoopClosures(verdict.kept);
     }
     const std::vector<bool>& kept = verdict.kept;
     if (check && verdict.rejected_by_team > 0.0 && !robot_.linked(kept)) {
@@ -132,11 +144,12 @@ class RobustProgram {
   }
 
  private:
-  // Its own loop closures (robust factors between two of its poses) checked through its own
+  // C5: its own loop closures (robust factors between two of its poses) checked through its own
   // odometry, as RunRobustDgs checks each robot's (CheckEachRobotsLoopClosures): nothing crosses
-  // the network. Those it rejects are left out of `kept` and counted in check_rejected.
-  void checkOwnLoopClosures(std::vector<bool>& kept) {
-    const std::vector<bool> all(p_.subgraph.factors().size(), true);
+  // the network. kept and confirmed per factor of its subgraph (true for those not checked).
+  OdometryCheckResult checkOwnLoopClosures() const {
+    const std::size_t n = p_.subgraph.factors().size();
+    const std::vector<bool> all(n, true);
     std::vector<std::size_t> seen;  // the factors it checks, as RunRobustDgs (CheckOnMask)
     const PoseGraph sub = SubGraph(p_.subgraph, p_.checked.empty() ? all : p_.checked, &seen);
     std::vector<bool> robust;
@@ -145,9 +158,15 @@ class RobustProgram {
     o.threshold = consistency_.threshold;
     o.min_support = consistency_.min_support;
     o.odometry_uncertainty = consistency_.map_uncertainty;
-    const OdometryCheckResult own = CheckEachRobotsLoopClosures(sub, robust, o);
-    for (std::size_t j = 0; j < seen.size(); ++j) kept[seen[j]] = kept[seen[j]] && own.kept[j];
-    robot_.result().check_rejected += own.rejected;
+    const OdometryCheckResult part = CheckEachRobotsLoopClosures(sub, robust, o);
+    OdometryCheckResult own = part;
+    own.kept = all;
+    own.confirmed = all;
+    for (std::size_t j = 0; j < seen.size(); ++j) {
+      own.kept[seen[j]] = part.kept[j];
+      own.confirmed[seen[j]] = part.confirmed[j];
+    }
+    return own;
   }
 
   // After GNC: the higher robot of each pair sends the lower its estimates of its variables in

@@ -197,9 +197,12 @@ OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
   const CliqueResult best = MaximumClique(g);
   out.largest = static_cast<int>(best.nodes.size());
   out.exact = best.exact;
+  out.confirmed = out.kept;
+  for (std::size_t i : checked) out.confirmed[i] = false;
   if (out.largest < options.min_support) return out;  // nothing confirmed: GNC decides
   for (std::size_t i : checked) out.kept[i] = false;
   for (int v : best.nodes) out.kept[checked[static_cast<std::size_t>(v)]] = true;
+  out.confirmed = out.kept;
   out.rejected = n - out.largest;
   return out;
 }
@@ -220,6 +223,7 @@ OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
   }
   OdometryCheckResult out;
   out.kept.assign(factors.size(), true);
+  out.confirmed.assign(factors.size(), true);
   for (int robot : checking) {
     const std::vector<std::size_t>& index = own.at(robot);
     PoseGraph mine;
@@ -230,6 +234,7 @@ OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
     }
     const OdometryCheckResult r = CheckLoopClosuresByOdometry(mine, mine_robust, options);
     for (std::size_t j = 0; j < index.size(); ++j) out.kept[index[j]] = r.kept[j];
+    for (std::size_t j = 0; j < index.size(); ++j) out.confirmed[index[j]] = r.confirmed[j];
     out.loop_closures += r.loop_closures;
     out.rejected += r.rejected;
     out.largest = std::max(out.largest, r.largest);

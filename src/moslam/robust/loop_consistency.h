@@ -84,6 +84,10 @@ struct OdometryCheckOptions {
 
 struct OdometryCheckResult {
   std::vector<bool> kept;  // per factor of the graph (true for every factor not checked)
+  // Per factor of the graph: false for the loop closures checked and not confirmed (rejected, or
+  // every one when no set reaches min_support), true elsewhere. What a map built to judge other
+  // factors may trust (distributed/robust_dgs.h: the robots' maps of the separator check).
+  std::vector<bool> confirmed;
   int loop_closures = 0;   // checked
   int rejected = 0;
   int largest = 0;           // the largest pairwise-consistent set (a maximum clique)

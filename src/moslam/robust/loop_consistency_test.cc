@@ -235,6 +235,19 @@ TEST(CheckEachRobotsLoopClosures, EachRobotChecksItsOwnThroughItsOwnOdometry) {
     EXPECT_EQ(r.kept[i], expected) << i;
   }
   EXPECT_FALSE(r.kept[team.factors().size() - 2]);  // robot 1's wrong loop closure
+  EXPECT_EQ(r.confirmed, r.kept);                   // each robot's largest set confirms itself
+
+  // Robot 1's four with a larger min_support: none confirmed, and none rejected (GNC decides),
+  // so a map of what the check trusts leaves all four out.
+  OdometryCheckOptions strict;
+  strict.min_support = 4;
+  const OdometryCheckResult undecided = CheckLoopClosuresByOdometry(robot1, robot1_robust, strict);
+  EXPECT_EQ(undecided.rejected, 0);
+  EXPECT_EQ(undecided.largest, 3);
+  for (std::size_t i = 0; i < robot1_robust.size(); ++i) {
+    EXPECT_TRUE(undecided.kept[i]) << i;
+    EXPECT_EQ(undecided.confirmed[i], !robot1_robust[i]) << i;
+  }
 
   // No loop closure of a robot's own: nothing checked.
   std::vector<bool> separators_only(robust.size(), false);
