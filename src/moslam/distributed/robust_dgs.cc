@@ -36,6 +36,23 @@ std::vector<bool> Select(const std::vector<bool>& mask, const std::vector<std::s
   return out;
 }
 
+// `part`, a check of the subgraph made of the graph's factors `index` (SubGraph), as a check of
+// the graph's n factors: those left out of the subgraph kept, with no support and in no runner-up
+// set.
+SeparatorConsistencyResult OnTheWholeGraph(const SeparatorConsistencyResult& part,
+                                           const std::vector<std::size_t>& index, std::size_t n) {
+  SeparatorConsistencyResult out = part;
+  out.kept.assign(n, true);
+  out.support.assign(n, -1);
+  out.runner_up.assign(n, false);
+  for (std::size_t j = 0; j < index.size(); ++j) {
+    out.kept[index[j]] = part.kept[j];
+    out.support[index[j]] = part.support[j];
+    out.runner_up[index[j]] = part.runner_up[j];
+  }
+  return out;
+}
+
 }  // namespace
 
 SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
@@ -56,28 +73,14 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
     // Each robot's own loop closures first, through its own odometry (none in object SLAM, whose
     // robust factors touch objects; g2o folders mark only their separators).
     const OdometryCheckResult own = CheckEachRobotsLoopClosures(graph, robust, o);
-    SeparatorConsistencyResult out;
-    if (std::all_of(own.confirmed.begin(), own.confirmed.end(), [](bool k) { return k; })) {
-      out = CheckSeparatorConsistency(graph, c, robust, options.gnc);
-    } else {
-      // The robots' maps hold only the loop closures their check confirmed: one it could not
-      // confirm (too few agreeing, or rejected) would bend its robot's map and turn right
-      // separators away (INTEL split among 4 robots, docs/robustness-log.md).
-      std::vector<std::size_t> index;
-      const PoseGraph trusted = SubGraph(graph, own.confirmed, &index);
-      const SeparatorConsistencyResult part =
-          CheckSeparatorConsistency(trusted, c, Select(robust, index), options.gnc);
-      out = part;
-      const std::size_t n = graph.factors().size();
-      out.kept.assign(n, true);
-      out.support.assign(n, -1);
-      out.runner_up.assign(n, false);
-      for (std::size_t j = 0; j < index.size(); ++j) {
-        out.kept[index[j]] = part.kept[j];
-        out.support[index[j]] = part.support[j];
-        out.runner_up[index[j]] = part.runner_up[j];
-      }
-    }
+    // The robots' maps hold only the loop closures their check confirmed: one it could not
+    // confirm (too few agreeing, or rejected) would bend its robot's map and turn right
+    // separators away (INTEL split among 4 robots, docs/robustness-log.md).
+    std::vector<std::size_t> index;
+    const PoseGraph trusted = SubGraph(graph, own.confirmed, &index);
+    SeparatorConsistencyResult out =
+        OnTheWholeGraph(CheckSeparatorConsistency(trusted, c, Select(robust, index), options.gnc),
+                        index, graph.factors().size());
     for (std::size_t i = 0; i < out.kept.size(); ++i) out.kept[i] = out.kept[i] && own.kept[i];
     out.separators += own.loop_closures;
     out.rejected += own.rejected;
@@ -619,17 +622,7 @@ SeparatorConsistencyResult CheckOnMask(const PoseGraph& graph, const std::vector
   if (checked.empty()) return CheckSeparators(graph, options, robust);
   std::vector<std::size_t> seen;
   const PoseGraph sub = SubGraph(graph, checked, &seen);
-  const SeparatorConsistencyResult part = CheckSeparators(sub, options, Select(robust, seen));
-  check = part;
-  check.kept.assign(n, true);
-  check.support.assign(n, -1);
-  check.runner_up.assign(n, false);
-  for (std::size_t j = 0; j < seen.size(); ++j) {
-    check.kept[seen[j]] = part.kept[j];
-    check.support[seen[j]] = part.support[j];
-    check.runner_up[seen[j]] = part.runner_up[j];
-  }
-  return check;
+  return OnTheWholeGraph(CheckSeparators(sub, options, Select(robust, seen)), seen, n);
 }
 
 // The inliers' solve from the rounds' estimate (DGS refined), kept when it lowers their cost

@@ -60,18 +60,13 @@ class RobustProgram {
       robot_.reachEveryNeighbour();
       const OdometryCheckResult own = checkOwnLoopClosures();
       // Its map for the check holds only the loop closures its own check confirmed.
-      RobustRobotProblem trusted;
-      const bool all_trusted =
-          std::all_of(own.confirmed.begin(), own.confirmed.end(), [](bool c) { return c; });
-      if (!all_trusted) {
-        trusted = p_;
-        trusted.checked = own.confirmed;
-        for (std::size_t i = 0; i < p_.checked.size(); ++i) {
-          trusted.checked[i] = trusted.checked[i] && p_.checked[i];
-        }
+      RobustRobotProblem trusted = p_;
+      trusted.checked = own.confirmed;
+      for (std::size_t i = 0; i < p_.checked.size(); ++i) {
+        trusted.checked[i] = trusted.checked[i] && p_.checked[i];
       }
-      verdict = RunSeparatorCheck(all_trusted ? p_ : trusted, robot_.checkedPairs(), consistency_,
-                                  options_.gnc, robot_.link());
+      verdict = RunSeparatorCheck(trusted, robot_.checkedPairs(), consistency_, options_.gnc,
+                                  robot_.link());
       for (std::size_t i = 0; i < n; ++i) verdict.kept[i] = verdict.kept[i] && own.kept[i];
       out.check_rejected += verdict.rejected + own.rejected;
       out.check_deferred += verdict.deferred;
