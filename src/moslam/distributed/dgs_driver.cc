@@ -58,6 +58,10 @@ void DgsOptions::validate() const {
   non_negative(f.sweep_tolerance, "sweep_tolerance");
   non_negative(f.cg_tolerance, "cg_tolerance");
   positive(f.initial_lambda, "refinement.initial_lambda");
+  positive(f.min_lambda, "refinement.min_lambda");
+  if (f.min_lambda > f.initial_lambda) {
+    throw InvalidInputError("DGS options: refinement.min_lambda must be at most initial_lambda");
+  }
   positive(f.max_lambda, "refinement.max_lambda");
   if (!(f.gamma > 0.0 && f.gamma < 2.0)) {
     throw InvalidInputError("DGS options: refinement.gamma must be in (0, 2), got " +
@@ -840,7 +844,7 @@ RefineDecision DecideRefineStep(double cost, double candidate, int step,
     d.finished = cost - candidate <= tolerance;
     if (lambda > 0.0) {
       lambda /= 10.0;
-      if (lambda < opt.initial_lambda) lambda = 0.0;
+      if (lambda < opt.min_lambda) lambda = 0.0;
     }
   } else if (candidate - cost <= tolerance) {
     d.finished = true;  // rounding at the optimum: nothing left to gain

@@ -88,6 +88,7 @@ void ExpectSameAsDriver(const Dataset& data, const DgsOptions& options) {
     EXPECT_EQ(r.pose.coarse_corrections, reference.pose.coarse_corrections);
     EXPECT_EQ(r.refine.iterations, reference.refine.iterations);
     EXPECT_EQ(r.refine.sweeps, reference.refine.sweeps);
+    EXPECT_EQ(r.refine.rejected, reference.refine.rejected);
     EXPECT_EQ(r.refine.status, reference.refine.status);
     EXPECT_EQ(r.refine.coarse_corrections, reference.refine.coarse_corrections);
     if (options.refine) {
@@ -136,6 +137,21 @@ TEST(RobotProgram, PoseStageAndRefinementVariantsEqualTheDriver) {
   sweeps.refinement.max_iterations = 3;
   sweeps.refinement.max_sweeps = 200;
   ExpectSameAsDriver(data, sweeps);
+}
+
+// Rejected refinement steps and the damping after them decided alike by every robot: MIT split
+// among 4 robots rejects steps in Jacobi order too.
+TEST(RobotProgram, DampedRefinementStepsEqualTheDriver) {
+  Dataset d = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/MIT.g2o");
+  SplitGraph s = SplitIntoRobots(d.graph, d.initial, 4);
+  d.graph = std::move(s.graph);
+  d.initial = std::move(s.initial);
+  DgsOptions o = Jacobi();
+  o.coarse_correction = true;
+  o.refine = true;
+  const DgsResult reference = RunDgs(d.graph, d.initial, o);
+  ASSERT_GE(reference.refine.rejected, 1);
+  ExpectSameAsDriver(d, o);
 }
 
 TEST(RobotProgram, RefusesGaussSeidelOrderAndAUsedAgent) {
