@@ -60,7 +60,9 @@ void DgsOptions::validate() const {
   positive(f.initial_lambda, "refinement.initial_lambda");
   positive(f.min_lambda, "refinement.min_lambda");
   if (f.min_lambda > f.initial_lambda) {
-    throw InvalidInputError("DGS options: refinement.min_lambda must be at most initial_lambda");
+    throw InvalidInputError("DGS options: refinement.min_lambda must be at most initial_lambda (" +
+                            std::to_string(f.initial_lambda) + "), got " +
+                            std::to_string(f.min_lambda));
   }
   positive(f.max_lambda, "refinement.max_lambda");
   if (!(f.gamma > 0.0 && f.gamma < 2.0)) {

@@ -323,8 +323,8 @@ TEST(Refine, ARejectedStepIsRetriedWithDamping) {
 // After an accepted damped step the damping decreases by 10 per step down to min_lambda; stopping
 // it at once (min_lambda = initial_lambda, the rule before) made the refinement cycle on MIT split
 // among 4 robots: the undamped step rejected, the damped one accepted, half the steps rejected
-// and the estimate 9 % above the optimum after 100 (measured). Both stage orders of the driver's
-// default (one-level stages, pose stage by sweeps).
+// and the estimate 9 % above the optimum after 100 (measured). The driver's default options
+// (Gauss-Seidel, one-level stages, pose stage by sweeps).
 TEST(Refine, DampingDecreasesGraduallyAfterARejectedStep) {
   const Dataset d = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/MIT.g2o");
   const SplitGraph s = SplitIntoRobots(d.graph, d.initial, 4);
