@@ -267,9 +267,15 @@ DgsProgress PrintedProgress() {
                s.iteration, s.max_change, bytes_so_far, extra);
   };
   progress.on_refine_step = [](const RefineStepSummary& s) {
-    fmt::print("refine   step {:3d}: {} sweeps{}, lambda {:g}, cost {:.10g} -> {:.10g} ({})\n",
+    // The gain ratio: the decrease of F over the model's (conjugate gradients only).
+    const std::string gain =
+        s.predicted_decrease > 0.0
+            ? fmt::format(", gain ratio {:.3g}",
+                          (s.cost_before - s.cost_candidate) / s.predicted_decrease)
+            : std::string();
+    fmt::print("refine   step {:3d}: {} sweeps{}, lambda {:g}, cost {:.10g} -> {:.10g}{} ({})\n",
                s.iteration, s.sweeps, s.linear_converged ? "" : " (max sweeps)", s.lambda,
-               s.cost_before, s.cost_candidate, s.accepted ? "accepted" : "rejected");
+               s.cost_before, s.cost_candidate, gain, s.accepted ? "accepted" : "rejected");
   };
   return progress;
 }
@@ -351,7 +357,8 @@ nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInp
       {"total_seconds", run.total_seconds},
   };
   if (a.solver.refine) {
-    // Per Gauss-Newton step: the accepted cost and the bytes so far (two stages included), and
+    // Per Gauss-Newton step: the accepted cost and the bytes so far (two stages included), the
+    // step's own numbers (damping, linear solve, the cost it led to, the model's decrease), and
     // the bytes when the estimate first came within 1e-6 relative of the centralized optimum.
     const std::int64_t two_stage_bytes = r.rotation.bytes + r.pose.bytes;
     const double within = central.final_cost * (1.0 + 1e-6);
@@ -363,7 +370,11 @@ nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInp
       if (step.accepted) cost = step.cost_candidate;
       history.push_back({{"step", step.iteration},
                          {"sweeps", step.sweeps},
+                         {"linear_converged", step.linear_converged},
+                         {"lambda", step.lambda},
                          {"accepted", step.accepted},
+                         {"cost_candidate", step.cost_candidate},
+                         {"predicted_decrease", step.predicted_decrease},
                          {"cost", cost},
                          {"bytes", two_stage_bytes + step.bytes}});
       if (bytes_to_optimum.is_null() && cost <= within) {

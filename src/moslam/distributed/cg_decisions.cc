@@ -18,6 +18,7 @@ std::optional<double> CgDecisions::stepLength(double pq, double max_direction) {
   }
   const double alpha = rz_ / pq;
   change_ = std::abs(alpha) * max_direction;
+  model_decrease_ += 0.5 * alpha * rz_;
   return alpha;
 }
 

@@ -20,6 +20,12 @@
 // largest change of any robot in the iteration) <= goal.eta_change (a goal of 0 is not used),
 // and unconverged when another iteration would pass goal.max_sweeps (an iteration costs two
 // sweeps of the preconditioner at most).
+//
+// It also keeps the decrease of the quadratic model m(delta) = -res0.delta + 1/2 delta.H delta
+// (the refinement: H and res0 = -g of the damped Gauss-Newton system) that delta achieves: each
+// iteration lowers m by alpha res.z / 2 (p.res = res.z), so the sum over the iterations is
+// m(0) - m(delta), from the same team sums, with no other message. The refinement compares it
+// with the decrease of F the step achieves (the gain ratio of trust-region methods).
 #pragma once
 
 #include <optional>
@@ -35,6 +41,7 @@ struct CgGoal {
 struct CgOutcome {
   int sweeps = 0;
   bool converged = false;
+  double model_decrease = 0.0;  // CgDecisions::modelDecrease() at the end
 };
 
 class CgDecisions {
@@ -59,10 +66,12 @@ class CgDecisions {
   bool converged() const { return converged_; }
   // |alpha| max ||p_r|| of the last step length.
   double change() const { return change_; }
+  // m(0) - m(delta) for the delta of the step lengths taken so far (see the top); >= 0.
+  double modelDecrease() const { return model_decrease_; }
 
  private:
   CgGoal goal_;
-  double rz0_ = 0.0, rz_ = 0.0, change_ = 0.0;
+  double rz0_ = 0.0, rz_ = 0.0, change_ = 0.0, model_decrease_ = 0.0;
   bool converged_ = false;
 };
 

@@ -62,6 +62,7 @@ CgRun Solve(const Eigen::MatrixXd& H, const Eigen::VectorXd& b, const CgGoal& go
     }
   }
   run.outcome.converged = cg.converged();
+  run.outcome.model_decrease = cg.modelDecrease();
   return run;
 }
 
@@ -106,6 +107,30 @@ TEST(CgDecisions, StopAtTheGoalThatComesFirst) {
   EXPECT_DOUBLE_EQ(next.relative, std::sqrt(0.5));
 }
 
+// The model decrease summed from the team's numbers is m(0) - m(delta), m(d) = -b.d + d.H d / 2,
+// for the delta each stopping point leaves; solved exactly, b.H^-1 b / 2.
+TEST(CgDecisions, KeepTheDecreaseOfTheQuadraticModel) {
+  const Eigen::MatrixXd H = ChainMatrix(40, 7);
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(40, 2.0, -1.0);
+  auto decrease = [&](const Eigen::VectorXd& d) { return b.dot(d) - 0.5 * d.dot(H * d); };
+  double previous = 0.0;
+  for (double tolerance : {0.5, 1e-1, 1e-2, 1e-4, 1e-12}) {
+    SCOPED_TRACE(tolerance);
+    CgGoal goal;
+    goal.tolerance = tolerance;
+    const CgRun run = Solve(H, b, goal);
+    ASSERT_GT(run.iterations, 0);
+    const double expected = decrease(run.delta);
+    EXPECT_NEAR(run.outcome.model_decrease, expected, 1e-12 * expected);
+    // Each iteration lowers the model: a tighter goal, more iterations, a larger decrease.
+    EXPECT_GE(run.outcome.model_decrease, previous);
+    previous = run.outcome.model_decrease;
+  }
+  const double exact = 0.5 * b.dot(H.ldlt().solve(b));
+  EXPECT_NEAR(previous, exact, 1e-12 * exact);
+  EXPECT_EQ(CgDecisions(CgGoal{}).modelDecrease(), 0.0);
+}
+
 TEST(CgDecisions, AZeroGradientOrNoCurvatureKeepsTheIncrement) {
   CgDecisions zero(CgGoal{});
   EXPECT_FALSE(zero.start(0.0));
@@ -118,6 +143,7 @@ TEST(CgDecisions, AZeroGradientOrNoCurvatureKeepsTheIncrement) {
   EXPECT_TRUE(run.outcome.converged);
   EXPECT_EQ(run.iterations, 0);
   EXPECT_EQ(run.delta.norm(), 0.0);
+  EXPECT_EQ(run.outcome.model_decrease, 0.0);
 }
 
 }  // namespace

@@ -698,6 +698,7 @@ CgOutcome DgsDriver::solveByConjugateGradients(RefineRun& run, const CgGoal& goa
     }
   }
   outcome.converged = cg.converged();
+  outcome.model_decrease = cg.modelDecrease();
   return outcome;
 }
 
@@ -803,6 +804,7 @@ bool DgsDriver::refineStep(RefineRun& run, double& cost, double& lambda) {
     const CgOutcome outcome = solveByConjugateGradients(run, goal);
     summary.sweeps = outcome.sweeps;
     summary.linear_converged = outcome.converged;
+    summary.predicted_decrease = outcome.model_decrease;
   } else {
     solveBySweeps(run, summary);
   }

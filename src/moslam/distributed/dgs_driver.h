@@ -211,6 +211,10 @@ struct RefineStepSummary {
   double lambda = 0.0;           // damping used
   double cost_before = 0.0;      // F at the current estimate (the robots' shares summed)
   double cost_candidate = 0.0;   // F at x Exp(delta)
+  // kConjugateGradient: the decrease of the damped Gauss-Newton model that delta achieves
+  // (cg_decisions.h), so (cost_before - cost_candidate) / predicted_decrease is the step's gain
+  // ratio: near 1 where F is as quadratic as the model over the step. 0 with kSweeps.
+  double predicted_decrease = 0.0;
   bool accepted = false;
   double seconds = 0.0;
   std::int64_t bytes = 0;  // everything the refinement sent up to the end of this step

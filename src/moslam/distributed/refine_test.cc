@@ -68,11 +68,17 @@ TEST(Refine, ReachesTheCentralizedOptimumOnEveryBlocksWorldFolder) {
       EXPECT_LE(e.poses.are_deg, 1e-2);
       const Key anchor = GaugeAnchor(d.graph);
       EXPECT_EQ(r.values.at(anchor).translation(), d.initial.at(anchor).translation());
-      // Every accepted step lowered the cost.
+      // Every accepted step lowered the cost, by about what the conjugate gradients' model
+      // predicted: F is nearly quadratic over these steps (gain ratios 0.77-1.03 measured, the
+      // lowest on the first step from the two-stage estimate, down to gains of 1e-12 F).
       for (const RefineStepSummary& s : report.steps) {
         if (s.accepted) {
           EXPECT_LE(s.cost_candidate, s.cost_before);
         }
+        ASSERT_GT(s.predicted_decrease, 0.0);
+        const double gain_ratio = (s.cost_before - s.cost_candidate) / s.predicted_decrease;
+        EXPECT_GT(gain_ratio, 0.7) << "step " << s.iteration;
+        EXPECT_LT(gain_ratio, 1.1) << "step " << s.iteration;
       }
     }
   }

@@ -210,6 +210,7 @@ class Program {
       }
     }
     outcome.converged = cg.converged();
+    outcome.model_decrease = cg.modelDecrease();
     return outcome;
   }
 
@@ -321,6 +322,7 @@ class Program {
         const CgOutcome outcome = solveByConjugateGradients(DgsStage::kRefine, goal);
         summary.sweeps = outcome.sweeps;
         summary.linear_converged = outcome.converged;
+        summary.predicted_decrease = outcome.model_decrease;
       } else {
         solveBySweeps(summary);
       }

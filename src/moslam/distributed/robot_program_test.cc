@@ -94,6 +94,11 @@ void ExpectSameAsDriver(const Dataset& data, const DgsOptions& options,
     EXPECT_EQ(r.refine.rejected, reference.refine.rejected);
     EXPECT_EQ(r.refine.status, reference.refine.status);
     EXPECT_EQ(r.refine.coarse_corrections, reference.refine.coarse_corrections);
+    ASSERT_EQ(r.refine.steps.size(), reference.refine.steps.size());
+    for (std::size_t i = 0; i < r.refine.steps.size(); ++i) {
+      const double predicted = reference.refine.steps[i].predicted_decrease;
+      EXPECT_NEAR(r.refine.steps[i].predicted_decrease, predicted, 1e-9 * predicted);
+    }
     if (options.refine) {
       EXPECT_NEAR(r.refine.final_cost, reference.refine.final_cost,
                   1e-12 * reference.refine.final_cost);
