@@ -55,6 +55,7 @@ void DgsOptions::validate() const {
     }
   };
   non_negative(f.relative_cost_tolerance, "relative_cost_tolerance");
+  non_negative(f.absolute_cost_tolerance, "absolute_cost_tolerance");
   non_negative(f.sweep_tolerance, "sweep_tolerance");
   non_negative(f.cg_tolerance, "cg_tolerance");
   positive(f.initial_lambda, "refinement.initial_lambda");
@@ -845,12 +846,12 @@ RefineDecision DecideRefineStep(double cost, double candidate, int step,
   RefineDecision d;
   if (candidate <= cost) {
     d.accept = true;
-    d.finished = cost - candidate <= tolerance;
+    d.finished = cost - candidate <= tolerance || candidate <= opt.absolute_cost_tolerance;
     if (lambda > 0.0) {
       lambda /= 10.0;
       if (lambda < opt.min_lambda) lambda = 0.0;
     }
-  } else if (candidate - cost <= tolerance) {
+  } else if (candidate - cost <= tolerance || cost <= opt.absolute_cost_tolerance) {
     d.finished = true;  // rounding at the optimum: nothing left to gain
   } else {
     ++report.rejected;

@@ -49,7 +49,8 @@
 // on each robot's own blocks (lambda: refinement.initial_lambda, then x10 per rejection; /10
 // after an accepted damped step, 0 below refinement.min_lambda). It stops when an accepted step
 // lowers F by at most refinement.relative_cost_tolerance * F (converged; also when a rejected step
-// raised F by no more than that: nothing left to gain), after refinement.max_iterations steps, or
+// raised F by no more than that: nothing left to gain), when F is at most
+// refinement.absolute_cost_tolerance (converged), after refinement.max_iterations steps, or
 // when lambda exceeds max_lambda (kNoDecreasingStep). A robot that stops answering during the
 // refinement (SilentRobot with stage kRefine: at the start of that Gauss-Newton step) keeps its
 // last accepted estimate; the others hold its variables fixed and count its separators.
@@ -135,6 +136,9 @@ struct DgsOptions {
     RefinePreconditioner preconditioner = RefinePreconditioner::kTwoLevel;
     int max_iterations = 100;                // Gauss-Newton steps (accepted or rejected)
     double relative_cost_tolerance = 1e-10;  // converged when a step gains <= this * F
+    // Converged when F is at most this (a graph its measurements fit exactly, such as a tree:
+    // F falls to rounding, where the relative rule cannot end; the centralized optimizer's).
+    double absolute_cost_tolerance = 1e-20;
     int max_sweeps = 1000;                   // per step
     double sweep_tolerance = 1e-3;           // kSweeps: max change <= this * max ||delta_r||
     double cg_tolerance = 1e-2;              // kConjugateGradient: sqrt(res.z / res0.z0)

@@ -81,7 +81,8 @@ class Fingerprint {
 inline void AddSolverOptions(Fingerprint& f, const DgsOptions& o) {
   for (double v : {o.eta_rotation, o.eta_pose, o.gamma, o.refinement.relative_cost_tolerance,
                    o.refinement.sweep_tolerance, o.refinement.cg_tolerance, o.refinement.gamma,
-                   o.refinement.initial_lambda, o.refinement.max_lambda, o.refinement.min_lambda}) {
+                   o.refinement.initial_lambda, o.refinement.max_lambda, o.refinement.min_lambda,
+                   o.refinement.absolute_cost_tolerance}) {
     f.add(v);
   }
   for (int v : {o.max_iterations, o.error_bound_window, static_cast<int>(o.stopping),
