@@ -1,8 +1,9 @@
 // Robots as separate processes over Cyclone DDS on loopback (the real `moslam` binary; each test
-// its own DDS domain, 44..60): the team's result equals the in-process driver's; a robot killed
-// (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies for good
-// is noticed through liveliness and the others finish. Simulated scenarios (--scenario): object
-// SLAM and rendezvous in each process give the in-process pipeline's shared objects and
+// its own DDS domain, 45..59 and 70..73, no two alike: ctest runs two tests at once, and two
+// teams in one domain would hear each other): the team's result equals the in-process driver's; a
+// robot killed (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies
+// for good is noticed through liveliness and the others finish. Simulated scenarios (--scenario):
+// object SLAM and rendezvous in each process give the in-process pipeline's shared objects and
 // estimate; robots killed in the rendezvous phase and in the DGS and restarted lose nothing;
 // online (--online), every map the robots save equals the in-process twin's, with a robot killed
 // in a group solve and restarted too; robust (--robust), the in-process robust solve's estimate,
@@ -304,7 +305,7 @@ TEST(Team, ARobustSplitFileChecksEachRobotsOwnLoopClosuresAsInProcess) {
   const fs::path file = out / "spoiled.g2o";
   WriteG2oFile(file.string(), spoiled.graph, csail.initial, write);
   const nlohmann::json j = RunTeamCommand(
-      out, 60, {"--data", file.string(), "--robots", "2", "--robust", "--gnc-threshold", "5"});
+      out, 72, {"--data", file.string(), "--robots", "2", "--robust", "--gnc-threshold", "5"});
   ASSERT_TRUE(j.is_object());
   EXPECT_TRUE(j["ok"].get<bool>());
   EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
@@ -556,7 +557,7 @@ TEST(Team, RobustScenarioProcessesEqualTheInProcessRobustSolve) {
 TEST(Team, RobustGroupRetestProcessesEqualTheInProcessRobustSolve) {
   const fs::path out = FreshDir("robust_groups");
   const nlohmann::json j =
-      RunScenarioTeam(out, 57, {"--robust", "--loop-closure"},
+      RunScenarioTeam(out, 71, {"--robust", "--loop-closure"},
                       {"--scenario", "chairs25", "--robots", "4", "--seed", "2"});
   ASSERT_TRUE(j.is_object());
   EXPECT_TRUE(j["ok"].get<bool>());
@@ -722,7 +723,7 @@ TEST(Team, AnOnlineRobotKilledInAGroupSolveAndRestartedLosesNothing) {
 TEST(Team, AnOnlineRobustRobotKilledInAGroupSolveAndRestartedLosesNothing) {
   nlohmann::json j;
   ASSERT_NO_FATAL_FAILURE(KillOnlineRobotInItsSecondSolve(
-      44, "online_robust_restart", {"--online", "--robust"},
+      73, "online_robust_restart", {"--online", "--robust"},
       {"--scenario", "chairs25", "--robots", "6", "--poses", "60", "--seed", "2"}, &j));
   EXPECT_GT(j["set_aside"].get<int>(), 0);
   EXPECT_EQ(j["set_aside"], j["in_process_set_aside"]);
@@ -770,11 +771,12 @@ void KillOneForGood(int domain, int n, int victim, const std::string& name,
 // their later rendezvous with it and finish the mission.
 TEST(Team, AnOnlineRobotThatDiesForGoodIsSkippedAndTheOthersFinish) {
   int skipped = 0;
-  KillOneForGood(49, 6, 1, "online_leave", {"--online"}, "", "group solve: ",
-                 [](int, const nlohmann::json&, const fs::path& out) {
-                   EXPECT_TRUE(fs::exists(out / "maps" / "final" / "map.g2o"));
-                 },
-                 &skipped);
+  KillOneForGood(
+      70, 6, 1, "online_leave", {"--online"}, "", "group solve: ",
+      [](int, const nlohmann::json&, const fs::path& out) {
+        EXPECT_TRUE(fs::exists(out / "maps" / "final" / "map.g2o"));
+      },
+      &skipped);
   EXPECT_GT(skipped, 0);
 }
 

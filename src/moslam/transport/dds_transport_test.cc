@@ -23,7 +23,8 @@ namespace {
 using std::chrono::milliseconds;
 using Clock = std::chrono::steady_clock;
 
-// Domain ids of this file: 40..43 (apps/team_test.cc: 45..59, scripts/test-network.sh: 60..69).
+// Domain ids of this file: 40..44 (apps/team_test.cc: 45..59 and 70..73,
+// scripts/test-network.sh: 60..69).
 struct Fixture {
   explicit Fixture(int domain_id, int participants = 3)
       : domain(domain_id, LoopbackConfigXml(domain_id, participants)) {}
@@ -380,6 +381,26 @@ TEST(DdsEntities, EveryProfileAcceptsXcdr1Only) {
     EXPECT_EQ(values[0], DDS_DATA_REPRESENTATION_XCDR1);
     dds_free(values);
   }
+}
+
+// A Cyclone DDS call that fails throws DdsError (a moslam::Error, so the commands report it as
+// any other): the message names what was attempted and Cyclone's reason, and code() keeps the
+// return code. Here the second domain of one id in one process, which Cyclone refuses.
+TEST(DdsEntities, AFailedCallThrowsDdsErrorNamingWhatAndWhy) {
+  const Fixture first(44, 1);
+  try {
+    dds::Domain second(44, LoopbackConfigXml(44, 1));
+    ADD_FAILURE() << "a second domain 44 was created";
+  } catch (const dds::DdsError& e) {
+    EXPECT_LT(e.code(), 0);
+    const std::string what = e.what();
+    EXPECT_NE(what.find("create domain 44"), std::string::npos) << what;
+    EXPECT_NE(what.find(dds_strretcode(e.code())), std::string::npos) << what;
+  }
+  EXPECT_TRUE(test::ThrowsNaming<Error>([] { dds::Domain(44, LoopbackConfigXml(44, 1)); },
+                                        "DDS: create domain 44"));
+  // The first domain is untouched: a participant joins it.
+  EXPECT_TRUE(static_cast<bool>(dds::Participant(44)));
 }
 
 TEST(DdsTransport, ValidatesOptionsAndRobotIds) {
