@@ -9,8 +9,8 @@
 # (`moslam solve --out`, the same gauge: no alignment).
 # Environment: BUILD_DIR / MOSLAM (scripts/lib/moslam.sh), SEED (default 1), DATASETS (files of
 # ../shared/datasets/pgo without .g2o), FRACTIONS, THRESHOLDS (0: GNC's default, 22.46), ROBOTS
-# (default 4; empty: no dgs), JSON (default docs/robust_single.json). Writes JSON and prints the
-# Markdown table.
+# (default 4; empty: no dgs), DGS_ARGS (more flags for `moslam dgs`, e.g. "--refine-linear-tol
+# 1e-3"), JSON (default docs/robust_single.json). Writes JSON and prints the Markdown table.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib/moslam.sh"
 SEED="${SEED:-1}"
@@ -18,6 +18,7 @@ DATASETS="${DATASETS:-input_INTEL_g2o CSAIL}"
 FRACTIONS="${FRACTIONS:-0.1 0.3 0.5 0.7}"
 THRESHOLDS="${THRESHOLDS:-0 5}"
 ROBOTS="${ROBOTS-4}"
+read -r -a DGS_EXTRA <<< "${DGS_ARGS:-}"
 JSON="${JSON:-$ROOT/docs/robust_single.json}"
 DATA="$ROOT/../shared/datasets/pgo"
 WORK="$(mktemp -d)"
@@ -39,7 +40,7 @@ for d in $DATASETS; do
       dgs=()
       for r in $ROBOTS; do
         "$MOSLAM" dgs "$spoiled/0.g2o" --robots "$r" --robust --gnc-threshold "$c" --json \
-          --out "$run.dgs$r" | tail -n 1 > "$run.dgs$r.json"
+          "${DGS_EXTRA[@]}" --out "$run.dgs$r" | tail -n 1 > "$run.dgs$r.json"
         dgs+=("$r" "$run.dgs$r.json" "$run.dgs$r")
       done
       rows+=("$(python3 "$ROOT/scripts/lib/robust_single_row.py" "$d" "$p" "$c" \
