@@ -37,6 +37,7 @@
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
+#include "moslam/robust/spoil_testing.h"
 #include "moslam/solver/initialization.h"
 #include "moslam/solver/optimizer.h"
 #include "moslam/transport/dds_transport.h"
@@ -294,12 +295,7 @@ TEST(Team, ProcessesOverDdsOnLoopbackMatchTheInProcessDriver) {
 // inside a block not): 127 left out, 129 outliers, and a map far from the clean one.
 TEST(Team, ARobustSplitFileChecksEachRobotsOwnLoopClosuresAsInProcess) {
   const fs::path out = FreshDir("split_robust");
-  const Dataset csail = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/CSAIL.g2o");
-  SpoilOptions spoil;
-  spoil.fraction = 0.3;
-  spoil.seed = 1;
-  spoil.planar = csail.planar;
-  const SpoiledGraph spoiled = SpoilSeparators(csail.graph, spoil);
+  const auto [csail, spoiled] = test::SpoilPgoFile("CSAIL.g2o", 0.3);
   G2oWriteOptions write;
   write.planar = csail.planar;
   const fs::path file = out / "spoiled.g2o";

@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -19,6 +18,7 @@
 #include "moslam/distributed/robust_dgs.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
+#include "moslam/robust/spoil_testing.h"
 #include "moslam/solver/initialization.h"
 
 namespace moslam {
@@ -497,12 +497,7 @@ TEST(RobustProgram, ACheckThatUnlinksARobotStopsEveryRobotBeforeAnySolve) {
 // separator check, as RunRobustDgs; without C5 the wrong ones inside a block stay for GNC, which
 // misses some.
 TEST(RobustProgram, EachRobotChecksItsOwnLoopClosuresAsRunRobustDgs) {
-  const Dataset data = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/CSAIL.g2o");
-  SpoilOptions spoil;
-  spoil.fraction = 0.3;
-  spoil.seed = 1;
-  spoil.planar = data.planar;
-  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
+  const auto [data, spoiled] = test::SpoilPgoFile("CSAIL.g2o", 0.3);
   const SplitGraph split = SplitIntoRobots(spoiled.graph, data.initial, 2);
   const std::vector<bool> robust = LoopClosureFactors(split.graph);
   ASSERT_EQ(robust, DefaultRobustFactors(spoiled.graph));  // the file's loop closures

@@ -10,6 +10,7 @@
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/robust/spoil.h"
+#include "moslam/robust/spoil_testing.h"
 #include "moslam/solver/initialization.h"
 
 namespace moslam {
@@ -125,12 +126,8 @@ TEST(SolveGnc, RejectsKnownOutliersAndReachesTheCleanOptimum) {
 // of its poses that are not consecutive, in the plane; at 10 % the robust solve, which makes
 // the loop closures robust, rejects exactly them and lands on the clean optimum (6.8e-9 m).
 TEST(SolveGnc, OneRobotsWrongLoopClosuresAreRejected) {
-  const Dataset data = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/CSAIL.g2o");
+  const auto [data, spoiled] = test::SpoilPgoFile("CSAIL.g2o", 0.1);
   ASSERT_TRUE(data.planar);
-  SpoilOptions spoil;
-  spoil.fraction = 0.1;
-  spoil.planar = true;
-  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
   EXPECT_TRUE(spoiled.single_robot);
   EXPECT_EQ(spoiled.separators, 128);  // CSAIL's loop closures
   EXPECT_EQ(spoiled.added, 14);        // round(0.1 / 0.9 * 128)
@@ -156,7 +153,7 @@ TEST(SolveGnc, OneRobotsWrongLoopClosuresAreRejected) {
   const OptimizerResult clean = Optimize(data.graph, ChordalInitialization(data.graph, SE3()));
   EXPECT_LT(MaxPoseDifference(r.values, clean.values), 1e-6);
   // A graph without a pose has nothing to spoil.
-  EXPECT_THROW(SpoilSeparators(PoseGraph(), spoil), InvalidInputError);
+  EXPECT_THROW(SpoilSeparators(PoseGraph(), SpoilOptions()), InvalidInputError);
 }
 
 // Without outliers (blocks_world's residuals all below the threshold) GNC changes nothing.

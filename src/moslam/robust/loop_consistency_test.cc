@@ -12,6 +12,7 @@
 #include "moslam/io/datasets_testing.h"
 #include "moslam/io/g2o.h"
 #include "moslam/robust/spoil.h"
+#include "moslam/robust/spoil_testing.h"
 #include "moslam/solver/marginals.h"
 
 namespace moslam {
@@ -114,11 +115,8 @@ TEST(LoopStatistic, IsZeroForAClosedLoopAndTheMahalanobisDistanceOfAnError) {
 // loop closures; at the chi-square threshold it rejects no right one and 53 of the 55 wrong ones
 // (the two it keeps span long stretches of odometry, whose covariance lets them agree).
 TEST(CheckLoopClosuresByOdometry, KeepsExactlyTheRightLoopClosuresOfSpoiledCsail) {
-  const Dataset data = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/CSAIL.g2o");
-  SpoilOptions spoil;
-  spoil.fraction = 0.3;
-  spoil.planar = true;
-  const SpoiledGraph spoiled = SpoilSeparators(data.graph, spoil);
+  const auto [data, spoiled] = test::SpoilPgoFile("CSAIL.g2o", 0.3);
+  ASSERT_TRUE(data.planar);
   std::vector<bool> robust(spoiled.graph.factors().size(), false);
   for (std::size_t i = 0; i < robust.size(); ++i) {
     const RelativePoseFactor& f = spoiled.graph.factors()[i];
