@@ -107,14 +107,17 @@ inline PoseGraph DriftingPairWithANearMiss(std::vector<bool>* wrong) {
   return g;
 }
 
-// The same pair, and two wrong loop closures of robot 1 (the last two factors): between its poses
-// 0-59 and 5-50, its dead reckoning moved 3 m and far tighter than its odometry. Two are fewer than
-// the odometry check's min_support, so its own check neither confirms nor rejects them, and
-// GNC-TLS on robot 1's map alone takes them, which bends the map by metres. `wrong` flags the
-// separators as DriftingPairWithWrongSeparators does; `robust` gets one flag per factor: the
-// separators and the two loop closures.
+// The same pair, and wrong loop closures of robot 1 (the last `loop_closures` factors, 1-3):
+// between its poses 0-59, 5-50 and 10-45, its dead reckoning with a 3 m jump at pose 30, far
+// tighter than its odometry. They agree with one another exactly (the loop of two goes through
+// the jump and back: the identity). Two are fewer than the odometry check's min_support, so its
+// own check neither confirms nor rejects them; three confirm one another. GNC-TLS on robot 1's
+// map alone takes them, which bends the map by metres. `wrong` flags the separators as
+// DriftingPairWithWrongSeparators does; `robust` gets one flag per factor: the separators and the
+// loop closures.
 inline PoseGraph DriftingPairWithBendingLoopClosures(std::vector<bool>* wrong,
-                                                     std::vector<bool>* robust) {
+                                                     std::vector<bool>* robust,
+                                                     int loop_closures = 2) {
   PoseGraph g = DriftingPairWithWrongSeparators(wrong);
   const auto pose = [](int i) { return Key::Pose(1, static_cast<std::uint64_t>(i)); };
   const auto dead_reckoning = [&](int from, int to) {
@@ -132,9 +135,11 @@ inline PoseGraph DriftingPairWithBendingLoopClosures(std::vector<bool>* wrong,
   d << Vector3::Constant(1e5), Vector3::Constant(1e4);
   robust->clear();
   for (const RelativePoseFactor& f : g.factors()) robust->push_back(f.a().robot != f.b().robot);
-  for (const auto& [a, b] : {std::pair{0, 59}, {5, 50}}) {
-    g.add(RelativePoseFactor(pose(a), pose(b),
-                             dead_reckoning(a, b) * SE3(SO3(), Vector3(-3.0, 0.0, 0.0)),
+  const std::pair<int, int> ends[] = {{0, 59}, {5, 50}, {10, 45}};
+  for (int k = 0; k < loop_closures; ++k) {
+    const auto [a, b] = ends[k];
+    const SE3 jump(SO3(), Vector3(-3.0, 0.0, 0.0));
+    g.add(RelativePoseFactor(pose(a), pose(b), dead_reckoning(a, 30) * jump * dead_reckoning(30, b),
                              Matrix6(d.asDiagonal())));
     robust->push_back(true);
   }

@@ -73,11 +73,15 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
     // Each robot's own loop closures first, through its own odometry (none in object SLAM, whose
     // robust factors touch objects; g2o folders mark only their separators).
     const OdometryCheckResult own = CheckEachRobotsLoopClosures(graph, robust, o);
-    // The robots' maps hold only the loop closures their check confirmed: one it could not
-    // confirm (too few agreeing, or rejected) would bend its robot's map and turn right
-    // separators away (INTEL split among 4 robots, docs/robustness-log.md).
+    // The robots' maps leave out their own loop closures along their odometry (the loops of PCM
+    // go through odometry alone): a wrong one in a map, even one its check confirmed (a robot
+    // whose own are few and all wrong), bends it and turns right separators away (INTEL split
+    // among 4 robots, docs/robustness-log.md); the maps' covariances carry the drift instead.
+    const std::vector<bool> along = LoopClosuresAlongOdometry(graph, robust);
+    std::vector<bool> in_maps(graph.factors().size());
+    for (std::size_t i = 0; i < in_maps.size(); ++i) in_maps[i] = own.kept[i] && !along[i];
     std::vector<std::size_t> index;
-    const PoseGraph trusted = SubGraph(graph, own.confirmed, &index);
+    const PoseGraph trusted = SubGraph(graph, in_maps, &index);
     SeparatorConsistencyResult out =
         OnTheWholeGraph(CheckSeparatorConsistency(trusted, c, Select(robust, index), options.gnc),
                         index, graph.factors().size());

@@ -140,9 +140,11 @@ struct RobustDgsResult {
 // instead (robust/loop_consistency.h, with the check's threshold, min_support and map_uncertainty
 // as odometry_uncertainty). In a team's graph, the loop closures `robust` marks between two poses
 // of one robot are checked so too, each robot through its own odometry
-// (CheckEachRobotsLoopClosures), first: the maps the separators are judged on then hold only the
-// loop closures that check confirmed (OdometryCheckResult::confirmed; those it could not confirm,
-// too few to agree, stay for GNC but do not bend the map). `separators` and `rejected` count both.
+// (CheckEachRobotsLoopClosures), first: the maps the separators are judged on then hold none of
+// the robots' own loop closures along their odometry (LoopClosuresAlongOdometry: the maps'
+// covariances carry the odometry's drift; a wrong loop closure in a map, even one that check
+// confirmed, would bend it), nor those that check rejected; the loop closures it kept stay for
+// GNC. `separators` and `rejected` count both.
 SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustDgsOptions& options,
                                            const std::vector<bool>& robust = {});
 

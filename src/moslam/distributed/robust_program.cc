@@ -59,11 +59,13 @@ class RobustProgram {
     if (check) {
       robot_.reachEveryNeighbour();
       const OdometryCheckResult own = checkOwnLoopClosures();
-      // Its map for the check holds only the loop closures its own check confirmed.
+      // Its map for the check leaves out its own loop closures along its odometry, and those
+      // its own check rejected (CheckSeparators).
+      const std::vector<bool> along = LoopClosuresAlongOdometry(p_.subgraph, p_.robust);
       RobustRobotProblem trusted = p_;
-      trusted.checked = own.confirmed;
-      for (std::size_t i = 0; i < p_.checked.size(); ++i) {
-        trusted.checked[i] = trusted.checked[i] && p_.checked[i];
+      trusted.checked.assign(n, true);
+      for (std::size_t i = 0; i < n; ++i) {
+        trusted.checked[i] = own.kept[i] && !along[i] && (p_.checked.empty() || p_.checked[i]);
       }
       verdict = RunSeparatorCheck(trusted, robot_.checkedPairs(), consistency_, options_.gnc,
                                   robot_.link());
@@ -141,7 +143,7 @@ class RobustProgram {
  private:
   // C5: its own loop closures (robust factors between two of its poses) checked through its own
   // odometry, as RunRobustDgs checks each robot's (CheckEachRobotsLoopClosures): nothing crosses
-  // the network. kept and confirmed per factor of its subgraph (true for those not checked).
+  // the network. kept per factor of its subgraph (true for those not checked).
   OdometryCheckResult checkOwnLoopClosures() const {
     const std::size_t n = p_.subgraph.factors().size();
     const std::vector<bool> all(n, true);
@@ -156,10 +158,8 @@ class RobustProgram {
     const OdometryCheckResult part = CheckEachRobotsLoopClosures(sub, robust, o);
     OdometryCheckResult own = part;
     own.kept = all;
-    own.confirmed = all;
     for (std::size_t j = 0; j < seen.size(); ++j) {
       own.kept[seen[j]] = part.kept[j];
-      own.confirmed[seen[j]] = part.confirmed[j];
     }
     return own;
   }

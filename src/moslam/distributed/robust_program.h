@@ -70,9 +70,10 @@
 // least-squares one is kept).
 //   C5, run first: each robot checks its own loop closures (the robust factors between two of its
 //       poses, checked ones only with `checked`) through its own odometry, as RunRobustDgs does
-//       (CheckEachRobotsLoopClosures): nothing crosses the network. The map of C1 then holds only
-//       the loop closures it confirmed (OdometryCheckResult::confirmed: those too few to confirm
-//       one another stay for GNC, but do not bend the map the separators are judged on). Object
+//       (CheckEachRobotsLoopClosures): nothing crosses the network. The map of C1 then holds
+//       none of its loop closures along its odometry (LoopClosuresAlongOdometry) and none this
+//       check rejected; those it kept stay for GNC, but do not bend the map the separators are
+//       judged on (RunRobustDgs's CheckSeparators). Object
 //       SLAM marks none (its robust factors touch objects); a single robot's file split among
 //       robots marks its loop closures (LoopClosureFactors). Those it rejects are not in C4's
 //       team sum and C4's flood does not see them: a robot whose own loop closures alone link

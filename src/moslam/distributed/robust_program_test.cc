@@ -523,20 +523,30 @@ TEST(RobustProgram, EachRobotChecksItsOwnLoopClosuresAsRunRobustDgs) {
   EXPECT_GE(rejected, within);
 }
 
-// C5 before C1: robot 1's two wrong loop closures, which its own check can neither confirm nor
-// reject, are left out of the map it sends for the separator check (robust_dgs_test.cc, the same
-// graph): the programs keep every right separator and reach RunRobustDgs's weights and estimate.
-TEST(RobustProgram, MapsWithoutUnconfirmedLoopClosuresAsRunRobustDgs) {
-  std::vector<bool> wrong, robust;
-  const PoseGraph graph = test::DriftingPairWithBendingLoopClosures(&wrong, &robust);
-  const Values initial = ChordalInitialization(graph, SE3());
-  RobustProgramOptions options;
-  options.solver.order = SweepOrder::kJacobi;
-  const RobustDgsResult reference = RunRobustDgs(graph, initial, robust, ReferenceOptions(options));
-  ASSERT_EQ(reference.consistency_rejected, 2);
-  const TeamOutcome team = ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference);
-  ASSERT_EQ(team.error, "");
-  EXPECT_EQ(team.results.at(0).check_rejected + team.results.at(1).check_rejected, 2);
+// C5 before C1: robot 1's wrong loop closures, two that its own check can neither confirm nor
+// reject or three that it confirms, are left out of the map it sends for the separator check
+// (robust_dgs_test.cc, the same graphs): the programs keep every right separator and reach
+// RunRobustDgs's weights and estimate.
+TEST(RobustProgram, MapsWithoutTheirOwnLoopClosuresAsRunRobustDgs) {
+  for (int loop_closures : {2, 3}) {
+    SCOPED_TRACE(loop_closures);
+    std::vector<bool> wrong, robust;
+    const PoseGraph graph =
+        test::DriftingPairWithBendingLoopClosures(&wrong, &robust, loop_closures);
+    const Values initial = ChordalInitialization(graph, SE3());
+    RobustProgramOptions options;
+    options.solver.order = SweepOrder::kJacobi;
+    const RobustDgsResult reference =
+        RunRobustDgs(graph, initial, robust, ReferenceOptions(options));
+    ASSERT_EQ(reference.consistency_rejected, 2);
+    const std::size_t first = graph.factors().size() - loop_closures - wrong.size();
+    for (std::size_t s = 0; s < wrong.size(); ++s) {
+      EXPECT_EQ(reference.weights[first + s] < 0.5, static_cast<bool>(wrong[s])) << s;
+    }
+    const TeamOutcome team = ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference);
+    ASSERT_EQ(team.error, "");
+    EXPECT_EQ(team.results.at(0).check_rejected + team.results.at(1).check_rejected, 2);
+  }
 }
 
 TEST(RobustProgram, RejectsBadInput) {

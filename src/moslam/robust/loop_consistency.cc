@@ -197,12 +197,9 @@ OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
   const CliqueResult best = MaximumClique(g);
   out.largest = static_cast<int>(best.nodes.size());
   out.exact = best.exact;
-  out.confirmed = out.kept;
-  for (std::size_t i : checked) out.confirmed[i] = false;
   if (out.largest < options.min_support) return out;  // nothing confirmed: GNC decides
   for (std::size_t i : checked) out.kept[i] = false;
   for (int v : best.nodes) out.kept[checked[static_cast<std::size_t>(v)]] = true;
-  out.confirmed = out.kept;
   out.rejected = n - out.largest;
   return out;
 }
@@ -223,7 +220,6 @@ OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
   }
   OdometryCheckResult out;
   out.kept.assign(factors.size(), true);
-  out.confirmed.assign(factors.size(), true);
   for (int robot : checking) {
     const std::vector<std::size_t>& index = own.at(robot);
     PoseGraph mine;
@@ -234,13 +230,34 @@ OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
     }
     const OdometryCheckResult r = CheckLoopClosuresByOdometry(mine, mine_robust, options);
     for (std::size_t j = 0; j < index.size(); ++j) out.kept[index[j]] = r.kept[j];
-    for (std::size_t j = 0; j < index.size(); ++j) out.confirmed[index[j]] = r.confirmed[j];
     out.loop_closures += r.loop_closures;
     out.rejected += r.rejected;
     out.largest = std::max(out.largest, r.largest);
     out.exact = out.exact && r.exact;
     out.pairs += r.pairs;
     out.untestable += r.untestable;
+  }
+  return out;
+}
+
+std::vector<bool> LoopClosuresAlongOdometry(const PoseGraph& graph,
+                                            const std::vector<bool>& robust) {
+  CheckInputs(graph, robust, OdometryCheckOptions());
+  const std::vector<RelativePoseFactor>& factors = graph.factors();
+  std::map<int, std::vector<std::size_t>> own;  // per robot: its loop closures
+  std::map<int, PoseGraph> mine;                // per robot: its factors between two poses
+  for (std::size_t i = 0; i < factors.size(); ++i) {
+    const Key a = factors[i].a(), b = factors[i].b();
+    if (a.robot != b.robot || !a.isPose() || !b.isPose()) continue;
+    mine[a.robot].add(factors[i]);
+    if (robust[i]) own[a.robot].push_back(i);
+  }
+  std::vector<bool> out(factors.size(), false);
+  for (const auto& [robot, loop_closures] : own) {
+    const OdometryChain chain(mine.at(robot), false);
+    for (std::size_t i : loop_closures) {
+      out[i] = chain.stretch(factors[i].a()) == chain.stretch(factors[i].b());
+    }
   }
   return out;
 }
