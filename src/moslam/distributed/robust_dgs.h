@@ -29,9 +29,8 @@
 // on the same graph where every solve reaches the same optimum; the estimates differ from the
 // centralized GNC's by the solves' tolerance. Where the least-squares solves end in different
 // minima, or a weighted solve stops at its step limit, the weights can differ (split among 4
-// robots with wrong loop closures: INTEL at 10 %, 3 of 284, none with the refinement's conjugate
-// gradients to 1e-3 instead of 1e-2; CSAIL at 70 % on commit e53cedc, 12 of 427;
-// docs/robustness-log.md).
+// robots with wrong loop closures: INTEL at 30 %, 5 of 366, none with the refinement's conjugate
+// gradients to 1e-3 instead of 1e-2; at 50 % 13 of 512 and 11; docs/robustness-log.md).
 #pragma once
 
 #include <cstdint>
