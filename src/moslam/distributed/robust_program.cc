@@ -58,15 +58,11 @@ class RobustProgram {
     verdict.kept.assign(n, true);
     if (check) {
       robot_.reachEveryNeighbour();
-      const OdometryCheckResult own = checkOwnLoopClosures();
-      // Its map for the check leaves out its own loop closures along its odometry, and those
-      // its own check rejected (CheckSeparators).
-      const std::vector<bool> along = LoopClosuresAlongOdometry(p_.subgraph, p_.robust);
+      const OwnCheck own = checkOwnLoopClosures();
+      // Its map for the check: the checked factors but its own loop closures along its odometry
+      // and those its own check rejected (CheckSeparators).
       RobustRobotProblem trusted = p_;
-      trusted.checked.assign(n, true);
-      for (std::size_t i = 0; i < n; ++i) {
-        trusted.checked[i] = own.kept[i] && !along[i] && (p_.checked.empty() || p_.checked[i]);
-      }
+      trusted.checked = own.in_map;
       verdict = RunSeparatorCheck(trusted, robot_.checkedPairs(), consistency_, options_.gnc,
                                   robot_.link());
       for (std::size_t i = 0; i < n; ++i) verdict.kept[i] = verdict.kept[i] && own.kept[i];
@@ -143,8 +139,14 @@ class RobustProgram {
  private:
   // C5: its own loop closures (robust factors between two of its poses) checked through its own
   // odometry, as RunRobustDgs checks each robot's (CheckEachRobotsLoopClosures): nothing crosses
-  // the network. kept per factor of its subgraph (true for those not checked).
-  OdometryCheckResult checkOwnLoopClosures() const {
+  // the network. Per factor of its subgraph: kept (true for those not checked), and whether its
+  // map for C1 holds it (a checked factor, not one of its loop closures along its odometry nor one
+  // it rejected), both computed on the checked factors as RunRobustDgs does (CheckOnMask).
+  struct OwnCheck {
+    std::vector<bool> kept, in_map;
+    int rejected = 0;
+  };
+  OwnCheck checkOwnLoopClosures() const {
     const std::size_t n = p_.subgraph.factors().size();
     const std::vector<bool> all(n, true);
     std::vector<std::size_t> seen;  // the factors it checks, as RunRobustDgs (CheckOnMask)
@@ -156,10 +158,14 @@ class RobustProgram {
     o.min_support = consistency_.min_support;
     o.odometry_uncertainty = consistency_.map_uncertainty;
     const OdometryCheckResult part = CheckEachRobotsLoopClosures(sub, robust, o);
-    OdometryCheckResult own = part;
+    const std::vector<bool> along = LoopClosuresAlongOdometry(sub, robust);
+    OwnCheck own;
     own.kept = all;
+    own.in_map.assign(n, false);
+    own.rejected = part.rejected;
     for (std::size_t j = 0; j < seen.size(); ++j) {
       own.kept[seen[j]] = part.kept[j];
+      own.in_map[seen[j]] = part.kept[j] && !along[j];
     }
     return own;
   }
