@@ -77,9 +77,10 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
     // go through odometry alone): a wrong one in a map, even one its check confirmed (a robot
     // whose own are few and all wrong), bends it and turns right separators away (INTEL split
     // among 4 robots, docs/robustness-log.md); the maps' covariances carry the drift instead.
-    const std::vector<bool> along = LoopClosuresAlongOdometry(graph, robust);
     std::vector<bool> in_maps(graph.factors().size());
-    for (std::size_t i = 0; i < in_maps.size(); ++i) in_maps[i] = own.kept[i] && !along[i];
+    for (std::size_t i = 0; i < in_maps.size(); ++i) {
+      in_maps[i] = own.kept[i] && !own.along_odometry[i];
+    }
     std::vector<std::size_t> index;
     const PoseGraph trusted = SubGraph(graph, in_maps, &index);
     SeparatorConsistencyResult out =

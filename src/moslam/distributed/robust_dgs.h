@@ -140,8 +140,8 @@ struct RobustDgsResult {
 // as odometry_uncertainty). In a team's graph, the loop closures `robust` marks between two poses
 // of one robot are checked so too, each robot through its own odometry
 // (CheckEachRobotsLoopClosures), first: the maps the separators are judged on then hold none of
-// the robots' own loop closures along their odometry (LoopClosuresAlongOdometry: the maps'
-// covariances carry the odometry's drift; a wrong loop closure in a map, even one that check
+// the robots' own loop closures along their odometry (OdometryCheckResult::along_odometry: the
+// maps' covariances carry the odometry's drift; a wrong loop closure in a map, even one that check
 // confirmed, would bend it), nor those that check rejected; the loop closures it kept stay for
 // GNC. `separators` and `rejected` count both.
 SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph, const RobustDgsOptions& options,

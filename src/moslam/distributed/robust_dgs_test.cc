@@ -453,7 +453,7 @@ TEST(CheckSeparators, KeepsALoopClosureAcrossAGapInTheOdometryInTheMap) {
   gap.add(RelativePoseFactor(Key::Pose(1, 25), Key::Pose(1, 35), across,
                              g.factors().front().information()));
   gap_robust.push_back(true);
-  ASSERT_EQ(LoopClosuresAlongOdometry(gap, gap_robust).back(), false);
+  ASSERT_FALSE(CheckEachRobotsLoopClosures(gap, gap_robust).along_odometry.back());
   RobustDgsOptions options;
   const SeparatorConsistencyResult whole = CheckSeparators(g, options, robust);
   const SeparatorConsistencyResult split = CheckSeparators(gap, options, gap_robust);

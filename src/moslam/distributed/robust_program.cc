@@ -158,14 +158,13 @@ class RobustProgram {
     o.min_support = consistency_.min_support;
     o.odometry_uncertainty = consistency_.map_uncertainty;
     const OdometryCheckResult part = CheckEachRobotsLoopClosures(sub, robust, o);
-    const std::vector<bool> along = LoopClosuresAlongOdometry(sub, robust);
     OwnCheck own;
     own.kept = all;
     own.in_map.assign(n, false);
     own.rejected = part.rejected;
     for (std::size_t j = 0; j < seen.size(); ++j) {
       own.kept[seen[j]] = part.kept[j];
-      own.in_map[seen[j]] = part.kept[j] && !along[j];
+      own.in_map[seen[j]] = part.kept[j] && !part.along_odometry[j];
     }
     return own;
   }

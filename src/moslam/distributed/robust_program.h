@@ -71,14 +71,14 @@
 //   C5, run first: each robot checks its own loop closures (the robust factors between two of its
 //       poses, checked ones only with `checked`) through its own odometry, as RunRobustDgs does
 //       (CheckEachRobotsLoopClosures): nothing crosses the network. The map of C1 then holds
-//       none of its loop closures along its odometry (LoopClosuresAlongOdometry) and none this
-//       check rejected; those it kept stay for GNC, but do not bend the map the separators are
-//       judged on (RunRobustDgs's CheckSeparators). Object
-//       SLAM marks none (its robust factors touch objects); a single robot's file split among
-//       robots marks its loop closures (LoopClosureFactors). Those it rejects are not in C4's
-//       team sum and C4's flood does not see them: a robot whose own loop closures alone link
-//       some of its poses (a gap in its odometry) and that loses them here is not stopped there
-//       (RunRobustDgs throws UnderdeterminedError).
+//       none of its loop closures along its odometry (OdometryCheckResult::along_odometry) nor
+//       those this check rejected; those it kept stay for GNC, but do not bend the map the
+//       separators are judged on (RunRobustDgs's CheckSeparators). Object SLAM marks none (its
+//       robust factors touch objects); a single robot's file split among robots marks its loop
+//       closures (LoopClosureFactors). Those it rejects are not in C4's team sum and C4's flood
+//       does not see them: a robot whose own loop closures alone link some of its poses (a gap in
+//       its odometry) and that loses them here is not stopped there (RunRobustDgs throws
+//       UnderdeterminedError).
 // The separators it leaves out are left out of every solve; after GNC, before the readmission,
 // the higher robot of each pair sends the lower its estimates of their variables in the
 // separators left out, so that those whose residual is within c2 come back as in RunRobustDgs.

@@ -165,12 +165,14 @@ OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
   const OdometryChain chain(graph, options.odometry_uncertainty);
   OdometryCheckResult out;
   out.kept.assign(factors.size(), true);
+  out.along_odometry.assign(factors.size(), false);
   std::vector<std::size_t> checked;
   std::vector<LoopEnd> ends;
   for (std::size_t i = 0; i < factors.size(); ++i) {
     const RelativePoseFactor& f = factors[i];
     if (!robust[i] || !chain.has(f.a()) || !chain.has(f.b())) continue;
     checked.push_back(i);
+    out.along_odometry[i] = chain.stretch(f.a()) == chain.stretch(f.b());
     const Matrix6 sigma = options.odometry_uncertainty ? Covariance(f) : Matrix6::Zero();
     ends.push_back({f.measured(), sigma, chain.pose(f.a()), chain.pose(f.b())});
   }
@@ -220,6 +222,7 @@ OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
   }
   OdometryCheckResult out;
   out.kept.assign(factors.size(), true);
+  out.along_odometry.assign(factors.size(), false);
   for (int robot : checking) {
     const std::vector<std::size_t>& index = own.at(robot);
     PoseGraph mine;
@@ -229,35 +232,16 @@ OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
       mine_robust.push_back(robust[i]);
     }
     const OdometryCheckResult r = CheckLoopClosuresByOdometry(mine, mine_robust, options);
-    for (std::size_t j = 0; j < index.size(); ++j) out.kept[index[j]] = r.kept[j];
+    for (std::size_t j = 0; j < index.size(); ++j) {
+      out.kept[index[j]] = r.kept[j];
+      out.along_odometry[index[j]] = r.along_odometry[j];
+    }
     out.loop_closures += r.loop_closures;
     out.rejected += r.rejected;
     out.largest = std::max(out.largest, r.largest);
     out.exact = out.exact && r.exact;
     out.pairs += r.pairs;
     out.untestable += r.untestable;
-  }
-  return out;
-}
-
-std::vector<bool> LoopClosuresAlongOdometry(const PoseGraph& graph,
-                                            const std::vector<bool>& robust) {
-  CheckInputs(graph, robust, OdometryCheckOptions());
-  const std::vector<RelativePoseFactor>& factors = graph.factors();
-  std::map<int, std::vector<std::size_t>> own;  // per robot: its loop closures
-  std::map<int, PoseGraph> mine;                // per robot: its factors between two poses
-  for (std::size_t i = 0; i < factors.size(); ++i) {
-    const Key a = factors[i].a(), b = factors[i].b();
-    if (a.robot != b.robot || !a.isPose() || !b.isPose()) continue;
-    mine[a.robot].add(factors[i]);
-    if (robust[i]) own[a.robot].push_back(i);
-  }
-  std::vector<bool> out(factors.size(), false);
-  for (const auto& [robot, loop_closures] : own) {
-    const OdometryChain chain(mine.at(robot), false);
-    for (std::size_t i : loop_closures) {
-      out[i] = chain.stretch(factors[i].a()) == chain.stretch(factors[i].b());
-    }
   }
   return out;
 }

@@ -84,6 +84,12 @@ struct OdometryCheckOptions {
 
 struct OdometryCheckResult {
   std::vector<bool> kept;  // per factor of the graph (true for every factor not checked)
+  // Per factor of the graph: whether it is a loop closure checked whose two poses the odometry
+  // joins (one stretch of the OdometryChain). What a map built to judge other factors leaves out,
+  // its odometry holding that relative pose with the drift in its covariance
+  // (distributed/robust_dgs.h: the robots' maps of the separator check); a loop closure across a
+  // gap in the odometry, the only link between two stretches, is false.
+  std::vector<bool> along_odometry;
   int loop_closures = 0;   // checked
   int rejected = 0;
   int largest = 0;           // the largest pairwise-consistent set (a maximum clique)
@@ -112,14 +118,5 @@ OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
 OdometryCheckResult CheckEachRobotsLoopClosures(const PoseGraph& graph,
                                                 const std::vector<bool>& robust,
                                                 const OdometryCheckOptions& options = {});
-
-// Per factor of the graph: whether it is one of a robot's own loop closures (a factor `robust`
-// marks between two of its poses) whose two poses its odometry joins (one stretch of its
-// OdometryChain): what a map built to judge other factors leaves out, its odometry holding that
-// relative pose with the drift in its covariance (distributed/robust_dgs.h: the robots' maps of
-// the separator check). A loop closure across a gap in the odometry is the only link between two
-// stretches: false. Throws InvalidInputError as CheckEachRobotsLoopClosures.
-std::vector<bool> LoopClosuresAlongOdometry(const PoseGraph& graph,
-                                            const std::vector<bool>& robust);
 
 }  // namespace moslam

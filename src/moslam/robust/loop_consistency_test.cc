@@ -254,11 +254,11 @@ TEST(CheckEachRobotsLoopClosures, EachRobotChecksItsOwnThroughItsOwnOdometry) {
       [&] { CheckEachRobotsLoopClosures(team, std::vector<bool>(3, true)); }, "robust flags"));
 }
 
-// What the maps of the separator check leave out: a robot's own loop closures whose two poses its
-// odometry joins. One across a gap in its odometry (robot 1 has no odometry from pose 4 to 5) is
-// the only link between the two stretches and stays; so do the odometry, a separator, a factor
-// `robust` does not mark, and an observation of an object.
-TEST(LoopClosuresAlongOdometry, LeavesOutTheLoopClosuresTheOdometryJoins) {
+// What the maps of the separator check leave out (along_odometry): a robot's own loop closures
+// whose two poses its odometry joins. One across a gap in its odometry (robot 1 has no odometry
+// from pose 4 to 5) is the only link between the two stretches and stays; so do the odometry, a
+// separator, a factor `robust` does not mark, and an observation of an object.
+TEST(CheckEachRobotsLoopClosures, TellsTheLoopClosuresAlongTheOdometry) {
   const auto pose = [](int robot, int index) {
     return Key::Pose(robot, static_cast<std::uint64_t>(index));
   };
@@ -283,9 +283,7 @@ TEST(LoopClosuresAlongOdometry, LeavesOutTheLoopClosuresTheOdometryJoins) {
   add(pose(0, 2), pose(0, 5), false, false);        // not robust
   add(pose(0, 3), pose(1, 3), true, false);         // a separator
   add(pose(0, 4), Key::Object(0, 1), true, false);  // an observation
-  EXPECT_EQ(LoopClosuresAlongOdometry(g, robust), expected);
-  EXPECT_TRUE(test::ThrowsNaming([&] { LoopClosuresAlongOdometry(g, std::vector<bool>(2, true)); },
-                                 "robust flags"));
+  EXPECT_EQ(CheckEachRobotsLoopClosures(g, robust).along_odometry, expected);
 }
 
 }  // namespace
