@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -10,6 +11,7 @@
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/separator_consistency.h"
 #include "moslam/metrics/metrics.h"
+#include "moslam/robust/gnc.h"
 #include "moslam/robust/loop_consistency.h"
 #include "moslam/robust/spoil.h"
 #include "moslam/solver/initialization.h"
@@ -434,11 +436,19 @@ TEST(CheckSeparators, JudgesSeparatorsOnMapsWithoutLoopClosuresTheirCheckCouldNo
 // and its map for the check keeps it: robot 1 without its odometry from pose 29 to 30, with a
 // loop closure from 25 to 35 that its odometry would give, is judged on the same map and keeps
 // and rejects the same separators (a map without it would be two pieces, which no solve anchors).
+// So does a robust mask that marks the odometry from 29 to 30 itself, the only factor between the
+// two poses: a factor under test is no odometry, so it is across the gap it leaves.
 TEST(CheckSeparators, KeepsALoopClosureAcrossAGapInTheOdometryInTheMap) {
   std::vector<bool> wrong;
   const PoseGraph g = test::DriftingPairWithWrongSeparators(&wrong);
-  std::vector<bool> robust;
-  for (const RelativePoseFactor& f : g.factors()) robust.push_back(f.a().robot != f.b().robot);
+  const std::vector<bool> robust = DefaultRobustFactors(g);  // the separators
+  std::vector<bool> step_robust = robust;
+  for (std::size_t i = 0; i < g.factors().size(); ++i) {
+    const RelativePoseFactor& f = g.factors()[i];
+    if (f.a() == Key::Pose(1, 29) && f.b() == Key::Pose(1, 30)) step_robust[i] = true;
+  }
+  ASSERT_EQ(std::count(step_robust.begin(), step_robust.end(), true),
+            std::count(robust.begin(), robust.end(), true) + 1);
   PoseGraph gap;
   std::vector<bool> gap_robust;
   SE3 across;  // robot 1's odometry from pose 25 to 35
@@ -457,10 +467,12 @@ TEST(CheckSeparators, KeepsALoopClosureAcrossAGapInTheOdometryInTheMap) {
   RobustDgsOptions options;
   const SeparatorConsistencyResult whole = CheckSeparators(g, options, robust);
   const SeparatorConsistencyResult split = CheckSeparators(gap, options, gap_robust);
+  const SeparatorConsistencyResult step = CheckSeparators(g, options, step_robust);
   const std::size_t first = g.factors().size() - wrong.size();
   for (std::size_t s = 0; s < wrong.size(); ++s) {
     EXPECT_EQ(whole.kept[first + s], !wrong[s]) << "separator " << s;
     EXPECT_EQ(split.kept[first - 1 + s], whole.kept[first + s]) << "separator " << s;
+    EXPECT_EQ(step.kept[first + s], whole.kept[first + s]) << "separator " << s;
   }
   EXPECT_TRUE(split.kept.back());
 }

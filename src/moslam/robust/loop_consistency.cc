@@ -66,7 +66,14 @@ Matrix6 Covariance(const RelativePoseFactor& f) {
 
 }  // namespace
 
-OdometryChain::OdometryChain(const PoseGraph& graph, bool uncertainty) {
+OdometryChain::OdometryChain(const PoseGraph& graph, bool uncertainty,
+                             const std::vector<bool>& not_odometry) {
+  const std::vector<RelativePoseFactor>& factors = graph.factors();
+  if (!not_odometry.empty() && not_odometry.size() != factors.size()) {
+    throw InvalidInputError("odometry chain: " + std::to_string(not_odometry.size()) +
+                            " flags of factors that are not odometry for " +
+                            std::to_string(factors.size()) + " factors");
+  }
   std::map<std::uint64_t, const RelativePoseFactor*> step;  // index -> factor to index + 1
   for (const Key& k : graph.keys()) {
     if (!k.isPose()) continue;
@@ -77,8 +84,9 @@ OdometryChain::OdometryChain(const PoseGraph& graph, bool uncertainty) {
     robot_ = k.robot;
     nodes_.emplace(k.index, Node{});
   }
-  for (const RelativePoseFactor& f : graph.factors()) {
-    if (!f.a().isPose() || !f.b().isPose()) continue;
+  for (std::size_t i = 0; i < factors.size(); ++i) {
+    const RelativePoseFactor& f = factors[i];
+    if (!f.a().isPose() || !f.b().isPose() || (!not_odometry.empty() && not_odometry[i])) continue;
     const std::uint64_t lo = std::min(f.a().index, f.b().index);
     if (std::max(f.a().index, f.b().index) == lo + 1) step.emplace(lo, &f);
   }
@@ -162,7 +170,7 @@ OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
                                                 const OdometryCheckOptions& options) {
   CheckInputs(graph, robust, options);
   const std::vector<RelativePoseFactor>& factors = graph.factors();
-  const OdometryChain chain(graph, options.odometry_uncertainty);
+  const OdometryChain chain(graph, options.odometry_uncertainty, robust);
   OdometryCheckResult out;
   out.kept.assign(factors.size(), true);
   out.along_odometry.assign(factors.size(), false);

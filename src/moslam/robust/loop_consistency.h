@@ -40,17 +40,22 @@ using Matrix12 = Eigen::Matrix<double, 12, 12>;
 double LoopStatistic(const LoopEnd& i, const LoopEnd& j, const Matrix12& SA, const Matrix12& SB);
 
 // One robot's odometry chained along its stretches without a gap. Its odometry is the factor
-// between each pose and the next index (either way round; the first when there are several). Per
+// between each pose and the next index (either way round; the first when there are several), among
+// the factors `not_odometry` does not mark (one flag per factor, or empty: none marked); a factor
+// under test (a robust mask's) is no odometry, so a marked factor that is the only one between two
+// consecutive poses leaves a gap. Per
 // pose: its stretch, its pose T chained from the stretch's first pose (the identity), and, with
 // `uncertainty`, by first-order propagation of the odometry's covariances (the inverse of its
 // information) the joint covariance of two poses of a stretch, its first pose fixed: exactly
 // solver/marginals.h's on the odometry-only graph. With G = Ad(T^-1) and S the sum over the steps
 // k before a pose of Ad(T_{k+1}) Sigma_k Ad(T_{k+1})^T, Cov(p, q) = G_p S_min(p,q) G_q^T.
-// Throws InvalidInputError when the graph's poses belong to more than one robot, or an
-// odometry factor's information is not positive definite.
+// Throws InvalidInputError when the graph's poses belong to more than one robot, an odometry
+// factor's information is not positive definite, or not_odometry is neither empty nor one flag per
+// factor.
 class OdometryChain {
  public:
-  OdometryChain(const PoseGraph& graph, bool uncertainty);
+  OdometryChain(const PoseGraph& graph, bool uncertainty,
+                const std::vector<bool>& not_odometry = {});
   bool has(const Key& k) const;  // a pose of the graph (of its robot)
   // InvalidInputError for a key that is not a pose of the graph:
   int stretch(const Key& k) const;
@@ -99,13 +104,13 @@ struct OdometryCheckResult {
 };
 
 // One robot's loop closures checked pairwise through its odometry, before the robust solve.
-// The graph's poses must be one robot's (InvalidInputError else). Its OdometryChain is the map
-// A = B of the loops, with its joint covariances (zero without odometry_uncertainty). The loop
-// closures checked are the factors `robust` marks (one flag per factor) that join two poses; a
-// pair whose loop crosses a gap in the odometry cannot be tested and counts as consistent. The
-// largest pairwise-consistent set is kept when it has min_support members, the other loop
-// closures rejected. The two stretches of odometry in a loop are taken as independent (they may
-// overlap). Pairs: n^2 / 2 for n loop closures.
+// The graph's poses must be one robot's (InvalidInputError else). Its OdometryChain, of the
+// factors `robust` does not mark, is the map A = B of the loops, with its joint covariances (zero
+// without odometry_uncertainty). The loop closures checked are the factors `robust` marks (one flag
+// per factor) that join two poses; a pair whose loop crosses a gap in the odometry cannot be tested
+// and counts as consistent. The largest pairwise-consistent set is kept when it has min_support
+// members, the other loop closures rejected. The two stretches of odometry in a loop are taken as
+// independent (they may overlap). Pairs: n^2 / 2 for n loop closures.
 OdometryCheckResult CheckLoopClosuresByOdometry(const PoseGraph& graph,
                                                 const std::vector<bool>& robust,
                                                 const OdometryCheckOptions& options = {});

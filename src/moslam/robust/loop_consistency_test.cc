@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
@@ -91,6 +92,35 @@ TEST(OdometryChain, AGapStartsAStretchAndBadKeysAreRefused) {
   EXPECT_TRUE(test::ThrowsNaming([&] { chain.pose(Key::Pose(1, 1)); }, "no pose"));
   g.add(RelativePoseFactor(Key::Pose(0, 0), Key::Pose(1, 0), SE3(), Matrix6::Identity()));
   EXPECT_TRUE(test::ThrowsNaming([&] { OdometryChain(g, true); }, "more than one robot"));
+}
+
+// A factor under test is no odometry: where one comes before the odometry between two poses the
+// chain takes the odometry, and where one is the only factor between two poses it leaves a gap.
+// Without the flags the chain takes either as odometry; flags of the wrong count are refused.
+TEST(OdometryChain, FactorsUnderTestAreNotOdometry) {
+  std::mt19937 rng(6);
+  Values chained;
+  const PoseGraph odometry = Odometry(8, rng, &chained);
+  const Key p3 = Key::Pose(0, 3), p5 = Key::Pose(0, 5), p6 = Key::Pose(0, 6);
+  PoseGraph g;
+  std::vector<bool> under_test;
+  g.add(RelativePoseFactor(Key::Pose(0, 2), p3, RandomStep(rng), Matrix6::Identity()));
+  under_test.push_back(true);
+  for (const RelativePoseFactor& f : odometry.factors()) {
+    const bool sole = std::min(f.a().index, f.b().index) == 5;  // the step from p5 to p6
+    g.add(sole ? RelativePoseFactor(p5, p6, RandomStep(rng), Matrix6::Identity()) : f);
+    under_test.push_back(sole);
+  }
+  const OdometryChain chain(g, true, under_test);
+  EXPECT_LT((chain.pose(p3).matrix() - chained.at(p3).matrix()).norm(), 1e-12);
+  EXPECT_EQ(chain.stretch(p5), 0);
+  EXPECT_EQ(chain.stretch(p6), 1);
+  EXPECT_EQ(chain.pose(p6).matrix(), SE3().matrix());
+  const OdometryChain unflagged(g, true);
+  EXPECT_GT((unflagged.pose(p3).matrix() - chained.at(p3).matrix()).norm(), 1e-3);
+  EXPECT_EQ(unflagged.stretch(p6), 0);
+  EXPECT_TRUE(test::ThrowsNaming([&] { OdometryChain(g, true, std::vector<bool>(3, true)); },
+                                 "not odometry"));
 }
 
 // The loop of two right loop closures is the identity: statistic 0. Moving one loop closure by
@@ -256,8 +286,10 @@ TEST(CheckEachRobotsLoopClosures, EachRobotChecksItsOwnThroughItsOwnOdometry) {
 
 // What the maps of the separator check leave out (along_odometry): a robot's own loop closures
 // whose two poses its odometry joins. One across a gap in its odometry (robot 1 has no odometry
-// from pose 4 to 5) is the only link between the two stretches and stays; so do the odometry, a
-// separator, a factor `robust` does not mark, and an observation of an object.
+// from pose 4 to 5, only a factor `robust` marks, which is no odometry) is the only link between
+// the two stretches and stays; so do the odometry, a separator, a factor `robust` does not mark,
+// and an observation of an object. A marked factor beside the odometry between two consecutive
+// poses is along it.
 TEST(CheckEachRobotsLoopClosures, TellsTheLoopClosuresAlongTheOdometry) {
   const auto pose = [](int robot, int index) {
     return Key::Pose(robot, static_cast<std::uint64_t>(index));
@@ -276,6 +308,8 @@ TEST(CheckEachRobotsLoopClosures, TellsTheLoopClosuresAlongTheOdometry) {
     }
   }
   add(pose(0, 0), pose(0, 6), true, true);          // along robot 0's odometry
+  add(pose(0, 3), pose(0, 4), true, true);          // beside a step of it
+  add(pose(1, 4), pose(1, 5), true, false);         // the only factor across robot 1's gap
   add(pose(1, 0), pose(1, 3), true, true);          // along robot 1's first stretch
   add(pose(1, 7), pose(1, 5), true, true);          // along robot 1's second stretch
   add(pose(1, 2), pose(1, 7), true, false);         // across robot 1's gap
