@@ -156,9 +156,16 @@ FeatureCloud ReadTemplateCloud(const std::string& path) {
   if (pcl::getFieldIndex(blob, "rgb") < 0 && pcl::getFieldIndex(blob, "rgba") < 0) {
     throw InvalidInputError(path + ": PCD header lacks the field 'rgb' (or 'rgba')");
   }
+  // Checked before the conversion, which indexes the first point of the cloud it fills (undefined
+  // behaviour for none, found by scripts/sanitize.sh) and reads width x height points of data.
+  const std::size_t points = static_cast<std::size_t>(blob.width) * blob.height;
+  if (points == 0) throw InvalidInputError(path + ": the PCD file holds no points");
+  if (blob.data.size() / points < blob.point_step) {
+    throw InvalidInputError(path + ": the PCD file holds less data than its " +
+                            std::to_string(points) + " points need");
+  }
   FeatureCloud cloud;
   pcl::fromPCLPointCloud2(blob, cloud);
-  if (cloud.empty()) throw InvalidInputError(path + ": the PCD file holds no points");
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     if (!FinitePoint(cloud[i])) {
       throw InvalidInputError(path + ": point " + std::to_string(i) +
