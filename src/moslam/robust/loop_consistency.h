@@ -43,11 +43,10 @@ double LoopStatistic(const LoopEnd& i, const LoopEnd& j, const Matrix12& SA, con
 // between each pose and the next index (either way round; the first when there are several), among
 // the factors `not_odometry` does not mark (one flag per factor, or empty: none marked); a factor
 // under test (a robust mask's) is no odometry, so a marked factor that is the only one between two
-// consecutive poses leaves a gap. Per
-// pose: its stretch, its pose T chained from the stretch's first pose (the identity), and, with
-// `uncertainty`, by first-order propagation of the odometry's covariances (the inverse of its
-// information) the joint covariance of two poses of a stretch, its first pose fixed: exactly
-// solver/marginals.h's on the odometry-only graph. With G = Ad(T^-1) and S the sum over the steps
+// consecutive poses leaves a gap. Per pose: its stretch, its pose T chained from the stretch's
+// first pose (the identity), and, with `uncertainty`, by first-order propagation of the odometry's
+// covariances (the inverse of its information) the joint covariance of two poses of a stretch, its
+// first pose fixed: exactly solver/marginals.h's on the odometry-only graph. With G = Ad(T^-1) and S the sum over the steps
 // k before a pose of Ad(T_{k+1}) Sigma_k Ad(T_{k+1})^T, Cov(p, q) = G_p S_min(p,q) G_q^T.
 // Throws InvalidInputError when the graph's poses belong to more than one robot, an odometry
 // factor's information is not positive definite, or not_odometry is neither empty nor one flag per
