@@ -78,9 +78,7 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
     // whose own are few and all wrong), bends it and turns right separators away (INTEL split
     // among 4 robots, docs/robustness-log.md); the maps' covariances carry the drift instead.
     std::vector<bool> in_maps(graph.factors().size());
-    for (std::size_t i = 0; i < in_maps.size(); ++i) {
-      in_maps[i] = own.kept[i] && !own.along_odometry[i];
-    }
+    for (std::size_t i = 0; i < in_maps.size(); ++i) in_maps[i] = own.inMap(i);
     std::vector<std::size_t> index;
     const PoseGraph trusted = SubGraph(graph, in_maps, &index);
     SeparatorConsistencyResult out =

@@ -164,7 +164,7 @@ class RobustProgram {
     own.rejected = part.rejected;
     for (std::size_t j = 0; j < seen.size(); ++j) {
       own.kept[seen[j]] = part.kept[j];
-      own.in_map[seen[j]] = part.kept[j] && !part.along_odometry[j];
+      own.in_map[seen[j]] = part.inMap(j);
     }
     return own;
   }

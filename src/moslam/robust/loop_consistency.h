@@ -100,6 +100,9 @@ struct OdometryCheckResult {
   bool exact = true;         // the maximum clique search finished (max_clique.h)
   long long pairs = 0;       // pairs tested
   long long untestable = 0;  // pairs whose loop crosses a gap in the odometry: taken as consistent
+  // Whether factor i belongs in a map built to judge other factors: kept, and not along the
+  // odometry (the rule of the separator check's maps, in-process and in the robot programs).
+  bool inMap(std::size_t i) const { return kept[i] && !along_odometry[i]; }
 };
 
 // One robot's loop closures checked pairwise through its odometry, before the robust solve.
