@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -331,6 +332,10 @@ TEST(CliDgs, PrintsOneLinePerSweepWithoutJson) {
   EXPECT_NE(r.out.find("pose     iteration     1  max change"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("refine   iteration     1  max change"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("refine   step   1:"), std::string::npos) << r.out;
+  // The pose stage by conjugate gradients (--refine's) prints their residual too.
+  EXPECT_TRUE(std::regex_search(r.out, std::regex("\npose     iteration +[0-9]+  max change "
+                                                  "[^\n]*  cg residual [0-9.e+-]+\n")))
+      << r.out;
   EXPECT_NE(r.out.find("bytes "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("cost: two-stage"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find('{'), std::string::npos);  // no JSON

@@ -262,6 +262,8 @@ DgsProgress PrintedProgress() {
       extra = s.residual > 0.0
                   ? fmt::format("  step {:3d}  cg residual {:.3e}", s.refine_step, s.residual)
                   : fmt::format("  step {:3d}", s.refine_step);
+    } else if (s.residual > 0.0) {  // the pose stage by conjugate gradients
+      extra = fmt::format("  cg residual {:.3e}", s.residual);
     }
     fmt::print("{:<8} iteration {:5d}  max change {:.3e}  bytes {}{}\n", ToString(s.stage),
                s.iteration, s.max_change, bytes_so_far, extra);

@@ -288,12 +288,35 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
   const bool by_cg = stage == DgsStage::kPose &&
                      options_.pose_solver == DgsOptions::PoseSolver::kConjugateGradient;
   // Sweep 0: every robot starts knowing its neighbours' initial estimates (not initialised).
-  if (!options_.flagged_initialisation || by_cg) recordSweep(sendInitialEstimates(stage), report);
+  if (!options_.flagged_initialisation) recordSweep(sendInitialEstimates(stage), report);
+  report.status = StageStatus::kMaxIterations;
   if (by_cg) {
-    runPoseByConjugateGradients(report);
+    // With flagged initialisation, the flagged sweeps until no robot is left to initialise,
+    // then the conjugate gradients from their values (dgs_driver.h, DgsOptions::pose_solver).
+    int warm = 0;
+    for (int initialised = initialisedRobots(); options_.flagged_initialisation &&
+                                                warm < options_.max_iterations &&
+                                                initialised < liveRobots();) {
+      ++warm;
+      const auto start = Clock::now();
+      updateSilence(stage, warm);
+      DgsIterationStats stats;
+      stats.stage = stage;
+      stats.iteration = warm;
+      runSweeps(stage, stats, false);
+      stats.max_change = stopRule(eta).maxChange();
+      stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+      recordSweep(stats, report);
+      if (progress_.on_sweep) progress_.on_sweep(stats);
+      report.iterations = warm;
+      report.final_change = stats.max_change;
+      const int now = initialisedRobots();
+      if (now == initialised) break;  // the others cannot solve yet: not linked to the anchor
+      initialised = now;
+    }
+    if (warm < options_.max_iterations) runPoseByConjugateGradients(report, warm);
     return;
   }
-  report.status = StageStatus::kMaxIterations;
   for (int it = 1; it <= options_.max_iterations; ++it) {
     const auto start = Clock::now();
     updateSilence(stage, it);
@@ -381,6 +404,17 @@ CoarseMessage DgsDriver::sendCoarse(const CoarseMessage& m, int to, DgsIteration
   ++stats.coarse_messages;
   stats.coarse_bytes += static_cast<std::int64_t>(bytes.size());
   return DecodeCoarseMessage(bytes);
+}
+
+int DgsDriver::liveRobots() const {
+  return static_cast<int>(
+      std::count_if(order_.begin(), order_.end(), [this](int r) { return live(r); }));
+}
+
+int DgsDriver::initialisedRobots() const {
+  return static_cast<int>(std::count_if(order_.begin(), order_.end(), [this](int r) {
+    return live(r) && agents_.at(r)->initialised();
+  }));
 }
 
 bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStats& stats) {
@@ -703,12 +737,12 @@ CgOutcome DgsDriver::solveByConjugateGradients(RefineRun& run, const CgGoal& goa
   return outcome;
 }
 
-void DgsDriver::runPoseByConjugateGradients(DgsStageReport& report) {
+void DgsDriver::runPoseByConjugateGradients(DgsStageReport& report, int sweeps_before) {
   RefineRun run;
   run.stage = DgsStage::kPose;
   CgGoal goal;
   goal.eta_change = options_.eta_pose;
-  goal.max_sweeps = options_.max_iterations;
+  goal.max_sweeps = options_.max_iterations - sweeps_before;
   const CgOutcome outcome = solveByConjugateGradients(run, goal);
   if (run.pending.messages > 0) {  // traffic after the last sweep (the final decision)
     openSweep(run);

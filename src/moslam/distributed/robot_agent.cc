@@ -95,9 +95,9 @@ void RobotAgent::startPose() {
 void RobotAgent::finish() {
   requireState(AgentState::kPose, "finish()");
   if (cg_active_) {
-    // Conjugate gradients solved the stage: x = the starting values (0 for the unknowns) + delta,
-    // and the neighbours' values likewise from their copies, for the refinement's start.
-    for (std::size_t i = 0; i < x_.size(); ++i) x_[i] = cg_.increment(i);
+    // Conjugate gradients solved the stage: x = the starting values + delta, and the
+    // neighbours' values likewise from their copies, for the refinement's start.
+    for (std::size_t i = 0; i < x_.size(); ++i) x_[i] = own_start_[i] + cg_.increment(i);
     for (std::size_t j = 0; j < pose_start_.size(); ++j) {
       inbox_.set(DgsStage::kPose, static_cast<int>(j),
                  pose_start_[j] + Eigen::VectorXd(cg_.neighbourIncrement(static_cast<int>(j))));
@@ -464,10 +464,14 @@ DgsStage RobotAgent::cgStage(const char* what) const {
 void RobotAgent::startPreconditioner() {
   const DgsStage stage = cgStage("startPreconditioner()");
   if (!cg_active_) {
-    // Pose stage: the starting values are those the neighbours sent in the stage's first
-    // exchange (zero increments, the anchor's translation); the right-hand side holds them.
+    // Pose stage: conjugate gradients start from the stage's current values, the own unknowns'
+    // and the neighbours' last received: zero increments and the anchor's translation after
+    // the stage's first exchange, or the flagged sweeps' values (dgs_driver.h). The residual
+    // holds them, the increments start at 0 from them.
     std::vector<Eigen::VectorXd> start(graph_.neighbours().size());
+    own_start_.assign(x_.size(), Eigen::VectorXd::Zero(6));
     if (stage == DgsStage::kPose) {
+      own_start_ = x_;
       for (std::size_t j = 0; j < start.size(); ++j) {
         const Eigen::VectorXd* v = inbox_.get(DgsStage::kPose, static_cast<int>(j));
         start[j] = v ? *v : Eigen::VectorXd(Eigen::VectorXd::Zero(6));
@@ -489,6 +493,7 @@ void RobotAgent::startPreconditioner() {
           residual.segment<6>(row).noalias() -=
               Matrix6(pose_.coupling(s)) * start[static_cast<std::size_t>(separators[s].slot)];
         }
+        residual.noalias() -= pose_.multiply(stackedSweepValue());
       }
     }
     cg_.start(residual, graph_.neighbours().size());

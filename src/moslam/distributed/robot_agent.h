@@ -296,7 +296,9 @@ class RobotAgent {
   double lambda_ = 0.0;
   bool cg_active_ = false;
   bool can_solve_ = true;
-  std::vector<Eigen::VectorXd> pose_start_;  // pose-stage CG: the neighbours' starting values
+  // Pose-stage conjugate gradients: the starting values, own (by unknown) and the neighbours'
+  // (by slot).
+  std::vector<Eigen::VectorXd> own_start_, pose_start_;
 };
 
 }  // namespace moslam

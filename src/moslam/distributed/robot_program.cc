@@ -118,14 +118,33 @@ class Program {
     }
     const bool by_cg = stage == DgsStage::kPose &&
                        options_.pose_solver == DgsOptions::PoseSolver::kConjugateGradient;
-    if (!options_.flagged_initialisation || by_cg) {
+    if (!options_.flagged_initialisation) {
       step(stage, true, TeamReport());  // the initial estimates
     }
+    report.status = StageStatus::kMaxIterations;
     if (by_cg) {
-      runPoseByConjugateGradients(report);
+      // With flagged initialisation, the flagged sweeps until no robot is left to initialise,
+      // then the conjugate gradients from their values: the driver's rule (dgs_driver.h).
+      int warm = 0;
+      for (int initialised = 0;
+           options_.flagged_initialisation && warm < options_.max_iterations;) {
+        ++warm;
+        const bool solved = agent_.iterate();
+        const TeamStep got = step(stage, solved, progressReport());
+        StageStopRule rule(options_.stopping, eta);
+        int now = 0;
+        for (const auto& [r, rep] : got.reports) {
+          rule.add(rep.initialised, rep.change, rep.bound);
+          now += rep.initialised ? 1 : 0;
+        }
+        report.iterations = warm;
+        report.final_change = rule.maxChange();
+        if (now == static_cast<int>(got.reports.size()) || now == initialised) break;
+        initialised = now;
+      }
+      if (warm < options_.max_iterations) runPoseByConjugateGradients(report, warm);
       return;
     }
-    report.status = StageStatus::kMaxIterations;
     for (int it = 1; it <= options_.max_iterations; ++it) {
       const bool solved = agent_.iterate();
       TeamReport mine = progressReport();
@@ -254,13 +273,13 @@ class Program {
                                    : result_.pose.coarse_corrections);
   }
 
-  void runPoseByConjugateGradients(DgsStageReport& report) {
+  void runPoseByConjugateGradients(DgsStageReport& report, int sweeps_before) {
     CgGoal goal;
     goal.eta_change = options_.eta_pose;
-    goal.max_sweeps = options_.max_iterations;
+    goal.max_sweeps = options_.max_iterations - sweeps_before;
     const CgOutcome outcome = solveByConjugateGradients(DgsStage::kPose, goal);
     report.status = outcome.converged ? StageStatus::kConverged : StageStatus::kMaxIterations;
-    report.iterations = outcome.sweeps;
+    report.iterations = sweeps_before + outcome.sweeps;
   }
 
   // Plain block Jacobi sweeps on the step's system; each robot reports its change and ||delta_r||.
