@@ -157,7 +157,9 @@ FeatureCloud ReadTemplateCloud(const std::string& path) {
     throw InvalidInputError(path + ": PCD header lacks the field 'rgb' (or 'rgba')");
   }
   // Checked before the conversion, which indexes the first point of the cloud it fills (undefined
-  // behaviour for none, found by scripts/sanitize.sh) and reads width x height points of data.
+  // behaviour for none, found by scripts/sanitize.sh) and reads width x height points of data
+  // (PCL's reader already refuses ASCII and binary files shorter than their header says: test
+  // ObjectTemplate.RefusesPcdFilesNamingWhatIsWrong; the second check is for what it lets by).
   const std::size_t points = static_cast<std::size_t>(blob.width) * blob.height;
   if (points == 0) throw InvalidInputError(path + ": the PCD file holds no points");
   if (blob.data.size() / points < blob.point_step) {

@@ -623,6 +623,25 @@ TEST(ObjectTemplate, RefusesPcdFilesNamingWhatIsWrong) {
   EXPECT_TRUE(refused("points after voxelling; need at least 10"));
   write(all, {});
   EXPECT_TRUE(refused("holds no points"));
+  // Headers promising 40 points to 3 points of data, ASCII and binary: PCL's reader refuses them.
+  auto short_file = [&](const std::string& data) {
+    std::ofstream out(path, std::ios::binary);
+    out << "# .PCD v0.7\nVERSION 0.7\nFIELDS " << all << "\nSIZE 4 4 4 4 4 4 4\nTYPE F F F F F F F"
+        << "\nCOUNT 1 1 1 1 1 1 1\nWIDTH 40\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 40\nDATA "
+        << data << "\n";
+    const float point[7] = {0, 0, 0, 0, 0, 0, 1};
+    for (int i = 0; i < 3; ++i) {
+      if (data == "ascii") {
+        out << "0 0 0 0 0 0 1\n";
+      } else {
+        out.write(reinterpret_cast<const char*>(point), sizeof(point));
+      }
+    }
+  };
+  short_file("ascii");
+  EXPECT_TRUE(refused("not a readable PCD file"));
+  short_file("binary");
+  EXPECT_TRUE(refused("not a readable PCD file"));
   std::remove(path.c_str());
 }
 
