@@ -290,33 +290,13 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
   // Sweep 0: every robot starts knowing its neighbours' initial estimates (not initialised).
   if (!options_.flagged_initialisation) recordSweep(sendInitialEstimates(stage), report);
   report.status = StageStatus::kMaxIterations;
-  if (by_cg) {
-    // With flagged initialisation, the flagged sweeps until no robot is left to initialise,
-    // then the conjugate gradients from their values (dgs_driver.h, DgsOptions::pose_solver).
-    int warm = 0;
-    for (int initialised = initialisedRobots(); options_.flagged_initialisation &&
-                                                warm < options_.max_iterations &&
-                                                initialised < liveRobots();) {
-      ++warm;
-      const auto start = Clock::now();
-      updateSilence(stage, warm);
-      DgsIterationStats stats;
-      stats.stage = stage;
-      stats.iteration = warm;
-      runSweeps(stage, stats, false);
-      stats.max_change = stopRule(eta).maxChange();
-      stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-      recordSweep(stats, report);
-      if (progress_.on_sweep) progress_.on_sweep(stats);
-      report.iterations = warm;
-      report.final_change = stats.max_change;
-      const int now = initialisedRobots();
-      if (now == initialised) break;  // the others cannot solve yet: not linked to the anchor
-      initialised = now;
-    }
-    if (warm < options_.max_iterations) runPoseByConjugateGradients(report, warm);
+  // Conjugate gradients: with flagged initialisation the flagged sweeps first, until no robot is
+  // left to initialise, then the conjugate gradients from their values (DgsOptions::pose_solver).
+  if (by_cg && !options_.flagged_initialisation) {
+    runPoseByConjugateGradients(report, 0);
     return;
   }
+  int initialised = 0;
   for (int it = 1; it <= options_.max_iterations; ++it) {
     const auto start = Clock::now();
     updateSilence(stage, it);
@@ -326,9 +306,9 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     runSweeps(stage, stats, false);
     const StageStopRule rule = stopRule(eta);
     stats.max_change = rule.maxChange();
-    const bool stop = rule.converged();
+    const bool stop = !by_cg && rule.converged();
     // Two-level: the correction belongs to this sweep (its messages, bytes and time).
-    if (!stop && options_.coarse_correction && coarseCorrection(stage, it, stats)) {
+    if (!by_cg && !stop && options_.coarse_correction && coarseCorrection(stage, it, stats)) {
       ++report.coarse_corrections;
     }
     stats.seconds = std::chrono::duration<double>(Clock::now() - start).count();
@@ -336,6 +316,15 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     if (progress_.on_sweep) progress_.on_sweep(stats);
     report.iterations = it;
     report.final_change = stats.max_change;
+    if (by_cg) {
+      const int now = initialisedRobots();
+      if (now < liveRobots() && now > initialised) {  // robots left, and some solved this sweep
+        initialised = now;
+        continue;
+      }
+      if (it < options_.max_iterations) runPoseByConjugateGradients(report, it);
+      return;
+    }
     report.final_error_bound = rule.maxBound();
     if (stop) {
       report.status = StageStatus::kConverged;
