@@ -4,7 +4,7 @@
 # the refinement's default linear tolerance (conjugate gradients to 1e-2) and with 1e-3. Prints a
 # Markdown table (README, "The 2D benchmark graphs"); the JSON lines go to
 # $BUILD_DIR/refine_2d.jsonl.
-#   scripts/refine-2d.sh            (~15 min on 2 cores)
+#   scripts/refine-2d.sh            (~65 min on 2 cores, 50 of them ais2klinik's)
 # Environment: BUILD_DIR (default build-bench-dgs), MOSLAM (a built binary: skips the build),
 # MOSLAM_DATASETS_DIR (default ../shared/datasets), FILES, ROBOTS, TOLERANCES (space-separated).
 set -euo pipefail
