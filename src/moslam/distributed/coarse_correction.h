@@ -95,9 +95,10 @@ class RefineCoarseSpace {
   // The same coarse space in the pose stage's unknowns (dtheta, t) (DgsOptions::pose_solver =
   // conjugate gradients): dtheta_i = R_hat_i^T w, t_i += tau, the robot's motion as a whole
   // without lever arms. With the lever arms of the flagged sweeps the conjugate gradients start
-  // from (t_i += w x (t_i - c_r) + tau, c_r the mean translation), tried on commit 35c3420 and
-  // not kept: as many graphs took more sweeps as fewer at eta 1e-2 (sphere2500 in 16 robots 205
-  // -> 157, in 64 215 -> 243, city10000 in 16 373 -> 395, input_M3500_g2o in 4 237 -> 191).
+  // from (t_i += w x (t_i - c_r) + tau, c_r the mean translation), tried with that start (commit
+  // 7b22866) and not kept: about as many graphs took more sweeps as fewer at eta 1e-2 (without ->
+  // with: sphere2500 in 16 robots 205 -> 157, in 64 215 -> 243, city10000 in 16 373 -> 395,
+  // input_M3500_g2o in 4 237 -> 191).
   void buildPoseStage(const LocalGraph& graph, const std::map<Key, Matrix3>& R_hat);
   // The robot's rows of the coarse matrix P^T (H + damping) P of the step's system, as assembled
   // in `system`: diagonal, couplings to the neighbouring robots, centre (no residual).

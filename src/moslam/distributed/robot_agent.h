@@ -153,7 +153,9 @@ class RobotAgent {
   //   advance(alpha):         delta += alpha p, res -= alpha H p (the neighbours' delta copies
   //                           too), so the step's increments never need to be sent
   // The first startPreconditioner() of a step switches the step to conjugate gradients (delta
-  // and res = -g start there); beginStep() switches back. In kRefine (InvalidInputError else).
+  // and res = -g start there); beginStep() switches back. In kRefine, or in kPose (the pose stage
+  // by conjugate gradients: delta = 0 from the stage's current values, own and received, and res
+  // = G0 - H x at them); InvalidInputError else.
   void startPreconditioner();
   double residualDot() const;
   void firstDirection();
