@@ -317,9 +317,8 @@ void DgsDriver::runStage(DgsStage stage, DgsStageReport& report) {
     report.iterations = it;
     report.final_change = stats.max_change;
     if (by_cg) {
-      const int now = initialisedRobots();
-      if (now < liveRobots() && now > initialised) {  // robots left, and some solved this sweep
-        initialised = now;
+      if (!FlaggedSweepsDone(rule, initialised)) {
+        initialised = rule.initialisedRobots();
         continue;
       }
       if (it < options_.max_iterations) runPoseByConjugateGradients(report, it);
@@ -393,17 +392,6 @@ CoarseMessage DgsDriver::sendCoarse(const CoarseMessage& m, int to, DgsIteration
   ++stats.coarse_messages;
   stats.coarse_bytes += static_cast<std::int64_t>(bytes.size());
   return DecodeCoarseMessage(bytes);
-}
-
-int DgsDriver::liveRobots() const {
-  return static_cast<int>(
-      std::count_if(order_.begin(), order_.end(), [this](int r) { return live(r); }));
-}
-
-int DgsDriver::initialisedRobots() const {
-  return static_cast<int>(std::count_if(order_.begin(), order_.end(), [this](int r) {
-    return live(r) && agents_.at(r)->initialised();
-  }));
 }
 
 bool DgsDriver::coarseCorrection(DgsStage stage, int iteration, DgsIterationStats& stats) {

@@ -385,8 +385,6 @@ class DgsDriver {
   // The pose stage by conjugate gradients (DgsOptions::pose_solver), after `sweeps_before`
   // flagged sweeps of the stage's max_iterations.
   void runPoseByConjugateGradients(DgsStageReport& report, int sweeps_before);
-  int liveRobots() const;
-  int initialisedRobots() const;  // live robots that have solved in the stage
   std::vector<Wire> encodeOutgoing(int robot) const;
   bool live(int robot) const;
 

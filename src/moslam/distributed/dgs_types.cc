@@ -56,10 +56,16 @@ std::string ToString(StageStopping stopping) {
 
 void StageStopRule::add(bool initialised, double change, double bound) {
   ++robots_;
+  initialised_ += initialised ? 1 : 0;
   const double measure = stopping_ == StageStopping::kChange ? change : bound;
   max_change_ = std::max(max_change_, change);
   max_bound_ = std::max(max_bound_, bound);
   converged_ = converged_ && initialised && measure <= eta_;
+}
+
+bool FlaggedSweepsDone(const StageStopRule& rule, int initialised_before) {
+  return rule.initialisedRobots() == rule.robots() ||
+         rule.initialisedRobots() == initialised_before;
 }
 
 StageStopping StageStoppingFromString(const std::string& text) {

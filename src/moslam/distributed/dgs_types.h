@@ -64,13 +64,21 @@ class StageStopRule {
   bool converged() const { return robots_ > 0 && converged_; }
   double maxChange() const { return max_change_; }
   double maxBound() const { return max_bound_; }
+  int robots() const { return robots_; }
+  int initialisedRobots() const { return initialised_; }  // those that have solved in the stage
 
  private:
   StageStopping stopping_;
   double eta_;
-  int robots_ = 0;
+  int robots_ = 0, initialised_ = 0;
   bool converged_ = true;
   double max_change_ = 0.0, max_bound_ = 0.0;
 };
+
+// The pose stage by conjugate gradients with flagged initialisation (dgs_driver.h) sweeps until
+// this is true after a sweep, then starts the conjugate gradients: every robot of `rule` has
+// solved, or the sweep initialised none beyond the `initialised_before` of the sweep before (the
+// others are not linked to the anchor). The driver and the robot programs decide with it.
+bool FlaggedSweepsDone(const StageStopRule& rule, int initialised_before);
 
 }  // namespace moslam

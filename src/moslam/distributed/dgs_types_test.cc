@@ -34,5 +34,22 @@ TEST(StageStopRule, ARobotThatHasNotSolvedOrNoRobotAtAllKeepsTheStageGoing) {
   EXPECT_FALSE(StageStopRule(StageStopping::kChange, 1e-2).converged());
 }
 
+// The flagged sweeps before the pose stage's conjugate gradients go on while robots are left to
+// initialise and the last sweep initialised some.
+TEST(FlaggedSweepsDone, WhenEveryRobotSolvedOrTheSweepInitialisedNone) {
+  StageStopRule some(StageStopping::kChange, 1e-2);
+  some.add(true, 1.0, 1.0);
+  some.add(true, 1.0, 1.0);
+  some.add(false, kInf, kInf);
+  EXPECT_EQ(some.robots(), 3);
+  EXPECT_EQ(some.initialisedRobots(), 2);
+  EXPECT_FALSE(FlaggedSweepsDone(some, 1));
+  EXPECT_TRUE(FlaggedSweepsDone(some, 2));  // none more this sweep: not linked to the anchor
+  StageStopRule all(StageStopping::kChange, 1e-2);
+  all.add(true, 1.0, 1.0);
+  all.add(true, 1.0, 1.0);
+  EXPECT_TRUE(FlaggedSweepsDone(all, 1));
+}
+
 }  // namespace
 }  // namespace moslam

@@ -132,15 +132,11 @@ class Program {
         const bool solved = agent_.iterate();
         const TeamStep got = step(stage, solved, progressReport());
         StageStopRule rule(options_.stopping, eta);
-        int now = 0;
-        for (const auto& [r, rep] : got.reports) {
-          rule.add(rep.initialised, rep.change, rep.bound);
-          now += rep.initialised ? 1 : 0;
-        }
+        for (const auto& [r, rep] : got.reports) rule.add(rep.initialised, rep.change, rep.bound);
         report.iterations = warm;
         report.final_change = rule.maxChange();
-        if (now == static_cast<int>(got.reports.size()) || now == initialised) break;
-        initialised = now;
+        if (FlaggedSweepsDone(rule, initialised)) break;
+        initialised = rule.initialisedRobots();
       }
       if (warm < options_.max_iterations) runPoseByConjugateGradients(report, warm);
       return;
