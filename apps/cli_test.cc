@@ -341,6 +341,21 @@ TEST(CliDgs, PrintsOneLinePerSweepWithoutJson) {
   EXPECT_EQ(r.out.find('{'), std::string::npos);  // no JSON
 }
 
+// A refinement stopped short says so and what to try; one that converged prints no hint. MIT in 2
+// robots: its first Gauss-Newton step is rejected, and it converges in 12 steps (measured).
+TEST(CliDgs, ARefinementStoppedAtItsStepLimitAfterRejectedStepsSaysWhatToTry) {
+  const std::string mit = "dgs " MOSLAM_DATASETS_DIR "/pgo/MIT.g2o --robots 2 --refine";
+  const CommandResult cut = RunMoslam(mit + " --refine-max-iter 2");
+  ASSERT_EQ(cut.exit_code, 0) << cut.out;
+  EXPECT_NE(cut.out.find("refine: max iterations after 2 step(s)"), std::string::npos) << cut.out;
+  EXPECT_NE(cut.out.find("with 1 of 2 steps rejected"), std::string::npos) << cut.out;
+  EXPECT_NE(cut.out.find("--refine-linear-tol 1e-3"), std::string::npos) << cut.out;
+  const CommandResult full = RunMoslam(mit);
+  ASSERT_EQ(full.exit_code, 0) << full.out;
+  EXPECT_NE(full.out.find("refine: converged"), std::string::npos) << full.out;
+  EXPECT_EQ(full.out.find("--refine-linear-tol"), std::string::npos) << full.out;
+}
+
 // `dgs --out DIR`: the distributed estimate as `solve --out DIR/` writes the centralized one (a
 // g2o file per robot, each robot's vertices), and one TUM trajectory per robot; with --refine it
 // is the centralized optimum (2.8e-7 m on blocks_world, measured).

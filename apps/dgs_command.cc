@@ -10,6 +10,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <string>
 
 #include "cli.h"
 #include "commands.h"
@@ -402,6 +403,18 @@ nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInp
   return j;
 }
 
+// What to try when the refinement stopped at its step limit after rejected steps; else empty.
+std::string RefineHint(const RefineReport& refine) {
+  if (refine.status == StageStatus::kMaxIterations && refine.rejected > 0) {
+    return fmt::format(
+        "refine: stopped at its step limit (--refine-max-iter) with {} of {} steps rejected. On "
+        "long 2D chains, where the damped steps crawl, a tighter linear solve avoids them "
+        "(--refine-linear-tol 1e-3: INTEL in README, \"The 2D benchmark graphs\")",
+        refine.rejected, refine.iterations);
+  }
+  return "";
+}
+
 void PrintDgsSummary(const DgsArgs& a, const DgsRun& run) {
   const DgsResult& r = run.result;
   const double central_cost = run.central.final_cost;
@@ -432,6 +445,10 @@ void PrintDgsSummary(const DgsArgs& a, const DgsRun& run) {
   fmt::print("\ntraffic: {} messages, {} bytes; {:.3f} s ({:.3g} ms per sweep)\n", r.messages,
              r.bytes, r.seconds,
              run.iterations_total > 0 ? 1e3 * r.seconds / run.iterations_total : 0.0);
+  if (a.solver.refine) {
+    const std::string hint = RefineHint(r.refine);
+    if (!hint.empty()) fmt::print("{}\n", hint);
+  }
 }
 
 int RunDgsCommand(const DgsArgs& a_in) {
