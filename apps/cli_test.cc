@@ -342,12 +342,21 @@ TEST(CliDgs, PrintsOneLinePerSweepWithoutJson) {
 }
 
 // A refinement stopped short says so and what to try; one that converged prints no hint. MIT in 2
-// robots: its first Gauss-Newton step is rejected, and it converges in 12 steps (measured).
+// robots without halving: its first Gauss-Newton step is rejected, and it converges in 12 steps
+// (measured); with halving (the default) no step is rejected.
 TEST(CliDgs, ARefinementStoppedAtItsStepLimitAfterRejectedStepsSaysWhatToTry) {
-  const std::string mit = "dgs " MOSLAM_DATASETS_DIR "/pgo/MIT.g2o --robots 2 --refine";
+  const std::string halved = "dgs " MOSLAM_DATASETS_DIR "/pgo/MIT.g2o --robots 2 --refine";
+  const CommandResult by_default = RunMoslam(halved);
+  ASSERT_EQ(by_default.exit_code, 0) << by_default.out;
+  EXPECT_NE(by_default.out.find("refine: converged after 10 step(s) (0 rejected, 1 halving(s))"),
+            std::string::npos)
+      << by_default.out;
+  const std::string mit = halved + " --refine-backtracks 0";
   const CommandResult cut = RunMoslam(mit + " --refine-max-iter 2");
   ASSERT_EQ(cut.exit_code, 0) << cut.out;
-  EXPECT_NE(cut.out.find("refine: max iterations after 2 step(s)"), std::string::npos) << cut.out;
+  EXPECT_NE(cut.out.find("refine: max iterations after 2 step(s) (1 rejected, 0 halving(s))"),
+            std::string::npos)
+      << cut.out;
   EXPECT_NE(cut.out.find("with 1 of 2 steps rejected"), std::string::npos) << cut.out;
   EXPECT_NE(cut.out.find("--refine-linear-tol 1e-3"), std::string::npos) << cut.out;
   const CommandResult full = RunMoslam(mit);
@@ -401,6 +410,11 @@ TEST(CliDgs, BadInputExitsOneWithAClearMessage) {
   const CommandResult gamma = RunMoslam("dgs " + kBlocksWorld + "2robots --refine-gamma 2");
   EXPECT_EQ(gamma.exit_code, 1);
   EXPECT_NE(gamma.out.find("refinement.gamma"), std::string::npos) << gamma.out;
+  const CommandResult halvings =
+      RunMoslam("dgs " + kBlocksWorld + "2robots --refine-backtracks -1");
+  EXPECT_EQ(halvings.exit_code, 1);
+  EXPECT_NE(halvings.out.find("refinement.max_backtracks must be in [0, 30]"), std::string::npos)
+      << halvings.out;
   // Refused, not read as "the solver's default".
   for (const char* tolerance : {"-1", "nan"}) {
     const CommandResult linear =

@@ -270,12 +270,15 @@ DgsProgress PrintedProgress() {
                s.iteration, s.max_change, bytes_so_far, extra);
   };
   progress.on_refine_step = [](const RefineStepSummary& s) {
-    // The gain ratio: the decrease of F over the model's (conjugate gradients only).
-    const std::string gain =
-        s.predicted_decrease > 0.0
-            ? fmt::format(", gain ratio {:.3g}",
-                          (s.cost_before - s.cost_candidate) / s.predicted_decrease)
-            : std::string();
+    // The gain ratio: the decrease of F over the model's (conjugate gradients only), of the
+    // whole step; a halved one says how often it was halved instead.
+    std::string gain;
+    if (s.backtracks > 0) {
+      gain = fmt::format(", step halved {} times", s.backtracks);
+    } else if (s.predicted_decrease > 0.0) {
+      gain = fmt::format(", gain ratio {:.3g}",
+                         (s.cost_before - s.cost_candidate) / s.predicted_decrease);
+    }
     fmt::print("refine   step {:3d}: {} sweeps{}, lambda {:g}, cost {:.10g} -> {:.10g}{} ({})\n",
                s.iteration, s.sweeps, s.linear_converged ? "" : " (max sweeps)", s.lambda,
                s.cost_before, s.cost_candidate, gain, s.accepted ? "accepted" : "rejected");
@@ -378,6 +381,8 @@ nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInp
                          {"accepted", step.accepted},
                          {"cost_candidate", step.cost_candidate},
                          {"predicted_decrease", step.predicted_decrease},
+                         {"backtracks", step.backtracks},
+                         {"step_scale", step.step_scale},
                          {"cost", cost},
                          {"bytes", two_stage_bytes + step.bytes}});
       if (bytes_to_optimum.is_null() && cost <= within) {
@@ -391,6 +396,7 @@ nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInp
     j["refine_solver"] = ToString(options.refinement.solver);
     j["refine_steps"] = r.refine.iterations;
     j["refine_rejected_steps"] = r.refine.rejected;
+    j["refine_backtracks"] = r.refine.backtracks;
     j["refine_initial_cost"] = r.refine.initial_cost;  // as the robots' shares sum it
     j["control_messages_refine"] = r.refine.control_messages;
     j["control_bytes_refine"] = r.refine.control_bytes;
@@ -409,7 +415,8 @@ std::string RefineHint(const RefineReport& refine) {
     return fmt::format(
         "refine: stopped at its step limit (--refine-max-iter) with {} of {} steps rejected. On "
         "long 2D chains, where the damped steps crawl, a tighter linear solve avoids them "
-        "(--refine-linear-tol 1e-3: INTEL in README, \"The 2D benchmark graphs\")",
+        "(--refine-linear-tol 1e-3), and so may more halvings of a step before it is rejected "
+        "(--refine-backtracks; README, \"The 2D benchmark graphs\")",
         refine.rejected, refine.iterations);
   }
   return "";
@@ -422,8 +429,9 @@ void PrintDgsSummary(const DgsArgs& a, const DgsRun& run) {
              ToString(r.rotation.status), r.rotation.iterations, ToString(r.pose.status),
              r.pose.iterations);
   if (a.solver.refine) {
-    fmt::print("; refine: {} after {} step(s), {} sweep(s)", ToString(r.refine.status),
-               r.refine.iterations, r.refine.sweeps);
+    fmt::print("; refine: {} after {} step(s) ({} rejected, {} halving(s)), {} sweep(s)",
+               ToString(r.refine.status), r.refine.iterations, r.refine.rejected,
+               r.refine.backtracks, r.refine.sweeps);
   }
   fmt::print("\n");
   if (CostRatio(0.0, central_cost)) {

@@ -31,12 +31,14 @@ DgsOptions SolverArgs::options(SweepOrder order) const {
     o.refinement.cg_tolerance = *refine_linear_tolerance;
   }
   o.refinement.gamma = refine_gamma;
+  o.refinement.max_backtracks = refine_max_backtracks;
   o.validate();
   return o;
 }
 
 std::vector<std::string> SolverArgs::args() const {
   // {} prints the shortest text that reads back as the same double.
+  // clang-format off
   std::vector<std::string> a = {
       "--eta-rot", fmt::format("{}", eta_rotation), "--eta-pose", fmt::format("{}", eta_pose),
       "--stop", stopping, "--stop-window", std::to_string(stop_window), "--gamma",
@@ -45,7 +47,9 @@ std::vector<std::string> SolverArgs::args() const {
       "--refine-preconditioner", refine_preconditioner, "--refine-max-iter",
       std::to_string(refine_max_iterations), "--refine-tol", fmt::format("{}", refine_tolerance),
       "--refine-max-sweeps", std::to_string(refine_max_sweeps), "--refine-gamma",
-      fmt::format("{}", refine_gamma)};
+      fmt::format("{}", refine_gamma), "--refine-backtracks",
+      std::to_string(refine_max_backtracks)};
+  // clang-format on
   if (refine_linear_tolerance) {
     a.push_back("--refine-linear-tol");
     a.push_back(fmt::format("{}", *refine_linear_tolerance));
@@ -119,6 +123,10 @@ void AddSolverFlags(CLI::App* sub, SolverArgs* args) {
                   "relative to the increment, default 1e-3)");
   sub->add_option("--refine-gamma", args->refine_gamma,
                   "over-relaxation of the refinement sweeps, in (0, 2)")
+      ->capture_default_str();
+  sub->add_option("--refine-backtracks", args->refine_max_backtracks,
+                  "halvings of a Gauss-Newton step that raised the cost before it is rejected "
+                  "and damped, in [0, 30] (0: none)")
       ->capture_default_str();
 }
 

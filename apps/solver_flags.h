@@ -31,6 +31,7 @@ struct SolverArgs {
   int refine_max_sweeps = 1000;
   std::optional<double> refine_linear_tolerance;  // unset: the solver's default
   double refine_gamma = 1.0;
+  int refine_max_backtracks = 4;
 
   // The options these flags give (`order` as given); validated (InvalidInputError).
   DgsOptions options(SweepOrder order) const;

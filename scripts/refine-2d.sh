@@ -20,7 +20,7 @@ OUT="$BUILD_DIR/refine_2d.jsonl"
 : >"$OUT"
 
 echo "load average at the start: $(cut -d' ' -f1-3 /proc/loadavg)" >&2
-echo "| file | robots | CG tolerance | GN cost | two-stage / GN - 1 | refined / GN - 1 | GN steps (rejected) | steps at the sweep cap | sweeps | bytes | seconds |"
+echo "| file | robots | CG tolerance | GN cost | two-stage / GN - 1 | refined / GN - 1 | GN steps (rejected; halvings) | steps at the sweep cap | sweeps | bytes | seconds |"
 echo "|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|"
 for f in $FILES; do
   for n in $ROBOTS; do
@@ -31,11 +31,12 @@ for f in $FILES; do
       jq -r --arg f "$f" --arg tol "$tol" '
         [$f, .robots, $tol, .centralized_cost, (.two_stage_cost / .centralized_cost - 1),
          (.final_cost / .centralized_cost - 1), .refine_steps, .refine_rejected_steps,
+         .refine_backtracks,
          (if .termination_refine == "max iterations" then ": step limit" else "" end),
          ([.refine_history[] | select(.linear_converged | not)] | length),
          .iterations_refine, (.bytes / 1e6), .seconds] | @tsv' <<<"$line" |
-        awk -F'\t' '{printf "| %s | %d | %s | %.6g | %.2g | %.2g | %d (%d)%s | %d | %d | %.1f MB | %.1f |\n",
-                     $1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13}'
+        awk -F'\t' '{printf "| %s | %d | %s | %.6g | %.2g | %.2g | %d (%d; %d)%s | %d | %d | %.1f MB | %.1f |\n",
+                     $1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14}'
     done
   done
 done

@@ -66,6 +66,10 @@ void DgsOptions::validate() const {
                             std::to_string(f.min_lambda));
   }
   positive(f.max_lambda, "refinement.max_lambda");
+  if (f.max_backtracks < 0 || f.max_backtracks > 30) {
+    throw InvalidInputError("DGS options: refinement.max_backtracks must be in [0, 30], got " +
+                            std::to_string(f.max_backtracks));
+  }
   if (!(f.gamma > 0.0 && f.gamma < 2.0)) {
     throw InvalidInputError("DGS options: refinement.gamma must be in (0, 2), got " +
                             std::to_string(f.gamma));
@@ -820,24 +824,39 @@ bool DgsDriver::refineStep(RefineRun& run, double& cost, double& lambda) {
   } else {
     solveBySweeps(run, summary);
   }
-  // The step's cost; the coordinator's decision, broadcast.
-  const double candidate = refineCost(run, true);
-  summary.cost_candidate = candidate;
-  const auto [accept, finished] = DecideRefineStep(cost, candidate, run.step, opt, lambda, report);
+  // The step's cost; the coordinator's decision, broadcast: halve the step (and report the cost
+  // there), or accept / reject it.
   const int c = coordinator();
-  for (int r : order_) {
-    if (!live(r)) continue;
-    ControlMessage d;
-    d.kind = ControlKind::kStepDecision;
-    d.sender = c;
-    d.round = static_cast<std::uint32_t>(run.step);
-    d.flags =
-        static_cast<std::uint8_t>((accept ? kAcceptStep : 0) | (finished ? kRefineFinished : 0));
-    d.value[0] = accept ? candidate : cost;
-    d.value[1] = lambda;
-    const ControlMessage got = r == c ? d : sendControl(d, r, traffic(run));
-    if ((got.flags & kAcceptStep) != 0) agents_.at(r)->acceptStep();
+  auto broadcastDecision = [&](std::uint8_t flags, double value) {
+    for (int r : order_) {
+      if (!live(r)) continue;
+      ControlMessage d;
+      d.kind = ControlKind::kStepDecision;
+      d.sender = c;
+      d.round = static_cast<std::uint32_t>(run.step);
+      d.sweep = static_cast<std::uint32_t>(summary.backtracks);
+      d.flags = flags;
+      d.value[0] = value;
+      d.value[1] = lambda;
+      const ControlMessage got = r == c ? d : sendControl(d, r, traffic(run));
+      if ((got.flags & kHalveStep) != 0) agents_.at(r)->scaleStep(0.5);
+      if ((got.flags & kAcceptStep) != 0) agents_.at(r)->acceptStep();
+    }
+  };
+  summary.cost_candidate = refineCost(run, true);
+  RefineDecision decision;
+  while ((decision = DecideRefineStep(summary, opt, lambda, report)).backtrack) {
+    broadcastDecision(kHalveStep, summary.cost_candidate);
+    ++summary.backtracks;
+    summary.step_scale *= 0.5;
+    summary.cost_candidate = refineCost(run, true);
   }
+  const double candidate = summary.cost_candidate;
+  const bool accept = decision.accept;
+  const bool finished = decision.finished;
+  broadcastDecision(
+      static_cast<std::uint8_t>((accept ? kAcceptStep : 0) | (finished ? kRefineFinished : 0)),
+      accept ? candidate : cost);
   closeSweep(run);
   if (accept) cost = candidate;
   summary.accepted = accept;
@@ -850,20 +869,33 @@ bool DgsDriver::refineStep(RefineRun& run, double& cost, double& lambda) {
   return finished;
 }
 
-RefineDecision DecideRefineStep(double cost, double candidate, int step,
-                                const DgsOptions::Refinement& opt, double& lambda,
-                                RefineReport& report) {
+RefineDecision DecideRefineStep(const RefineStepSummary& s, const DgsOptions::Refinement& opt,
+                                double& lambda, RefineReport& report) {
+  const double cost = s.cost_before;
+  const double candidate = s.cost_candidate;
   const double tolerance = opt.relative_cost_tolerance * cost;
+  const bool halved = s.backtracks > 0;
   RefineDecision d;
-  if (candidate <= cost) {
+  // A halved step must lower F by a fraction of what the model predicts for it (Armijo, with
+  // the model's decrease of the whole step scaled by the step's length); whether the refinement
+  // has converged is judged on whole steps only.
+  const bool lowers =
+      halved ? cost - candidate >= kArmijoFraction * s.step_scale * s.predicted_decrease
+             : candidate <= cost;
+  if (lowers) {
     d.accept = true;
-    d.finished = cost - candidate <= tolerance || candidate <= opt.absolute_cost_tolerance;
+    d.finished =
+        (!halved && cost - candidate <= tolerance) || candidate <= opt.absolute_cost_tolerance;
     if (lambda > 0.0) {
       lambda /= 10.0;
       if (lambda < opt.min_lambda) lambda = 0.0;
     }
-  } else if (candidate - cost <= tolerance || cost <= opt.absolute_cost_tolerance) {
+  } else if (!halved && (candidate - cost <= tolerance || cost <= opt.absolute_cost_tolerance)) {
     d.finished = true;  // rounding at the optimum: nothing left to gain
+  } else if (s.backtracks < opt.max_backtracks) {
+    ++report.backtracks;
+    d.backtrack = true;
+    return d;
   } else {
     ++report.rejected;
     lambda = lambda == 0.0 ? opt.initial_lambda : 10.0 * lambda;
@@ -875,7 +907,7 @@ RefineDecision DecideRefineStep(double cost, double candidate, int step,
   if (d.finished && report.status != StageStatus::kNoDecreasingStep) {
     report.status = StageStatus::kConverged;
   }
-  if (step == opt.max_iterations) d.finished = true;
+  if (s.iteration == opt.max_iterations) d.finished = true;
   return d;
 }
 

@@ -45,15 +45,18 @@
 //     robots): tens of thousands of sweeps without over-relaxation.
 // After the linear solve every robot reports its share of F at x Exp(delta) (each separator
 // counted once, by the lower robot id); the coordinator accepts the step when F does not rise,
-// else rejects it and the step is solved again with Levenberg-Marquardt damping lambda diag(H_rr)
-// on each robot's own blocks (lambda: refinement.initial_lambda, then x10 per rejection; /10
-// after an accepted damped step, 0 below refinement.min_lambda). It stops when an accepted step
-// lowers F by at most refinement.relative_cost_tolerance * F (converged; also when a rejected step
-// raised F by no more than that: nothing left to gain), when F is at most
-// refinement.absolute_cost_tolerance (converged), after refinement.max_iterations steps, or
-// when lambda exceeds max_lambda (kNoDecreasingStep). A robot that stops answering during the
-// refinement (SilentRobot with stage kRefine: at the start of that Gauss-Newton step) keeps its
-// last accepted estimate; the others hold its variables fixed and count its separators.
+// else halves it (x Exp(delta / 2): a broadcast and one more cost report, no new linear solve)
+// and accepts the first that lowers F enough (DecideRefineStep), up to refinement.max_backtracks
+// halvings; when none does it rejects the step, and the step is solved again with
+// Levenberg-Marquardt damping lambda diag(H_rr) on each robot's own blocks (lambda:
+// refinement.initial_lambda, then x10 per rejection; /10 after an accepted damped step, 0 below
+// refinement.min_lambda). It stops when an accepted step lowers F by at most
+// refinement.relative_cost_tolerance * F (converged; also when a rejected step raised F by no more
+// than that: nothing left to gain), when F is at most refinement.absolute_cost_tolerance
+// (converged), after refinement.max_iterations steps, or when lambda exceeds max_lambda
+// (kNoDecreasingStep). A robot that stops answering during the refinement (SilentRobot with stage
+// kRefine: at the start of that Gauss-Newton step) keeps its last accepted estimate; the others
+// hold its variables fixed and count its separators.
 //
 // Faults (FaultInjection): a robot that stops answering stops at the start of a given sweep: it
 // no longer solves, sends or receives; the others keep its last estimate, finish, and the result
@@ -158,6 +161,13 @@ struct DgsOptions {
     // above the optimum after 100 steps, 50 of them rejected; INTEL with `moslam dgs --refine`'s
     // two-level pipeline: 0.4 %; with 1e-10 both reach it: README, "Long 2D chains").
     double min_lambda = 1e-10;
+    // A step that raises F is halved up to this many times (down to 1/16 of it by default)
+    // before it is rejected: the Gauss-Newton direction is usually right where its length
+    // overshoots, and each halving costs one broadcast and one cost report against a damped
+    // solve's many sweeps. On INTEL split in 2, 4 and 16 robots the refinement reaches the
+    // optimum in 11-12 steps, where without halving (0) it ended 5-8e-6 above it after 84-100
+    // steps, 35-47 of them rejected (README, "Long 2D chains"). 0 turns halving off.
+    int max_backtracks = 4;
   } refinement;
 
   // Throws InvalidInputError naming the first bad field.
@@ -223,8 +233,13 @@ struct RefineStepSummary {
   double cost_candidate = 0.0;   // F at x Exp(delta)
   // kConjugateGradient: the decrease of the damped Gauss-Newton model that delta achieves
   // (cg_decisions.h), so (cost_before - cost_candidate) / predicted_decrease is the step's gain
-  // ratio: near 1 where F is as quadratic as the model over the step. 0 with kSweeps.
+  // ratio when it was not halved: near 1 where F is as quadratic as the model over the step. 0
+  // with kSweeps.
   double predicted_decrease = 0.0;
+  // Halvings of the step before the decision (max_backtracks): the step taken or rejected is
+  // step_scale = 2^-backtracks times the linear solve's, and cost_candidate is F there.
+  int backtracks = 0;
+  double step_scale = 1.0;
   bool accepted = false;
   double seconds = 0.0;
   std::int64_t bytes = 0;  // everything the refinement sent up to the end of this step
@@ -234,6 +249,7 @@ struct RefineReport {
   StageStatus status = StageStatus::kNotRun;
   int iterations = 0;  // Gauss-Newton steps (accepted or rejected)
   int rejected = 0;
+  int backtracks = 0;  // halvings of steps that raised F, over all steps
   int sweeps = 0;      // over all steps
   std::int64_t messages = 0;  // everything the refinement sent, control included
   std::int64_t bytes = 0;
@@ -249,17 +265,25 @@ struct RefineReport {
   double seconds = 0.0;
 };
 
-// The Gauss-Newton step decision of the refinement (see the top), taken on F at the current
-// estimate (`cost`) and at x Exp(delta) (`candidate`) after step `step`: accept when F does not
-// rise; finished when the gain (or a rise) is within relative_cost_tolerance * F, when lambda
-// passes max_lambda (report.status kNoDecreasingStep) or at max_iterations. Updates `lambda`,
-// counts a rejection in report.rejected and sets report.status kConverged when finished so.
-// The in-process driver and every robot of a network team (robot_program.h) decide with it.
+// The Gauss-Newton step decision of the refinement (see the top), taken on a step's summary:
+// F at the current estimate (cost_before) and at x Exp(step_scale delta) (cost_candidate), the
+// step's predicted decrease and its halvings so far (backtracks). A whole step is accepted when F
+// does not rise; a halved one when F falls by at least kArmijoFraction * step_scale *
+// predicted_decrease (with kSweeps, whose prediction is 0: when F does not rise). Else the step is
+// halved again (backtrack; counted in report.backtracks, nothing else changed) while backtracks
+// < max_backtracks, else rejected. Finished when a whole step's gain (or rise) is within
+// relative_cost_tolerance * F, when F is at most absolute_cost_tolerance, when lambda passes
+// max_lambda (report.status kNoDecreasingStep) or at max_iterations (never while halving).
+// Updates `lambda`, counts a rejection in report.rejected and sets report.status kConverged when
+// finished so. The in-process driver and every robot of a network team (robot_program.h) decide
+// with it.
+inline constexpr double kArmijoFraction = 1e-4;
 struct RefineDecision {
   bool accept = false;
+  bool backtrack = false;
   bool finished = false;
 };
-RefineDecision DecideRefineStep(double cost, double candidate, int step,
+RefineDecision DecideRefineStep(const RefineStepSummary& step,
                                 const DgsOptions::Refinement& options, double& lambda,
                                 RefineReport& report);
 

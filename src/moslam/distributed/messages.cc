@@ -162,7 +162,7 @@ std::uint8_t AllowedControlFlags(ControlKind kind) {
     case ControlKind::kBroadcast:
       return kStopLinearSolve;
     case ControlKind::kStepDecision:
-      return kAcceptStep | kRefineFinished;
+      return kAcceptStep | kRefineFinished | kHalveStep;
     default:
       return 0;
   }
@@ -182,6 +182,13 @@ void CheckControl(const ControlMessage& m) {
   if ((m.flags & ~AllowedControlFlags(m.kind)) != 0) {
     throw InvalidInputError("DGS control message: flag bits " + std::to_string(m.flags) +
                             " not defined for kind " + std::to_string(static_cast<int>(m.kind)));
+  }
+  if (m.kind == ControlKind::kStepDecision && (m.flags & kHalveStep) != 0 &&
+      m.flags != kHalveStep) {
+    throw InvalidInputError(
+        "DGS control message: a step decision that halves the step (flag 4) "
+        "can neither accept it nor finish, got flags " +
+        std::to_string(m.flags));
   }
   for (double v : m.value) {
     if (!std::isfinite(v)) throw InvalidInputError("DGS control message: non-finite value");

@@ -68,7 +68,9 @@ Message DecodeMessage(const std::vector<std::uint8_t>& bytes);
 //               coefficient (conjugate gradients: alpha or beta)
 //   kCostReport robot -> coordinator: value[0] = its share of the cost
 //   kStepDecision coordinator -> robot: flags bit 0 = accept the step, bit 1 = refinement
-//               finished; value = (global cost, damping lambda of the next step)
+//               finished, bit 2 = halve the step and report the cost there (bit 2 alone);
+//               value = (global cost: at the halved step's candidate for bit 2, damping lambda of
+//               the next step); sweep: the halvings before this decision
 //
 // DecodeControlMessage rejects with InvalidInputError: a wrong size, bad magic/version/kind,
 // flag bits the kind does not define, a non-zero reserved field, non-finite values.
@@ -93,6 +95,7 @@ inline constexpr std::size_t kControlMessageBytes = 32;
 inline constexpr std::uint8_t kStopLinearSolve = 1;  // kBroadcast
 inline constexpr std::uint8_t kAcceptStep = 1;       // kStepDecision
 inline constexpr std::uint8_t kRefineFinished = 2;   // kStepDecision
+inline constexpr std::uint8_t kHalveStep = 4;        // kStepDecision
 
 // Throws InvalidInputError on the same conditions DecodeControlMessage rejects.
 std::vector<std::uint8_t> EncodeControlMessage(const ControlMessage& message);

@@ -273,6 +273,23 @@ TEST(ControlMessages, RejectsMalformedInput) {
   ControlMessage sender = m;
   sender.sender = 65536;
   EXPECT_THROW(EncodeControlMessage(sender), InvalidInputError);
+  // A step decision halves the step (bit 2) alone: never with accepting or finishing it.
+  ControlMessage halve = m;
+  halve.kind = ControlKind::kStepDecision;
+  halve.flags = kHalveStep;
+  halve.sweep = 2;  // the halvings before it
+  EXPECT_EQ(DecodeControlMessage(EncodeControlMessage(halve)).flags, kHalveStep);
+  for (std::uint8_t with : {kAcceptStep, kRefineFinished}) {
+    ControlMessage both = halve;
+    both.flags = static_cast<std::uint8_t>(kHalveStep | with);
+    EXPECT_THROW(EncodeControlMessage(both), InvalidInputError) << int(with);
+    std::vector<std::uint8_t> bytes = EncodeControlMessage(halve);
+    bytes[3] = both.flags;
+    EXPECT_THROW(DecodeControlMessage(bytes), InvalidInputError) << int(with);
+  }
+  ControlMessage undefined = halve;
+  undefined.flags = 8;
+  EXPECT_THROW(EncodeControlMessage(undefined), InvalidInputError);
 }
 
 CoarseMessage ExampleShare() {

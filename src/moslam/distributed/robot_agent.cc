@@ -415,6 +415,7 @@ void RobotAgent::beginStep(double lambda) {
     linearized_ = true;
   }
   lambda_ = lambda;
+  step_scale_ = 1.0;
   pose_.setDamping(lambda, refinement_.hessianDiagonal());
   cg_active_ = false;
   refine_coarse_built_ = false;
@@ -441,10 +442,20 @@ Eigen::VectorXd RobotAgent::stackedSweepValue() const {
   return z;
 }
 
+void RobotAgent::scaleStep(double factor) {
+  requireRefine("scaleStep()");
+  if (!(factor > 0.0 && factor <= 1.0)) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot()) +
+                            ": a step is scaled by a factor in (0, 1], got " +
+                            std::to_string(factor));
+  }
+  step_scale_ *= factor;
+}
+
 void RobotAgent::acceptStep() {
   requireRefine("acceptStep()");
-  refinement_.accept([this](std::size_t i) { return ownIncrement(i); },
-                     [this](int slot) { return neighbourIncrement(slot); });
+  refinement_.accept([this](std::size_t i) { return Vector6(step_scale_ * ownIncrement(i)); },
+                     [this](int slot) { return Vector6(step_scale_ * neighbourIncrement(slot)); });
   x_.assign(graph_.unknowns().size(), Eigen::VectorXd::Zero(6));
   inbox_.forget(DgsStage::kRefine);
   cg_active_ = false;
@@ -587,8 +598,9 @@ void RobotAgent::finishRefine() {
 double RobotAgent::costShare(bool candidate) const {
   requireRefine("costShare()");
   if (!candidate) return refinement_.costShare({}, {});
-  return refinement_.costShare([this](std::size_t i) { return ownIncrement(i); },
-                               [this](int slot) { return neighbourIncrement(slot); });
+  return refinement_.costShare(
+      [this](std::size_t i) { return Vector6(step_scale_ * ownIncrement(i)); },
+      [this](int slot) { return Vector6(step_scale_ * neighbourIncrement(slot)); });
 }
 
 double RobotAgent::incrementNorm() const {

@@ -134,11 +134,15 @@ class RobotAgent {
   // Refinement (see the top of this file). startRefine(): from kDone, once, after the pose
   // stage. beginStep(lambda >= 0): in kRefine; relinearises at the current estimate after
   // startRefine() or acceptStep(), else keeps the linearisation and only changes the damping;
-  // the increments restart at 0 and the neighbours' increments are forgotten. acceptStep():
-  // in kRefine, applies the step's increments. finishRefine(): kRefine -> kDone. Throw
-  // InvalidInputError when called in another state or with a negative lambda.
+  // the increments restart at 0 and the neighbours' increments are forgotten. scaleStep(f):
+  // in kRefine, after the step's linear solve, the step becomes f (in (0, 1]) times itself, its
+  // own increments and the neighbours' alike (a backtrack: costShare(true) and acceptStep() use
+  // it; beginStep() restores 1). acceptStep(): in kRefine, applies the step's increments.
+  // finishRefine(): kRefine -> kDone. Throw InvalidInputError when called in another state or
+  // with a negative lambda or a factor outside (0, 1].
   void startRefine();
   void beginStep(double lambda);
+  void scaleStep(double factor);
   void acceptStep();
   void finishRefine();
   // Conjugate gradients on the step's system (H + lambda diag(H_rr)) delta = -g: the sweeps then
@@ -301,6 +305,7 @@ class RobotAgent {
   // Pose-stage conjugate gradients: the starting values, own (by unknown) and the neighbours'
   // (by slot).
   std::vector<Eigen::VectorXd> own_start_, pose_start_;
+  double step_scale_ = 1.0;  // the refinement step's backtracking factor (scaleStep())
 };
 
 }  // namespace moslam

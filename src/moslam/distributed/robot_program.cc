@@ -342,9 +342,19 @@ class Program {
         solveBySweeps(summary);
       }
       report.sweeps += summary.sweeps;
-      const double candidate = teamCost(true);
-      summary.cost_candidate = candidate;
-      const auto [accept, finished] = DecideRefineStep(cost, candidate, s, opt, lambda, report);
+      // Every robot takes the driver's decision on the same team sums; a halved step needs one
+      // more cost all-reduce each (dgs_driver.h).
+      summary.cost_candidate = teamCost(true);
+      RefineDecision decision;
+      while ((decision = DecideRefineStep(summary, opt, lambda, report)).backtrack) {
+        agent_.scaleStep(0.5);
+        ++summary.backtracks;
+        summary.step_scale *= 0.5;
+        summary.cost_candidate = teamCost(true);
+      }
+      const double candidate = summary.cost_candidate;
+      const bool accept = decision.accept;
+      const bool finished = decision.finished;
       if (accept) {
         agent_.acceptStep();
         cost = candidate;

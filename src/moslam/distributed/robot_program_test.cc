@@ -92,12 +92,15 @@ void ExpectSameAsDriver(const Dataset& data, const DgsOptions& options,
     EXPECT_EQ(r.refine.iterations, reference.refine.iterations);
     EXPECT_EQ(r.refine.sweeps, reference.refine.sweeps);
     EXPECT_EQ(r.refine.rejected, reference.refine.rejected);
+    EXPECT_EQ(r.refine.backtracks, reference.refine.backtracks);
     EXPECT_EQ(r.refine.status, reference.refine.status);
     EXPECT_EQ(r.refine.coarse_corrections, reference.refine.coarse_corrections);
     ASSERT_EQ(r.refine.steps.size(), reference.refine.steps.size());
     for (std::size_t i = 0; i < r.refine.steps.size(); ++i) {
       const double predicted = reference.refine.steps[i].predicted_decrease;
       EXPECT_NEAR(r.refine.steps[i].predicted_decrease, predicted, 1e-9 * predicted);
+      EXPECT_EQ(r.refine.steps[i].backtracks, reference.refine.steps[i].backtracks);
+      EXPECT_EQ(r.refine.steps[i].step_scale, reference.refine.steps[i].step_scale);
     }
     if (options.refine) {
       EXPECT_NEAR(r.refine.final_cost, reference.refine.final_cost,
@@ -147,9 +150,9 @@ TEST(RobotProgram, PoseStageAndRefinementVariantsEqualTheDriver) {
   ExpectSameAsDriver(data, sweeps);
 }
 
-// Rejected refinement steps and the damping after them decided alike by every robot: MIT split
-// among 4 robots rejects steps in Jacobi order too.
-TEST(RobotProgram, DampedRefinementStepsEqualTheDriver) {
+// Halved, rejected and damped refinement steps decided alike by every robot: MIT split among 4
+// robots halves steps in Jacobi order too, and without halving rejects them.
+TEST(RobotProgram, HalvedAndDampedRefinementStepsEqualTheDriver) {
   Dataset d = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/MIT.g2o");
   SplitGraph s = SplitIntoRobots(d.graph, d.initial, 4);
   d.graph = std::move(s.graph);
@@ -159,7 +162,11 @@ TEST(RobotProgram, DampedRefinementStepsEqualTheDriver) {
   o.refine = true;
   DgsResult driver;
   ExpectSameAsDriver(d, o, &driver);
+  EXPECT_GE(driver.refine.backtracks, 1);
+  o.refinement.max_backtracks = 0;
+  ExpectSameAsDriver(d, o, &driver);
   EXPECT_GE(driver.refine.rejected, 1);
+  EXPECT_EQ(driver.refine.backtracks, 0);
 }
 
 TEST(RobotProgram, RefusesGaussSeidelOrderAndAUsedAgent) {
