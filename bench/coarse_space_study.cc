@@ -313,6 +313,12 @@ int main(int argc, char** argv) {
       graph = std::move(split.graph);
       x = std::move(split.initial);
     }
+    for (const Key& k : graph.keys()) {
+      if (x.count(k) == 0) {
+        throw std::runtime_error("variable " + moslam::ToString(k) +
+                                 " has no vertex: the point must give every variable");
+      }
+    }
     const Unknowns u = NumberUnknowns(graph, graph.numRobots());
     SparseMatrix H;
     Eigen::VectorXd g;
