@@ -365,6 +365,27 @@ TEST(CliDgs, ARefinementStoppedAtItsStepLimitAfterRejectedStepsSaysWhatToTry) {
   EXPECT_EQ(full.out.find("--refine-linear-tol"), std::string::npos) << full.out;
 }
 
+// When half or more of the linear solves stop at the sweep cap with one rigid motion per robot,
+// `dgs` names the coarse space of pieces; with pieces it has nothing to add. MIT in 4 robots with
+// 6 sweeps per step (measured: every step at the cap, with pieces too).
+TEST(CliDgs, LinearSolvesAtTheSweepCapNameTheCoarseSpaceOfPieces) {
+  const std::string mit = "dgs " MOSLAM_DATASETS_DIR
+                          "/pgo/MIT.g2o --robots 4 --refine --refine-max-sweeps 6 "
+                          "--refine-max-iter 3";
+  const CommandResult robots = RunMoslam(mit);
+  ASSERT_EQ(robots.exit_code, 0) << robots.out;
+  EXPECT_NE(robots.out.find("of 3 linear solves stopped at the sweep cap"), std::string::npos)
+      << robots.out;
+  EXPECT_NE(robots.out.find("--refine-coarse-piece-poses 60"), std::string::npos) << robots.out;
+  const CommandResult pieces = RunMoslam(mit + " --refine-coarse-piece-poses 60");
+  ASSERT_EQ(pieces.exit_code, 0) << pieces.out;
+  EXPECT_EQ(pieces.out.find("--refine-coarse-piece-poses"), std::string::npos) << pieces.out;
+  const CommandResult sweeps =
+      RunMoslam(mit + " --refine-coarse-piece-poses 60 --refine-solver sweeps");
+  EXPECT_NE(sweeps.exit_code, 0);
+  EXPECT_NE(sweeps.out.find("coarse_piece_poses"), std::string::npos) << sweeps.out;
+}
+
 // `dgs --out DIR`: the distributed estimate as `solve --out DIR/` writes the centralized one (a
 // g2o file per robot, each robot's vertices), and one TUM trajectory per robot; with --refine it
 // is the centralized optimum (2.8e-7 m on blocks_world, measured).

@@ -409,20 +409,35 @@ nlohmann::json DgsJson(const DgsArgs& a, const DgsOptions& options, const DgsInp
   return j;
 }
 
-// What to try when the refinement stopped at its step limit after rejected steps; else empty.
-std::string RefineHint(const RefineReport& refine) {
+// What to try when the refinement stopped at its step limit after rejected steps, or when half
+// or more of its linear solves stopped at the sweep cap with one rigid motion per robot as the
+// coarse space; else empty.
+std::string RefineHint(const RefineReport& refine, const DgsOptions& options) {
+  std::string hint;
   if (refine.status == StageStatus::kMaxIterations && refine.rejected > 0) {
-    return fmt::format(
+    hint = fmt::format(
         "refine: stopped at its step limit (--refine-max-iter) with {} of {} steps rejected. On "
         "long 2D chains, where the damped steps crawl, a tighter linear solve avoids them "
         "(--refine-linear-tol 1e-3), and so may more halvings of a step before it is rejected "
         "(--refine-backtracks; README, \"The 2D benchmark graphs\")",
         refine.rejected, refine.iterations);
   }
-  return "";
+  const DgsOptions::Refinement& o = options.refinement;
+  int capped = 0;
+  for (const RefineStepSummary& s : refine.steps) capped += s.linear_converged ? 0 : 1;
+  if (o.solver == RefineSolver::kConjugateGradient &&
+      o.preconditioner == RefinePreconditioner::kTwoLevel && o.coarse_piece_poses == 0 &&
+      !refine.steps.empty() && 2 * capped >= static_cast<int>(refine.steps.size())) {
+    hint += fmt::format(
+        "{}refine: {} of {} linear solves stopped at the sweep cap (--refine-max-sweeps). On long "
+        "chains a coarse space of pieces instead of whole robots converges in far fewer sweeps "
+        "(--refine-coarse-piece-poses 60; README, \"The 2D benchmark graphs\")",
+        hint.empty() ? "" : "\n", capped, refine.steps.size());
+  }
+  return hint;
 }
 
-void PrintDgsSummary(const DgsArgs& a, const DgsRun& run) {
+void PrintDgsSummary(const DgsArgs& a, const DgsOptions& options, const DgsRun& run) {
   const DgsResult& r = run.result;
   const double central_cost = run.central.final_cost;
   fmt::print("rotation: {} after {} sweep(s); pose: {} after {} sweep(s)",
@@ -454,7 +469,7 @@ void PrintDgsSummary(const DgsArgs& a, const DgsRun& run) {
              r.bytes, r.seconds,
              run.iterations_total > 0 ? 1e3 * r.seconds / run.iterations_total : 0.0);
   if (a.solver.refine) {
-    const std::string hint = RefineHint(r.refine);
+    const std::string hint = RefineHint(r.refine, options);
     if (!hint.empty()) fmt::print("{}\n", hint);
   }
 }
@@ -519,7 +534,7 @@ int RunDgsCommand(const DgsArgs& a_in) {
   if (a.json) {
     fmt::print("{}\n", DgsJson(a, options, in, run).dump());
   } else {
-    PrintDgsSummary(a, run);
+    PrintDgsSummary(a, options, run);
   }
   return 0;
 }

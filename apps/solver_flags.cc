@@ -32,6 +32,7 @@ DgsOptions SolverArgs::options(SweepOrder order) const {
   }
   o.refinement.gamma = refine_gamma;
   o.refinement.max_backtracks = refine_max_backtracks;
+  o.refinement.coarse_piece_poses = refine_coarse_piece_poses;
   o.validate();
   return o;
 }
@@ -48,7 +49,8 @@ std::vector<std::string> SolverArgs::args() const {
       std::to_string(refine_max_iterations), "--refine-tol", fmt::format("{}", refine_tolerance),
       "--refine-max-sweeps", std::to_string(refine_max_sweeps), "--refine-gamma",
       fmt::format("{}", refine_gamma), "--refine-backtracks",
-      std::to_string(refine_max_backtracks)};
+      std::to_string(refine_max_backtracks), "--refine-coarse-piece-poses",
+      std::to_string(refine_coarse_piece_poses)};
   // clang-format on
   if (refine_linear_tolerance) {
     a.push_back("--refine-linear-tol");
@@ -127,6 +129,11 @@ void AddSolverFlags(CLI::App* sub, SolverArgs* args) {
   sub->add_option("--refine-backtracks", args->refine_max_backtracks,
                   "halvings of a Gauss-Newton step that raised the cost before it is rejected "
                   "and damped, in [0, 30] (0: none)")
+      ->capture_default_str();
+  sub->add_option("--refine-coarse-piece-poses", args->refine_coarse_piece_poses,
+                  "the two-level preconditioner's coarse space in refinement steps: 0, one "
+                  "rigid motion per robot; L, one per run of L pose indices of a robot (long "
+                  "chains: README, \"Long 2D chains\")")
       ->capture_default_str();
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -32,6 +33,7 @@ struct SolverArgs {
   std::optional<double> refine_linear_tolerance;  // unset: the solver's default
   double refine_gamma = 1.0;
   int refine_max_backtracks = 4;
+  std::uint64_t refine_coarse_piece_poses = 0;  // 0: one rigid motion per robot
 
   // The options these flags give (`order` as given); validated (InvalidInputError).
   DgsOptions options(SweepOrder order) const;

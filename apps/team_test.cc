@@ -1,5 +1,5 @@
 // Robots as separate processes over Cyclone DDS on loopback (the real `moslam` binary; each test
-// its own DDS domain, 45..59 and 70..73, no two alike: ctest runs two tests at once, and two
+// its own DDS domain, 45..59 and 70..74, no two alike: ctest runs two tests at once, and two
 // teams in one domain would hear each other): the team's result equals the in-process driver's; a
 // robot killed (SIGKILL) mid-run and restarted with the same --out loses nothing; a robot that dies
 // for good is noticed through liveliness and the others finish. Simulated scenarios (--scenario):
@@ -360,6 +360,22 @@ TEST(Team, TheWholeSolverOverDdsReachesTheCentralizedOptimum) {
   EXPECT_LE(std::abs(j["cost_relative_to_centralized"].get<double>()), 1e-6);
   EXPECT_TRUE(fs::exists(out / "merged.g2o"));
   EXPECT_TRUE(fs::exists(out / "robot_3.tum"));
+  fs::remove_all(out);
+}
+
+// The refinement's coarse space by pieces over DDS: the same protocol code as in one process.
+// blocks_world's robots number their own poses, so pieces of 10 cut every robot into several.
+TEST(Team, TheRefinementByPiecesOverDdsEqualsTheInProcessRun) {
+  const fs::path out = FreshDir("pieces");
+  const nlohmann::json j = RunTeamCommand(out, 74,
+                                          {"--data", test::BlocksWorldFolder(4), "--coarse",
+                                           "--refine", "--refine-coarse-piece-poses", "10"});
+  ASSERT_TRUE(j.is_object());
+  EXPECT_TRUE(j["ok"].get<bool>());
+  EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
+  EXPECT_EQ(j["refine_steps"], j["in_process_refine_steps"]);
+  EXPECT_GT(j["refine_steps"].get<int>(), 0);
+  EXPECT_LE(std::abs(j["cost_relative_to_centralized"].get<double>()), 1e-6);
   fs::remove_all(out);
 }
 

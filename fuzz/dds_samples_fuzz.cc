@@ -176,6 +176,25 @@ void WriteSeeds(const std::string& dir) {
   Lend(block_robots, c.block_robots);
   Lend(blocks, c.blocks);
   WriteSeed(dir, "coarse", 2, moslam_msg_dds__DgsCoarse__desc, &c);
+  // A piece matrix of the refinement (kind 5): two pieces, one block between them.
+  std::vector<std::uint32_t> piece_ids = {0, 1}, row_pieces = {0}, block_pieces = {1};
+  std::vector<std::uint16_t> piece_robots = {1};
+  std::vector<double> piece_values = {0, 0, 0, 1, 1, 1}, piece_block(36, 0.5);
+  CoarseSample cp{};
+  cp.sender = 1;
+  cp.round = 5;
+  cp.stage = 3;
+  cp.kind = 5;
+  cp.k = 6;
+  cp.ncols = 1;
+  Lend(center, cp.center);
+  Lend(piece_ids, cp.piece_ids);
+  Lend(piece_values, cp.piece_values);
+  Lend(row_pieces, cp.block_row_pieces);
+  Lend(piece_robots, cp.piece_block_robots);
+  Lend(block_pieces, cp.block_pieces);
+  Lend(piece_block, cp.piece_block_values);
+  WriteSeed(dir, "coarse_pieces", 2, moslam_msg_dds__DgsCoarse__desc, &cp);
 
   std::vector<double> weights = {1.0, 0.0, 0.5};
   WeightsSample w{};

@@ -6,7 +6,9 @@
 # $BUILD_DIR/refine_2d.jsonl.
 #   scripts/refine-2d.sh            (~65 min on 2 cores, 50 of them ais2klinik's)
 # Environment: BUILD_DIR (default build-bench-dgs), MOSLAM (a built binary: skips the build),
-# MOSLAM_DATASETS_DIR (default ../shared/datasets), FILES, ROBOTS, TOLERANCES (space-separated).
+# MOSLAM_DATASETS_DIR (default ../shared/datasets), FILES, ROBOTS, TOLERANCES (space-separated),
+# PIECE_POSES (--refine-coarse-piece-poses, default 0: one rigid motion per robot; the JSON lines
+# then go to $BUILD_DIR/refine_2d_pieces.jsonl).
 set -euo pipefail
 
 BUILD_DIR="${BUILD_DIR:-$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/build-bench-dgs}"
@@ -16,7 +18,9 @@ FILES="${FILES:-CSAIL MIT input_INTEL_g2o intel input_M3500_g2o manhattan kitti_
 ROBOTS="${ROBOTS:-2 4 16}"
 TOLERANCES="${TOLERANCES:-1e-2 1e-3}"
 mkdir -p "$BUILD_DIR"
+PIECE_POSES="${PIECE_POSES:-0}"
 OUT="$BUILD_DIR/refine_2d.jsonl"
+[ "$PIECE_POSES" = 0 ] || OUT="$BUILD_DIR/refine_2d_pieces.jsonl"
 : >"$OUT"
 
 echo "load average at the start: $(cut -d' ' -f1-3 /proc/loadavg)" >&2
@@ -26,7 +30,8 @@ for f in $FILES; do
   for n in $ROBOTS; do
     for tol in $TOLERANCES; do
       line=$("$MOSLAM" dgs "$DATASETS/pgo/$f.g2o" --robots "$n" --refine \
-               --refine-linear-tol "$tol" --json | tail -n 1)
+               --refine-linear-tol "$tol" --refine-coarse-piece-poses "$PIECE_POSES" --json |
+             tail -n 1)
       echo "$line" >>"$OUT"
       jq -r --arg f "$f" --arg tol "$tol" '
         [$f, .robots, $tol, .centralized_cost, (.two_stage_cost / .centralized_cost - 1),

@@ -1,6 +1,8 @@
 #include "moslam/distributed/coarse_correction.h"
 
+#include <algorithm>
 #include <string>
+#include <tuple>
 
 #include "moslam/common/errors.h"
 #include "moslam/geometry/so3.h"
@@ -135,7 +137,15 @@ Matrix6 RefineBasis(const SE3& x, const Eigen::Vector3d& centre) {
 
 }  // namespace
 
-void RefineCoarseSpace::build(const LocalGraph& graph, const Refinement& refinement) {
+std::uint32_t CoarsePieceOf(const Key& key, std::uint64_t piece_poses) {
+  if (key.isObject()) return kObjectCoarsePiece;
+  if (piece_poses == 0) return 0;
+  return static_cast<std::uint32_t>(
+      std::min<std::uint64_t>(key.index / piece_poses, kObjectCoarsePiece - 1));
+}
+
+void RefineCoarseSpace::build(const LocalGraph& graph, const Refinement& refinement,
+                              std::uint64_t piece_poses) {
   const auto& unknowns = graph.unknowns();
   centre_.setZero();
   for (const Key& k : unknowns) centre_ += refinement.knownPose(k)->translation();
@@ -151,6 +161,124 @@ void RefineCoarseSpace::build(const LocalGraph& graph, const Refinement& refinem
     neighbour_[j] = RefineBasis(*x, centre_);
     neighbour_known_[j] = 1;
   }
+  piece_poses_ = piece_poses;
+  own_piece_.clear();
+  neighbour_piece_.clear();
+  piece_centre_.clear();
+  if (piece_poses == 0) return;
+  std::map<std::uint32_t, int> members;
+  for (const Key& k : unknowns) {
+    const std::uint32_t p = CoarsePieceOf(k, piece_poses);
+    own_piece_.push_back(p);
+    auto [it, added] = piece_centre_.try_emplace(p, Eigen::Vector3d::Zero());
+    it->second += refinement.knownPose(k)->translation();
+    ++members[p];
+  }
+  for (auto& [p, c] : piece_centre_) c /= static_cast<double>(members.at(p));
+  for (const Key& k : neighbours) neighbour_piece_.push_back(CoarsePieceOf(k, piece_poses));
+}
+
+void RefineCoarseSpace::requirePieces(const char* what) const {
+  if (!byPieces()) {
+    throw InvalidInputError(std::string("refinement coarse space: ") + what +
+                            " without pieces (build() with piece_poses > 0 first)");
+  }
+}
+
+CoarseMessage RefineCoarseSpace::pieceMatrix(const LocalGraph& graph, const LocalSystem& system,
+                                             std::uint32_t iteration) const {
+  requirePieces("pieceMatrix()");
+  CoarseMessage m;
+  m.kind = CoarseKind::kPieceMatrix;
+  m.stage = DgsStage::kRefine;
+  m.sender = graph.robot();
+  m.iteration = iteration;
+  m.k = 6;
+  m.ncols = 1;
+  m.center = {centre_.x(), centre_.y(), centre_.z()};
+  for (const auto& [p, c] : piece_centre_) m.pieces.push_back({p, {c.x(), c.y(), c.z()}});
+  const auto& unknowns = graph.unknowns();
+  const Eigen::Index n = static_cast<Eigen::Index>(6 * unknowns.size());
+  // (row piece, robot, piece) -> P_p^T H P_q, the own pieces' columns one piece at a time.
+  std::map<std::tuple<std::uint32_t, int, std::uint32_t>, Matrix6> blocks;
+  auto add = [&](std::uint32_t p, int robot, std::uint32_t q, const Matrix6& b) {
+    auto [it, added] = blocks.try_emplace({p, robot, q}, b);
+    if (!added) it->second += b;
+  };
+  for (const auto& [q, centre] : piece_centre_) {
+    Eigen::MatrixXd Pq = Eigen::MatrixXd::Zero(n, 6);
+    for (std::size_t i = 0; i < unknowns.size(); ++i) {
+      if (own_piece_[i] == q) Pq.middleRows<6>(system.row(unknowns[i])) = own_[i];
+    }
+    Eigen::MatrixXd HPq(n, 6);
+    for (int c = 0; c < 6; ++c) HPq.col(c) = system.multiply(Pq.col(c));
+    for (std::size_t i = 0; i < unknowns.size(); ++i) {
+      const auto rows = HPq.middleRows<6>(system.row(unknowns[i]));
+      if (rows.isZero(0.0)) continue;  // no term between the unknown and piece q
+      add(own_piece_[i], graph.robot(), q, own_[i].transpose() * rows);
+    }
+  }
+  std::map<Eigen::Index, std::size_t> unknown_at;  // the own unknown of each system row
+  for (std::size_t i = 0; i < unknowns.size(); ++i) unknown_at[system.row(unknowns[i])] = i;
+  const auto& separators = graph.separators();
+  for (std::size_t s = 0; s < separators.size(); ++s) {
+    const Eigen::Index row = system.separatorRow(s);
+    const std::size_t slot = static_cast<std::size_t>(separators[s].slot);
+    if (row < 0 || !neighbour_known_[slot]) continue;
+    const std::size_t i = unknown_at.at(row);
+    add(own_piece_[i], separators[s].foreign_robot, neighbour_piece_[slot],
+        own_[i].transpose() * system.coupling(s) * neighbour_[slot]);
+  }
+  for (const auto& [where, b] : blocks) {
+    const auto& [p, robot, q] = where;
+    m.piece_blocks.push_back({p, robot, q, std::vector<double>(b.data(), b.data() + 36)});
+  }
+  return m;
+}
+
+CoarseMessage RefineCoarseSpace::pieceResidual(const LocalGraph& graph, const LocalSystem& system,
+                                               const Eigen::VectorXd& r,
+                                               std::uint32_t iteration) const {
+  requirePieces("pieceResidual()");
+  std::map<std::uint32_t, Vector6> sums;
+  for (const auto& [p, c] : piece_centre_) sums[p].setZero();
+  const auto& unknowns = graph.unknowns();
+  for (std::size_t i = 0; i < unknowns.size(); ++i) {
+    sums[own_piece_[i]].noalias() += own_[i].transpose() * r.segment<6>(system.row(unknowns[i]));
+  }
+  CoarseMessage m;
+  m.kind = CoarseKind::kPieceResidual;
+  m.stage = DgsStage::kRefine;
+  m.sender = graph.robot();
+  m.iteration = iteration;
+  m.k = 6;
+  m.ncols = 1;
+  for (const auto& [p, v] : sums)
+    m.pieces.push_back({p, std::vector<double>(v.data(), v.data() + 6)});
+  return m;
+}
+
+void RefineCoarseSpace::applyPieces(const LocalGraph& graph, DgsStage stage,
+                                    const CoarseMessage& solution, std::vector<Eigen::VectorXd>& z,
+                                    NeighbourInbox& inbox) const {
+  requirePieces("applyPieces()");
+  if (solution.kind != CoarseKind::kPieceSolution) {
+    throw InvalidInputError("refinement coarse space: applyPieces() takes a piece solution");
+  }
+  std::map<std::pair<int, std::uint32_t>, Vector6> y;
+  for (const CoarsePieceBlock& b : solution.piece_blocks) {
+    y[{b.robot, b.piece}] = Eigen::Map<const Vector6>(b.values.data());
+  }
+  for (std::size_t i = 0; i < z.size() && i < own_.size(); ++i) {
+    const auto it = y.find({graph.robot(), own_piece_[i]});
+    if (it != y.end()) z[i] += own_[i] * it->second;
+  }
+  const auto& neighbours = graph.neighbours();
+  for (std::size_t j = 0; j < neighbours.size(); ++j) {
+    if (!neighbour_known_[j]) continue;
+    const auto it = y.find({neighbours[j].robot, neighbour_piece_[j]});
+    if (it != y.end()) inbox.add(stage, static_cast<int>(j), neighbour_[j] * it->second);
+  }
 }
 
 void RefineCoarseSpace::buildPoseStage(const LocalGraph& graph,
@@ -161,6 +289,7 @@ void RefineCoarseSpace::buildPoseStage(const LocalGraph& graph,
     return P;
   };
   centre_.setZero();
+  piece_poses_ = 0;  // the pose stage moves whole robots
   own_.clear();
   for (const Key& k : graph.unknowns()) own_.push_back(basis(R_hat.at(k)));
   const auto& neighbours = graph.neighbours();

@@ -23,6 +23,7 @@
 #include "moslam/distributed/dgs_types.h"
 #include "moslam/distributed/local_graph.h"
 #include "moslam/distributed/local_system.h"
+#include "moslam/distributed/messages.h"
 #include "moslam/distributed/neighbour_inbox.h"
 #include "moslam/distributed/refinement.h"
 
@@ -88,10 +89,19 @@ namespace moslam {
 // translation tau. The basis is taken at the step's linearisation point and the robot's centre
 // (the mean of its translations), for its unknowns and its known neighbour copies alike (the
 // neighbours' columns in this robot's basis; CoarseSystem moves them to their own centres).
+//
+// By pieces (DgsOptions::Refinement::coarse_piece_poses = L > 0, the refinement only): one rigid
+// motion per piece of the robot instead (CoarsePieceOf: poses by index / L, the robot's objects
+// one piece), so that a run of the chain can turn against the rest, the slow mode of long chains
+// (README, "What a richer coarse space would give"). Every column is computed about the robot's
+// reference c_r (the mean of its translations) and sent with each piece's centre;
+// PieceCoarseSystem (coarse_system.h) moves them to the pieces' centres. The piece of a neighbour
+// variable follows from its key, so no piece map crosses the network.
 class RefineCoarseSpace {
  public:
-  // The basis at the current estimate of `refinement`.
-  void build(const LocalGraph& graph, const Refinement& refinement);
+  // The basis at the current estimate of `refinement`: one piece per robot (piece_poses 0) or
+  // pieces of piece_poses poses.
+  void build(const LocalGraph& graph, const Refinement& refinement, std::uint64_t piece_poses = 0);
   // The same coarse space in the pose stage's unknowns (dtheta, t) (DgsOptions::pose_solver =
   // conjugate gradients): dtheta_i = R_hat_i^T w, t_i += tau, the robot's motion as a whole
   // without lever arms. With the lever arms of the flagged sweeps the conjugate gradients start
@@ -111,11 +121,32 @@ class RefineCoarseSpace {
   void apply(const LocalGraph& graph, DgsStage stage, const std::map<int, Eigen::MatrixXd>& y,
              std::vector<Eigen::VectorXd>& z, NeighbourInbox& inbox) const;
 
+  // By pieces (after build() with piece_poses > 0): the robot's kPieceMatrix (its rows of
+  // P^T (H + damping) P), its kPieceResidual (P_p^T r per piece) and z += P y from a
+  // kPieceSolution (y about c_r; pieces missing from it: 0). InvalidInputError without pieces.
+  bool byPieces() const { return piece_poses_ > 0; }
+  CoarseMessage pieceMatrix(const LocalGraph& graph, const LocalSystem& system,
+                            std::uint32_t iteration) const;
+  CoarseMessage pieceResidual(const LocalGraph& graph, const LocalSystem& system,
+                              const Eigen::VectorXd& r, std::uint32_t iteration) const;
+  void applyPieces(const LocalGraph& graph, DgsStage stage, const CoarseMessage& solution,
+                   std::vector<Eigen::VectorXd>& z, NeighbourInbox& inbox) const;
+
  private:
+  void requirePieces(const char* what) const;
+
   std::vector<Matrix6> own_;             // P_i per unknown
   std::vector<Matrix6> neighbour_;       // per slot (zero when unknown or the anchor)
   std::vector<char> neighbour_known_;
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
+  std::uint64_t piece_poses_ = 0;
+  std::vector<std::uint32_t> own_piece_, neighbour_piece_;  // by pieces: per unknown, per slot
+  std::map<std::uint32_t, Eigen::Vector3d> piece_centre_;   // the own pieces' centres
 };
+
+// The piece of a variable in the refinement's coarse space by pieces: a pose's index / piece_poses
+// (at most kObjectCoarsePiece - 1), kObjectCoarsePiece for every object landmark of the robot.
+inline constexpr std::uint32_t kObjectCoarsePiece = 0xFFFFFFFFu;
+std::uint32_t CoarsePieceOf(const Key& key, std::uint64_t piece_poses);
 
 }  // namespace moslam

@@ -110,4 +110,106 @@ CoarseMessage CoarseSystem::solutionFor(int robot, const std::set<int>& neighbou
   return m;
 }
 
+namespace {
+
+Eigen::Vector3d Vec3(const std::vector<double>& v) { return Eigen::Vector3d(v[0], v[1], v[2]); }
+
+}  // namespace
+
+void PieceCoarseSystem::addMatrix(const CoarseMessage& m) {
+  if (m.kind != CoarseKind::kPieceMatrix) {
+    throw InvalidInputError("piece coarse system: a message of robot " + std::to_string(m.sender) +
+                            " that is not a piece matrix");
+  }
+  (void)EncodeCoarseMessage(m);  // the layout's rules (sizes, order, row pieces, finite values)
+  if (reference_.count(m.sender)) {
+    throw InvalidInputError("piece coarse system: a second matrix of robot " +
+                            std::to_string(m.sender));
+  }
+  if (centre_.size() + m.pieces.size() > kMaxPieces) {
+    throw InvalidInputError(
+        "piece coarse system: the team's pieces exceed " + std::to_string(kMaxPieces) +
+        " with robot " + std::to_string(m.sender) +
+        "'s (its dense system would not fit): choose longer pieces (--refine-coarse-piece-poses)");
+  }
+  reference_.emplace(m.sender, Vec3(m.center));
+  for (const CoarsePiece& p : m.pieces) centre_[{m.sender, p.id}] = Vec3(p.values);
+  matrices_.push_back(m);
+  factorized_ = false;
+}
+
+Eigen::Matrix<double, 6, 6> PieceCoarseSystem::toPiece(const Piece& u, int reference_robot) const {
+  Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
+  T.bottomLeftCorner<3, 3>() = SO3::Hat(centre_.at(u) - reference_.at(reference_robot));
+  return T;
+}
+
+bool PieceCoarseSystem::factorize() {
+  index_.clear();
+  for (const auto& [u, c] : centre_) {
+    const Eigen::Index next = rows();
+    index_[u] = next;
+  }
+  A_ = Eigen::MatrixXd::Zero(rows(), rows());
+  for (const CoarseMessage& m : matrices_) {
+    for (const CoarsePieceBlock& b : m.piece_blocks) {
+      const Piece u{m.sender, b.row_piece}, v{b.robot, b.piece};
+      const auto iv = index_.find(v);
+      if (iv == index_.end()) continue;  // a silent robot's variables stay fixed
+      A_.block<6, 6>(index_.at(u), iv->second) +=
+          toPiece(u, m.sender).transpose() *
+          Eigen::Map<const Eigen::Matrix<double, 6, 6>>(b.values.data()) * toPiece(v, m.sender);
+    }
+  }
+  A_ = 0.5 * (A_ + A_.transpose());
+  scale_ = A_.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseInverse();
+  factorized_ = false;
+  if (rows() == 0 || !scale_.allFinite()) return false;
+  llt_.compute(scale_.asDiagonal() * A_ * scale_.asDiagonal());
+  factorized_ = llt_.info() == Eigen::Success;
+  return factorized_;
+}
+
+bool PieceCoarseSystem::solve(const std::vector<CoarseMessage>& residuals,
+                              Eigen::VectorXd* Y) const {
+  if (!factorized_) return false;
+  Eigen::VectorXd B = Eigen::VectorXd::Zero(rows());
+  for (const CoarseMessage& m : residuals) {
+    if (m.kind != CoarseKind::kPieceResidual || !has(m.sender)) {
+      throw InvalidInputError("piece coarse system: a residual of robot " +
+                              std::to_string(m.sender) + " outside the system (or not a residual)");
+    }
+    for (const CoarsePiece& p : m.pieces) {
+      const auto it = index_.find({m.sender, p.id});
+      if (it == index_.end()) continue;  // a piece the robot's matrix did not declare
+      B.segment<6>(it->second) += toPiece({m.sender, p.id}, m.sender).transpose() *
+                                  Eigen::Map<const Eigen::Matrix<double, 6, 1>>(p.values.data());
+    }
+  }
+  const Eigen::VectorXd y = llt_.solve(scale_.asDiagonal() * B);
+  *Y = scale_.asDiagonal() * y;
+  return Y->allFinite();
+}
+
+CoarseMessage PieceCoarseSystem::solutionFor(int robot, const std::set<int>& neighbours,
+                                             const Eigen::VectorXd& Y, int sender,
+                                             std::uint32_t iteration) const {
+  CoarseMessage m;
+  m.kind = CoarseKind::kPieceSolution;
+  m.stage = DgsStage::kRefine;
+  m.sender = sender;
+  m.iteration = iteration;
+  m.k = 6;
+  m.ncols = 1;
+  if (!has(robot)) return m;
+  std::set<int> needed = neighbours;
+  needed.insert(robot);
+  for (const auto& [u, row] : index_) {  // (robot, piece) order
+    if (!needed.count(u.first)) continue;
+    const Eigen::Matrix<double, 6, 1> y = toPiece(u, robot) * Y.segment<6>(row);
+    m.piece_blocks.push_back({0, u.first, u.second, std::vector<double>(y.data(), y.data() + 6)});
+  }
+  return m;
+}
+
 }  // namespace moslam

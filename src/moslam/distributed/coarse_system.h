@@ -69,6 +69,48 @@ class CoarseSystem {
   bool factorized_ = false;
 };
 
+// The coordinator's side of the refinement's coarse space by pieces (coarse_correction.h,
+// RefineCoarseSpace): one rigid motion y_u = (w, tau) per piece u = (robot, piece) about the
+// piece's centre c_u. A robot's kPieceMatrix blocks are about its reference c_r; block (u, v)
+// becomes T(c_u - c_r)^T B T(c_v - c_r) (T as above), a residual T(c_u - c_r)^T b, and the
+// solution sent to robot r is T(c_v - c_r) y_v for its pieces and its neighbours'. Symmetrised,
+// Jacobi-scaled and factorized by dense Cholesky (6 unknowns per piece).
+class PieceCoarseSystem {
+ public:
+  // Pieces of the whole team at most (a dense matrix of 12288 x 12288, 1.2 GB).
+  static constexpr std::size_t kMaxPieces = 2048;
+
+  // A robot's kPieceMatrix; its pieces join the system. InvalidInputError on another kind, a
+  // message EncodeCoarseMessage refuses, a second matrix of the same robot, or more than
+  // kMaxPieces pieces in all.
+  void addMatrix(const CoarseMessage& matrix);
+  // Once every matrix is added; false when the matrix is not positive definite (no correction).
+  // Blocks to pieces no robot declared (a robot outside the system) are dropped.
+  bool factorize();
+  // Y from the robots' kPieceResidual messages (a robot or piece without one: zero); false when
+  // not factorized or not finite. InvalidInputError on a residual of a robot outside the system.
+  bool solve(const std::vector<CoarseMessage>& residuals, Eigen::VectorXd* Y) const;
+  // The kPieceSolution for `robot`: the pieces of it and of `neighbours`, about its reference.
+  CoarseMessage solutionFor(int robot, const std::set<int>& neighbours, const Eigen::VectorXd& Y,
+                            int sender, std::uint32_t iteration) const;
+
+  bool has(int robot) const { return reference_.count(robot) > 0; }
+  Eigen::Index rows() const { return 6 * static_cast<Eigen::Index>(index_.size()); }
+
+ private:
+  using Piece = std::pair<int, std::uint32_t>;  // (robot, piece)
+  Eigen::Matrix<double, 6, 6> toPiece(const Piece& u, int reference_robot) const;
+
+  std::map<int, Eigen::Vector3d> reference_;  // c_r per robot
+  std::map<Piece, Eigen::Vector3d> centre_;   // c_u
+  std::map<Piece, Eigen::Index> index_;       // first row, set by factorize()
+  std::vector<CoarseMessage> matrices_;
+  Eigen::MatrixXd A_;
+  Eigen::VectorXd scale_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;
+  bool factorized_ = false;
+};
+
 // Matrices to and from a message's column-major doubles.
 std::vector<double> FlattenMatrix(const Eigen::MatrixXd& m);
 Eigen::MatrixXd UnflattenMatrix(const std::vector<double>& v, int rows, int cols);

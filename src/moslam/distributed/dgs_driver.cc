@@ -66,6 +66,12 @@ void DgsOptions::validate() const {
                             std::to_string(f.min_lambda));
   }
   positive(f.max_lambda, "refinement.max_lambda");
+  if (f.coarse_piece_poses > 0 && (f.preconditioner != RefinePreconditioner::kTwoLevel ||
+                                   f.solver != RefineSolver::kConjugateGradient)) {
+    throw InvalidInputError(
+        "DGS options: refinement.coarse_piece_poses > 0 needs the conjugate-gradient solver with "
+        "the two-level preconditioner (the pieces are its coarse space)");
+  }
   if (f.max_backtracks < 0 || f.max_backtracks > 30) {
     throw InvalidInputError("DGS options: refinement.max_backtracks must be in [0, 30], got " +
                             std::to_string(f.max_backtracks));
@@ -614,6 +620,45 @@ std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsStage stage,
   return coarse;
 }
 
+std::unique_ptr<PieceCoarseSystem> DgsDriver::refinePieceSystem(DgsIterationStats& stats,
+                                                                std::uint32_t sweep) {
+  std::vector<int> robots;
+  for (int r : order_) {
+    if (!live(r)) continue;
+    if (!agents_.at(r)->refineCoarseReady()) return nullptr;
+    robots.push_back(r);
+  }
+  if (robots.empty()) return nullptr;
+  std::sort(robots.begin(), robots.end());
+  auto coarse = std::make_unique<PieceCoarseSystem>();
+  const int c = coordinator();
+  for (int r : robots) {
+    coarse->addMatrix(sendCoarse(
+        agents_.at(r)->refinePieceMatrix(options_.refinement.coarse_piece_poses, sweep), c, stats));
+  }
+  if (!coarse->factorize()) return nullptr;
+  return coarse;
+}
+
+void DgsDriver::refinePieceCorrection(const PieceCoarseSystem& coarse, DgsIterationStats& stats,
+                                      std::uint32_t sweep) {
+  const int c = coordinator();
+  std::vector<CoarseMessage> residuals;
+  for (int r : order_) {
+    if (!live(r) || !coarse.has(r)) continue;
+    residuals.push_back(sendCoarse(agents_.at(r)->refinePieceResidual(sweep), c, stats));
+  }
+  Eigen::VectorXd Y;
+  if (!coarse.solve(residuals, &Y)) return;
+  for (int r : order_) {
+    if (!live(r) || !coarse.has(r)) continue;
+    RobotAgent& a = *agents_.at(r);
+    a.applyRefinePieces(
+        sendCoarse(coarse.solutionFor(r, a.neighbourRobots(), Y, c, sweep), r, stats));
+  }
+  ++result_.refine.coarse_corrections;
+}
+
 void DgsDriver::refineCoarseCorrection(DgsStage stage, const CoarseSystem& coarse,
                                        DgsIterationStats& stats, std::uint32_t sweep) {
   const int c = coordinator();
@@ -653,6 +698,8 @@ CgOutcome DgsDriver::solveByConjugateGradients(RefineRun& run, const CgGoal& goa
   int& sweeps = outcome.sweeps;
   // The coarse system of the two-level preconditioner, set up at its first use.
   std::unique_ptr<CoarseSystem> coarse;
+  std::unique_ptr<PieceCoarseSystem> pieces;  // by pieces (refinement.coarse_piece_poses)
+  const bool by_pieces = stage == DgsStage::kRefine && opt.coarse_piece_poses > 0;
   bool coarse_tried = false;
   // z = M^-1 res from z = 0: symmetric block Gauss-Seidel (a forward and a backward sweep) or
   // one block Jacobi sweep; two-level: a coarse correction after the first sweep (and, with
@@ -663,16 +710,25 @@ CgOutcome DgsDriver::solveByConjugateGradients(RefineRun& run, const CgGoal& goa
     }
     if (opt.preconditioner == RefinePreconditioner::kTwoLevel && !coarse_tried) {
       coarse_tried = true;
-      coarse = refineCoarseSystem(stage, traffic(run), static_cast<std::uint32_t>(sweeps));
+      const auto sweep = static_cast<std::uint32_t>(sweeps);
+      if (by_pieces) {
+        pieces = refinePieceSystem(traffic(run), sweep);
+      } else {
+        coarse = refineCoarseSystem(stage, traffic(run), sweep);
+      }
     }
     const bool gauss_seidel = options_.order == SweepOrder::kGaussSeidel;
-    const int passes = gauss_seidel || coarse ? 2 : 1;
+    const bool two_level = coarse || pieces;
+    const int passes = gauss_seidel || two_level ? 2 : 1;
     for (int pass = 0; pass < passes; ++pass) {
       openSweep(run);
       runSweeps(stage, run.current, gauss_seidel && pass == 1);
       ++sweeps;
       if (pass == 0 && coarse) {
         refineCoarseCorrection(stage, *coarse, run.current, static_cast<std::uint32_t>(sweeps));
+      }
+      if (pass == 0 && pieces) {
+        refinePieceCorrection(*pieces, run.current, static_cast<std::uint32_t>(sweeps));
       }
       run.current.max_change = observedChange();
     }

@@ -168,6 +168,13 @@ struct DgsOptions {
     // optimum in 11-12 steps, where without halving (0) it ended 5-8e-6 above it after 84-100
     // steps, 35-47 of them rejected (README, "Long 2D chains"). 0 turns halving off.
     int max_backtracks = 4;
+    // The coarse space of the two-level preconditioner in refinement steps: 0, one rigid motion
+    // per robot; L > 0, one per piece of L consecutive pose indices of a robot (its objects one
+    // more piece; coarse_correction.h, CoarsePieceOf), so that a run of a long chain can turn
+    // against the rest, which one motion per robot leaves to the sweeps (README, "Long 2D
+    // chains"). Needs preconditioner kTwoLevel and the conjugate-gradient solver; the pose
+    // stage's conjugate gradients keep one motion per robot.
+    std::uint64_t coarse_piece_poses = 0;
   } refinement;
 
   // Throws InvalidInputError naming the first bad field.
@@ -309,6 +316,7 @@ struct DgsResult {
 
 class RobotAgent;
 class CoarseSystem;
+class PieceCoarseSystem;
 
 // Called after every sweep (all stages) and after every refinement step, e.g. to print progress.
 struct DgsProgress {
@@ -372,6 +380,10 @@ class DgsDriver {
   // correction of the robots' z with it.
   std::unique_ptr<CoarseSystem> refineCoarseSystem(DgsStage stage, DgsIterationStats& stats,
                                                    std::uint32_t sweep);
+  std::unique_ptr<PieceCoarseSystem> refinePieceSystem(DgsIterationStats& stats,
+                                                       std::uint32_t sweep);
+  void refinePieceCorrection(const PieceCoarseSystem& coarse, DgsIterationStats& stats,
+                             std::uint32_t sweep);
   void refineCoarseCorrection(DgsStage stage, const CoarseSystem& coarse,
                               DgsIterationStats& stats, std::uint32_t sweep);
   // The bookkeeping of a stage solved by conjugate gradients or refined: the sweep being

@@ -1,7 +1,10 @@
 #include "moslam/distributed/messages.h"
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
+#include <tuple>
 
 #include "moslam/common/byte_io.h"
 #include "moslam/common/errors.h"
@@ -257,11 +260,25 @@ CoarseLayout LayoutOf(CoarseKind kind) {
       return {true, true, false, true};
     case CoarseKind::kResidual:
       return {false, false, true, false};
+    case CoarseKind::kPieceMatrix:
+      return {true, false, false, false};
+    case CoarseKind::kPieceResidual:
+    case CoarseKind::kPieceSolution:
+      return {false, false, false, false};
   }
   throw InvalidInputError("DGS coarse message: unknown kind");
 }
 
-bool KnownKind(std::uint8_t kind) { return kind >= 1 && kind <= 4; }
+bool KnownKind(std::uint8_t kind) { return kind >= 1 && kind <= 7; }
+
+bool PieceKind(CoarseKind kind) {
+  return kind == CoarseKind::kPieceMatrix || kind == CoarseKind::kPieceResidual ||
+         kind == CoarseKind::kPieceSolution;
+}
+
+// Sizes of a piece message's values: a piece's (centre 3, or 6 of a residual) and a block's.
+std::size_t PieceValues(CoarseKind kind) { return kind == CoarseKind::kPieceMatrix ? 3 : 6; }
+std::size_t PieceBlockValues(CoarseKind kind) { return kind == CoarseKind::kPieceMatrix ? 36 : 6; }
 
 // The stages a kind belongs to: the two-level DGS (rotation, pose) shares and solves; the
 // preconditioner of conjugate gradients (pose stage, refinement) sends its matrix and residuals
@@ -276,8 +293,62 @@ bool StageAllowed(CoarseKind kind, DgsStage stage) {
     case CoarseKind::kMatrix:
     case CoarseKind::kResidual:  // the preconditioner of conjugate gradients
       return stage == DgsStage::kPose || stage == DgsStage::kRefine;
+    case CoarseKind::kPieceMatrix:
+    case CoarseKind::kPieceResidual:
+    case CoarseKind::kPieceSolution:
+      return stage == DgsStage::kRefine;
   }
   return false;
+}
+
+// The piece kinds' own rules (messages.h), after CheckCoarse's common ones.
+void CheckPieces(const CoarseMessage& m, const std::function<void(const std::string&)>& fail) {
+  const bool piece = PieceKind(m.kind);
+  if (!piece) {
+    if (!m.pieces.empty() || !m.piece_blocks.empty()) fail("pieces in a message of robots");
+    return;
+  }
+  if (m.k != 6 || m.ncols != 1) fail("a piece message has k = 6 and ncols = 1");
+  if (!m.diagonal.empty() || !m.residual.empty() || !m.blocks.empty()) {
+    fail("a piece message carries no robot blocks");
+  }
+  if (m.kind == CoarseKind::kPieceMatrix && m.center.size() != 3)
+    fail("a piece matrix has a centre");
+  if (m.kind == CoarseKind::kPieceSolution && !m.pieces.empty()) fail("pieces in a solution");
+  if (m.kind == CoarseKind::kPieceResidual && !m.piece_blocks.empty()) fail("blocks in a residual");
+  if (m.pieces.size() > kMaxCoarsePieces) fail("too many pieces");
+  if (m.piece_blocks.size() > kMaxCoarsePieceBlocks) fail("too many piece blocks");
+  auto finite = [&](const std::vector<double>& v) {
+    for (double d : v) {
+      if (!std::isfinite(d)) fail("non-finite value");
+    }
+  };
+  for (std::size_t i = 0; i < m.pieces.size(); ++i) {
+    if (i > 0 && m.pieces[i].id <= m.pieces[i - 1].id) fail("pieces not increasing");
+    if (m.pieces[i].values.size() != PieceValues(m.kind)) fail("piece of the wrong size");
+    finite(m.pieces[i].values);
+  }
+  auto has_piece = [&](std::uint32_t id) {
+    return std::binary_search(
+        m.pieces.begin(), m.pieces.end(), CoarsePiece{id, {}},
+        [](const CoarsePiece& a, const CoarsePiece& b) { return a.id < b.id; });
+  };
+  for (std::size_t i = 0; i < m.piece_blocks.size(); ++i) {
+    const CoarsePieceBlock& b = m.piece_blocks[i];
+    if (b.robot < 0 || b.robot > kMaxMessageRobot) fail("block robot outside [0, 65535]");
+    if (i > 0) {
+      const CoarsePieceBlock& a = m.piece_blocks[i - 1];
+      if (std::make_tuple(b.row_piece, b.robot, b.piece) <=
+          std::make_tuple(a.row_piece, a.robot, a.piece)) {
+        fail("piece blocks not increasing");
+      }
+    }
+    if (m.kind == CoarseKind::kPieceMatrix ? !has_piece(b.row_piece) : b.row_piece != 0) {
+      fail("a block's row piece is not among the message's pieces");
+    }
+    if (b.values.size() != PieceBlockValues(m.kind)) fail("piece block of the wrong size");
+    finite(b.values);
+  }
 }
 
 void CheckCoarse(const CoarseMessage& m) {
@@ -299,6 +370,7 @@ void CheckCoarse(const CoarseMessage& m) {
     fail("centre of size other than 0 or 3 (or in a message without one)");
   }
   if (m.kind == CoarseKind::kResidual && !m.blocks.empty()) fail("a residual carries no blocks");
+  CheckPieces(m, fail);
   if (m.blocks.size() > kMaxMessageRobot) fail("too many blocks");
   int previous = -1;
   auto finite = [&](const std::vector<double>& v) {
@@ -343,6 +415,22 @@ std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& m) {
     w.u16(static_cast<std::uint16_t>(robot));
     for (double d : values) w.f64(d);
   }
+  if (m.kind != CoarseKind::kPieceSolution && PieceKind(m.kind)) {
+    w.u32(static_cast<std::uint32_t>(m.pieces.size()));
+    for (const CoarsePiece& p : m.pieces) {
+      w.u32(p.id);
+      for (double d : p.values) w.f64(d);
+    }
+  }
+  if (m.kind != CoarseKind::kPieceResidual && PieceKind(m.kind)) {
+    w.u32(static_cast<std::uint32_t>(m.piece_blocks.size()));
+    for (const CoarsePieceBlock& b : m.piece_blocks) {
+      if (m.kind == CoarseKind::kPieceMatrix) w.u32(b.row_piece);
+      w.u16(static_cast<std::uint16_t>(b.robot));
+      w.u32(b.piece);
+      for (double d : b.values) w.f64(d);
+    }
+  }
   return w.take();
 }
 
@@ -383,6 +471,51 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
   if (m.kind == CoarseKind::kResidual && count != 0) {
     r.fail("a residual carries no blocks");
   }
+  auto doubles = [&](std::size_t n) {
+    std::vector<double> v(n);
+    for (double& d : v) d = r.f64("value");
+    return v;
+  };
+  if (PieceKind(m.kind)) {
+    if (m.k != 6 || m.ncols != 1 || count != 0) {
+      r.fail("a piece message has k = 6, ncols = 1 and no robot blocks");
+    }
+    if ((m.kind == CoarseKind::kPieceMatrix) != (centre == 3)) {
+      r.fail("center size " + std::to_string(centre) + " (3 in a piece matrix, else 0)");
+    }
+    m.center = doubles(centre);
+    if (m.kind != CoarseKind::kPieceSolution) {
+      const std::uint32_t pieces = r.u32("piece count");
+      if (pieces > kMaxCoarsePieces)
+        r.fail("more than " + std::to_string(kMaxCoarsePieces) + " pieces");
+      const std::size_t each = PieceValues(m.kind);
+      r.need(pieces * (4 + 8 * each), "pieces");
+      m.pieces.resize(pieces);
+      for (CoarsePiece& p : m.pieces) {
+        p.id = r.u32("piece id");
+        p.values = doubles(each);
+      }
+    }
+    if (m.kind != CoarseKind::kPieceResidual) {
+      const std::uint32_t blocks = r.u32("piece block count");
+      if (blocks > kMaxCoarsePieceBlocks) {
+        r.fail("more than " + std::to_string(kMaxCoarsePieceBlocks) + " piece blocks");
+      }
+      const bool matrix = m.kind == CoarseKind::kPieceMatrix;
+      const std::size_t each = PieceBlockValues(m.kind);
+      r.need(blocks * ((matrix ? 10 : 6) + 8 * each), "piece blocks");
+      m.piece_blocks.resize(blocks);
+      for (CoarsePieceBlock& b : m.piece_blocks) {
+        if (matrix) b.row_piece = r.u32("row piece");
+        b.robot = r.u16("block robot");
+        b.piece = r.u32("block piece");
+        b.values = doubles(each);
+      }
+    }
+    if (r.left() != 0) r.fail(std::to_string(r.left()) + " trailing bytes");
+    CheckCoarse(m);
+    return m;
+  }
   const std::size_t kk = static_cast<std::size_t>(m.k * m.k);
   const std::size_t kc = static_cast<std::size_t>(m.k * m.ncols);
   const std::size_t block = layout.matrix_blocks ? kk : kc;
@@ -392,11 +525,6 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
   if (r.left() != payload) {
     r.fail(std::to_string(r.left() - payload) + " trailing bytes");
   }
-  auto doubles = [&](std::size_t n) {
-    std::vector<double> v(n);
-    for (double& d : v) d = r.f64("value");
-    return v;
-  };
   m.center = doubles(centre);
   if (layout.diagonal) m.diagonal = doubles(kk);
   if (layout.residual) m.residual = doubles(kc);

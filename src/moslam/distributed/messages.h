@@ -118,14 +118,55 @@ ControlMessage DecodeControlMessage(const std::vector<std::uint8_t>& bytes);
 //   kMatrix    (pose, refinement: conjugate gradients) as kShare without the residual: the coarse
 //              matrix of a linear solve, sent once per solve
 //   kResidual  (pose, refinement) k*ncols doubles (P_r^T r_r), no blocks: one per preconditioning
-// Matrices column-major; block robots strictly increasing. DecodeCoarseMessage rejects with
-// InvalidInputError: truncated input, bad magic/version/stage/kind or a kind of another stage,
-// k outside [1, kMaxCoarseK] or ncols outside [1, 16], a center size other than 0 or 3 (0 in a
-// solution or a residual), blocks in a residual, a non-zero reserved field, robots not
-// increasing, a non-finite value, trailing bytes.
-enum class CoarseKind : std::uint8_t { kShare = 1, kSolution = 2, kMatrix = 3, kResidual = 4 };
+// Matrices column-major; block robots strictly increasing.
+//
+// The refinement's coarse space by pieces (DgsOptions::Refinement::coarse_piece_poses): a rigid
+// motion per piece of a robot instead of one per robot (refinement only, k = 6, ncols = 1, the
+// header's block count 0; pieces by id, `CoarsePieceBlock`):
+//   kPieceMatrix    center size 3 (the robot's reference point c_r, about which every block is
+//                   computed), u32 m, m x (u32 piece, 3 doubles: the piece's centre), u32 b,
+//                   b x (u32 row piece, u16 robot s, u32 piece q, 36 doubles: P_p^T H P_q)
+//   kPieceResidual  u32 m, m x (u32 piece, 6 doubles: P_p^T r)
+//   kPieceSolution  u32 b, b x (u16 robot, u32 piece, 6 doubles: its y, about the receiver's c_r)
+// Pieces strictly increasing, blocks strictly increasing by (row piece, robot, piece) and their
+// row pieces among the message's pieces.
+//
+// DecodeCoarseMessage rejects with InvalidInputError: truncated input, bad magic/version/stage/
+// kind or a kind of another stage, k outside [1, kMaxCoarseK] or ncols outside [1, 16], a center
+// size other than 0 or 3 (0 in a solution or a residual), blocks in a residual, a non-zero
+// reserved field, robots not increasing, a non-finite value, trailing bytes; for the piece kinds
+// also k other than 6, ncols other than 1, header blocks, more than kMaxCoarsePieces pieces or
+// kMaxCoarsePieceBlocks blocks, pieces or blocks out of order, a row piece the message lacks.
+enum class CoarseKind : std::uint8_t {
+  kShare = 1,
+  kSolution = 2,
+  kMatrix = 3,
+  kResidual = 4,
+  kPieceMatrix = 5,
+  kPieceResidual = 6,
+  kPieceSolution = 7
+};
 
 inline constexpr int kMaxCoarseK = 16;
+inline constexpr std::uint32_t kMaxCoarsePieces = 1u << 16;
+inline constexpr std::uint32_t kMaxCoarsePieceBlocks = 1u << 20;
+
+// A piece of a robot in a piece message: its id and its values (the centre, 3, in kPieceMatrix;
+// P_p^T r, 6, in kPieceResidual).
+struct CoarsePiece {
+  std::uint32_t id = 0;
+  std::vector<double> values;
+};
+
+// A block of a piece message: kPieceMatrix, the coupling of the sender's piece `row_piece` to
+// piece `piece` of robot `robot` (6 x 6, the sender itself included); kPieceSolution, the coarse
+// unknowns of piece `piece` of robot `robot` (6; row_piece 0).
+struct CoarsePieceBlock {
+  std::uint32_t row_piece = 0;
+  int robot = 0;
+  std::uint32_t piece = 0;
+  std::vector<double> values;
+};
 
 struct CoarseMessage {
   CoarseKind kind = CoarseKind::kShare;
@@ -138,6 +179,8 @@ struct CoarseMessage {
                                                              // (kShare, kResidual)
   std::vector<std::pair<int, std::vector<double>>> blocks;   // k*k (kShare, kMatrix); k*ncols
                                                              // (kSolution)
+  std::vector<CoarsePiece> pieces;                           // kPieceMatrix, kPieceResidual
+  std::vector<CoarsePieceBlock> piece_blocks;                // kPieceMatrix, kPieceSolution
 };
 
 inline constexpr std::uint8_t kCoarseMagic = 0xD8;

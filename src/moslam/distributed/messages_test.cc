@@ -432,5 +432,123 @@ TEST(CoarseMessages, RefinementMatrixAndResidual) {
   EXPECT_THROW(EncodeCoarseMessage(residual), InvalidInputError);
 }
 
+// The refinement's coarse space by pieces: a matrix with the robot's reference, its pieces'
+// centres and blocks between pieces (its own and a neighbour's), a residual per piece, a solution
+// per piece; each decoded as it was sent, and the layout's rules enforced both ways.
+CoarseMessage ExamplePieceMatrix() {
+  CoarseMessage m;
+  m.kind = CoarseKind::kPieceMatrix;
+  m.stage = DgsStage::kRefine;
+  m.sender = 2;
+  m.iteration = 9;
+  m.k = 6;
+  m.ncols = 1;
+  m.center = {1.0, 2.0, 3.0};
+  m.pieces = {{4, {0.5, 0.25, 0.0}}, {kMaxCoarsePieces, {-1.0, 2.0, 8.0}}};
+  auto values = [](double v) { return std::vector<double>(36, v); };
+  m.piece_blocks = {{4, 2, 4, values(1.0)},
+                    {4, 2, kMaxCoarsePieces, values(-0.5)},
+                    {4, 3, 5, values(0.25)},
+                    {kMaxCoarsePieces, 1, 0, values(2.0)}};
+  return m;
+}
+
+TEST(CoarseMessages, PiecesRoundTripAndRules) {
+  const CoarseMessage m = ExamplePieceMatrix();
+  const std::vector<std::uint8_t> bytes = EncodeCoarseMessage(m);
+  EXPECT_EQ(bytes.size(), 16u + 8u * 3 + 4u + 2u * (4 + 8 * 3) + 4u + 4u * (10 + 8 * 36));
+  const CoarseMessage d = DecodeCoarseMessage(bytes);
+  EXPECT_EQ(d.kind, CoarseKind::kPieceMatrix);
+  EXPECT_EQ(d.center, m.center);
+  ASSERT_EQ(d.pieces.size(), 2u);
+  EXPECT_EQ(d.pieces[1].id, kMaxCoarsePieces);
+  EXPECT_EQ(d.pieces[1].values, m.pieces[1].values);
+  ASSERT_EQ(d.piece_blocks.size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(d.piece_blocks[i].row_piece, m.piece_blocks[i].row_piece);
+    EXPECT_EQ(d.piece_blocks[i].robot, m.piece_blocks[i].robot);
+    EXPECT_EQ(d.piece_blocks[i].piece, m.piece_blocks[i].piece);
+    EXPECT_EQ(d.piece_blocks[i].values, m.piece_blocks[i].values);
+  }
+
+  CoarseMessage residual;
+  residual.kind = CoarseKind::kPieceResidual;
+  residual.stage = DgsStage::kRefine;
+  residual.sender = 2;
+  residual.k = 6;
+  residual.ncols = 1;
+  residual.pieces = {{0, {1, 2, 3, 4, 5, 6}}, {7, {6, 5, 4, 3, 2, 1}}};
+  const std::vector<std::uint8_t> rb = EncodeCoarseMessage(residual);
+  EXPECT_EQ(rb.size(), 16u + 4u + 2u * (4 + 8 * 6));
+  EXPECT_EQ(DecodeCoarseMessage(rb).pieces[1].values, residual.pieces[1].values);
+
+  CoarseMessage solution = residual;
+  solution.kind = CoarseKind::kPieceSolution;
+  solution.pieces.clear();
+  solution.piece_blocks = {{0, 1, 3, {1, 2, 3, 4, 5, 6}}, {0, 2, 0, {0, 0, 0, 0, 0, 1}}};
+  const std::vector<std::uint8_t> sb = EncodeCoarseMessage(solution);
+  EXPECT_EQ(sb.size(), 16u + 4u + 2u * (6 + 8 * 6));
+  const CoarseMessage sd = DecodeCoarseMessage(sb);
+  ASSERT_EQ(sd.piece_blocks.size(), 2u);
+  EXPECT_EQ(sd.piece_blocks[0].robot, 1);
+  EXPECT_EQ(sd.piece_blocks[0].piece, 3u);
+  EXPECT_EQ(sd.piece_blocks[1].values, solution.piece_blocks[1].values);
+
+  auto refused = [](const CoarseMessage& bad, const char* why) {
+    SCOPED_TRACE(why);
+    EXPECT_THROW(EncodeCoarseMessage(bad), InvalidInputError);
+  };
+  CoarseMessage bad = m;
+  std::swap(bad.piece_blocks[0], bad.piece_blocks[1]);
+  refused(bad, "blocks out of order");
+  bad = m;
+  bad.piece_blocks[3].row_piece = 5;
+  refused(bad, "a row piece the message lacks");
+  bad = m;
+  std::swap(bad.pieces[0], bad.pieces[1]);
+  refused(bad, "pieces out of order");
+  bad = m;
+  bad.stage = DgsStage::kPose;
+  refused(bad, "pieces in the pose stage");
+  bad = m;
+  bad.center.clear();
+  refused(bad, "a piece matrix without its reference");
+  bad = m;
+  bad.piece_blocks[0].values[7] = std::nan("");
+  refused(bad, "a non-finite block");
+  bad = m;
+  bad.diagonal.assign(36, 0.0);
+  refused(bad, "a robot diagonal in a piece matrix");
+  bad = residual;
+  bad.piece_blocks = solution.piece_blocks;
+  refused(bad, "blocks in a residual");
+  bad = ExampleShare();
+  bad.pieces = residual.pieces;
+  refused(bad, "pieces in a share of robots");
+
+  auto rejects = [](std::vector<std::uint8_t> b, const char* why) {
+    SCOPED_TRACE(why);
+    EXPECT_THROW(DecodeCoarseMessage(b), InvalidInputError);
+  };
+  for (std::size_t n = 0; n < bytes.size(); n += 7) {
+    rejects(std::vector<std::uint8_t>(bytes.begin(), bytes.begin() + n), "truncated");
+  }
+  std::vector<std::uint8_t> b = bytes;
+  b.push_back(0);
+  rejects(b, "a trailing byte");
+  b = rb;
+  b[6] = 1;  // a robot block announced in the header
+  rejects(b, "header blocks");
+  b = rb;
+  b[16] = 0xFF;  // piece count low byte: far more pieces than the bytes hold
+  rejects(b, "a piece count the payload does not hold");
+  b = sb;
+  b[19] = 0xFF;  // piece block count's high byte: beyond kMaxCoarsePieceBlocks
+  rejects(b, "too many piece blocks");
+  b = bytes;
+  b[13] = 2;  // ncols
+  rejects(b, "ncols other than 1");
+}
+
 }  // namespace
 }  // namespace moslam

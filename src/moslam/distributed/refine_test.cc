@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <random>
+#include <set>
 #include <string>
 
 #include "moslam/common/errors.h"
@@ -742,6 +744,123 @@ TEST(RefineTwoLevel, KeepsTheSweepsFlatAsTheTeamGrows) {
     most = std::max(most, sweeps[RefinePreconditioner::kTwoLevel]);
   }
   EXPECT_LE(most, 2 * fewest);
+}
+
+// By pieces (DgsOptions::Refinement::coarse_piece_poses): the Galerkin correction over the
+// pieces' rigid motions zeroes the residual projected on every piece, which holds only if each
+// robot moved its copies of a neighbour's variables with the piece their owner moved them with
+// (the piece from the key), and the coordinator moved every block to the right centres. sphere2500
+// split in 4 robots of 625 poses with pieces of 100: the pieces 6, 12 and 18 straddle two robots.
+// With one piece per robot the piece matrix is the robots' coarse matrix.
+TEST(RefineByPieces, CoarseCorrectionZeroesTheProjectedResidualOfEveryPiece) {
+  const auto [s, optimum] = SplitWithOptimum("sphere2500", 4);
+  DgsDriver driver(s.graph, s.initial, Refined());
+  driver.runRotationStage();
+  driver.runPoseStage();
+  std::vector<int> robots;
+  for (int r = 0; r < driver.numAgents(); ++r) robots.push_back(r);
+  for (int r : robots) {
+    RobotAgent& a = driver.agent(r);
+    a.startRefine();
+    a.beginStep(0.0);
+    a.startPreconditioner();  // z = 0: the residual is -g
+  }
+  auto residuals = [&] {
+    std::vector<CoarseMessage> out;
+    for (int r : robots) out.push_back(driver.agent(r).refinePieceResidual(1));
+    return out;
+  };
+  auto largest = [](const std::vector<CoarseMessage>& rs) {
+    double m = 0.0;
+    for (const CoarseMessage& r : rs) {
+      for (const CoarsePiece& p : r.pieces) {
+        m = std::max(m, Eigen::Map<const Eigen::VectorXd>(p.values.data(), 6).norm());
+      }
+    }
+    return m;
+  };
+  PieceCoarseSystem coarse;
+  int straddling = 0;
+  std::set<std::uint32_t> seen;
+  for (int r : robots) {
+    const CoarseMessage m = driver.agent(r).refinePieceMatrix(100, 0);
+    for (const CoarsePiece& p : m.pieces) straddling += seen.insert(p.id).second ? 0 : 1;
+    coarse.addMatrix(DecodeCoarseMessage(EncodeCoarseMessage(m)));
+  }
+  EXPECT_EQ(straddling, 3);
+  EXPECT_EQ(coarse.rows(), 0);  // indexed by factorize()
+  ASSERT_TRUE(coarse.factorize());
+  EXPECT_EQ(coarse.rows(), 6 * 28);  // 25 pieces, 3 of them in two robots
+  const std::vector<CoarseMessage> before = residuals();
+  Eigen::VectorXd Y;
+  ASSERT_TRUE(coarse.solve(before, &Y));
+  for (int r : robots) {
+    RobotAgent& a = driver.agent(r);
+    a.applyRefinePieces(DecodeCoarseMessage(
+        EncodeCoarseMessage(coarse.solutionFor(r, a.neighbourRobots(), Y, 0, 1))));
+  }
+  EXPECT_GT(largest(before), 1e-3);
+  EXPECT_LT(largest(residuals()), 1e-9 * largest(before));
+
+  // One piece per robot: the robots' coarse matrix, diagonal and couplings.
+  for (int r : robots) {
+    const CoarseShare robot = driver.agent(r).refineCoarseMatrix();
+    const CoarseMessage one = driver.agent(r).refinePieceMatrix(1u << 20, 0);
+    ASSERT_EQ(one.pieces.size(), 1u);
+    EXPECT_EQ(one.pieces[0].id, 0u);
+    EXPECT_EQ(Eigen::Vector3d(one.center.data()), robot.center);
+    EXPECT_EQ(Eigen::Vector3d(one.pieces[0].values.data()), robot.center);
+    ASSERT_EQ(one.piece_blocks.size(), 1 + robot.coupling.size());
+    for (const CoarsePieceBlock& b : one.piece_blocks) {
+      const Eigen::MatrixXd block = UnflattenMatrix(b.values, 6, 6);
+      const Eigen::MatrixXd& expected = b.robot == r ? robot.diagonal : robot.coupling.at(b.robot);
+      EXPECT_LE((block - expected).norm(), 1e-9 * expected.norm()) << "robot " << b.robot;
+    }
+  }
+  EXPECT_THROW(driver.agent(0).refinePieceMatrix(0, 0), InvalidInputError);
+  // A matrix twice, a malformed one, a team of too many pieces: refused by name.
+  const CoarseMessage m0 = driver.agent(0).refinePieceMatrix(100, 0);
+  PieceCoarseSystem refusing;
+  refusing.addMatrix(m0);
+  EXPECT_THROW(refusing.addMatrix(m0), InvalidInputError);
+  CoarseMessage bad = driver.agent(1).refinePieceMatrix(100, 0);
+  bad.center.pop_back();
+  EXPECT_THROW(refusing.addMatrix(bad), InvalidInputError);
+  PieceCoarseSystem many;
+  try {
+    for (int r : robots) many.addMatrix(driver.agent(r).refinePieceMatrix(1, 0));  // 2499 pieces
+    ADD_FAILURE() << "more than " << PieceCoarseSystem::kMaxPieces << " pieces accepted";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--refine-coarse-piece-poses"), std::string::npos)
+        << e.what();
+  }
+}
+
+// Long 2D chains: pieces of 50 poses let a run of the chain turn against the rest, which one
+// motion per robot leaves to the sweeps. CSAIL split in 4 robots: measured 878 sweeps with one
+// motion per robot, 300 with pieces (commit of this test); both at the optimum.
+TEST(RefineByPieces, TakesFewerSweepsOnALongChainAndReachesTheOptimum) {
+  const auto [s, optimum] = SplitWithOptimum("CSAIL", 4);
+  std::map<std::uint64_t, DgsResult> runs;
+  for (std::uint64_t pieces : {0u, 50u}) {
+    DgsOptions o = Refined();
+    o.coarse_correction = true;
+    o.pose_solver = DgsOptions::PoseSolver::kConjugateGradient;
+    o.refinement.coarse_piece_poses = pieces;
+    runs[pieces] = RunDgs(s.graph, s.initial, o);
+    EXPECT_EQ(runs[pieces].refine.status, StageStatus::kConverged);
+    EXPECT_LE(Relative(s.graph.cost(runs[pieces].values), optimum), 1e-9);
+    EXPECT_GT(runs[pieces].refine.coarse_corrections, 0);
+  }
+  EXPECT_LT(2 * runs[50].refine.sweeps, runs[0].refine.sweeps);
+  // The pieces need the two-level conjugate gradients they are the coarse space of.
+  DgsOptions bad = Refined();
+  bad.refinement.coarse_piece_poses = 50;
+  bad.refinement.preconditioner = RefinePreconditioner::kSweeps;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  bad.refinement.preconditioner = RefinePreconditioner::kTwoLevel;
+  bad.refinement.solver = RefineSolver::kSweeps;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
 }
 
 }  // namespace

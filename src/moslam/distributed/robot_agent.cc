@@ -590,6 +590,35 @@ void RobotAgent::applyRefineCoarse(const std::map<int, Eigen::MatrixXd>& y) {
   refine_coarse_.apply(graph_, currentStage(), y, x_, inbox_);
 }
 
+CoarseMessage RobotAgent::refinePieceMatrix(std::uint64_t piece_poses, std::uint32_t iteration) {
+  if (!refineCoarseReady() || state_ != AgentState::kRefine || piece_poses == 0) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot()) +
+                            ": refinePieceMatrix() outside a refinement step it can solve in, or "
+                            "with no pieces (state " +
+                            ToString(state_) + ")");
+  }
+  refine_coarse_.build(graph_, refinement_, piece_poses);
+  refine_coarse_built_ = true;
+  return refine_coarse_.pieceMatrix(graph_, pose_, iteration);
+}
+
+CoarseMessage RobotAgent::refinePieceResidual(std::uint32_t iteration) const {
+  if (!refineCoarseReady() || !refine_coarse_built_ || !refine_coarse_.byPieces()) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot()) +
+                            ": refinePieceResidual() before refinePieceMatrix() of the step");
+  }
+  const Eigen::VectorXd r = localRhs(currentStage()).col(0) - pose_.multiply(stackedSweepValue());
+  return refine_coarse_.pieceResidual(graph_, pose_, r, iteration);
+}
+
+void RobotAgent::applyRefinePieces(const CoarseMessage& solution) {
+  if (!refineCoarseReady() || !refine_coarse_built_ || !refine_coarse_.byPieces()) {
+    throw InvalidInputError("DGS robot " + std::to_string(robot()) +
+                            ": applyRefinePieces() before refinePieceMatrix() of the step");
+  }
+  refine_coarse_.applyPieces(graph_, currentStage(), solution, x_, inbox_);
+}
+
 void RobotAgent::finishRefine() {
   requireRefine("finishRefine()");
   state_ = AgentState::kDone;

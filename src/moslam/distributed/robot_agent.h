@@ -182,6 +182,12 @@ class RobotAgent {
   CoarseShare refineCoarseMatrix();
   Eigen::VectorXd refineCoarseResidual() const;
   void applyRefineCoarse(const std::map<int, Eigen::MatrixXd>& y);
+  // The same by pieces of piece_poses poses (DgsOptions::Refinement::coarse_piece_poses > 0; in
+  // a refinement step only): its kPieceMatrix, kPieceResidual, and z += P y from a
+  // kPieceSolution. InvalidInputError as above, in the pose stage, or with piece_poses 0.
+  CoarseMessage refinePieceMatrix(std::uint64_t piece_poses, std::uint32_t iteration);
+  CoarseMessage refinePieceResidual(std::uint32_t iteration) const;
+  void applyRefinePieces(const CoarseMessage& solution);
 
   // This robot's share of the cost F (see the top): at the current estimate, or (candidate) at
   // x Exp(delta) with the neighbours' latest increments. In kRefine (InvalidInputError else).

@@ -186,19 +186,28 @@ class Program {
     CgOutcome outcome;
     int& sweeps = outcome.sweeps;
     std::unique_ptr<CoarseSystem> coarse;
+    std::unique_ptr<PieceCoarseSystem> pieces;  // by pieces (refinement.coarse_piece_poses)
+    const bool by_pieces = stage == DgsStage::kRefine && opt.coarse_piece_poses > 0;
     bool coarse_tried = false;
     auto precondition = [&]() {
       agent_.startPreconditioner();
       if (opt.preconditioner == RefinePreconditioner::kTwoLevel && !coarse_tried) {
         coarse_tried = true;
-        coarse = coarseMatrix(stage, static_cast<std::uint32_t>(sweeps));
+        const auto sweep = static_cast<std::uint32_t>(sweeps);
+        if (by_pieces) {
+          pieces = pieceMatrix(sweep);
+        } else {
+          coarse = coarseMatrix(stage, sweep);
+        }
       }
-      const int passes = coarse ? 2 : 1;  // Jacobi: one sweep, or two around the correction
+      // Jacobi: one sweep, or two around the correction
+      const int passes = coarse || pieces ? 2 : 1;
       for (int pass = 0; pass < passes; ++pass) {
         const bool solved = agent_.iterate();
         step(stage, solved, progressReport());
         ++sweeps;
         if (pass == 0 && coarse) coarseResidualCorrection(stage, *coarse, sweeps);
+        if (pass == 0 && pieces) pieceResidualCorrection(*pieces, sweeps);
       }
     };
     auto reduce = [&](double value0, double value1) {
@@ -241,6 +250,41 @@ class Program {
     }
     const TeamStep got = step(stage, false, mine, ready ? &m : nullptr);
     return Assemble(got, 6, nullptr, 1);
+  }
+
+  // The same by pieces: every robot assembles the team's piece system from the matrices shared.
+  std::unique_ptr<PieceCoarseSystem> pieceMatrix(std::uint32_t sweep) {
+    TeamReport mine;
+    CoarseMessage m;
+    const bool ready = agent_.refineCoarseReady();
+    if (ready) {
+      m = agent_.refinePieceMatrix(options_.refinement.coarse_piece_poses, sweep);
+      mine.coarse_ready = true;
+    }
+    const TeamStep got = step(DgsStage::kRefine, false, mine, ready ? &m : nullptr);
+    if (!AllCoarseReady(got)) return nullptr;
+    auto coarse = std::make_unique<PieceCoarseSystem>();
+    for (const auto& [r, share] : got.shares) coarse->addMatrix(share);
+    if (!coarse->factorize()) return nullptr;
+    return coarse;
+  }
+
+  void pieceResidualCorrection(const PieceCoarseSystem& coarse, int sweep) {
+    const auto iteration = static_cast<std::uint32_t>(sweep);
+    const CoarseMessage m = agent_.refinePieceResidual(iteration);
+    TeamReport mine;
+    mine.coarse_ready = true;
+    const TeamStep got = step(DgsStage::kRefine, false, mine, &m);
+    // Robots of the system that left meanwhile contribute a zero residual (their variables stay).
+    std::vector<CoarseMessage> residuals;
+    for (const auto& [r, share] : got.shares) {
+      if (coarse.has(r) && share.kind == CoarseKind::kPieceResidual) residuals.push_back(share);
+    }
+    Eigen::VectorXd Y;
+    if (!coarse.solve(residuals, &Y)) return;
+    agent_.applyRefinePieces(
+        coarse.solutionFor(agent_.robot(), agent_.neighbourRobots(), Y, agent_.robot(), iteration));
+    ++result_.refine.coarse_corrections;
   }
 
   void coarseResidualCorrection(DgsStage stage, const CoarseSystem& coarse, int sweep) {

@@ -169,6 +169,24 @@ TEST(RobotProgram, HalvedAndDampedRefinementStepsEqualTheDriver) {
   EXPECT_EQ(driver.refine.backtracks, 0);
 }
 
+// The refinement's coarse space by pieces: every robot assembles the same piece system from the
+// matrices shared and applies its own rows of the solution, as the driver's coordinator sends
+// them. MIT split among 4 robots of 202 poses, pieces of 50 (pieces 4, 8 and 12 in two robots).
+TEST(RobotProgram, RefinementByPiecesEqualsTheDriver) {
+  Dataset d = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/MIT.g2o");
+  SplitGraph s = SplitIntoRobots(d.graph, d.initial, 4);
+  d.graph = std::move(s.graph);
+  d.initial = std::move(s.initial);
+  DgsOptions o = Jacobi();
+  o.coarse_correction = true;
+  o.refine = true;
+  o.refinement.coarse_piece_poses = 50;
+  DgsResult driver;
+  ExpectSameAsDriver(d, o, &driver);
+  EXPECT_EQ(driver.refine.status, StageStatus::kConverged);
+  EXPECT_GT(driver.refine.coarse_corrections, 0);
+}
+
 TEST(RobotProgram, RefusesGaussSeidelOrderAndAUsedAgent) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   const std::vector<RobotSubgraph> parts = PartitionByRobot(data.graph);

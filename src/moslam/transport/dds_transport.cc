@@ -320,6 +320,19 @@ class DdsTransport::Impl {
       robots.push_back(static_cast<std::uint16_t>(r));
       blocks.insert(blocks.end(), block.begin(), block.end());
     }
+    std::vector<std::uint32_t> piece_ids, row_pieces, block_pieces;
+    std::vector<std::uint16_t> piece_robots;
+    std::vector<double> piece_values, piece_blocks;
+    for (const CoarsePiece& piece : m.pieces) {
+      piece_ids.push_back(piece.id);
+      piece_values.insert(piece_values.end(), piece.values.begin(), piece.values.end());
+    }
+    for (const CoarsePieceBlock& b : m.piece_blocks) {
+      row_pieces.push_back(b.row_piece);
+      piece_robots.push_back(static_cast<std::uint16_t>(b.robot));
+      block_pieces.push_back(b.piece);
+      piece_blocks.insert(piece_blocks.end(), b.values.begin(), b.values.end());
+    }
     CoarseSample s{};
     s.sender = static_cast<std::uint16_t>(robot_);
     s.solve = p.solve;
@@ -334,6 +347,12 @@ class DdsTransport::Impl {
     Lend(m.residual, s.residual);
     Lend(robots, s.block_robots);
     Lend(blocks, s.blocks);
+    Lend(piece_ids, s.piece_ids);
+    Lend(piece_values, s.piece_values);
+    Lend(row_pieces, s.block_row_pieces);
+    Lend(piece_robots, s.piece_block_robots);
+    Lend(block_pieces, s.block_pieces);
+    Lend(piece_blocks, s.piece_block_values);
     std::lock_guard<std::mutex> lock(mutex_);
     coarse_writer_.write(&s);
     const std::int64_t bytes = CdrSize(moslam_msg_dds__DgsCoarse__desc, &s);

@@ -138,12 +138,35 @@ TEST(DdsTransport, RoundTripsEveryTypeExactly) {
   c.message.covariance = Eigen::MatrixXd::Identity(6, 6) * 0.3;
   c.message.covariance(0, 5) = c.message.covariance(5, 0) = -1.0 / 7.0;
   t0.send(c);
+  // The refinement's coarse space by pieces: pieces and piece blocks as published.
+  CoarsePacket k;
+  k.solve = 77;
+  k.round = 43;
+  k.message.kind = CoarseKind::kPieceMatrix;
+  k.message.stage = DgsStage::kRefine;
+  k.message.sender = 0;
+  k.message.k = 6;
+  k.message.ncols = 1;
+  k.message.center = {1.0, -2.0, 0.5};
+  k.message.pieces = {{3, {0.0, 1.0, 2.0}}, {0xFFFFFFFFu, {4.0, 5.0, 6.0}}};
+  k.message.piece_blocks = {{3, 0, 3, std::vector<double>(36, 0.5)},
+                            {3, 1, 7, std::vector<double>(36, -1.0 / 3.0)},
+                            {0xFFFFFFFFu, 0, 3, std::vector<double>(36, 2.0)}};
+  t0.publish(k);
 
   std::vector<Received> got = PollUntil(t1, [](const std::vector<Received>& v) {
     int n = 0;
     for (const Received& r : v) n += std::holds_alternative<StatusPacket>(r.packet) ? 0 : 1;
-    return n >= 5 && v.size() >= 6;
+    return n >= 6 && v.size() >= 7;
   });
+  const CoarsePacket* gk = nullptr;
+  for (const Received& r : got) {
+    if (auto* p = std::get_if<CoarsePacket>(&r.packet)) gk = p;
+  }
+  ASSERT_TRUE(gk);
+  EXPECT_EQ(gk->solve, 77u);
+  EXPECT_EQ(gk->message.kind, CoarseKind::kPieceMatrix);
+  EXPECT_EQ(EncodeCoarseMessage(gk->message), EncodeCoarseMessage(k.message));  // bit for bit
   const EstimatesPacket* ge = nullptr;
   const StatusPacket* gs = nullptr;
   const ObjectListPacket* go = nullptr;

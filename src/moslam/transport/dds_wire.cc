@@ -128,6 +128,41 @@ CoarsePacket FromSample(const CoarseSample& s) {
   } else if (s.blocks._length != 0) {
     throw InvalidInputError("coupling values without blocks");
   }
+  // By pieces: each piece's values and each piece block's of one size, as the kind says.
+  const std::uint32_t pieces = s.piece_ids._length;
+  if (pieces > 0) {
+    if (s.piece_values._length % pieces != 0) {
+      throw InvalidInputError(
+          fmt::format("{} piece values for {} pieces", s.piece_values._length, pieces));
+    }
+    const std::uint32_t size = s.piece_values._length / pieces;
+    for (std::uint32_t i = 0; i < pieces; ++i) {
+      const double* v = s.piece_values._buffer + static_cast<std::size_t>(i) * size;
+      m.pieces.push_back({s.piece_ids._buffer[i], std::vector<double>(v, v + size)});
+    }
+  } else if (s.piece_values._length != 0) {
+    throw InvalidInputError("piece values without pieces");
+  }
+  const std::uint32_t piece_blocks = s.piece_block_robots._length;
+  if (s.block_row_pieces._length != piece_blocks || s.block_pieces._length != piece_blocks) {
+    throw InvalidInputError(fmt::format("piece blocks of {} robots, {} row pieces and {} pieces",
+                                        piece_blocks, s.block_row_pieces._length,
+                                        s.block_pieces._length));
+  }
+  if (piece_blocks > 0) {
+    if (s.piece_block_values._length % piece_blocks != 0) {
+      throw InvalidInputError(fmt::format("{} piece block values for {} blocks",
+                                          s.piece_block_values._length, piece_blocks));
+    }
+    const std::uint32_t size = s.piece_block_values._length / piece_blocks;
+    for (std::uint32_t i = 0; i < piece_blocks; ++i) {
+      const double* v = s.piece_block_values._buffer + static_cast<std::size_t>(i) * size;
+      m.piece_blocks.push_back({s.block_row_pieces._buffer[i], s.piece_block_robots._buffer[i],
+                                s.block_pieces._buffer[i], std::vector<double>(v, v + size)});
+    }
+  } else if (s.piece_block_values._length != 0) {
+    throw InvalidInputError("piece block values without blocks");
+  }
   return p;
 }
 

@@ -156,7 +156,9 @@ std::string CheckCoarse(const CoarsePacket& p, int sender) {
     return fmt::format("coarse share claims sender {} but came from robot {}", p.message.sender,
                        sender);
   }
-  if (p.message.kind == CoarseKind::kSolution) return "a coarse solution is not a share";
+  if (p.message.kind == CoarseKind::kSolution || p.message.kind == CoarseKind::kPieceSolution) {
+    return "a coarse solution is not a share";
+  }
   try {
     (void)EncodeCoarseMessage(p.message);  // stage, kind, sizes, finiteness, block robots
   } catch (const InvalidInputError& e) {

@@ -126,7 +126,7 @@ struct StatusPacket {
 struct CoarsePacket {
   std::uint32_t solve = 0;
   std::uint32_t round = 0;
-  CoarseMessage message;  // sender, stage, kind (share, matrix or residual), blocks
+  CoarseMessage message;  // sender, stage, kind (share, matrix or residual; of pieces too), blocks
 };
 
 // A robot's weights for one neighbour in one protocol round of the robust solve.
@@ -233,17 +233,17 @@ class Transport {
 // Empty when `packet`, received by robot `self` from `sender`, is valid; else the reason.
 // `known`: accepted senders (empty: any). Estimates must be addressed to `self`; their content is
 // what EncodeMessage accepts (no variable at all included: the robust program's check steps send
-// every neighbour a message, empty where it has nothing for it). Status: state and stage in range, change >= 0 (+inf allowed),
-// error bound >= 0 (+inf allowed), values finite, neighbours distinct, increasing, without the
-// robot itself; team pairs at most kMaxObjects, increasing, ids < 2^56, other robot not the
-// sender, finite poses. Coarse: the sender's own share, what EncodeCoarseMessage accepts, kind share,
-// matrix or residual. Weights: addressed to `self`, what EncodeWeightMessage accepts (each weight
-// in [0, 1]), at most kMaxWeights. Covariance: addressed to `self`, what EncodeCovarianceMessage
-// accepts (finite, non-negative diagonal), dimension at most kMaxTransportCovarianceDimension.
-// Objects: finite poses, unit
-// quaternions (checked before conversion, tolerance 1e-6), labels of 1..64 printable characters,
-// distinct ids < 2^56, at most kMaxObjects. Shared objects: addressed to `self`, at most
-// kMaxObjects pairs, ids < 2^56, no id twice on either side.
+// every neighbour a message, empty where it has nothing for it). Status: state and stage in range,
+// change >= 0 (+inf allowed), error bound >= 0 (+inf allowed), values finite, neighbours distinct,
+// increasing, without the robot itself; team pairs at most kMaxObjects, increasing, ids < 2^56,
+// other robot not the sender, finite poses. Coarse: the sender's own share, what
+// EncodeCoarseMessage accepts, kind share, matrix or residual (of robots or of pieces). Weights:
+// addressed to `self`, what EncodeWeightMessage accepts (each weight in [0, 1]), at most
+// kMaxWeights. Covariance: addressed to `self`, what EncodeCovarianceMessage accepts (finite,
+// non-negative diagonal), dimension at most kMaxTransportCovarianceDimension. Objects: finite
+// poses, unit quaternions (checked before conversion, tolerance 1e-6), labels of 1..64 printable
+// characters, distinct ids < 2^56, at most kMaxObjects. Shared objects: addressed to `self`, at
+// most kMaxObjects pairs, ids < 2^56, no id twice on either side.
 std::string CheckPacket(const Packet& packet, int sender, int self, const std::set<int>& known);
 
 // Bytes of the binary encoding of a packet (messages.h for estimates; a comparable fixed-size
