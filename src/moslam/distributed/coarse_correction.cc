@@ -188,13 +188,7 @@ void RefineCoarseSpace::requirePieces(const char* what) const {
 CoarseMessage RefineCoarseSpace::pieceMatrix(const LocalGraph& graph, const LocalSystem& system,
                                              std::uint32_t iteration) const {
   requirePieces("pieceMatrix()");
-  CoarseMessage m;
-  m.kind = CoarseKind::kPieceMatrix;
-  m.stage = DgsStage::kRefine;
-  m.sender = graph.robot();
-  m.iteration = iteration;
-  m.k = 6;
-  m.ncols = 1;
+  CoarseMessage m = PieceMessage(CoarseKind::kPieceMatrix, graph.robot(), iteration);
   m.center = {centre_.x(), centre_.y(), centre_.z()};
   for (const auto& [p, c] : piece_centre_) m.pieces.push_back({p, {c.x(), c.y(), c.z()}});
   const auto& unknowns = graph.unknowns();
@@ -246,13 +240,7 @@ CoarseMessage RefineCoarseSpace::pieceResidual(const LocalGraph& graph, const Lo
   for (std::size_t i = 0; i < unknowns.size(); ++i) {
     sums[own_piece_[i]].noalias() += own_[i].transpose() * r.segment<6>(system.row(unknowns[i]));
   }
-  CoarseMessage m;
-  m.kind = CoarseKind::kPieceResidual;
-  m.stage = DgsStage::kRefine;
-  m.sender = graph.robot();
-  m.iteration = iteration;
-  m.k = 6;
-  m.ncols = 1;
+  CoarseMessage m = PieceMessage(CoarseKind::kPieceResidual, graph.robot(), iteration);
   for (const auto& [p, v] : sums)
     m.pieces.push_back({p, std::vector<double>(v.data(), v.data() + 6)});
   return m;

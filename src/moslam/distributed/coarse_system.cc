@@ -194,13 +194,7 @@ bool PieceCoarseSystem::solve(const std::vector<CoarseMessage>& residuals,
 CoarseMessage PieceCoarseSystem::solutionFor(int robot, const std::set<int>& neighbours,
                                              const Eigen::VectorXd& Y, int sender,
                                              std::uint32_t iteration) const {
-  CoarseMessage m;
-  m.kind = CoarseKind::kPieceSolution;
-  m.stage = DgsStage::kRefine;
-  m.sender = sender;
-  m.iteration = iteration;
-  m.k = 6;
-  m.ncols = 1;
+  CoarseMessage m = PieceMessage(CoarseKind::kPieceSolution, sender, iteration);
   if (!has(robot)) return m;
   std::set<int> needed = neighbours;
   needed.insert(robot);

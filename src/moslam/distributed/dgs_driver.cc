@@ -598,17 +598,22 @@ void DgsDriver::solveBySweeps(RefineRun& run, RefineStepSummary& summary) {
   }
 }
 
-std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsStage stage,
-                                                            DgsIterationStats& stats,
-                                                            std::uint32_t sweep) {
+std::vector<int> DgsDriver::refineCoarseRobots() const {
   std::vector<int> robots;
   for (int r : order_) {
     if (!live(r)) continue;
-    if (!agents_.at(r)->refineCoarseReady()) return nullptr;
+    if (!agents_.at(r)->refineCoarseReady()) return {};
     robots.push_back(r);
   }
-  if (robots.empty()) return nullptr;
   std::sort(robots.begin(), robots.end());  // robot id order, as coarseCorrection()
+  return robots;
+}
+
+std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsStage stage,
+                                                            DgsIterationStats& stats,
+                                                            std::uint32_t sweep) {
+  const std::vector<int> robots = refineCoarseRobots();
+  if (robots.empty()) return nullptr;
   auto coarse = std::make_unique<CoarseSystem>(robots, 6);
   const int c = coordinator();
   for (int r : robots) {
@@ -622,14 +627,8 @@ std::unique_ptr<CoarseSystem> DgsDriver::refineCoarseSystem(DgsStage stage,
 
 std::unique_ptr<PieceCoarseSystem> DgsDriver::refinePieceSystem(DgsIterationStats& stats,
                                                                 std::uint32_t sweep) {
-  std::vector<int> robots;
-  for (int r : order_) {
-    if (!live(r)) continue;
-    if (!agents_.at(r)->refineCoarseReady()) return nullptr;
-    robots.push_back(r);
-  }
+  const std::vector<int> robots = refineCoarseRobots();
   if (robots.empty()) return nullptr;
-  std::sort(robots.begin(), robots.end());
   auto coarse = std::make_unique<PieceCoarseSystem>();
   const int c = coordinator();
   for (int r : robots) {

@@ -380,6 +380,9 @@ class DgsDriver {
   // correction of the robots' z with it.
   std::unique_ptr<CoarseSystem> refineCoarseSystem(DgsStage stage, DgsIterationStats& stats,
                                                    std::uint32_t sweep);
+  // The live robots in id order when every one can take part in the step's coarse correction;
+  // else none.
+  std::vector<int> refineCoarseRobots() const;
   std::unique_ptr<PieceCoarseSystem> refinePieceSystem(DgsIterationStats& stats,
                                                        std::uint32_t sweep);
   void refinePieceCorrection(const PieceCoarseSystem& coarse, DgsIterationStats& stats,

@@ -185,6 +185,19 @@ struct CoarseMessage {
 
 inline constexpr std::uint8_t kCoarseMagic = 0xD8;
 
+// An empty piece message of `kind` (kPieceMatrix, kPieceResidual or kPieceSolution): the
+// refinement's stage, k = 6, ncols = 1.
+inline CoarseMessage PieceMessage(CoarseKind kind, int sender, std::uint32_t iteration) {
+  CoarseMessage m;
+  m.kind = kind;
+  m.stage = DgsStage::kRefine;
+  m.sender = sender;
+  m.iteration = iteration;
+  m.k = 6;
+  m.ncols = 1;
+  return m;
+}
+
 // Throws InvalidInputError on the conditions DecodeCoarseMessage rejects (and wrong sizes).
 std::vector<std::uint8_t> EncodeCoarseMessage(const CoarseMessage& message);
 CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes);

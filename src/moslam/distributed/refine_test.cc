@@ -668,20 +668,27 @@ namespace {
 // its copies of the neighbours' variables exactly as their owners moved them (basis, centres,
 // coupling blocks and the coordinator's solve all consistent). Driven by hand: z = 0, one
 // correction, projected residual before and after.
-TEST(RefineTwoLevel, CoarseCorrectionZeroesTheProjectedResidual) {
-  const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(9));
-  DgsDriver driver(d.graph, d.initial, Refined());
+// The two stages, then every robot at the start of the first refinement step's conjugate
+// gradients (z = 0: the residual is -g), driven by hand; the robots' ids.
+std::vector<int> AtTheFirstRefinementStep(DgsDriver& driver) {
   driver.runRotationStage();
   driver.runPoseStage();
   std::vector<int> robots;
-  for (int r = 0; r < driver.numAgents(); ++r) robots.push_back(r);
-  for (int r : robots) {
+  for (int r = 0; r < driver.numAgents(); ++r) {
+    robots.push_back(r);
     RobotAgent& a = driver.agent(r);
     a.startRefine();
     a.beginStep(0.0);
-    a.startPreconditioner();  // z = 0: the residual is -g
-    ASSERT_TRUE(a.refineCoarseReady());
+    a.startPreconditioner();
+    EXPECT_TRUE(a.refineCoarseReady()) << "robot " << r;
   }
+  return robots;
+}
+
+TEST(RefineTwoLevel, CoarseCorrectionZeroesTheProjectedResidual) {
+  const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(9));
+  DgsDriver driver(d.graph, d.initial, Refined());
+  const std::vector<int> robots = AtTheFirstRefinementStep(driver);
   CoarseSystem coarse(robots, 6);
   Eigen::MatrixXd B(coarse.rows(), 1);
   for (int r : robots) {
@@ -755,16 +762,7 @@ TEST(RefineTwoLevel, KeepsTheSweepsFlatAsTheTeamGrows) {
 TEST(RefineByPieces, CoarseCorrectionZeroesTheProjectedResidualOfEveryPiece) {
   const auto [s, optimum] = SplitWithOptimum("sphere2500", 4);
   DgsDriver driver(s.graph, s.initial, Refined());
-  driver.runRotationStage();
-  driver.runPoseStage();
-  std::vector<int> robots;
-  for (int r = 0; r < driver.numAgents(); ++r) robots.push_back(r);
-  for (int r : robots) {
-    RobotAgent& a = driver.agent(r);
-    a.startRefine();
-    a.beginStep(0.0);
-    a.startPreconditioner();  // z = 0: the residual is -g
-  }
+  const std::vector<int> robots = AtTheFirstRefinementStep(driver);
   auto residuals = [&] {
     std::vector<CoarseMessage> out;
     for (int r : robots) out.push_back(driver.agent(r).refinePieceResidual(1));

@@ -150,16 +150,27 @@ TEST(RobotProgram, PoseStageAndRefinementVariantsEqualTheDriver) {
   ExpectSameAsDriver(data, sweeps);
 }
 
-// Halved, rejected and damped refinement steps decided alike by every robot: MIT split among 4
-// robots halves steps in Jacobi order too, and without halving rejects them.
-TEST(RobotProgram, HalvedAndDampedRefinementStepsEqualTheDriver) {
+// MIT split among 4 robots of 202 poses, and the two-level pipeline with the refinement.
+Dataset MitInFourRobots() {
   Dataset d = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/MIT.g2o");
   SplitGraph s = SplitIntoRobots(d.graph, d.initial, 4);
   d.graph = std::move(s.graph);
   d.initial = std::move(s.initial);
+  return d;
+}
+
+DgsOptions TwoLevelRefined() {
   DgsOptions o = Jacobi();
   o.coarse_correction = true;
   o.refine = true;
+  return o;
+}
+
+// Halved, rejected and damped refinement steps decided alike by every robot: MIT split among 4
+// robots halves steps in Jacobi order too, and without halving rejects them.
+TEST(RobotProgram, HalvedAndDampedRefinementStepsEqualTheDriver) {
+  const Dataset d = MitInFourRobots();
+  DgsOptions o = TwoLevelRefined();
   DgsResult driver;
   ExpectSameAsDriver(d, o, &driver);
   EXPECT_GE(driver.refine.backtracks, 1);
@@ -173,16 +184,10 @@ TEST(RobotProgram, HalvedAndDampedRefinementStepsEqualTheDriver) {
 // matrices shared and applies its own rows of the solution, as the driver's coordinator sends
 // them. MIT split among 4 robots of 202 poses, pieces of 50 (pieces 4, 8 and 12 in two robots).
 TEST(RobotProgram, RefinementByPiecesEqualsTheDriver) {
-  Dataset d = ReadG2oFile(std::string(MOSLAM_DATASETS_DIR) + "/pgo/MIT.g2o");
-  SplitGraph s = SplitIntoRobots(d.graph, d.initial, 4);
-  d.graph = std::move(s.graph);
-  d.initial = std::move(s.initial);
-  DgsOptions o = Jacobi();
-  o.coarse_correction = true;
-  o.refine = true;
+  DgsOptions o = TwoLevelRefined();
   o.refinement.coarse_piece_poses = 50;
   DgsResult driver;
-  ExpectSameAsDriver(d, o, &driver);
+  ExpectSameAsDriver(MitInFourRobots(), o, &driver);
   EXPECT_EQ(driver.refine.status, StageStatus::kConverged);
   EXPECT_GT(driver.refine.coarse_corrections, 0);
 }
