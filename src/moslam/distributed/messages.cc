@@ -312,8 +312,9 @@ void CheckPieces(const CoarseMessage& m, const std::function<void(const std::str
   if (!m.diagonal.empty() || !m.residual.empty() || !m.blocks.empty()) {
     fail("a piece message carries no robot blocks");
   }
-  if (m.kind == CoarseKind::kPieceMatrix && m.center.size() != 3)
-    fail("a piece matrix has a centre");
+  if (m.kind == CoarseKind::kPieceMatrix && m.center.size() != 3) {
+    fail("a piece matrix needs its reference point (a centre of size 3)");
+  }
   if (m.kind == CoarseKind::kPieceSolution && !m.pieces.empty()) fail("pieces in a solution");
   if (m.kind == CoarseKind::kPieceResidual && !m.piece_blocks.empty()) fail("blocks in a residual");
   if (m.pieces.size() > kMaxCoarsePieces) fail("too many pieces");
@@ -486,8 +487,9 @@ CoarseMessage DecodeCoarseMessage(const std::vector<std::uint8_t>& bytes) {
     m.center = doubles(centre);
     if (m.kind != CoarseKind::kPieceSolution) {
       const std::uint32_t pieces = r.u32("piece count");
-      if (pieces > kMaxCoarsePieces)
+      if (pieces > kMaxCoarsePieces) {
         r.fail("more than " + std::to_string(kMaxCoarsePieces) + " pieces");
+      }
       const std::size_t each = PieceValues(m.kind);
       r.need(pieces * (4 + 8 * each), "pieces");
       m.pieces.resize(pieces);
