@@ -133,7 +133,7 @@ void AddSolverFlags(CLI::App* sub, SolverArgs* args) {
   sub->add_option("--refine-coarse-piece-poses", args->refine_coarse_piece_poses,
                   "the two-level preconditioner's coarse space in refinement steps: 0, one "
                   "rigid motion per robot; L, one per run of L pose indices of a robot (long "
-                  "chains: README, \"Long 2D chains\")")
+                  "chains: README, \"The refinement's coarse space by pieces\")")
       ->capture_default_str();
 }
 

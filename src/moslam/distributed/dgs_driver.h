@@ -171,9 +171,9 @@ struct DgsOptions {
     // The coarse space of the two-level preconditioner in refinement steps: 0, one rigid motion
     // per robot; L > 0, one per piece of L consecutive pose indices of a robot (its objects one
     // more piece; coarse_correction.h, CoarsePieceOf), so that a run of a long chain can turn
-    // against the rest, which one motion per robot leaves to the sweeps (README, "Long 2D
-    // chains"). Needs preconditioner kTwoLevel and the conjugate-gradient solver; the pose
-    // stage's conjugate gradients keep one motion per robot.
+    // against the rest, which one motion per robot leaves to the sweeps (README, "The
+    // refinement's coarse space by pieces"). Needs preconditioner kTwoLevel and the
+    // conjugate-gradient solver; the pose stage's conjugate gradients keep one motion per robot.
     std::uint64_t coarse_piece_poses = 0;
   } refinement;
 
