@@ -60,7 +60,7 @@ Eigen::MatrixXd CoarseSystem::addShare(const CoarseMessage& m) {
   if (m.center.size() == 3) centre_[m.sender] = Eigen::Vector3d(m.center[0], m.center[1], m.center[2]);
   A_.block(ir, ir, k_, k_) += UnflattenMatrix(m.diagonal, k_, k_);
   blocks_[m.sender] = m.blocks;
-  factorized_ = false;
+  cholesky_ = ScaledCholesky();  // a new share: factorize again
   if (m.residual.empty()) return Eigen::MatrixXd();
   return UnflattenMatrix(m.residual, k_, m.ncols);
 }
@@ -76,15 +76,24 @@ bool CoarseSystem::factorize() {
     }
   }
   blocks_.clear();
-  A_ = 0.5 * (A_ + A_.transpose());
-  scale_ = A_.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseInverse();
+  return cholesky_.factorize(A_);
+}
+
+bool CoarseSystem::solve(const Eigen::MatrixXd& B, Eigen::MatrixXd* Y) const {
+  return cholesky_.solve(B, Y);
+}
+
+bool ScaledCholesky::factorize(const Eigen::MatrixXd& A) {
+  const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
+  scale_ = S.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseInverse();
+  factorized_ = false;
   if (!scale_.allFinite()) return false;
-  llt_.compute(scale_.asDiagonal() * A_ * scale_.asDiagonal());
+  llt_.compute(scale_.asDiagonal() * S * scale_.asDiagonal());
   factorized_ = llt_.info() == Eigen::Success;
   return factorized_;
 }
 
-bool CoarseSystem::solve(const Eigen::MatrixXd& B, Eigen::MatrixXd* Y) const {
+bool ScaledCholesky::solve(const Eigen::MatrixXd& B, Eigen::MatrixXd* Y) const {
   if (!factorized_) return false;
   *Y = scale_.asDiagonal() * llt_.solve(scale_.asDiagonal() * B);
   return Y->allFinite();
@@ -135,7 +144,7 @@ void PieceCoarseSystem::addMatrix(const CoarseMessage& m) {
   reference_.emplace(m.sender, Vec3(m.center));
   for (const CoarsePiece& p : m.pieces) centre_[{m.sender, p.id}] = Vec3(p.values);
   matrices_.push_back(m);
-  factorized_ = false;
+  cholesky_ = ScaledCholesky();  // a new matrix: factorize again
 }
 
 Eigen::Matrix<double, 6, 6> PieceCoarseSystem::toPiece(const Piece& u, int reference_robot) const {
@@ -161,18 +170,16 @@ bool PieceCoarseSystem::factorize() {
           Eigen::Map<const Eigen::Matrix<double, 6, 6>>(b.values.data()) * toPiece(v, m.sender);
     }
   }
-  A_ = 0.5 * (A_ + A_.transpose());
-  scale_ = A_.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseInverse();
-  factorized_ = false;
-  if (rows() == 0 || !scale_.allFinite()) return false;
-  llt_.compute(scale_.asDiagonal() * A_ * scale_.asDiagonal());
-  factorized_ = llt_.info() == Eigen::Success;
-  return factorized_;
+  if (rows() == 0) {
+    cholesky_ = ScaledCholesky();
+    return false;
+  }
+  return cholesky_.factorize(A_);
 }
 
 bool PieceCoarseSystem::solve(const std::vector<CoarseMessage>& residuals,
                               Eigen::VectorXd* Y) const {
-  if (!factorized_) return false;
+  if (!cholesky_.factorized()) return false;
   Eigen::VectorXd B = Eigen::VectorXd::Zero(rows());
   for (const CoarseMessage& m : residuals) {
     if (m.kind != CoarseKind::kPieceResidual || !has(m.sender)) {
@@ -186,9 +193,10 @@ bool PieceCoarseSystem::solve(const std::vector<CoarseMessage>& residuals,
                                   Eigen::Map<const Eigen::Matrix<double, 6, 1>>(p.values.data());
     }
   }
-  const Eigen::VectorXd y = llt_.solve(scale_.asDiagonal() * B);
-  *Y = scale_.asDiagonal() * y;
-  return Y->allFinite();
+  Eigen::MatrixXd y;
+  if (!cholesky_.solve(B, &y)) return false;
+  *Y = y.col(0);
+  return true;
 }
 
 CoarseMessage PieceCoarseSystem::solutionFor(int robot, const std::set<int>& neighbours,

@@ -25,6 +25,22 @@ namespace moslam {
 
 struct CoarseShare;  // coarse_correction.h
 
+// The coarse systems' solve: the symmetric part of A, Jacobi-scaled (rotations and translations
+// have different units) and factorized by dense Cholesky.
+class ScaledCholesky {
+ public:
+  // False when a diagonal entry is not positive or the matrix is not positive definite.
+  bool factorize(const Eigen::MatrixXd& A);
+  bool factorized() const { return factorized_; }
+  // Y = A^-1 B; false when not factorized or not finite.
+  bool solve(const Eigen::MatrixXd& B, Eigen::MatrixXd* Y) const;
+
+ private:
+  Eigen::VectorXd scale_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;
+  bool factorized_ = false;
+};
+
 // The message carrying robot `sender`'s coarse rows to the coordinator: kShare (a stage's
 // correction, with its residual) or kMatrix (the refinement preconditioner's matrix, without);
 // k = 3 and 3 columns in stage 1, k = 6 and 1 column after it, where the centre is sent too.
@@ -64,9 +80,7 @@ class CoarseSystem {
   std::map<int, Eigen::Vector3d> centre_;
   std::map<int, std::vector<std::pair<int, std::vector<double>>>> blocks_;
   Eigen::MatrixXd A_;
-  Eigen::VectorXd scale_;
-  Eigen::LLT<Eigen::MatrixXd> llt_;
-  bool factorized_ = false;
+  ScaledCholesky cholesky_;
 };
 
 // The coordinator's side of the refinement's coarse space by pieces (coarse_correction.h,
@@ -106,9 +120,7 @@ class PieceCoarseSystem {
   std::map<Piece, Eigen::Index> index_;       // first row, set by factorize()
   std::vector<CoarseMessage> matrices_;
   Eigen::MatrixXd A_;
-  Eigen::VectorXd scale_;
-  Eigen::LLT<Eigen::MatrixXd> llt_;
-  bool factorized_ = false;
+  ScaledCholesky cholesky_;
 };
 
 // Matrices to and from a message's column-major doubles.
