@@ -355,6 +355,8 @@ TEST(Team, TheWholeSolverOverDdsReachesTheCentralizedOptimum) {
   EXPECT_EQ(j["rotation_rounds"], j["in_process_rotation_iterations"]);
   EXPECT_EQ(j["pose_rounds"], j["in_process_pose_iterations"]);
   EXPECT_EQ(j["refine_steps"], j["in_process_refine_steps"]);
+  // To the last bit: each robot sums over its factors in the driver's order (local_graph.h).
+  EXPECT_EQ(j["refine_final_cost"].get<double>(), j["in_process_refine_final_cost"].get<double>());
   EXPECT_GT(j["refine_steps"].get<int>(), 0);
   EXPECT_GT(j["coarse_messages"].get<int>(), 0);
   EXPECT_LE(std::abs(j["cost_relative_to_centralized"].get<double>()), 1e-6);
@@ -374,6 +376,7 @@ TEST(Team, TheRefinementByPiecesOverDdsEqualsTheInProcessRun) {
   EXPECT_TRUE(j["ok"].get<bool>());
   EXPECT_LE(j["max_difference"].get<double>(), 1e-9);
   EXPECT_EQ(j["refine_steps"], j["in_process_refine_steps"]);
+  EXPECT_EQ(j["refine_final_cost"].get<double>(), j["in_process_refine_final_cost"].get<double>());
   EXPECT_GT(j["refine_steps"].get<int>(), 0);
   EXPECT_LE(std::abs(j["cost_relative_to_centralized"].get<double>()), 1e-6);
   fs::remove_all(out);
