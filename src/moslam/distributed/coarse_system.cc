@@ -3,6 +3,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/distributed/coarse_correction.h"
 #include "moslam/geometry/so3.h"
+#include "moslam/solver/block_sparse_system.h"
 
 namespace moslam {
 
@@ -125,6 +126,9 @@ Eigen::Vector3d Vec3(const std::vector<double>& v) { return Eigen::Vector3d(v[0]
 
 }  // namespace
 
+PieceCoarseSystem::PieceCoarseSystem() = default;
+PieceCoarseSystem::~PieceCoarseSystem() = default;
+
 void PieceCoarseSystem::addMatrix(const CoarseMessage& m) {
   if (m.kind != CoarseKind::kPieceMatrix) {
     throw InvalidInputError("piece coarse system: a message of robot " + std::to_string(m.sender) +
@@ -136,15 +140,14 @@ void PieceCoarseSystem::addMatrix(const CoarseMessage& m) {
                             std::to_string(m.sender));
   }
   if (centre_.size() + m.pieces.size() > kMaxPieces) {
-    throw InvalidInputError(
-        "piece coarse system: the team's pieces exceed " + std::to_string(kMaxPieces) +
-        " with robot " + std::to_string(m.sender) +
-        "'s (its dense system would not fit): choose longer pieces (--refine-coarse-piece-poses)");
+    throw InvalidInputError("piece coarse system: the team's pieces exceed " +
+                            std::to_string(kMaxPieces) + " with robot " + std::to_string(m.sender) +
+                            "'s: choose longer pieces (--refine-coarse-piece-poses)");
   }
   reference_.emplace(m.sender, Vec3(m.center));
   for (const CoarsePiece& p : m.pieces) centre_[{m.sender, p.id}] = Vec3(p.values);
   matrices_.push_back(m);
-  cholesky_ = ScaledCholesky();  // a new matrix: factorize again
+  scaled_.reset();  // a new matrix: factorize again
 }
 
 Eigen::Matrix<double, 6, 6> PieceCoarseSystem::toPiece(const Piece& u, int reference_robot) const {
@@ -153,33 +156,68 @@ Eigen::Matrix<double, 6, 6> PieceCoarseSystem::toPiece(const Piece& u, int refer
   return T;
 }
 
-bool PieceCoarseSystem::factorize() {
-  index_.clear();
-  for (const auto& [u, c] : centre_) {
-    const Eigen::Index next = rows();
-    index_[u] = next;
-  }
-  A_ = Eigen::MatrixXd::Zero(rows(), rows());
+std::map<std::pair<int, int>, PieceCoarseSystem::Block> PieceCoarseSystem::symmetricBlocks() const {
+  std::map<std::pair<int, int>, Block> S;
+  auto add = [&S](int i, int j, const Block& M) {
+    S.try_emplace({i, j}, Block::Zero()).first->second += M;
+  };
   for (const CoarseMessage& m : matrices_) {
     for (const CoarsePieceBlock& b : m.piece_blocks) {
       const Piece u{m.sender, b.row_piece}, v{b.robot, b.piece};
       const auto iv = index_.find(v);
       if (iv == index_.end()) continue;  // a silent robot's variables stay fixed
-      A_.block<6, 6>(index_.at(u), iv->second) +=
-          toPiece(u, m.sender).transpose() *
-          Eigen::Map<const Eigen::Matrix<double, 6, 6>>(b.values.data()) * toPiece(v, m.sender);
+      const int i = index_.at(u), j = iv->second;
+      const Block M = toPiece(u, m.sender).transpose() * Eigen::Map<const Block>(b.values.data()) *
+                      toPiece(v, m.sender);
+      if (i == j) {
+        add(i, i, 0.5 * (M + M.transpose()));
+      } else if (i < j) {
+        add(i, j, 0.5 * M);
+      } else {
+        add(j, i, 0.5 * M.transpose());
+      }
     }
   }
-  if (rows() == 0) {
-    cholesky_ = ScaledCholesky();
-    return false;
+  return S;
+}
+
+bool PieceCoarseSystem::factorize() {
+  index_.clear();
+  scaled_.reset();
+  for (const auto& [u, c] : centre_) {
+    const int next = static_cast<int>(index_.size());
+    index_[u] = next;
   }
-  return cholesky_.factorize(A_);
+  if (index_.empty()) return false;
+  const std::map<std::pair<int, int>, Block> S = symmetricBlocks();
+  scale_ = Eigen::VectorXd::Zero(rows());  // a piece without a diagonal block: not definite
+  std::vector<std::pair<int, int>> pairs;
+  for (const auto& [ij, M] : S) {
+    if (ij.first == ij.second) {
+      scale_.segment<6>(6 * ij.first) = M.diagonal().cwiseMax(0.0).cwiseSqrt().cwiseInverse();
+    } else {
+      pairs.push_back(ij);
+    }
+  }
+  if (!scale_.allFinite()) return false;
+  auto scaled = std::make_unique<BlockSparseSystem>(static_cast<int>(index_.size()), 6, pairs);
+  for (const auto& [ij, M] : S) {
+    const auto [i, j] = ij;
+    scaled->add(scaled->slot(i, j),
+                scale_.segment<6>(6 * i).asDiagonal() * M * scale_.segment<6>(6 * j).asDiagonal());
+  }
+  try {
+    scaled->factorize();
+  } catch (const NumericalError&) {
+    return false;  // not positive definite: no correction
+  }
+  scaled_ = std::move(scaled);
+  return true;
 }
 
 bool PieceCoarseSystem::solve(const std::vector<CoarseMessage>& residuals,
                               Eigen::VectorXd* Y) const {
-  if (!cholesky_.factorized()) return false;
+  if (!scaled_) return false;
   Eigen::VectorXd B = Eigen::VectorXd::Zero(rows());
   for (const CoarseMessage& m : residuals) {
     if (m.kind != CoarseKind::kPieceResidual || !has(m.sender)) {
@@ -189,14 +227,21 @@ bool PieceCoarseSystem::solve(const std::vector<CoarseMessage>& residuals,
     for (const CoarsePiece& p : m.pieces) {
       const auto it = index_.find({m.sender, p.id});
       if (it == index_.end()) continue;  // a piece the robot's matrix did not declare
-      B.segment<6>(it->second) += toPiece({m.sender, p.id}, m.sender).transpose() *
-                                  Eigen::Map<const Eigen::Matrix<double, 6, 1>>(p.values.data());
+      B.segment<6>(6 * it->second) +=
+          toPiece({m.sender, p.id}, m.sender).transpose() *
+          Eigen::Map<const Eigen::Matrix<double, 6, 1>>(p.values.data());
     }
   }
-  Eigen::MatrixXd y;
-  if (!cholesky_.solve(B, &y)) return false;
-  *Y = y.col(0);
-  return true;
+  if (!B.allFinite()) return false;
+  const Eigen::VectorXd scaled_b = scale_.cwiseProduct(B);
+  Eigen::VectorXd y;
+  try {
+    y = scaled_->backSolve(scaled_b);
+  } catch (const NumericalError&) {
+    return false;  // not finite
+  }
+  *Y = scale_.cwiseProduct(y);
+  return Y->allFinite();
 }
 
 CoarseMessage PieceCoarseSystem::solutionFor(int robot, const std::set<int>& neighbours,
@@ -206,9 +251,9 @@ CoarseMessage PieceCoarseSystem::solutionFor(int robot, const std::set<int>& nei
   if (!has(robot)) return m;
   std::set<int> needed = neighbours;
   needed.insert(robot);
-  for (const auto& [u, row] : index_) {  // (robot, piece) order
+  for (const auto& [u, i] : index_) {  // (robot, piece) order
     if (!needed.count(u.first)) continue;
-    const Eigen::Matrix<double, 6, 1> y = toPiece(u, robot) * Y.segment<6>(row);
+    const Eigen::Matrix<double, 6, 1> y = toPiece(u, robot) * Y.segment<6>(6 * i);
     m.piece_blocks.push_back({0, u.first, u.second, std::vector<double>(y.data(), y.data() + 6)});
   }
   return m;

@@ -16,14 +16,17 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <map>
+#include <memory>
 #include <set>
+#include <utility>
 #include <vector>
 
 #include "moslam/distributed/messages.h"
 
 namespace moslam {
 
-struct CoarseShare;  // coarse_correction.h
+struct CoarseShare;       // coarse_correction.h
+class BlockSparseSystem;  // solver/block_sparse_system.h
 
 // The coarse systems' solve: the symmetric part of A, Jacobi-scaled (rotations and translations
 // have different units) and factorized by dense Cholesky.
@@ -88,11 +91,15 @@ class CoarseSystem {
 // piece's centre c_u. A robot's kPieceMatrix blocks are about its reference c_r; block (u, v)
 // becomes T(c_u - c_r)^T B T(c_v - c_r) (T as above), a residual T(c_u - c_r)^T b, and the
 // solution sent to robot r is T(c_v - c_r) y_v for its pieces and its neighbours'. Symmetrised,
-// Jacobi-scaled and factorized by dense Cholesky (6 unknowns per piece).
+// Jacobi-scaled and factorized by sparse Cholesky (BlockSparseSystem, 6 x 6 blocks: a piece is
+// coupled only to the pieces its factors reach, a few along a chain).
 class PieceCoarseSystem {
  public:
-  // Pieces of the whole team at most (a dense matrix of 12288 x 12288, 1.2 GB).
-  static constexpr std::size_t kMaxPieces = 2048;
+  PieceCoarseSystem();
+  ~PieceCoarseSystem();
+
+  // Pieces of the whole team at most (as many as one message may carry).
+  static constexpr std::size_t kMaxPieces = kMaxCoarsePieces;
 
   // A robot's kPieceMatrix; its pieces join the system. InvalidInputError on another kind, a
   // message EncodeCoarseMessage refuses, a second matrix of the same robot, or more than
@@ -113,14 +120,18 @@ class PieceCoarseSystem {
 
  private:
   using Piece = std::pair<int, std::uint32_t>;  // (robot, piece)
-  Eigen::Matrix<double, 6, 6> toPiece(const Piece& u, int reference_robot) const;
+  using Block = Eigen::Matrix<double, 6, 6>;
+  Block toPiece(const Piece& u, int reference_robot) const;
+  // The symmetric part of the matrix about the pieces' centres: the blocks (i, j), i <= j, by
+  // block index.
+  std::map<std::pair<int, int>, Block> symmetricBlocks() const;
 
   std::map<int, Eigen::Vector3d> reference_;  // c_r per robot
   std::map<Piece, Eigen::Vector3d> centre_;   // c_u
-  std::map<Piece, Eigen::Index> index_;       // first row, set by factorize()
+  std::map<Piece, int> index_;                // block index, set by factorize()
   std::vector<CoarseMessage> matrices_;
-  Eigen::MatrixXd A_;
-  ScaledCholesky cholesky_;
+  Eigen::VectorXd scale_;                      // Jacobi scaling of the unknowns
+  std::unique_ptr<BlockSparseSystem> scaled_;  // the scaled matrix, factorized
 };
 
 // Matrices to and from a message's column-major doubles.

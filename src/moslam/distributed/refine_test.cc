@@ -825,13 +825,37 @@ TEST(RefineByPieces, CoarseCorrectionZeroesTheProjectedResidualOfEveryPiece) {
   bad.center.pop_back();
   EXPECT_THROW(refusing.addMatrix(bad), InvalidInputError);
   PieceCoarseSystem many;
+  auto pieces = [](int robot, std::uint32_t n) {  // n pieces of a robot, no blocks
+    CoarseMessage m = PieceMessage(CoarseKind::kPieceMatrix, robot, 0);
+    m.center = {0.0, 0.0, 0.0};
+    for (std::uint32_t id = 0; id < n; ++id) m.pieces.push_back({id, {0.0, 0.0, 0.0}});
+    return m;
+  };
+  const auto half = static_cast<std::uint32_t>(PieceCoarseSystem::kMaxPieces / 2);
   try {
-    for (int r : robots) many.addMatrix(driver.agent(r).refinePieceMatrix(1, 0));  // 2499 pieces
+    many.addMatrix(pieces(0, half));
+    many.addMatrix(pieces(1, half));  // exactly the most
+    many.addMatrix(pieces(2, 1));
     ADD_FAILURE() << "more than " << PieceCoarseSystem::kMaxPieces << " pieces accepted";
   } catch (const InvalidInputError& e) {
     EXPECT_NE(std::string(e.what()).find("--refine-coarse-piece-poses"), std::string::npos)
         << e.what();
   }
+
+  // Pieces of one pose: a motion per pose, so the coarse solve is the exact one and leaves no
+  // residual at all. 2499 pieces, 14994 unknowns (a dense system refused them before).
+  PieceCoarseSystem exact;
+  for (int r : robots) exact.addMatrix(driver.agent(r).refinePieceMatrix(1, 0));
+  ASSERT_TRUE(exact.factorize());
+  EXPECT_EQ(exact.rows(), 6 * 2499);
+  const std::vector<CoarseMessage> start = residuals();
+  ASSERT_TRUE(exact.solve(start, &Y));
+  for (int r : robots) {
+    RobotAgent& a = driver.agent(r);
+    a.applyRefinePieces(exact.solutionFor(r, a.neighbourRobots(), Y, 0, 1));
+  }
+  EXPECT_GT(largest(start), 1e-3);
+  EXPECT_LT(largest(residuals()), 1e-9 * largest(start));
 }
 
 // Long 2D chains: pieces of 50 poses let a run of the chain turn against the rest, which one
