@@ -376,12 +376,12 @@ TEST(CliDgs, LinearSolvesAtTheSweepCapNameTheCoarseSpaceOfPieces) {
   ASSERT_EQ(robots.exit_code, 0) << robots.out;
   EXPECT_NE(robots.out.find("of 3 linear solves stopped at the sweep cap"), std::string::npos)
       << robots.out;
-  EXPECT_NE(robots.out.find("--refine-coarse-piece-poses 60"), std::string::npos) << robots.out;
-  const CommandResult pieces = RunMoslam(mit + " --refine-coarse-piece-poses 60");
+  EXPECT_NE(robots.out.find("--refine-coarse-piece-poses 30"), std::string::npos) << robots.out;
+  const CommandResult pieces = RunMoslam(mit + " --refine-coarse-piece-poses 30");
   ASSERT_EQ(pieces.exit_code, 0) << pieces.out;
   EXPECT_EQ(pieces.out.find("--refine-coarse-piece-poses"), std::string::npos) << pieces.out;
   const CommandResult sweeps =
-      RunMoslam(mit + " --refine-coarse-piece-poses 60 --refine-solver sweeps");
+      RunMoslam(mit + " --refine-coarse-piece-poses 30 --refine-solver sweeps");
   EXPECT_NE(sweeps.exit_code, 0);
   EXPECT_NE(sweeps.out.find("coarse_piece_poses"), std::string::npos) << sweeps.out;
 }

@@ -431,7 +431,7 @@ std::string RefineHint(const RefineReport& refine, const DgsOptions& options) {
     hint += fmt::format(
         "{}refine: {} of {} linear solves stopped at the sweep cap (--refine-max-sweeps). On long "
         "chains a coarse space of pieces instead of whole robots converges in far fewer sweeps "
-        "(--refine-coarse-piece-poses 60; README, \"The refinement's coarse space by "
+        "(--refine-coarse-piece-poses 30; README, \"The refinement's coarse space by "
         "pieces\")",
         hint.empty() ? "" : "\n", capped, refine.steps.size());
   }
