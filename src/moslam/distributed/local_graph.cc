@@ -18,34 +18,6 @@ int Find(std::vector<int>& parent, int i) {
   return i;
 }
 
-// Lexicographic order of (pose, information), over the doubles of the rotation matrix, the
-// translation and the information matrix.
-bool Before(const SE3& x, const Matrix6& ix, const SE3& y, const Matrix6& iy) {
-  const auto less = [](const auto& u, const auto& v) {
-    return std::lexicographical_compare(u.data(), u.data() + u.size(), v.data(),
-                                        v.data() + v.size());
-  };
-  const auto same = [](const auto& u, const auto& v) {
-    return std::equal(u.data(), u.data() + u.size(), v.data());
-  };
-  const Matrix3& rx = x.rotation().matrix();
-  const Matrix3& ry = y.rotation().matrix();
-  if (!same(rx, ry)) return less(rx, ry);
-  if (!same(x.translation(), y.translation())) return less(x.translation(), y.translation());
-  return less(ix, iy);
-}
-
-// Total orders up to identical factors: by ends (priors: key), then the Before above.
-bool FactorBefore(const RelativePoseFactor& x, const RelativePoseFactor& y) {
-  if (x.a() < y.a() || y.a() < x.a()) return x.a() < y.a();
-  if (x.b() < y.b() || y.b() < x.b()) return x.b() < y.b();
-  return Before(x.measured(), x.information(), y.measured(), y.information());
-}
-bool PriorBefore(const PriorFactor& x, const PriorFactor& y) {
-  if (x.key() < y.key() || y.key() < x.key()) return x.key() < y.key();
-  return Before(x.prior(), x.information(), y.prior(), y.information());
-}
-
 }  // namespace
 
 LocalGraph::LocalGraph(int robot, const PoseGraph& subgraph, const Values& initial,
@@ -75,7 +47,8 @@ std::set<Key> LocalGraph::takeFactors(const PoseGraph& subgraph) {
   // partitions the whole graph list a robot's factors differently, and the sums over them must
   // round alike for the two to reach the same estimate (README, "A long 2D chain over DDS").
   std::vector<RelativePoseFactor> factors = subgraph.factors();
-  std::stable_sort(factors.begin(), factors.end(), FactorBefore);
+  std::stable_sort(factors.begin(), factors.end(),
+                   [](const auto& x, const auto& y) { return CanonicalBefore(x, y); });
   for (const RelativePoseFactor& f : factors) {
     const bool own_a = f.a().robot == robot_;
     const bool own_b = f.b().robot == robot_;
@@ -99,7 +72,8 @@ std::set<Key> LocalGraph::takeFactors(const PoseGraph& subgraph) {
     }
   }
   std::vector<PriorFactor> priors = subgraph.priors();
-  std::stable_sort(priors.begin(), priors.end(), PriorBefore);
+  std::stable_sort(priors.begin(), priors.end(),
+                   [](const auto& x, const auto& y) { return CanonicalBefore(x, y); });
   for (const PriorFactor& p : priors) {
     if (p.key().robot != robot_) {
       throw InvalidInputError("DGS robot " + std::to_string(robot_) + ": prior on " +

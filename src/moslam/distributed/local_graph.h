@@ -39,9 +39,9 @@ class LocalGraph {
   bool ownsAnchor() const { return owns_anchor_; }
   const SE3& initial(const Key& own_key) const { return initial_.at(own_key); }
 
-  // The subgraph's factors and priors in a canonical order (by ends, then measurement, then
-  // information), whatever order the subgraph lists them in, so that every sum over them rounds
-  // the same on a robot that read its own file and in a driver that partitioned the whole graph.
+  // The subgraph's factors and priors in canonical order (CanonicalBefore, pose_graph.h),
+  // whatever order the subgraph lists them in, so that every sum over them rounds the same on a
+  // robot that read its own file and in a driver that partitioned the whole graph.
   const std::vector<RelativePoseFactor>& factors() const { return factors_; }
   const std::vector<PriorFactor>& priors() const { return priors_; }
   const std::vector<std::size_t>& inner() const { return inner_; }  // indices into factors()

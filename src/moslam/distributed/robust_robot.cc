@@ -19,9 +19,24 @@ RobustIndex MakeRobustIndex(int robot, PoseGraph graph, std::vector<bool> robust
     if (std::min(a, b) == robot) x.owned.push_back(i);
     if (a != b) x.separators[a == robot ? b : a].push_back(i);
   }
+  for (auto& [other, list] : x.separators) {  // sent by position (exchangeWeights)
+    std::vector<std::size_t> wire;
+    for (std::size_t j : WireOrder(graph, list)) wire.push_back(list[j]);
+    list = std::move(wire);
+  }
   x.graph = std::move(graph);
   x.robust = std::move(robust);
   return x;
+}
+
+std::vector<std::size_t> WireOrder(const PoseGraph& graph, const std::vector<std::size_t>& list) {
+  std::vector<std::size_t> order(list.size());
+  for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
+  const std::vector<RelativePoseFactor>& f = graph.factors();
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) {
+    return CanonicalBefore(f.at(list[i]), f.at(list[j]));
+  });
+  return order;
 }
 
 RobustRobot::RobustRobot(const RobustRobotProblem& problem, const RobustProgramOptions& options,

@@ -22,7 +22,8 @@ namespace moslam {
 
 // The robust factors of one graph as a robot sees them: the weights it owns (its own factors and
 // its separators to robots of higher id) and, per neighbour (every robot a factor reaches, with
-// an entry even without a robust separator), the robust separators to it in graph order.
+// an entry even without a robust separator), the robust separators to it in wire order
+// (WireOrder below).
 struct RobustIndex {
   PoseGraph graph;
   std::vector<bool> robust;
@@ -31,6 +32,12 @@ struct RobustIndex {
 };
 
 RobustIndex MakeRobustIndex(int robot, PoseGraph graph, std::vector<bool> robust);
+
+// Two neighbours send each other per-separator values (weights, the check's verdicts) as lists
+// by position, and each may list their separators in its own order (its own file): on the wire
+// a list follows the canonical order of its factors (CanonicalBefore, pose_graph.h). Returns the
+// positions of `list` (indices into graph.factors()) in that order.
+std::vector<std::size_t> WireOrder(const PoseGraph& graph, const std::vector<std::size_t>& list);
 
 class RobustRobot {
  public:

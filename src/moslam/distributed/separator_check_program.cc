@@ -6,6 +6,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
+#include "moslam/distributed/robust_robot.h"
 
 namespace moslam {
 namespace {
@@ -144,12 +145,18 @@ class SeparatorCheck {
     return out;
   }
 
-  // The verdicts to higher neighbours, and from lower ones (checked against the pair's size).
+  // The verdicts to higher neighbours, and from lower ones (checked against the pair's size),
+  // their separators in wire order (WireOrder), the pair's flag last.
   TeamStep exchangeVerdicts(bool final, double label, double rejected) {
     std::vector<WeightMessage> send;
     for (const auto& [other, list] : pairs_) {
-      send.push_back(link_.weightMessage(
-          other, 0, other > problem_.robot ? verdictWeights(other, final) : std::vector<double>()));
+      std::vector<double> wire;
+      if (other > problem_.robot) {
+        const std::vector<double> verdict = verdictWeights(other, final);
+        for (std::size_t j : WireOrder(problem_.subgraph, list)) wire.push_back(verdict[j]);
+        wire.push_back(verdict.back());
+      }
+      send.push_back(link_.weightMessage(other, 0, std::move(wire)));
     }
     TeamReport r;
     r.weights = true;
@@ -166,7 +173,10 @@ class SeparatorCheck {
             std::to_string(problem_.robot) + " shares with it (their subgraphs disagree)");
       }
       confirmed_[other] = m.weights.back() == 1.0;
-      kept_by_other_[other] = m.weights;
+      std::vector<double>& verdict = kept_by_other_[other];
+      verdict = m.weights;
+      const std::vector<std::size_t> wire = WireOrder(problem_.subgraph, pairs_.at(other));
+      for (std::size_t k = 0; k < wire.size(); ++k) verdict[wire[k]] = m.weights[k];
     }
     return got;
   }

@@ -19,7 +19,44 @@ const SE3& Lookup(const Values& values, Key key) {
   return it->second;
 }
 
+// Lexicographic order of (pose, information) over the doubles of the rotation matrix, the
+// translation and the information matrix.
+bool Before(const SE3& x, const Matrix6& ix, const SE3& y, const Matrix6& iy) {
+  const auto less = [](const auto& u, const auto& v) {
+    return std::lexicographical_compare(u.data(), u.data() + u.size(), v.data(),
+                                        v.data() + v.size());
+  };
+  const auto same = [](const auto& u, const auto& v) {
+    return std::equal(u.data(), u.data() + u.size(), v.data());
+  };
+  const Matrix3& rx = x.rotation().matrix();
+  const Matrix3& ry = y.rotation().matrix();
+  if (!same(rx, ry)) return less(rx, ry);
+  if (!same(x.translation(), y.translation())) return less(x.translation(), y.translation());
+  return less(ix, iy);
+}
+
 }  // namespace
+
+bool CanonicalBefore(const RelativePoseFactor& x, const RelativePoseFactor& y) {
+  if (x.a() < y.a() || y.a() < x.a()) return x.a() < y.a();
+  if (x.b() < y.b() || y.b() < x.b()) return x.b() < y.b();
+  return Before(x.measured(), x.information(), y.measured(), y.information());
+}
+
+bool CanonicalBefore(const PriorFactor& x, const PriorFactor& y) {
+  if (x.key() < y.key() || y.key() < x.key()) return x.key() < y.key();
+  return Before(x.prior(), x.information(), y.prior(), y.information());
+}
+
+std::vector<std::size_t> CanonicalFactorOrder(const PoseGraph& graph) {
+  const std::vector<RelativePoseFactor>& f = graph.factors();
+  std::vector<std::size_t> order(f.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&f](std::size_t i, std::size_t j) { return CanonicalBefore(f[i], f[j]); });
+  return order;
+}
 
 PoseGraph::PoseGraph(std::vector<RelativePoseFactor> factors) : factors_(std::move(factors)) {
   for (const auto& f : factors_) {

@@ -42,6 +42,15 @@ class PoseGraph {
   std::set<Key> keys_;
 };
 
+// A total order on factors up to identical ones, whatever order a graph lists them in: by ends
+// (a, then b), then measurement (rotation matrix, translation), then information, each by its
+// doubles in lexicographic order. Robots that read their subgraphs from different files sum and
+// exchange their factors in this order, so that they round alike and name the same separators.
+bool CanonicalBefore(const RelativePoseFactor& x, const RelativePoseFactor& y);
+bool CanonicalBefore(const PriorFactor& x, const PriorFactor& y);  // by key, prior, information
+// The graph's factor indices in canonical order (ties in the graph's order).
+std::vector<std::size_t> CanonicalFactorOrder(const PoseGraph& graph);
+
 // The gauge of CONVENTIONS.md: the first pose of robot 0 (smallest key with robot 0, kind pose).
 // Throws UnderdeterminedError when robot 0 has no pose.
 Key GaugeAnchor(const PoseGraph& graph);

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "moslam/common/errors.h"
 
 namespace moslam {
@@ -38,6 +40,56 @@ TEST(PoseGraph, FindsComponentsThatNothingAnchors) {
   EXPECT_EQ(UnreachableFrom(g, Key::Pose(0, 0)).size(), 2u);
   g.add(PriorFactor(Key::Pose(1, 1), SE3(), Matrix6::Identity()));  // a prior anchors it
   EXPECT_TRUE(UnreachableFrom(g, Key::Pose(0, 0)).empty());
+}
+
+}  // namespace
+}  // namespace moslam
+
+namespace moslam {
+namespace {
+
+// The canonical order does not depend on the order a graph lists its factors in: ends first,
+// then the measurement and the information tell apart factors between the same two variables.
+TEST(PoseGraph, CanonicalOrderIsTheSameWhateverTheListingOrder) {
+  const Key a = Key::Pose(0, 0), b = Key::Pose(0, 1), c = Key::Pose(1, 0);
+  const Matrix6 I = Matrix6::Identity();
+  const SE3 x(SO3::Exp(Vector3(0.0, 0.0, 0.1)), Vector3(1.0, 0.0, 0.0));
+  const SE3 y(SO3::Exp(Vector3(0.0, 0.0, 0.1)), Vector3(1.0, 0.0, 1e-12));  // translation only
+  const std::vector<RelativePoseFactor> factors = {
+      RelativePoseFactor(b, c, x, I),     RelativePoseFactor(a, b, y, I),
+      RelativePoseFactor(a, b, x, 2 * I), RelativePoseFactor(a, b, x, I),
+      RelativePoseFactor(a, c, SE3(), I), RelativePoseFactor(a, b, SE3(), I)};
+  auto canonical = [](const std::vector<RelativePoseFactor>& listed) {
+    std::vector<RelativePoseFactor> out;
+    const PoseGraph g(listed);
+    for (std::size_t i : CanonicalFactorOrder(g)) out.push_back(g.factors()[i]);
+    return out;
+  };
+  const std::vector<RelativePoseFactor> expected = canonical(factors);
+  std::vector<RelativePoseFactor> listed = factors;
+  std::vector<std::size_t> perm = {0, 1, 2, 3, 4, 5};
+  int permutations = 0;
+  do {
+    for (std::size_t i = 0; i < perm.size(); ++i) listed[i] = factors[perm[i]];
+    const std::vector<RelativePoseFactor> got = canonical(listed);
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      ASSERT_EQ(got[i].a(), expected[i].a());
+      ASSERT_EQ(got[i].b(), expected[i].b());
+      ASSERT_EQ(got[i].measured().translation(), expected[i].measured().translation());
+      ASSERT_EQ(got[i].measured().rotation().matrix(), expected[i].measured().rotation().matrix());
+      ASSERT_EQ(got[i].information(), expected[i].information());
+    }
+    ++permutations;
+  } while (std::next_permutation(perm.begin(), perm.end()));
+  EXPECT_EQ(permutations, 720);
+  // The four factors between a and b come first, told apart by measurement, then information.
+  EXPECT_EQ(expected[4].b(), c);
+  EXPECT_EQ(expected[5].a(), b);
+  for (std::size_t i = 0; i + 1 < 4; ++i) {
+    EXPECT_TRUE(CanonicalBefore(expected[i], expected[i + 1])) << i;
+    EXPECT_FALSE(CanonicalBefore(expected[i + 1], expected[i])) << i;
+  }
+  EXPECT_FALSE(CanonicalBefore(factors[3], factors[3]));
 }
 
 }  // namespace
