@@ -28,7 +28,7 @@ namespace moslam {
 struct CoarseShare;       // coarse_correction.h
 class BlockSparseSystem;  // solver/block_sparse_system.h
 
-// The coarse systems' solve: the symmetric part of A, Jacobi-scaled (rotations and translations
+// CoarseSystem's solve: the symmetric part of A, Jacobi-scaled (rotations and translations
 // have different units) and factorized by dense Cholesky.
 class ScaledCholesky {
  public:

@@ -49,15 +49,6 @@ bool CanonicalBefore(const PriorFactor& x, const PriorFactor& y) {
   return Before(x.prior(), x.information(), y.prior(), y.information());
 }
 
-std::vector<std::size_t> CanonicalFactorOrder(const PoseGraph& graph) {
-  const std::vector<RelativePoseFactor>& f = graph.factors();
-  std::vector<std::size_t> order(f.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(),
-                   [&f](std::size_t i, std::size_t j) { return CanonicalBefore(f[i], f[j]); });
-  return order;
-}
-
 PoseGraph::PoseGraph(std::vector<RelativePoseFactor> factors) : factors_(std::move(factors)) {
   for (const auto& f : factors_) {
     keys_.insert(f.a());

@@ -48,8 +48,6 @@ class PoseGraph {
 // exchange their factors in this order, so that they round alike and name the same separators.
 bool CanonicalBefore(const RelativePoseFactor& x, const RelativePoseFactor& y);
 bool CanonicalBefore(const PriorFactor& x, const PriorFactor& y);  // by key, prior, information
-// The graph's factor indices in canonical order (ties in the graph's order).
-std::vector<std::size_t> CanonicalFactorOrder(const PoseGraph& graph);
 
 // The gauge of CONVENTIONS.md: the first pose of robot 0 (smallest key with robot 0, kind pose).
 // Throws UnderdeterminedError when robot 0 has no pose.
