@@ -1,12 +1,14 @@
 // A TeamChannel for tests (not part of the library): a team of robot programs, one thread per
 // robot, over a shared in-memory board. Every robot's step s completes once all robots have
 // posted their step s; what it returns went through the binary encodings (the bytes a network
-// carries).
+// carries). A robot whose program throws calls abort(): the others' waits then throw
+// TeamAborted instead of waiting for its step forever.
 #pragma once
 
 #include <condition_variable>
 #include <map>
 #include <mutex>
+#include <stdexcept>
 #include <vector>
 
 #include "moslam/distributed/messages.h"
@@ -14,15 +16,28 @@
 
 namespace moslam::test {
 
+// What a robot's step throws once another robot aborted the board.
+struct TeamAborted : std::runtime_error {
+  TeamAborted() : std::runtime_error("another robot of the team failed") {}
+};
+
 class SharedBoard {
  public:
   explicit SharedBoard(int robots) : robots_(robots) {}
+
+  // Called by a robot whose program failed: every wait, now and later, throws TeamAborted.
+  void abort() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    aborted_ = true;
+    changed_.notify_all();
+  }
 
   TeamStep post(int robot, std::size_t s, const std::vector<OutgoingMessage>& out,
                 const TeamReport& report, const CoarseMessage* share,
                 const std::vector<WeightMessage>& weights,
                 const std::vector<CovarianceMessage>& covariances) {
     std::unique_lock<std::mutex> lock(mutex_);
+    if (aborted_) throw TeamAborted();
     Round& round = rounds_[s];
     for (const CovarianceMessage& c : covariances) {
       round.covariances[c.receiver][robot] =
@@ -35,7 +50,9 @@ class SharedBoard {
     round.reports[robot] = report;
     if (share) round.shares[robot] = DecodeCoarseMessage(EncodeCoarseMessage(*share));
     if (static_cast<int>(round.reports.size()) == robots_) changed_.notify_all();
-    changed_.wait(lock, [&]() { return static_cast<int>(round.reports.size()) == robots_; });
+    changed_.wait(lock,
+                  [&]() { return aborted_ || static_cast<int>(round.reports.size()) == robots_; });
+    if (aborted_) throw TeamAborted();
     TeamStep got;
     for (const Message& m : round.inbox[robot]) {
       got.estimates.push_back(DecodeMessage(EncodeMessage(m)));
@@ -56,6 +73,7 @@ class SharedBoard {
     std::map<int, std::map<int, CovarianceMessage>> covariances;  // alike
   };
   int robots_;
+  bool aborted_ = false;
   std::mutex mutex_;
   std::condition_variable changed_;
   std::map<std::size_t, Round> rounds_;

@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
 
 #include "moslam/common/errors.h"
@@ -25,6 +27,26 @@ using test::SharedBoard;
 struct TeamOutcome {
   Values values;
   std::map<int, RobotProgramResult> results;
+  std::string error;  // the first robot's program that threw, what it threw
+};
+
+// A robot's link that fails at its step `fail_at` (counted from 0).
+class FailingChannel : public TeamChannel {
+ public:
+  FailingChannel(SharedBoard& board, int robot, std::size_t fail_at)
+      : board_(board, robot), fail_at_(fail_at) {}
+  TeamStep step(DgsStage stage, const std::vector<OutgoingMessage>& estimates,
+                const TeamReport& report, const CoarseMessage* share,
+                const std::vector<WeightMessage>& weights,
+                const std::vector<CovarianceMessage>& covariances) override {
+    if (board_.steps() == fail_at_) throw Error("the link failed");
+    return board_.step(stage, estimates, report, share, weights, covariances);
+  }
+  std::set<int> absent() const override { return {}; }
+
+ private:
+  BoardChannel board_;
+  std::size_t fail_at_;
 };
 
 // A subgraph listing the factors and priors of `graph` in reverse order.
@@ -37,8 +59,9 @@ PoseGraph Reversed(const PoseGraph& graph) {
 
 // `reversed`: every robot gets its subgraph in reverse order, as a robot reading its own file
 // can list its factors in another order than the driver's partition of the whole graph.
+// `failing_robot` (when not -1): that robot's link fails at its step 5.
 TeamOutcome RunPrograms(const PoseGraph& graph, const Values& initial, const DgsOptions& options,
-                        bool reversed = false) {
+                        bool reversed = false, int failing_robot = -1) {
   std::vector<RobotSubgraph> parts = PartitionByRobot(graph);
   if (reversed) {
     for (RobotSubgraph& part : parts) part.graph = Reversed(part.graph);
@@ -48,7 +71,6 @@ TeamOutcome RunPrograms(const PoseGraph& graph, const Values& initial, const Dgs
   TeamOutcome outcome;
   std::mutex mutex;
   std::vector<std::thread> threads;
-  std::string error;
   for (const RobotSubgraph& part : parts) {
     threads.emplace_back([&, part]() {
       AgentOptions ao;
@@ -57,21 +79,30 @@ TeamOutcome RunPrograms(const PoseGraph& graph, const Values& initial, const Dgs
       ao.flagged_initialisation = options.flagged_initialisation;
       ao.weight_by_information = options.weight_by_information;
       RobotAgent agent(part.robot, part.graph, initial, anchor, ao);
-      BoardChannel channel(board, part.robot);
+      std::unique_ptr<TeamChannel> channel;
+      if (part.robot == failing_robot) {
+        channel = std::make_unique<FailingChannel>(board, part.robot, 5);
+      } else {
+        channel = std::make_unique<BoardChannel>(board, part.robot);
+      }
       try {
-        RobotProgramResult r = RunRobotProgram(agent, options, channel);
+        RobotProgramResult r = RunRobotProgram(agent, options, *channel);
         std::lock_guard<std::mutex> lock(mutex);
         const Values v = agent.estimate();
         outcome.values.insert(v.begin(), v.end());
         outcome.results[part.robot] = std::move(r);
+      } catch (const test::TeamAborted&) {
+        // Another robot failed; its error is the one reported.
       } catch (const std::exception& e) {
-        std::lock_guard<std::mutex> lock(mutex);
-        error = e.what();
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          outcome.error = e.what();
+        }
+        board.abort();
       }
     });
   }
   for (std::thread& t : threads) t.join();
-  EXPECT_EQ(error, "");
   return outcome;
 }
 
@@ -81,6 +112,7 @@ void ExpectSameAsDriver(const Dataset& data, const DgsOptions& options,
   const DgsResult reference = RunDgs(data.graph, data.initial, options);
   if (driver) *driver = reference;
   const TeamOutcome team = RunPrograms(data.graph, data.initial, options);
+  EXPECT_EQ(team.error, "");
   ASSERT_FALSE(team.results.empty());
   // The options at work in the reference (so that equal counts mean something).
   EXPECT_GT(reference.rotation.iterations, 1);
@@ -215,6 +247,7 @@ TEST(RobotProgram, TheOrderOfARobotsFactorsDoesNotChangeOneBit) {
   o.refinement.coarse_piece_poses = 50;
   const DgsResult reference = RunDgs(d.graph, d.initial, o);
   const TeamOutcome team = RunPrograms(d.graph, d.initial, o, true);
+  EXPECT_EQ(team.error, "");
   ASSERT_EQ(team.values.size(), reference.values.size());
   for (const auto& [key, x] : reference.values) {
     SCOPED_TRACE(ToString(key));
@@ -224,6 +257,15 @@ TEST(RobotProgram, TheOrderOfARobotsFactorsDoesNotChangeOneBit) {
   for (const auto& [robot, r] : team.results) {
     EXPECT_EQ(r.refine.final_cost, reference.refine.final_cost) << "robot " << robot;
   }
+}
+
+// A robot whose program throws stops the test team with its error (the others' waits end)
+// rather than leaving it waiting for that robot's step forever.
+TEST(RobotProgram, ATeamWhoseRobotFailsEndsWithItsError) {
+  const Dataset d = MitInFourRobots();
+  const TeamOutcome team = RunPrograms(d.graph, d.initial, TwoLevelRefined(), false, 2);
+  EXPECT_EQ(team.error, "the link failed");
+  EXPECT_TRUE(team.results.empty());
 }
 
 TEST(RobotProgram, RefusesGaussSeidelOrderAndAUsedAgent) {

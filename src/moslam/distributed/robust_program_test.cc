@@ -94,9 +94,14 @@ TeamOutcome RunTeam(const PoseGraph& graph, const Values& initial, const std::ve
         outcome.values.insert(r.estimate.begin(), r.estimate.end());
         outcome.results[p.robot] = std::move(r);
         outcome.factors[p.robot] = part.second;
+      } catch (const test::TeamAborted&) {
+        // Another robot failed; its error is the one reported.
       } catch (const std::exception& e) {
-        std::lock_guard<std::mutex> lock(mutex);
-        outcome.error = e.what();
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          outcome.error = e.what();
+        }
+        board.abort();
       }
     });
   }
