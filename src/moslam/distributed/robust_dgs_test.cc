@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <set>
+#include <utility>
 
 #include "moslam/common/errors.h"
 #include "moslam/common/throws_naming_testing.h"
@@ -215,6 +217,38 @@ TEST(SeparatorConsistency, TiedLargestSetsOfLinkedRobotsAreAllLeftToGnc) {
       }
     }
     EXPECT_LT(MaxPoseDifference(r.values, truth), 1e-6);
+  }
+}
+
+// Two tied sets of three that confirm themselves, three right separators of robots 0 and 2 and
+// three wrong ones that agree (one wrong transform): the check cannot tell them apart and keeps
+// one, the same whatever order the graph lists them in (the pair is checked in canonical order),
+// so robots whose files list their separators differently decide alike.
+TEST(SeparatorConsistency, TiedSetsThatConfirmThemselvesAreBrokenAlikeInEveryListingOrder) {
+  const Values truth = ThreeRobotTruth();
+  const SE3 wrong(SO3::Exp(Vector3(0.3, -1.2, 2.0)), Vector3(4.0, -3.0, 1.0));
+  const std::vector<ZeroTwoSeparator> right = {{3, 5, SE3()}, {4, 3, SE3()}, {1, 0, SE3()}};
+  const std::vector<ZeroTwoSeparator> wrong_three = {{5, 1, wrong}, {2, 4, wrong}, {0, 2, wrong}};
+  SeparatorConsistencyOptions check;
+  check.map_uncertainty = false;
+  std::set<std::pair<int, int>> first_kept;
+  for (const bool right_first : {true, false}) {
+    std::vector<ZeroTwoSeparator> order = right_first ? right : wrong_three;
+    for (const ZeroTwoSeparator& z : right_first ? wrong_three : right) order.push_back(z);
+    const PoseGraph graph = ThreeRobotGraph(truth, order);
+    const SeparatorConsistencyResult checked = CheckSeparatorConsistency(graph, check);
+    EXPECT_EQ(checked.rejected, 3);
+    std::set<std::pair<int, int>> kept;
+    const std::size_t first = graph.factors().size() - order.size();
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      if (checked.kept[first + k]) kept.insert({order[k].a, order[k].b});
+    }
+    EXPECT_EQ(kept.size(), 3u);
+    if (right_first) {
+      first_kept = kept;
+    } else {
+      EXPECT_EQ(kept, first_kept);
+    }
   }
 }
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <map>
 #include <memory>
+#include <numeric>
 #include <set>
 
 #include "moslam/common/errors.h"
@@ -238,12 +239,12 @@ std::vector<std::size_t> MembersOfLargestCliques(const ConsistencyGraph& g, int 
   return out;
 }
 
-}  // namespace
-
-PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
-                                     const SeparatorCheckMap& a_map, const Message& b_estimates,
-                                     const Eigen::MatrixXd& b_covariance,
-                                     const SeparatorConsistencyOptions& options) {
+// ConsistentSeparators on the separators in the order given: among tied largest sets, the
+// maximum clique search returns the first it finds.
+PairConsistency ConsistentInOrder(const std::vector<RelativePoseFactor>& separators,
+                                  const SeparatorCheckMap& a_map, const Message& b_estimates,
+                                  const Eigen::MatrixXd& b_covariance,
+                                  const SeparatorConsistencyOptions& options) {
   const PairView view = ViewPair(separators, a_map, b_estimates, b_covariance, options);
   const ConsistencyGraph g = PairwiseConsistency(separators, view, options);
   PairConsistency out;
@@ -263,6 +264,39 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
     }
   }
   for (int v : MaximumClique(g, others).nodes) out.runner_up.push_back(static_cast<std::size_t>(v));
+  return out;
+}
+
+}  // namespace
+
+PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
+                                     const SeparatorCheckMap& a_map, const Message& b_estimates,
+                                     const Eigen::MatrixXd& b_covariance,
+                                     const SeparatorConsistencyOptions& options) {
+  // Checked in canonical order (pose_graph.h), so that a tie is broken by the separators
+  // themselves and not by how a file lists them: two robots, or a robot and the in-process
+  // driver, that hold a pair's separators in different orders keep the same ones.
+  std::vector<std::size_t> order(separators.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+    return CanonicalBefore(separators[x], separators[y]);
+  });
+  std::vector<RelativePoseFactor> canonical;
+  canonical.reserve(separators.size());
+  for (std::size_t i : order) canonical.push_back(separators[i]);
+  const PairConsistency c = ConsistentInOrder(canonical, a_map, b_estimates, b_covariance, options);
+  auto positions = [&](const std::vector<std::size_t>& in_canonical) {
+    std::vector<std::size_t> out;
+    for (std::size_t p : in_canonical) out.push_back(order[p]);
+    std::sort(out.begin(), out.end());
+    return out;
+  };
+  PairConsistency out;
+  out.largest = c.largest;
+  out.kept = positions(c.kept);
+  out.runner_up = positions(c.runner_up);
+  out.support.assign(separators.size(), 0);
+  for (std::size_t p = 0; p < order.size(); ++p) out.support[order[p]] = c.support[p];
   return out;
 }
 

@@ -124,10 +124,12 @@ struct PairConsistency {
   // with min_support, may be left to the robust solve with linked_min_support.
   int largest = 0;
   // What the pair keeps if it is kept (positions in the separators, increasing). Confirmed: one
-  // largest set. Below min_support: every separator of some largest set, as the check cannot
-  // tell tied sets apart (two right separators that agree against two wrong ones that agree:
-  // generated, 4 robots, 70 % injected wrong pairs, seed 17, where the check kept the wrong two),
-  // and the robust solve tests them all through the loop.
+  // largest set (among tied ones, the one the search finds first with the separators in canonical
+  // order, graph/pose_graph.h: the same whatever order they are listed in). Below min_support:
+  // every separator of some largest set, as the check cannot tell tied sets apart (two right
+  // separators that agree against two wrong ones that agree: generated, 4 robots, 70 % injected
+  // wrong pairs, seed 17, where the check kept the wrong two), and the robust solve tests them all
+  // through the loop.
   std::vector<std::size_t> kept;
   // Per separator: how many members of `kept` it passes the pairwise test with (not itself).
   std::vector<int> support;
@@ -137,10 +139,11 @@ struct PairConsistency {
 };
 
 // The check of one robot pair a < b, at robot a: `separators` are the factors between the two
-// (in the order both hold them), `a_map` a's map, `b_estimates` and `b_covariance` what b sent
-// (its map's estimates of SeparatorVariables(separators, b) and their joint covariance; the
-// covariance is ignored without options.map_uncertainty). Throws InvalidInputError when b's
-// message does not hold exactly those variables or the covariance has the wrong size.
+// (in any order: the result, in positions of `separators`, does not depend on it), `a_map` a's map,
+// `b_estimates` and `b_covariance` what b sent (its map's estimates of
+// SeparatorVariables(separators, b) and their joint covariance; the covariance is ignored without
+// options.map_uncertainty). Throws InvalidInputError when b's message does not hold exactly those
+// variables or the covariance has the wrong size.
 PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& separators,
                                      const SeparatorCheckMap& a_map, const Message& b_estimates,
                                      const Eigen::MatrixXd& b_covariance,
