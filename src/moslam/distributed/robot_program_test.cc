@@ -96,7 +96,7 @@ TeamOutcome RunPrograms(const PoseGraph& graph, const Values& initial, const Dgs
       } catch (const std::exception& e) {
         {
           std::lock_guard<std::mutex> lock(mutex);
-          outcome.error = e.what();
+          if (outcome.error.empty()) outcome.error = e.what();
         }
         board.abort();
       }
