@@ -1,14 +1,15 @@
 // A TeamChannel for tests (not part of the library): a team of robot programs, one thread per
 // robot, over a shared in-memory board. Every robot's step s completes once all robots have
 // posted their step s; what it returns went through the binary encodings (the bytes a network
-// carries). A robot whose program throws calls abort(): the others' waits then throw
-// TeamAborted instead of waiting for its step forever.
+// carries). A robot whose program throws calls abort(why): the others' waits then throw
+// TeamAborted instead of waiting for its step forever, and failure() is the first why.
 #pragma once
 
 #include <condition_variable>
 #include <map>
 #include <mutex>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "moslam/distributed/messages.h"
@@ -26,10 +27,16 @@ class SharedBoard {
   explicit SharedBoard(int robots) : robots_(robots) {}
 
   // Called by a robot whose program failed: every wait, now and later, throws TeamAborted.
-  void abort() {
+  void abort(const std::string& why) {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!aborted_) failure_ = why;
     aborted_ = true;
     changed_.notify_all();
+  }
+  // The first abort's why ("" when none).
+  std::string failure() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return failure_;
   }
 
   TeamStep post(int robot, std::size_t s, const std::vector<OutgoingMessage>& out,
@@ -74,6 +81,7 @@ class SharedBoard {
   };
   int robots_;
   bool aborted_ = false;
+  std::string failure_;
   std::mutex mutex_;
   std::condition_variable changed_;
   std::map<std::size_t, Round> rounds_;

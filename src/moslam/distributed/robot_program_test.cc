@@ -94,15 +94,12 @@ TeamOutcome RunPrograms(const PoseGraph& graph, const Values& initial, const Dgs
       } catch (const test::TeamAborted&) {
         // Another robot failed; its error is the one reported.
       } catch (const std::exception& e) {
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          if (outcome.error.empty()) outcome.error = e.what();
-        }
-        board.abort();
+        board.abort(e.what());
       }
     });
   }
   for (std::thread& t : threads) t.join();
+  outcome.error = board.failure();
   return outcome;
 }
 

@@ -97,15 +97,12 @@ TeamOutcome RunTeam(const PoseGraph& graph, const Values& initial, const std::ve
       } catch (const test::TeamAborted&) {
         // Another robot failed; its error is the one reported.
       } catch (const std::exception& e) {
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          outcome.error = e.what();
-        }
-        board.abort();
+        board.abort(e.what());
       }
     });
   }
   for (std::thread& t : threads) t.join();
+  outcome.error = board.failure();
   return outcome;
 }
 
