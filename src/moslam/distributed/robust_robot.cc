@@ -30,13 +30,10 @@ RobustIndex MakeRobustIndex(int robot, PoseGraph graph, std::vector<bool> robust
 }
 
 std::vector<std::size_t> WireOrder(const PoseGraph& graph, const std::vector<std::size_t>& list) {
-  std::vector<std::size_t> order(list.size());
-  for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
-  const std::vector<RelativePoseFactor>& f = graph.factors();
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) {
-    return CanonicalBefore(f.at(list[i]), f.at(list[j]));
-  });
-  return order;
+  std::vector<RelativePoseFactor> listed;
+  listed.reserve(list.size());
+  for (std::size_t i : list) listed.push_back(graph.factors().at(i));
+  return CanonicalOrder(listed);
 }
 
 RobustRobot::RobustRobot(const RobustRobotProblem& problem, const RobustProgramOptions& options,

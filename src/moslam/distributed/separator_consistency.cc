@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <map>
 #include <memory>
-#include <numeric>
 #include <set>
 
 #include "moslam/common/errors.h"
@@ -276,11 +275,7 @@ PairConsistency ConsistentSeparators(const std::vector<RelativePoseFactor>& sepa
   // Checked in canonical order (pose_graph.h), so that a tie is broken by the separators
   // themselves and not by how a file lists them: two robots, or a robot and the in-process
   // driver, that hold a pair's separators in different orders keep the same ones.
-  std::vector<std::size_t> order(separators.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
-    return CanonicalBefore(separators[x], separators[y]);
-  });
+  const std::vector<std::size_t> order = CanonicalOrder(separators);
   std::vector<RelativePoseFactor> canonical;
   canonical.reserve(separators.size());
   for (std::size_t i : order) canonical.push_back(separators[i]);

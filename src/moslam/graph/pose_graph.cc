@@ -49,6 +49,15 @@ bool CanonicalBefore(const PriorFactor& x, const PriorFactor& y) {
   return Before(x.prior(), x.information(), y.prior(), y.information());
 }
 
+std::vector<std::size_t> CanonicalOrder(const std::vector<RelativePoseFactor>& factors) {
+  std::vector<std::size_t> order(factors.size());
+  for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) {
+    return CanonicalBefore(factors[i], factors[j]);
+  });
+  return order;
+}
+
 PoseGraph::PoseGraph(std::vector<RelativePoseFactor> factors) : factors_(std::move(factors)) {
   for (const auto& f : factors_) {
     keys_.insert(f.a());

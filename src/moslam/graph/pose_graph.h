@@ -49,6 +49,9 @@ class PoseGraph {
 bool CanonicalBefore(const RelativePoseFactor& x, const RelativePoseFactor& y);
 bool CanonicalBefore(const PriorFactor& x, const PriorFactor& y);  // by key, prior, information
 
+// The positions of `factors` in canonical order (stable: identical factors keep their order).
+std::vector<std::size_t> CanonicalOrder(const std::vector<RelativePoseFactor>& factors);
+
 // The gauge of CONVENTIONS.md: the first pose of robot 0 (smallest key with robot 0, kind pose).
 // Throws UnderdeterminedError when robot 0 has no pose.
 Key GaugeAnchor(const PoseGraph& graph);
