@@ -772,6 +772,11 @@ TEST(CliSimulate, LoopClosureIsOffWithSampledMeasurementsUnlessAskedFor) {
   EXPECT_EQ(config["loop_closure"], false);
   EXPECT_EQ(config["exclusion_radius"], 0.0);
   EXPECT_EQ(config["ambiguity_ratio"], 0.0);
+  EXPECT_EQ(config["covariance_gate"], 0.0);
+  const CommandResult gated = RunMoslam(run + " --covariance-gate 22.46");
+  ASSERT_EQ(gated.exit_code, 0) << gated.out;
+  EXPECT_EQ(nlohmann::json::parse(LastLine(gated.out))["rows"][0]["config"]["covariance_gate"],
+            22.46);
   const CommandResult asked = RunMoslam(run + " --loop-closure");
   ASSERT_EQ(asked.exit_code, 0) << asked.out;
   EXPECT_EQ(nlohmann::json::parse(LastLine(asked.out))["rows"][0]["config"]["loop_closure"], true);

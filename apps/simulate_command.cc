@@ -8,6 +8,7 @@
 //                   [--classes classes.txt] [--templates DIR] [--perceive-every K]
 //                   [--detection-log FILE.jsonl]]
 //                   [--exclusion-radius M] [--leave-one-out-check] [--ambiguity-ratio R]
+//                   [--covariance-gate CHI2]
 //                   [--loop-closure | --no-loop-closure]
 //                   [--rendezvous-constellation | --no-rendezvous-constellation]
 //   moslam simulate --online --scenario house --robots 6 --runs 10 [--plot FILE.svg] [--json]
@@ -114,6 +115,7 @@ struct SimulateArgs {
   std::optional<double> exclusion_radius;  // unset: kRenderedExclusionRadius when rendered, else 0
   bool leave_one_out_check = false;
   std::optional<double> ambiguity_ratio;  // unset: kRenderedAmbiguityRatio when rendered, else 0
+  double covariance_gate = 0.0;
   std::optional<bool> loop_closure;  // unset: kRenderedLoopClosure when rendered, else off
   // unset: kRenderedRendezvousConstellation when rendered, else off
   std::optional<bool> rendezvous_constellation;
@@ -195,6 +197,7 @@ ExperimentConfig RowConfig(const SimulateArgs& a, int robots, std::size_t noise,
   c.exclusion_radius = a.exclusion_radius.value_or(rendered ? kRenderedExclusionRadius : 0.0);
   c.leave_one_out_check = a.leave_one_out_check;
   c.ambiguity_ratio = a.ambiguity_ratio.value_or(rendered ? kRenderedAmbiguityRatio : 0.0);
+  c.covariance_gate = a.covariance_gate;
   c.loop_closure = a.loop_closure.value_or(rendered && kRenderedLoopClosure);
   c.rendezvous_constellation =
       a.rendezvous_constellation.value_or(rendered && kRenderedRendezvousConstellation);
@@ -224,6 +227,7 @@ int RunOnlineSimulation(const SimulateArgs& a) {
       c.base.exclusion_radius = a.exclusion_radius.value_or(0.0);
       c.base.leave_one_out_check = a.leave_one_out_check;
       c.base.ambiguity_ratio = a.ambiguity_ratio.value_or(0.0);
+      c.base.covariance_gate = a.covariance_gate;
       c.base.outlier_fraction = a.outliers;
       c.base.robust = a.robust;
       c.base.gnc_threshold = a.gnc_threshold;
@@ -427,6 +431,12 @@ void AddAssociationFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& arg
                   "of its label (normalised distance ratio above R; 0: off, the paper's rule; "
                   "default 0.6 with --perception rendered, else 0)")
       ->check(CLI::Range(0.0, 0.999));
+  sub->add_option("--covariance-gate", args->covariance_gate,
+                  "a robot matches a detection to a landmark when the chi-square of the "
+                  "measurement against the marginal covariance of its pose and the landmark is "
+                  "at most CHI2 (6 dof: 22.46 is 99.9 %), instead of the fixed gate (0: off, the "
+                  "paper's rule)")
+      ->check(NonNegative());
   CLI::Option* closure_on = sub->add_flag_function(
       "--loop-closure", [args](std::int64_t) { args->loop_closure = true; },
       "a robot aligns the constellation of its recent landmarks with its older ones and joins "

@@ -708,6 +708,9 @@ void ExperimentConfig::validate() const {
   if (!(ambiguity_ratio >= 0.0 && ambiguity_ratio < 1.0)) {
     throw InvalidInputError("experiment: ambiguity_ratio must be in [0, 1) (0: off)");
   }
+  if (!(covariance_gate >= 0.0) || !std::isfinite(covariance_gate)) {
+    throw InvalidInputError("experiment: covariance_gate must be finite and >= 0 (0: off)");
+  }
   if (poses_per_robot < 2) {
     throw InvalidInputError("experiment: poses_per_robot must be at least 2, got " +
                             std::to_string(poses_per_robot));
@@ -736,6 +739,7 @@ SimulatedRun SimulateRun(const ExperimentConfig& config, int run, RunMetrics& me
   out.slam.slam.exclusion_radius = config.exclusion_radius;
   out.slam.slam.leave_one_out_check = config.leave_one_out_check;
   out.slam.slam.ambiguity_ratio = config.ambiguity_ratio;
+  out.slam.slam.covariance_gate = config.covariance_gate;
   out.slam.slam.loop_closure = config.loop_closure;
   out.slam.rendezvous.refine_by_constellation = config.rendezvous_constellation;
   out.slam.outlier_fraction = config.outlier_fraction;
@@ -904,6 +908,7 @@ std::string ResultsToJson(const std::vector<ExperimentResult>& results) {
                              {"exclusion_radius", c.exclusion_radius},
                              {"leave_one_out_check", c.leave_one_out_check},
                              {"ambiguity_ratio", c.ambiguity_ratio},
+                             {"covariance_gate", c.covariance_gate},
                              {"loop_closure", c.loop_closure},
                              {"rendezvous_constellation", c.rendezvous_constellation},
                              {"skipped_runs", r.skipped}};

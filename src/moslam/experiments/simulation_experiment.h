@@ -107,6 +107,9 @@ struct ExperimentConfig {
   // The robots' refusal of ambiguous matches (ObjectSlamConfig::ambiguity_ratio; 0: off, the
   // paper's rule). `moslam simulate` sets kRenderedAmbiguityRatio with --perception rendered.
   double ambiguity_ratio = 0.0;
+  // The robots' covariance gate (ObjectSlamConfig::covariance_gate; 0: off, the paper's fixed
+  // gate; `moslam simulate --covariance-gate CHI2`).
+  double covariance_gate = 0.0;
   // The robots' loop closure by object constellations (ObjectSlamConfig::loop_closure). Off
   // here (the paper's rule); `moslam simulate` turns it on with --perception rendered unless
   // --no-loop-closure.

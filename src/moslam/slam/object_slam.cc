@@ -1,6 +1,7 @@
 #include "moslam/slam/object_slam.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -9,6 +10,7 @@
 #include <utility>
 
 #include "moslam/common/errors.h"
+#include "moslam/solver/marginals.h"
 #include "moslam/solver/optimizer.h"
 
 namespace moslam {
@@ -101,6 +103,26 @@ AssociationGate AssociationGateForNoise(double sigma_rotation_deg, double sigma_
   return g;
 }
 
+namespace {
+
+// The pairs accepted nearest first (stable in their order on ties), each query and each candidate
+// at most once, in the order accepted.
+std::vector<GatedPair> NearestFirst(std::vector<GatedPair> pairs, std::size_t queries,
+                                    std::size_t candidates) {
+  std::stable_sort(pairs.begin(), pairs.end(),
+                   [](const GatedPair& a, const GatedPair& b) { return a.score < b.score; });
+  std::vector<bool> q_used(queries, false), c_used(candidates, false);
+  std::vector<GatedPair> out;
+  for (const auto& p : pairs) {
+    if (q_used[p.query] || c_used[p.candidate]) continue;
+    q_used[p.query] = c_used[p.candidate] = true;
+    out.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace
+
 std::optional<std::size_t> NearestWithinGate(const std::string& label, const SE3& predicted,
                                              const std::vector<LandmarkCandidate>& candidates,
                                              const AssociationGate& gate) {
@@ -132,16 +154,7 @@ std::vector<GatedPair> MatchWithinGate(const std::vector<LandmarkCandidate>& que
       if (gate.accepts(queries[q].pose, candidates[c].pose, &score)) pairs.push_back({q, c, score});
     }
   }
-  std::stable_sort(pairs.begin(), pairs.end(),
-                   [](const GatedPair& a, const GatedPair& b) { return a.score < b.score; });
-  std::vector<bool> q_used(queries.size(), false), c_used(candidates.size(), false);
-  std::vector<GatedPair> out;
-  for (const auto& p : pairs) {
-    if (q_used[p.query] || c_used[p.candidate]) continue;
-    q_used[p.query] = c_used[p.candidate] = true;
-    out.push_back(p);
-  }
-  return out;
+  return NearestFirst(std::move(pairs), queries.size(), candidates.size());
 }
 
 AssociationStats& AssociationStats::operator+=(const AssociationStats& o) {
@@ -174,6 +187,11 @@ void ObjectSlamConfig::validate() const {
   }
   if (!(ambiguity_ratio >= 0.0 && ambiguity_ratio < 1.0)) {
     throw InvalidInputError("ObjectSlamConfig: ambiguity_ratio must be in [0, 1) (0: off)");
+  }
+  if (!(covariance_gate >= 0.0 && std::isfinite(covariance_gate))) {
+    throw InvalidInputError(
+        "ObjectSlamConfig: covariance_gate must be finite and >= 0 (a chi-square bound with 6 "
+        "degrees of freedom, e.g. 22.46; 0: off)");
   }
   if (!(leave_one_out_rival_radii > 0.0 && std::isfinite(leave_one_out_rival_radii))) {
     throw InvalidInputError("ObjectSlamConfig: leave_one_out_rival_radii must be finite and > 0");
@@ -243,14 +261,68 @@ void ObjectSlam::addPose(const OdometryReading& odometry,
   maybeUpdate();
 }
 
+std::optional<ObjectSlam::MatchCovariance> ObjectSlam::matchCovariance(
+    const std::vector<ObjectDetection>& detections) const {
+  std::set<std::string> labels;
+  for (const auto& d : detections) labels.insert(d.label);
+  MatchCovariance out;
+  std::vector<Key> keys{Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1))};
+  for (std::size_t k = 0; k < landmarks_.size(); ++k) {
+    if (labels.count(landmarks_[k].label) == 0) continue;
+    out.landmarks.push_back(k);
+    keys.push_back(Key::Object(0, k));
+  }
+  if (out.landmarks.empty()) return out;
+  try {
+    out.joint = Marginals(weightedGraph(), local_values_).jointCovariance(keys);
+  } catch (const UnderdeterminedError&) {
+    return std::nullopt;
+  } catch (const NumericalError&) {
+    return std::nullopt;
+  }
+  return out;
+}
+
 std::vector<std::optional<std::size_t>> ObjectSlam::associate(
-    const SE3& x, const std::vector<ObjectDetection>& detections) const {
+    const SE3& x, const std::vector<ObjectDetection>& detections,
+    const MatchCovariance* covariance) const {
   if (config_.ground_truth_association) {
     std::vector<std::optional<std::size_t>> assigned(detections.size());
     for (std::size_t d = 0; d < detections.size(); ++d) {
       for (std::size_t k = 0; k < landmarks_.size(); ++k) {
         if (landmarks_[k].true_object == detections[d].object_id) assigned[d] = k;
       }
+    }
+    return assigned;
+  }
+  if (covariance != nullptr) {
+    // The covariance gate: r^T S^-1 r of each (detection, landmark) pair of one label.
+    const MatchCovariance& c = *covariance;
+    std::vector<GatedPair> pairs;
+    Matrix6 sxx = Matrix6::Zero();
+    if (!c.landmarks.empty()) sxx = c.joint.topLeftCorner<6, 6>();
+    for (std::size_t d = 0; d < detections.size(); ++d) {
+      const ObjectDetection& det = detections[d];
+      const Matrix6 noise = det.information.inverse();
+      for (std::size_t j = 0; j < c.landmarks.size(); ++j) {
+        const std::size_t k = c.landmarks[j];
+        if (landmarks_[k].label != det.label) continue;
+        Matrix6 jx, jo;
+        const Vector6 r =
+            RelativePoseFactor(Key::Pose(0, 0), Key::Object(0, k), det.measurement, det.information)
+                .residual(x, landmarkPose(k), &jx, &jo);
+        const auto b = static_cast<Eigen::Index>(6 * (j + 1));
+        const Matrix6 sxo = c.joint.block<6, 6>(0, b);
+        const Matrix6 jsxo = jx * sxo * jo.transpose();
+        const Matrix6 s = jx * sxx * jx.transpose() + jsxo + jsxo.transpose() +
+                          jo * c.joint.block<6, 6>(b, b) * jo.transpose() + noise;
+        const double m2 = r.dot(s.ldlt().solve(r));
+        if (std::isfinite(m2) && m2 <= config_.covariance_gate) pairs.push_back({d, k, m2});
+      }
+    }
+    std::vector<std::optional<std::size_t>> assigned(detections.size());
+    for (const auto& m : NearestFirst(std::move(pairs), detections.size(), landmarks_.size())) {
+      assigned[m.query] = m.candidate;
     }
     return assigned;
   }
@@ -307,14 +379,19 @@ void ObjectSlam::addDetections(const std::vector<ObjectDetection>& detections,
   const auto i = static_cast<std::uint64_t>(num_poses_ - 1);
   const Key pose_key = Key::Pose(0, i);
   SE3 x = local_values_.at(pose_key);
-  std::vector<std::optional<std::size_t>> assigned = associate(x, detections);
+  std::optional<MatchCovariance> covariance;
+  if (config_.covariance_gate > 0.0 && !config_.ground_truth_association) {
+    covariance = matchCovariance(detections);
+  }
+  const MatchCovariance* cov = covariance ? &*covariance : nullptr;
+  std::vector<std::optional<std::size_t>> assigned = associate(x, detections, cov);
   const bool any = std::any_of(assigned.begin(), assigned.end(),
                                [](const auto& a) { return a.has_value(); });
   if (odometry != nullptr && any && config_.localization_iterations > 0) {
     // Localise the new pose on the landmarks just matched, then match again from there.
     x = refinePose(x, *odometry, detections, assigned);
     local_values_[pose_key] = x;
-    assigned = associate(x, detections);
+    assigned = associate(x, detections, cov);
   }
   // The pose stays localised on every match: localising it again without the refused ones (or
   // at the prediction, when none is left) mapped worse (chairs25, 6 robots, seeds 11-20: GT ATE

@@ -241,6 +241,44 @@ TEST(ObjectSlam, AmbiguityRatioRefusesAMatchAsNearAnotherLandmarkOfItsLabel) {
   EXPECT_THROW(c.validate(), InvalidInputError);
 }
 
+// The covariance gate follows the robot's uncertainty, the fixed gate does not. A robot sees a
+// chair 3 m ahead, drives 5 m out and 3 m back on odometry alone (0.5 m / 5 deg per step, nothing
+// else seen) and turns to face it again from 1 m: the chair, seen 1.5 m to the side of where the
+// dead reckoning puts it, is beyond the fixed gate's 1 m, so the paper's rule maps it again; with
+// the gate (chi-square 22.46) the pose's covariance after nine such steps takes it, and the loop
+// is closed. A precise robot (odometry 1 deg / 1 cm, measurements 1 deg / 5 cm) one step after
+// seeing the chair sees it 0.9 m off: within the fixed gate, which joins it, but far outside what
+// a pose and a landmark known to centimetres allow: a new landmark.
+TEST(ObjectSlam, CovarianceGateFollowsTheRobotsUncertainty) {
+  const auto association = [](double gate, const std::vector<OdometryReading>& path,
+                              const ObjectDetection& seen) {
+    ObjectSlamConfig c = TestSlamConfig();
+    c.covariance_gate = gate;
+    ObjectSlam slam(0, c);
+    slam.addFirstPose({ObjectDetection{"chair", Pose(3, 0, 0), seen.information, 0}});
+    for (std::size_t i = 0; i + 1 < path.size(); ++i) slam.addPose(path[i], {});
+    slam.addPose(path.back(), {seen});
+    return slam.lastAssociations().at(0);
+  };
+  const Matrix6 loose = Info(5.0, 0.5);
+  std::vector<OdometryReading> out_and_back(4, {Pose(1, 0, 0), loose});
+  out_and_back.push_back({Pose(1, 0, 0, 180), loose});                 // at 5 m, turned back
+  out_and_back.insert(out_and_back.end(), 3, {Pose(1, 0, 0), loose});  // at 2 m
+  out_and_back.push_back({Pose(0, 0, 0, 180), loose});                 // facing the chair again
+  const ObjectDetection drifted{"chair", Pose(1, 1.5, 0), Info(5.0, 0.2), 0};
+  EXPECT_EQ(association(0.0, out_and_back, drifted), 1u);    // the fixed gate: mapped again
+  EXPECT_EQ(association(22.46, out_and_back, drifted), 0u);  // the covariance gate: loop closed
+  const std::vector<OdometryReading> one_step = {{Pose(1, 0, 0), Info(1.0, 0.01)}};
+  const ObjectDetection off{"chair", Pose(2, 0.9, 0), Info(1.0, 0.05), 0};
+  EXPECT_EQ(association(0.0, one_step, off), 0u);    // within the fixed gate's 1 m: joined
+  EXPECT_EQ(association(22.46, one_step, off), 1u);  // beyond the covariance's: a new landmark
+  ObjectSlamConfig bad = TestSlamConfig();
+  bad.covariance_gate = -1.0;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  bad.covariance_gate = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(ObjectSlam(0, bad), InvalidInputError);
+}
+
 // A drifted robot's wrong match: a detection of an unmapped chair predicted 0.9 m and 25 deg from
 // a neighbour's landmark passes the gate term by term (1.8 and 1.67 sigmas of 2) and the paper's
 // rule joins it; against the pose the four right matches give, its score is 6.0 > 2^2, and
