@@ -309,7 +309,8 @@ std::vector<std::optional<std::size_t>> ObjectSlam::associate(
         if (landmarks_[k].label != det.label) continue;
         Matrix6 jx, jo;
         const Vector6 r =
-            RelativePoseFactor(Key::Pose(0, 0), Key::Object(0, k), det.measurement, det.information)
+            RelativePoseFactor(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)),
+                               Key::Object(0, k), det.measurement, det.information)
                 .residual(x, landmarkPose(k), &jx, &jo);
         const auto b = static_cast<Eigen::Index>(6 * (j + 1));
         const Matrix6 sxo = c.joint.block<6, 6>(0, b);
