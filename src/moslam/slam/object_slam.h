@@ -45,7 +45,7 @@
 // is the same at every pose, though the robot's drift since it last saw an object is not: a robot
 // that comes back to a room after a stretch on odometry alone predicts its objects further than
 // the gate's 1.4 m and maps them again (the loop is never closed), and a pose that just saw its
-// neighbours is allowed 1.4 m where it is off by a few centimetres. With the gate on, each new
+// neighbours is allowed 1.4 m whatever the noise of its sensors. With the gate on, each new
 // pose i takes the joint marginal covariance Sigma of (x_i, o_k), over the landmarks o_k of its
 // detections' labels, from the robot's graph at its current estimate (solver/marginals.h: one
 // sparse factorisation per pose, the first pose held, so it is relative to the robot's own frame),
