@@ -124,6 +124,17 @@ void AddScenarioFlags(CLI::App* sub, ScenarioFlags& f, bool with_robots) {
   sub->add_flag("--leave-one-out-check", f.spec.leave_one_out_check,
                 "A robot re-tests each match of a pose at the pose localised on its other "
                 "matches, and refuses the ones that disagree (as simulate)");
+  sub->add_option("--ambiguity-ratio", f.spec.ambiguity_ratio,
+                  "A robot refuses a match whose prediction lies nearly as near another landmark "
+                  "of its label (normalised distance ratio above R; 0: off, the paper's rule; as "
+                  "simulate)")
+      ->check(CLI::Range(0.0, 0.999));
+  sub->add_option("--covariance-gate", f.spec.covariance_gate,
+                  "A robot matches a detection to a landmark when the chi-square of the "
+                  "measurement against the marginal covariance of its pose and the landmark is at "
+                  "most CHI2 (6 dof: 22.46 is 99.9 %), instead of the fixed gate (0: off, the "
+                  "paper's rule; as simulate)")
+      ->check(NonNegative());
   sub->add_flag("--loop-closure", f.spec.loop_closure,
                 "A robot aligns its recent landmarks with its older ones and joins the objects it "
                 "mapped twice (as simulate; not with --online)");
@@ -154,8 +165,13 @@ std::vector<std::string> ScenarioArgs(const ScenarioFlags& f) {
       std::to_string(f.spec.seed), "--sigma-rot", fmt::format("{}", f.spec.sigma_rotation_deg),
       "--sigma-trans", fmt::format("{}", f.spec.sigma_translation), "--poses",
       std::to_string(f.spec.poses_per_robot), "--rendezvous-timeout",
-      fmt::format("{}", f.rendezvous_timeout), "--initial-poses", f.initial_poses,
-      "--exclusion-radius", fmt::format("{}", f.spec.exclusion_radius)};
+      fmt::format("{}", f.rendezvous_timeout), "--initial-poses", f.initial_poses};
+  for (const auto& [flag, value] : {std::pair{"--exclusion-radius", f.spec.exclusion_radius},
+                                    std::pair{"--ambiguity-ratio", f.spec.ambiguity_ratio},
+                                    std::pair{"--covariance-gate", f.spec.covariance_gate}}) {
+    a.push_back(flag);
+    a.push_back(fmt::format("{}", value));
+  }
   if (f.spec.leave_one_out_check) a.push_back("--leave-one-out-check");
   if (f.spec.loop_closure) a.push_back("--loop-closure");
   if (f.spec.rendezvous_constellation) a.push_back("--rendezvous-constellation");
@@ -169,6 +185,8 @@ nlohmann::json ScenarioJson(const ScenarioSpec& spec) {
   j["initial_poses"] = spec.known_initial_poses ? "known" : "unknown";
   j["exclusion_radius"] = spec.exclusion_radius;
   j["leave_one_out_check"] = spec.leave_one_out_check;
+  j["ambiguity_ratio"] = spec.ambiguity_ratio;
+  j["covariance_gate"] = spec.covariance_gate;
   j["loop_closure"] = spec.loop_closure;
   j["rendezvous_constellation"] = spec.rendezvous_constellation;
   return j;

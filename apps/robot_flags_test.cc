@@ -49,6 +49,8 @@ TEST(RobotFlags, EveryFlagOfTheRobotsParserIsForwardedAndReadsBack) {
   s.name = "house";
   s.spec.robots = 3;
   s.spec.leave_one_out_check = true;
+  s.spec.ambiguity_ratio = 0.625;
+  s.spec.covariance_gate = 22.46;
   s.spec.loop_closure = true;
   s.spec.rendezvous_constellation = true;
   s.initial_poses = "unknown";

@@ -45,6 +45,12 @@ void ScenarioSpec::validate() const {
   if (!(exclusion_radius >= 0.0) || !std::isfinite(exclusion_radius)) {
     bad("exclusion_radius must be finite and >= 0");
   }
+  if (!(ambiguity_ratio >= 0.0 && ambiguity_ratio < 1.0)) {
+    bad("ambiguity_ratio must be in [0, 1) (0: off)");
+  }
+  if (!(covariance_gate >= 0.0) || !std::isfinite(covariance_gate)) {
+    bad("covariance_gate must be finite and >= 0 (0: off)");
+  }
 }
 
 namespace {
@@ -69,6 +75,8 @@ MultiRobotSlamConfig ScenarioSlamConfig(const ScenarioSpec& spec) {
   config.known_initial_poses = spec.known_initial_poses;
   config.slam.exclusion_radius = spec.exclusion_radius;
   config.slam.leave_one_out_check = spec.leave_one_out_check;
+  config.slam.ambiguity_ratio = spec.ambiguity_ratio;
+  config.slam.covariance_gate = spec.covariance_gate;
   config.slam.loop_closure = spec.loop_closure;
   config.rendezvous.refine_by_constellation = spec.rendezvous_constellation;
   return config;

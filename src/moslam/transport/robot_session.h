@@ -119,6 +119,13 @@ struct ScenarioSpec {
   // radius (m, 0: off) and the leave-one-out check of a pose's matches.
   double exclusion_radius = 0.0;
   bool leave_one_out_check = false;
+  // A match nearly as near another landmark of its label refused (ObjectSlamConfig::
+  // ambiguity_ratio, in [0, 1); 0: off), and the association gated by the robot's marginal
+  // covariance (ObjectSlamConfig::covariance_gate, a chi-square bound with 6 degrees of freedom;
+  // 0: off, the paper's fixed gate), as `moslam simulate` with --ambiguity-ratio and
+  // --covariance-gate.
+  double ambiguity_ratio = 0.0;
+  double covariance_gate = 0.0;
   // The robots' loop closure by object constellations (ObjectSlamConfig::loop_closure; off, as
   // `moslam simulate` without --loop-closure).
   bool loop_closure = false;

@@ -276,6 +276,33 @@ TEST(RobotSession, TheRobotsAssociationOptionsGiveTheInProcessPipelineWithThem) 
   ExpectEqualToInProcess(results, ref);
 }
 
+// The covariance gate and the refusal of ambiguous matches (ScenarioSpec, as `moslam simulate`'s
+// --covariance-gate and --ambiguity-ratio) reach every session's SLAM: each changes the in-process
+// pipeline on its own and beside the other, and the sessions give the pipeline with both.
+TEST(RobotSession, TheRobotsCovarianceGateAndAmbiguityRatioGiveTheInProcessPipelineWithThem) {
+  ScenarioSpec spec = Small();
+  spec.scenario = "house";  // kitchen chairs side by side: matches refused as ambiguous
+  spec.seed = 2;
+  spec.covariance_gate = 22.46;
+  spec.ambiguity_ratio = 0.6;
+  const SimulationData data = SimulateScenario(spec);
+  const Reference ref = InProcess(spec, data);
+  ASSERT_TRUE(ref.joint.unanchored_robots.empty());
+  EXPECT_GE(ref.slam.intra.refused, 5);
+  for (const auto& [what, option] : std::vector<std::pair<std::string, double ScenarioSpec::*>>{
+           {"covariance gate", &ScenarioSpec::covariance_gate},
+           {"ambiguity ratio", &ScenarioSpec::ambiguity_ratio}}) {
+    ScenarioSpec without = spec;
+    without.*option = 0.0;
+    EXPECT_GT(MaxPoseDifference(InProcess(without, data).dgs.values, ref.dgs.values), 1e-6)
+        << "without the " << what;
+  }
+
+  const std::vector<RobotSessionResult> results = RunTeam(spec, data);
+  ASSERT_FALSE(HasFailure());
+  ExpectEqualToInProcess(results, ref);
+}
+
 // The robots' loop closure (slam/object_slam.h) runs inside each robot's own SLAM: the processes
 // map and solve as the in-process pipeline with it.
 TEST(RobotSession, TheRobotsLoopClosureGivesTheInProcessPipelineWithIt) {
@@ -772,6 +799,12 @@ TEST(RobotSession, ValidatesItsInputs) {
   EXPECT_THROW(bad.validate(), InvalidInputError);
   bad = Small();
   bad.exclusion_radius = -0.1;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  bad = Small();
+  bad.ambiguity_ratio = 1.0;
+  EXPECT_THROW(bad.validate(), InvalidInputError);
+  bad = Small();
+  bad.covariance_gate = std::numeric_limits<double>::infinity();
   EXPECT_THROW(bad.validate(), InvalidInputError);
   const SimulationData data = SimulateScenario(Small());
   EXPECT_THROW(SliceForRobot(data, 3), InvalidInputError);

@@ -71,6 +71,14 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
     f.add(static_cast<std::uint64_t>(o.min_seen));
     f.add(o.min_confirmed_fraction);
   }
+  if (c.slam.ambiguity_ratio > 0.0) {  // (only then, as the covariance gate and loop closure)
+    f.add(std::string("ambiguity_ratio"));
+    f.add(c.slam.ambiguity_ratio);
+  }
+  if (c.slam.covariance_gate > 0.0) {
+    f.add(std::string("covariance_gate"));
+    f.add(c.slam.covariance_gate);
+  }
   if (c.slam.loop_closure) {  // (only then: the fingerprints of journals without it stay)
     f.add(std::string("loop_closure"));
     f.add(static_cast<std::uint64_t>(c.slam.loop_closure_window));

@@ -50,6 +50,8 @@ TEST(SessionFingerprint, EverythingTheJournaledResultsDependOnChangesIt) {
       {"an event", [](SessionRun& r) { r.data.events.pop_back(); }},
       {"association gate", [](SessionRun& r) { r.options.slam.slam.association.sigma *= 2.0; }},
       {"leave-one-out", [](SessionRun& r) { r.options.slam.slam.leave_one_out_check = true; }},
+      {"ambiguity ratio", [](SessionRun& r) { r.options.slam.slam.ambiguity_ratio = 0.6; }},
+      {"covariance gate", [](SessionRun& r) { r.options.slam.slam.covariance_gate = 22.46; }},
       {"loop closure", [](SessionRun& r) { r.options.slam.slam.loop_closure = true; }},
       {"rendezvous gate", [](SessionRun& r) { r.options.slam.rendezvous.gate.num_sigmas = 3.0; }},
       {"initial poses unknown", [](SessionRun& r) { r.options.slam.known_initial_poses = false; }},
