@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <set>
 #include <string>
 #include <utility>
@@ -283,6 +284,24 @@ std::optional<ObjectSlam::MatchCovariance> ObjectSlam::matchCovariance(
   return out;
 }
 
+double ObjectSlam::chiSquare(const SE3& x, const ObjectDetection& detection,
+                             const MatchCovariance& c, std::size_t j) const {
+  const std::size_t k = c.landmarks[j];
+  Matrix6 jx, jo;
+  const Vector6 r = RelativePoseFactor(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)),
+                                       Key::Object(0, k), detection.measurement,
+                                       detection.information)
+                        .residual(x, landmarkPose(k), &jx, &jo);
+  const auto b = static_cast<Eigen::Index>(6 * (j + 1));
+  const Matrix6 sxo = c.joint.block<6, 6>(0, b);
+  const Matrix6 jsxo = jx * sxo * jo.transpose();
+  const Matrix6 s = jx * c.joint.topLeftCorner<6, 6>() * jx.transpose() + jsxo +
+                    jsxo.transpose() + jo * c.joint.block<6, 6>(b, b) * jo.transpose() +
+                    detection.information.inverse();
+  const double m2 = r.dot(s.ldlt().solve(r));
+  return std::isfinite(m2) ? m2 : std::numeric_limits<double>::infinity();
+}
+
 std::vector<std::optional<std::size_t>> ObjectSlam::associate(
     const SE3& x, const std::vector<ObjectDetection>& detections,
     const MatchCovariance* covariance) const {
@@ -299,26 +318,11 @@ std::vector<std::optional<std::size_t>> ObjectSlam::associate(
     // The covariance gate: r^T S^-1 r of each (detection, landmark) pair of one label.
     const MatchCovariance& c = *covariance;
     std::vector<GatedPair> pairs;
-    Matrix6 sxx = Matrix6::Zero();
-    if (!c.landmarks.empty()) sxx = c.joint.topLeftCorner<6, 6>();
     for (std::size_t d = 0; d < detections.size(); ++d) {
-      const ObjectDetection& det = detections[d];
-      const Matrix6 noise = det.information.inverse();
       for (std::size_t j = 0; j < c.landmarks.size(); ++j) {
-        const std::size_t k = c.landmarks[j];
-        if (landmarks_[k].label != det.label) continue;
-        Matrix6 jx, jo;
-        const Vector6 r =
-            RelativePoseFactor(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)),
-                               Key::Object(0, k), det.measurement, det.information)
-                .residual(x, landmarkPose(k), &jx, &jo);
-        const auto b = static_cast<Eigen::Index>(6 * (j + 1));
-        const Matrix6 sxo = c.joint.block<6, 6>(0, b);
-        const Matrix6 jsxo = jx * sxo * jo.transpose();
-        const Matrix6 s = jx * sxx * jx.transpose() + jsxo + jsxo.transpose() +
-                          jo * c.joint.block<6, 6>(b, b) * jo.transpose() + noise;
-        const double m2 = r.dot(s.ldlt().solve(r));
-        if (std::isfinite(m2) && m2 <= config_.covariance_gate) pairs.push_back({d, k, m2});
+        if (landmarks_[c.landmarks[j]].label != detections[d].label) continue;
+        const double m2 = chiSquare(x, detections[d], c, j);
+        if (m2 <= config_.covariance_gate) pairs.push_back({d, c.landmarks[j], m2});
       }
     }
     std::vector<std::optional<std::size_t>> assigned(detections.size());
@@ -402,7 +406,7 @@ void ObjectSlam::addDetections(const std::vector<ObjectDetection>& detections,
     refused = refuseInconsistent(x, *odometry, detections, assigned);
   }
   if (config_.ambiguity_ratio > 0.0 && !config_.ground_truth_association) {
-    const std::vector<bool> ambiguous = refuseAmbiguous(x, detections, assigned);
+    const std::vector<bool> ambiguous = refuseAmbiguous(x, detections, assigned, cov);
     for (std::size_t d = 0; d < detections.size(); ++d) refused[d] = refused[d] || ambiguous[d];
   }
   record(detections, assigned, refused, x);
@@ -410,7 +414,7 @@ void ObjectSlam::addDetections(const std::vector<ObjectDetection>& detections,
 
 std::vector<bool> ObjectSlam::refuseAmbiguous(
     const SE3& x, const std::vector<ObjectDetection>& detections,
-    std::vector<std::optional<std::size_t>>& assigned) const {
+    std::vector<std::optional<std::size_t>>& assigned, const MatchCovariance* covariance) const {
   std::vector<bool> refused(detections.size(), false);
   std::vector<bool> taken(landmarks_.size(), false);
   for (const auto& a : assigned) {
@@ -420,6 +424,18 @@ std::vector<bool> ObjectSlam::refuseAmbiguous(
   const double ratio2 = config_.ambiguity_ratio * config_.ambiguity_ratio;
   for (std::size_t d = 0; d < detections.size(); ++d) {
     if (!assigned[d]) continue;
+    if (covariance != nullptr) {  // the covariance gate's distance, as the match was made
+      const MatchCovariance& c = *covariance;
+      const auto at = std::find(c.landmarks.begin(), c.landmarks.end(), *assigned[d]);
+      const double score = chiSquare(x, detections[d], c, at - c.landmarks.begin());
+      for (std::size_t j = 0; j < c.landmarks.size() && !refused[d]; ++j) {
+        const std::size_t k = c.landmarks[j];
+        if (taken[k] || landmarks_[k].label != detections[d].label) continue;
+        const double rival = chiSquare(x, detections[d], c, j);
+        refused[d] = rival <= config_.covariance_gate && score > ratio2 * rival;
+      }
+      continue;
+    }
     const SE3 predicted = x * detections[d].measurement;
     const double score = gate.score(predicted, landmarkPose(*assigned[d]));
     for (std::size_t k = 0; k < landmarks_.size(); ++k) {

@@ -53,8 +53,9 @@
 // object-pose factor's) has r^T S^-1 r <= covariance_gate, S = J Sigma J^T + Omega^-1 with J the
 // factor's Jacobian in (x_i, o_k): the chi-square test of a 6-dof measurement, 22.46 its 99.9 %.
 // Matching stays joint and nearest first, by that distance; the localisation and the second
-// matching keep the covariance of the prediction. The leave-one-out check, the ambiguity test and
-// the exclusion radius keep the fixed gate's sigmas. Where the factorisation fails (a graph the
+// matching keep the covariance of the prediction. The ambiguity test (below) compares the gate's
+// own r^T S^-1 r, its rivals within the gate; the leave-one-out check and the exclusion radius
+// keep the fixed gate's sigmas. Where the factorisation fails (a graph the
 // first pose does not anchor, H not positive definite) the pose is matched with the fixed gate.
 // Measured (`moslam simulate --runs 10 --seed 11 --scenario S --robots 2 4 6 --robust
 // --skip-unlinked --table robust`, without -> with `--covariance-gate 22.46`; README, Robustness):
@@ -332,10 +333,6 @@ class ObjectSlam {
                     std::size_t except = kDiscarded) const;
   // Whether the detection, seen from x, falls within exclusion_radius of a landmark of its label.
   bool excluded(const ObjectDetection& detection, const SE3& x) const;
-  // The ambiguity test of `assigned` at pose x (ObjectSlamConfig::ambiguity_ratio): which
-  // detections' matches it refuses (their entries of `assigned` reset).
-  std::vector<bool> refuseAmbiguous(const SE3& x, const std::vector<ObjectDetection>& detections,
-                                    std::vector<std::optional<std::size_t>>& assigned) const;
   // The leave-one-out check of `assigned` at pose x (ObjectSlamConfig::leave_one_out_check):
   // which detections' matches it refuses (their entries of `assigned` reset).
   std::vector<bool> refuseInconsistent(const SE3& x, const RelativePoseFactor& odometry,
@@ -352,6 +349,17 @@ class ObjectSlam {
   };
   std::optional<MatchCovariance> matchCovariance(
       const std::vector<ObjectDetection>& detections) const;
+  // r^T S^-1 r of `detection` at pose x against landmark c.landmarks[j] (the covariance gate);
+  // +inf where it is not finite.
+  double chiSquare(const SE3& x, const ObjectDetection& detection, const MatchCovariance& c,
+                   std::size_t j) const;
+  // The ambiguity test of `assigned` at pose x (ObjectSlamConfig::ambiguity_ratio): which
+  // detections' matches it refuses (their entries of `assigned` reset). With `covariance` the
+  // distances are the covariance gate's r^T S^-1 r and a rival must pass that gate; without, the
+  // fixed gate's scores.
+  std::vector<bool> refuseAmbiguous(const SE3& x, const std::vector<ObjectDetection>& detections,
+                                    std::vector<std::optional<std::size_t>>& assigned,
+                                    const MatchCovariance* covariance) const;
   // Each detection's match at pose x: by the covariance gate when `covariance` is given, else by
   // the fixed gate.
   std::vector<std::optional<std::size_t>> associate(

@@ -279,6 +279,33 @@ TEST(ObjectSlam, CovarianceGateFollowsTheRobotsUncertainty) {
   EXPECT_THROW(ObjectSlam(0, bad), InvalidInputError);
 }
 
+// Under the covariance gate the ambiguity test uses the gate's own distances. The loose robot of
+// the test above, back at 2 m facing two chairs it saw 3 m apart from pose 0, sees one of them
+// predicted 1.3 m from the first and 1.7 m from the second: both beyond the fixed gate's 1 m, both
+// well within what the pose's covariance allows, and nearly alike (their chi-squares' ratio
+// about 0.76^2): refused with the ratio 0.6, joined to the nearer without it. Predicted 0.2 m from
+// the first it is no longer ambiguous and joins it.
+TEST(ObjectSlam, AmbiguityTestUnderTheCovarianceGateUsesItsDistances) {
+  const Matrix6 loose = Info(5.0, 0.5);
+  std::vector<OdometryReading> out_and_back(4, {Pose(1, 0, 0), loose});
+  out_and_back.push_back({Pose(1, 0, 0, 180), loose});
+  out_and_back.insert(out_and_back.end(), 3, {Pose(1, 0, 0), loose});
+  out_and_back.push_back({Pose(0, 0, 0, 180), loose});  // at 2 m, facing the chairs
+  const auto association = [&](double ratio, double lateral) {
+    ObjectSlamConfig c = TestSlamConfig();
+    c.covariance_gate = 22.46;
+    c.ambiguity_ratio = ratio;
+    ObjectSlam slam(0, c);
+    slam.addFirstPose({Det("chair", Pose(3, 1.5, 0), 0), Det("chair", Pose(3, -1.5, 0), 1)});
+    for (std::size_t i = 0; i + 1 < out_and_back.size(); ++i) slam.addPose(out_and_back[i], {});
+    slam.addPose(out_and_back.back(), {Det("chair", Pose(1, lateral, 0), 0)});
+    return slam.lastAssociations().at(0);
+  };
+  EXPECT_EQ(association(0.0, 0.2), 0u);
+  EXPECT_EQ(association(0.6, 0.2), ObjectSlam::kDiscarded);
+  EXPECT_EQ(association(0.6, 1.3), 0u);
+}
+
 // A drifted robot's wrong match: a detection of an unmapped chair predicted 0.9 m and 25 deg from
 // a neighbour's landmark passes the gate term by term (1.8 and 1.67 sigmas of 2) and the paper's
 // rule joins it; against the pose the four right matches give, its score is 6.0 > 2^2, and
