@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <set>
 #include <string>
@@ -267,6 +268,7 @@ std::optional<ObjectSlam::MatchCovariance> ObjectSlam::matchCovariance(
   std::set<std::string> labels;
   for (const auto& d : detections) labels.insert(d.label);
   MatchCovariance out;
+  out.pose = local_values_.at(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)));
   std::vector<Key> keys{Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1))};
   for (std::size_t k = 0; k < landmarks_.size(); ++k) {
     if (labels.count(landmarks_[k].label) == 0) continue;
@@ -284,14 +286,14 @@ std::optional<ObjectSlam::MatchCovariance> ObjectSlam::matchCovariance(
   return out;
 }
 
-double ObjectSlam::chiSquare(const SE3& x, const ObjectDetection& detection,
-                             const MatchCovariance& c, std::size_t j) const {
+double ObjectSlam::chiSquare(const ObjectDetection& detection, const MatchCovariance& c,
+                             std::size_t j) const {
   const std::size_t k = c.landmarks[j];
   Matrix6 jx, jo;
-  const Vector6 r = RelativePoseFactor(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)),
-                                       Key::Object(0, k), detection.measurement,
-                                       detection.information)
-                        .residual(x, landmarkPose(k), &jx, &jo);
+  const Vector6 r =
+      RelativePoseFactor(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)),
+                         Key::Object(0, k), detection.measurement, detection.information)
+          .residual(c.pose, landmarkPose(k), &jx, &jo);
   const auto b = static_cast<Eigen::Index>(6 * (j + 1));
   const Matrix6 sxo = c.joint.block<6, 6>(0, b);
   const Matrix6 jsxo = jx * sxo * jo.transpose();
@@ -302,32 +304,108 @@ double ObjectSlam::chiSquare(const SE3& x, const ObjectDetection& detection,
   return std::isfinite(m2) ? m2 : std::numeric_limits<double>::infinity();
 }
 
+std::vector<std::optional<std::size_t>> ObjectSlam::matchJointly(
+    const std::vector<ObjectDetection>& detections, const MatchCovariance& prior) const {
+  struct Candidate {
+    std::size_t j;  // block j + 1 of prior.joint
+    double m2;
+    Vector6 r;
+    Matrix6 jx, jo;
+  };
+  const std::size_t n = detections.size();
+  std::vector<std::vector<Candidate>> candidates(n);
+  for (std::size_t d = 0; d < n; ++d) {
+    for (std::size_t j = 0; j < prior.landmarks.size(); ++j) {
+      const std::size_t k = prior.landmarks[j];
+      if (landmarks_[k].label != detections[d].label) continue;
+      Candidate c{j, chiSquare(detections[d], prior, j), Vector6::Zero(), Matrix6::Zero(),
+                  Matrix6::Zero()};
+      if (!(c.m2 <= config_.covariance_gate)) continue;
+      c.r = RelativePoseFactor(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)),
+                               Key::Object(0, k), detections[d].measurement,
+                               detections[d].information)
+                .residual(prior.pose, landmarkPose(k), &c.jx, &c.jo);
+      candidates[d].push_back(c);
+    }
+    std::sort(candidates[d].begin(), candidates[d].end(),
+              [](const Candidate& a, const Candidate& b) { return a.m2 < b.m2; });
+  }
+  // The chi-square bound of 6 m dof at the tail of covariance_gate's 6 (Wilson-Hilferty).
+  const double z =
+      (std::cbrt(config_.covariance_gate / 6.0) - 1.0 + 2.0 / 54.0) / std::sqrt(2.0 / 54.0);
+  const auto bound = [z](std::size_t m) {
+    const double nu = 6.0 * static_cast<double>(m);
+    const double a = 2.0 / (9.0 * nu);
+    return nu * std::pow(1.0 - a + z * std::sqrt(a), 3);
+  };
+  const auto block = [&](std::size_t a, std::size_t b) {
+    return prior.joint.block<6, 6>(static_cast<Eigen::Index>(6 * a),
+                                   static_cast<Eigen::Index>(6 * b));
+  };
+  std::vector<std::pair<std::size_t, const Candidate*>> hypothesis;  // (detection, candidate)
+  const auto joint_m2 = [&]() {
+    const auto m = static_cast<Eigen::Index>(6 * hypothesis.size());
+    Eigen::MatrixXd s(m, m);
+    Eigen::VectorXd r(m);
+    for (std::size_t a = 0; a < hypothesis.size(); ++a) {
+      const Candidate& ca = *hypothesis[a].second;
+      r.segment<6>(static_cast<Eigen::Index>(6 * a)) = ca.r;
+      for (std::size_t b = 0; b <= a; ++b) {
+        const Candidate& cb = *hypothesis[b].second;
+        Matrix6 sab = ca.jx * block(0, 0) * cb.jx.transpose() +
+                      ca.jx * block(0, cb.j + 1) * cb.jo.transpose() +
+                      ca.jo * block(ca.j + 1, 0) * cb.jx.transpose() +
+                      ca.jo * block(ca.j + 1, cb.j + 1) * cb.jo.transpose();
+        if (a == b) sab += detections[hypothesis[a].first].information.inverse();
+        s.block<6, 6>(static_cast<Eigen::Index>(6 * a), static_cast<Eigen::Index>(6 * b)) = sab;
+        s.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * a)) =
+            sab.transpose();
+      }
+    }
+    const double m2 = r.dot(s.ldlt().solve(r));
+    return std::isfinite(m2) ? m2 : std::numeric_limits<double>::infinity();
+  };
+  std::vector<bool> taken(prior.landmarks.size(), false);
+  std::vector<std::optional<std::size_t>> best(n);
+  std::size_t best_pairs = 0;
+  double best_m2 = std::numeric_limits<double>::infinity();
+  long nodes = 0;
+  const std::function<void(std::size_t, double)> search = [&](std::size_t d, double m2) {
+    if (++nodes > kMaxJointNodes) return;
+    if (d == n) {
+      if (hypothesis.size() > best_pairs || (hypothesis.size() == best_pairs && m2 < best_m2)) {
+        best_pairs = hypothesis.size();
+        best_m2 = m2;
+        best.assign(n, std::nullopt);
+        for (const auto& [e, c] : hypothesis) best[e] = prior.landmarks[c->j];
+      }
+      return;
+    }
+    for (const Candidate& c : candidates[d]) {
+      if (taken[c.j] || hypothesis.size() + (n - d) < best_pairs) continue;
+      hypothesis.emplace_back(d, &c);
+      const double joint = joint_m2();
+      if (joint <= bound(hypothesis.size())) {
+        taken[c.j] = true;
+        search(d + 1, joint);
+        taken[c.j] = false;
+      }
+      hypothesis.pop_back();
+    }
+    if (hypothesis.size() + (n - d - 1) >= best_pairs) search(d + 1, m2);
+  };
+  search(0, 0.0);
+  return best;
+}
+
 std::vector<std::optional<std::size_t>> ObjectSlam::associate(
-    const SE3& x, const std::vector<ObjectDetection>& detections,
-    const MatchCovariance* covariance) const {
+    const SE3& x, const std::vector<ObjectDetection>& detections) const {
   if (config_.ground_truth_association) {
     std::vector<std::optional<std::size_t>> assigned(detections.size());
     for (std::size_t d = 0; d < detections.size(); ++d) {
       for (std::size_t k = 0; k < landmarks_.size(); ++k) {
         if (landmarks_[k].true_object == detections[d].object_id) assigned[d] = k;
       }
-    }
-    return assigned;
-  }
-  if (covariance != nullptr) {
-    // The covariance gate: r^T S^-1 r of each (detection, landmark) pair of one label.
-    const MatchCovariance& c = *covariance;
-    std::vector<GatedPair> pairs;
-    for (std::size_t d = 0; d < detections.size(); ++d) {
-      for (std::size_t j = 0; j < c.landmarks.size(); ++j) {
-        if (landmarks_[c.landmarks[j]].label != detections[d].label) continue;
-        const double m2 = chiSquare(x, detections[d], c, j);
-        if (m2 <= config_.covariance_gate) pairs.push_back({d, c.landmarks[j], m2});
-      }
-    }
-    std::vector<std::optional<std::size_t>> assigned(detections.size());
-    for (const auto& m : NearestFirst(std::move(pairs), detections.size(), landmarks_.size())) {
-      assigned[m.query] = m.candidate;
     }
     return assigned;
   }
@@ -389,14 +467,16 @@ void ObjectSlam::addDetections(const std::vector<ObjectDetection>& detections,
     covariance = matchCovariance(detections);
   }
   const MatchCovariance* cov = covariance ? &*covariance : nullptr;
-  std::vector<std::optional<std::size_t>> assigned = associate(x, detections, cov);
+  // The covariance gate matches the pose's detections jointly, from the prediction; the fixed
+  // gate matches them nearest first, then again from the pose localised on those matches.
+  std::vector<std::optional<std::size_t>> assigned =
+      cov != nullptr ? matchJointly(detections, *cov) : associate(x, detections);
   const bool any = std::any_of(assigned.begin(), assigned.end(),
                                [](const auto& a) { return a.has_value(); });
   if (odometry != nullptr && any && config_.localization_iterations > 0) {
-    // Localise the new pose on the landmarks just matched, then match again from there.
     x = refinePose(x, *odometry, detections, assigned);
     local_values_[pose_key] = x;
-    assigned = associate(x, detections, cov);
+    if (cov == nullptr) assigned = associate(x, detections);
   }
   // The pose stays localised on every match: localising it again without the refused ones (or
   // at the prediction, when none is left) mapped worse (chairs25, 6 robots, seeds 11-20: GT ATE
@@ -412,9 +492,10 @@ void ObjectSlam::addDetections(const std::vector<ObjectDetection>& detections,
   record(detections, assigned, refused, x);
 }
 
-std::vector<bool> ObjectSlam::refuseAmbiguous(
-    const SE3& x, const std::vector<ObjectDetection>& detections,
-    std::vector<std::optional<std::size_t>>& assigned, const MatchCovariance* covariance) const {
+std::vector<bool> ObjectSlam::refuseAmbiguous(const SE3& x,
+                                              const std::vector<ObjectDetection>& detections,
+                                              std::vector<std::optional<std::size_t>>& assigned,
+                                              const MatchCovariance* covariance) const {
   std::vector<bool> refused(detections.size(), false);
   std::vector<bool> taken(landmarks_.size(), false);
   for (const auto& a : assigned) {
@@ -427,11 +508,11 @@ std::vector<bool> ObjectSlam::refuseAmbiguous(
     if (covariance != nullptr) {  // the covariance gate's distance, as the match was made
       const MatchCovariance& c = *covariance;
       const auto at = std::find(c.landmarks.begin(), c.landmarks.end(), *assigned[d]);
-      const double score = chiSquare(x, detections[d], c, at - c.landmarks.begin());
+      const double score = chiSquare(detections[d], c, at - c.landmarks.begin());
       for (std::size_t j = 0; j < c.landmarks.size() && !refused[d]; ++j) {
         const std::size_t k = c.landmarks[j];
         if (taken[k] || landmarks_[k].label != detections[d].label) continue;
-        const double rival = chiSquare(x, detections[d], c, j);
+        const double rival = chiSquare(detections[d], c, j);
         refused[d] = rival <= config_.covariance_gate && score > ratio2 * rival;
       }
       continue;

@@ -306,6 +306,36 @@ TEST(ObjectSlam, AmbiguityTestUnderTheCovarianceGateUsesItsDistances) {
   EXPECT_EQ(association(0.6, 1.3), 0u);
 }
 
+// Under the covariance gate a pose's detections are matched jointly. The loose robot above,
+// precise sensors (1 deg / 5 cm), sees from pose 0 a table and a chair 2 m apart and, back at 2 m
+// facing them, the table where it was and a chair 0.8 m from the mapped one: an unmapped chair.
+// Each alone passes the gate (the pose's covariance allows 0.8 m, the fixed gate's 1 m too), but
+// not both together: the two landmarks are known relative to each other to centimetres. The
+// table, the nearer, is matched and the chair becomes a new landmark. Seen where the mapped chair
+// stands, both join.
+TEST(ObjectSlam, CovarianceGateMatchesAPosesDetectionsJointly) {
+  const Matrix6 loose = Info(5.0, 0.5), precise = Info(1.0, 0.05);
+  std::vector<OdometryReading> out_and_back(4, {Pose(1, 0, 0), loose});
+  out_and_back.push_back({Pose(1, 0, 0, 180), loose});
+  out_and_back.insert(out_and_back.end(), 3, {Pose(1, 0, 0), loose});
+  out_and_back.push_back({Pose(0, 0, 0, 180), loose});  // at 2 m, facing the objects
+  const auto associations = [&](double gate, double chair_lateral) {
+    ObjectSlamConfig c = TestSlamConfig();
+    c.covariance_gate = gate;
+    c.localization_iterations = 3;
+    ObjectSlam slam(0, c);
+    slam.addFirstPose(
+        {{"table", Pose(3, -2, 0), precise, 0}, {"chair", Pose(3, 0, 0), precise, 1}});
+    for (std::size_t i = 0; i + 1 < out_and_back.size(); ++i) slam.addPose(out_and_back[i], {});
+    slam.addPose(out_and_back.back(), {{"table", Pose(1, -2, 0), precise, 0},
+                                       {"chair", Pose(1, chair_lateral, 0), precise, 2}});
+    return slam.lastAssociations();
+  };
+  EXPECT_EQ(associations(0.0, 0.8), (std::vector<std::size_t>{0, 1}));    // the fixed gate
+  EXPECT_EQ(associations(22.46, 0.8), (std::vector<std::size_t>{0, 2}));  // a new landmark
+  EXPECT_EQ(associations(22.46, 0.0), (std::vector<std::size_t>{0, 1}));
+}
+
 // A drifted robot's wrong match: a detection of an unmapped chair predicted 0.9 m and 25 deg from
 // a neighbour's landmark passes the gate term by term (1.8 and 1.67 sigmas of 2) and the paper's
 // rule joins it; against the pose the four right matches give, its score is 6.0 > 2^2, and
