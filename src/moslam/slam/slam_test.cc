@@ -58,6 +58,17 @@ ObjectSlamConfig TestSlamConfig() {
   return c;
 }
 
+// Nine steps of loose odometry (5 deg / 0.5 m) from the origin facing +x: 4 m out, one more
+// turning back at 5 m, 3 m back to 2 m, and a turn in place to face +x again.
+std::vector<OdometryReading> LooseOutAndBack() {
+  const Matrix6 loose = Info(5.0, 0.5);
+  std::vector<OdometryReading> path(4, {Pose(1, 0, 0), loose});
+  path.push_back({Pose(1, 0, 0, 180), loose});         // at 5 m, turned back
+  path.insert(path.end(), 3, {Pose(1, 0, 0), loose});  // at 2 m
+  path.push_back({Pose(0, 0, 0, 180), loose});         // facing +x again
+  return path;
+}
+
 double PoseDistance(const SE3& a, const SE3& b) { return SE3::Log(a.between(b)).norm(); }
 
 using PairSet = std::set<std::pair<std::uint32_t, std::uint32_t>>;
@@ -260,11 +271,7 @@ TEST(ObjectSlam, CovarianceGateFollowsTheRobotsUncertainty) {
     slam.addPose(path.back(), {seen});
     return slam.lastAssociations().at(0);
   };
-  const Matrix6 loose = Info(5.0, 0.5);
-  std::vector<OdometryReading> out_and_back(4, {Pose(1, 0, 0), loose});
-  out_and_back.push_back({Pose(1, 0, 0, 180), loose});                 // at 5 m, turned back
-  out_and_back.insert(out_and_back.end(), 3, {Pose(1, 0, 0), loose});  // at 2 m
-  out_and_back.push_back({Pose(0, 0, 0, 180), loose});                 // facing the chair again
+  const std::vector<OdometryReading> out_and_back = LooseOutAndBack();  // facing the chair again
   const ObjectDetection drifted{"chair", Pose(1, 1.5, 0), Info(5.0, 0.2), 0};
   EXPECT_EQ(association(0.0, out_and_back, drifted), 1u);    // the fixed gate: mapped again
   EXPECT_EQ(association(22.46, out_and_back, drifted), 0u);  // the covariance gate: loop closed
@@ -286,11 +293,7 @@ TEST(ObjectSlam, CovarianceGateFollowsTheRobotsUncertainty) {
 // about 0.76^2): refused with the ratio 0.6, joined to the nearer without it. Predicted 0.2 m from
 // the first it is no longer ambiguous and joins it.
 TEST(ObjectSlam, AmbiguityTestUnderTheCovarianceGateUsesItsDistances) {
-  const Matrix6 loose = Info(5.0, 0.5);
-  std::vector<OdometryReading> out_and_back(4, {Pose(1, 0, 0), loose});
-  out_and_back.push_back({Pose(1, 0, 0, 180), loose});
-  out_and_back.insert(out_and_back.end(), 3, {Pose(1, 0, 0), loose});
-  out_and_back.push_back({Pose(0, 0, 0, 180), loose});  // at 2 m, facing the chairs
+  const std::vector<OdometryReading> out_and_back = LooseOutAndBack();  // at 2 m, facing them
   const auto association = [&](double ratio, double lateral) {
     ObjectSlamConfig c = TestSlamConfig();
     c.covariance_gate = 22.46;
@@ -314,11 +317,8 @@ TEST(ObjectSlam, AmbiguityTestUnderTheCovarianceGateUsesItsDistances) {
 // table, the nearer, is matched and the chair becomes a new landmark. Seen where the mapped chair
 // stands, both join.
 TEST(ObjectSlam, CovarianceGateMatchesAPosesDetectionsJointly) {
-  const Matrix6 loose = Info(5.0, 0.5), precise = Info(1.0, 0.05);
-  std::vector<OdometryReading> out_and_back(4, {Pose(1, 0, 0), loose});
-  out_and_back.push_back({Pose(1, 0, 0, 180), loose});
-  out_and_back.insert(out_and_back.end(), 3, {Pose(1, 0, 0), loose});
-  out_and_back.push_back({Pose(0, 0, 0, 180), loose});  // at 2 m, facing the objects
+  const Matrix6 precise = Info(1.0, 0.05);
+  const std::vector<OdometryReading> out_and_back = LooseOutAndBack();  // at 2 m, facing them
   const auto associations = [&](double gate, double chair_lateral) {
     ObjectSlamConfig c = TestSlamConfig();
     c.covariance_gate = gate;
