@@ -287,13 +287,17 @@ std::optional<ObjectSlam::MatchCovariance> ObjectSlam::matchCovariance(
 }
 
 double ObjectSlam::chiSquare(const ObjectDetection& detection, const MatchCovariance& c,
-                             std::size_t j) const {
+                             std::size_t j, Vector6* residual, Matrix6* d_pose,
+                             Matrix6* d_landmark) const {
   const std::size_t k = c.landmarks[j];
   Matrix6 jx, jo;
   const Vector6 r =
       RelativePoseFactor(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)),
                          Key::Object(0, k), detection.measurement, detection.information)
           .residual(c.pose, landmarkPose(k), &jx, &jo);
+  if (residual != nullptr) *residual = r;
+  if (d_pose != nullptr) *d_pose = jx;
+  if (d_landmark != nullptr) *d_landmark = jo;
   const auto b = static_cast<Eigen::Index>(6 * (j + 1));
   const Matrix6 sxo = c.joint.block<6, 6>(0, b);
   const Matrix6 jsxo = jx * sxo * jo.transpose();
@@ -318,14 +322,9 @@ std::vector<std::optional<std::size_t>> ObjectSlam::matchJointly(
     for (std::size_t j = 0; j < prior.landmarks.size(); ++j) {
       const std::size_t k = prior.landmarks[j];
       if (landmarks_[k].label != detections[d].label) continue;
-      Candidate c{j, chiSquare(detections[d], prior, j), Vector6::Zero(), Matrix6::Zero(),
-                  Matrix6::Zero()};
-      if (!(c.m2 <= config_.covariance_gate)) continue;
-      c.r = RelativePoseFactor(Key::Pose(0, static_cast<std::uint64_t>(num_poses_ - 1)),
-                               Key::Object(0, k), detections[d].measurement,
-                               detections[d].information)
-                .residual(prior.pose, landmarkPose(k), &c.jx, &c.jo);
-      candidates[d].push_back(c);
+      Candidate c{j, 0.0, Vector6::Zero(), Matrix6::Zero(), Matrix6::Zero()};
+      c.m2 = chiSquare(detections[d], prior, j, &c.r, &c.jx, &c.jo);
+      if (c.m2 <= config_.covariance_gate) candidates[d].push_back(c);
     }
     std::sort(candidates[d].begin(), candidates[d].end(),
               [](const Candidate& a, const Candidate& b) { return a.m2 < b.m2; });

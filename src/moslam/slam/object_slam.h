@@ -357,8 +357,10 @@ class ObjectSlam {
   std::optional<MatchCovariance> matchCovariance(
       const std::vector<ObjectDetection>& detections) const;
   // r^T S^-1 r of `detection` from c.pose against landmark c.landmarks[j] (the covariance gate);
-  // +inf where it is not finite.
-  double chiSquare(const ObjectDetection& detection, const MatchCovariance& c, std::size_t j) const;
+  // +inf where it is not finite. Optionally r and its Jacobians in the pose and the landmark.
+  double chiSquare(const ObjectDetection& detection, const MatchCovariance& c, std::size_t j,
+                   Vector6* residual = nullptr, Matrix6* d_pose = nullptr,
+                   Matrix6* d_landmark = nullptr) const;
   // The ambiguity test of `assigned` at pose x (ObjectSlamConfig::ambiguity_ratio): which
   // detections' matches it refuses (their entries of `assigned` reset). With `covariance` the
   // distances are the covariance gate's r^T S^-1 r from covariance->pose and a rival must pass
