@@ -96,6 +96,7 @@ struct SimulateArgs {
   double gnc_threshold = 0.0;
   bool retest_left_out = true;
   bool retest_groups = true;
+  bool one_to_one_after_gnc = false;
   bool skip_unlinked = false;
   std::vector<std::string> table{"all"};
   bool json = false;
@@ -191,6 +192,7 @@ ExperimentConfig RowConfig(const SimulateArgs& a, int robots, std::size_t noise,
   c.gnc_threshold = a.gnc_threshold;
   c.retest_left_out = a.retest_left_out;
   c.retest_groups = a.retest_groups;
+  c.one_to_one_after_gnc = a.one_to_one_after_gnc;
   c.skip_unlinked = a.skip_unlinked;
   c.perceive = perceive;
   c.perception = a.perception;
@@ -233,6 +235,7 @@ int RunOnlineSimulation(const SimulateArgs& a) {
       c.base.gnc_threshold = a.gnc_threshold;
       c.base.retest_left_out = a.retest_left_out;
       c.base.retest_groups = a.retest_groups;
+      c.base.one_to_one_after_gnc = a.one_to_one_after_gnc;
       results.push_back(RunOnlineExperiment(c));
     }
   }
@@ -342,6 +345,9 @@ void AddRobustnessFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args
       ->check(NonNegative())
       ->capture_default_str();
   AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
+  sub->add_flag("--one-to-one-after-gnc", args->one_to_one_after_gnc,
+                "--robust: keep the separator check's one-to-one rule after GNC too: no landmark "
+                "stays paired with two landmarks of one robot (the smaller r^T Omega r wins)");
 }
 
 // The mode (the batch tables or the online mission), what is printed and written, and which

@@ -5,6 +5,8 @@
 #include <utility>
 #include <vector>
 
+#include "moslam/distributed/separator_consistency.h"
+
 namespace moslam {
 namespace {
 
@@ -48,6 +50,12 @@ class Retests {
     double f0 = inlier_cost;
     std::uint32_t k = round;
     for (;; ++k) {
+      // A candidate that would pair a landmark twice is not tried (RunRobustDgs's Retest): the
+      // weights of its pair change only with this robot's own trials.
+      while (options_.one_to_one_after_gnc && next < mine.size() &&
+             BreaksOneToOne(factors, robot_.index().owned, weights, mine[next].second)) {
+        ++next;
+      }
       TeamReport offer;
       offer.value[0] = next < mine.size() ? 1.0 : 0.0;
       offer.value[1] = next < mine.size() ? mine[next].first : 0.0;
@@ -159,15 +167,22 @@ class Retests {
       std::vector<double> w;
       for (std::size_t i : index) w.push_back(weights[i]);
       robot_.solve(WeightedGraph(sub, w, options_.gnc.min_weight));
-      double changed = 0.0;
       const Values& now = robot_.values();
+      const std::vector<double> previous = weights;
+      std::vector<double> r2(n, 0.0);
+      std::vector<std::size_t> members;
       for (std::size_t i : robot_.index().owned) {
         if (!usable[i]) continue;
         const RelativePoseFactor& f = p_.subgraph.factors()[i];
-        const double next = 2.0 * f.cost(now.at(f.a()), now.at(f.b())) <= c2 ? 1.0 : 0.0;
-        if (next != weights[i]) changed += 1.0;
-        weights[i] = next;
+        r2[i] = 2.0 * f.cost(now.at(f.a()), now.at(f.b()));
+        weights[i] = r2[i] <= c2 ? 1.0 : 0.0;
+        members.push_back(i);
       }
+      if (options_.one_to_one_after_gnc) {
+        KeepOneToOne(p_.subgraph.factors(), members, r2, &weights);
+      }
+      double changed = 0.0;
+      for (std::size_t i : members) changed += weights[i] != previous[i] ? 1.0 : 0.0;
       robot_.reachEveryNeighbour();
       if (TeamSum(robot_.exchangeWeights(robot_.index(), weights, ++*k, changed), 0) == 0.0) {
         break;

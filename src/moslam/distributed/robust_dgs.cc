@@ -102,16 +102,31 @@ SeparatorConsistencyResult CheckSeparators(const PoseGraph& graph,
 
 namespace {
 
-// Robust factors of weight < 0.5 whose squared residual at `values` is at most c2 get weight 1.
+// The robust factors' positions.
+std::vector<std::size_t> RobustMembers(const std::vector<bool>& robust) {
+  std::vector<std::size_t> members;
+  for (std::size_t i = 0; i < robust.size(); ++i) {
+    if (robust[i]) members.push_back(i);
+  }
+  return members;
+}
+
+// Robust factors of weight < 0.5 whose squared residual at `values` is at most c2 get weight 1;
+// with one_to_one, KeepOneToOne then settles the object pairs (RobustDgsOptions::
+// one_to_one_after_gnc). Returns how many went from below 0.5 to 1; *dropped (optional): how many
+// of weight >= 0.5 the rule set to 0 (readmitted ones not counted).
 int Readmit(const PoseGraph& graph, const Values& values, const std::vector<bool>& robust,
-            double c2, std::vector<double>* weights) {
+            double c2, bool one_to_one, std::vector<double>* weights, int* dropped = nullptr) {
   const std::vector<double> r2 = SquaredResiduals(graph, values);
+  const std::vector<double> before = *weights;
+  for (std::size_t i = 0; i < r2.size(); ++i) {
+    if (robust[i] && (*weights)[i] < 0.5 && r2[i] <= c2) (*weights)[i] = 1.0;
+  }
+  if (one_to_one) KeepOneToOne(graph.factors(), RobustMembers(robust), r2, weights);
   int count = 0;
   for (std::size_t i = 0; i < r2.size(); ++i) {
-    if (robust[i] && (*weights)[i] < 0.5 && r2[i] <= c2) {
-      (*weights)[i] = 1.0;
-      ++count;
-    }
+    if (before[i] < 0.5 && (*weights)[i] >= 0.5) ++count;
+    if (dropped && before[i] >= 0.5 && (*weights)[i] < 0.5) ++*dropped;
   }
   return count;
 }
@@ -188,13 +203,19 @@ std::vector<std::size_t> RetestCandidates(const PoseGraph& graph,
 // Re-tests the candidates in turn from the inliers' optimum `values` (F0 its cost): the inliers
 // and candidate i solved by solve(graph, start, i) from the current estimate, the candidate kept
 // (weight 1, the new optimum the estimate) when 2 (F1 - F0) <= c2, F1 as cost(graph, estimate)
-// reports it. Returns how many came back.
+// reports it. With one_to_one (RobustDgsOptions::one_to_one_after_gnc), a candidate that would
+// pair a landmark with a second landmark of a robot beside the factors `robust` marks of weight
+// >= 0.5 is not tried. Returns how many came back; *tried: how many were tried.
 template <class Solve, class Cost>
 int Retest(const PoseGraph& graph, const std::vector<std::size_t>& candidates, double c2,
-           std::vector<double>* weights, Values* values, const Solve& solve, const Cost& cost) {
+           const std::vector<bool>& robust, bool one_to_one, std::vector<double>* weights,
+           Values* values, const Solve& solve, const Cost& cost, int* tried = nullptr) {
   int back = 0;
   double f0 = cost(SubGraph(graph, Inliers(*weights)), *values);
+  const std::vector<std::size_t> members = RobustMembers(robust);
   for (std::size_t i : candidates) {
+    if (one_to_one && BreaksOneToOne(graph.factors(), members, *weights, i)) continue;
+    if (tried) ++*tried;
     std::vector<double> trial = *weights;
     trial[i] = 1.0;
     const PoseGraph g = SubGraph(graph, Inliers(trial));
@@ -278,9 +299,9 @@ double TruncatedCost(const PoseGraph& graph, const std::vector<bool>& robust, co
 template <class Solve, class Changed, class Truncated>
 bool RetestGroup(const PoseGraph& graph, const std::vector<bool>& robust,
                  const std::vector<bool>& left_out, const std::vector<std::size_t>& group,
-                 const GncOptions& gnc, int max_solves, std::vector<double>* weights,
-                 Values* values, const Solve& solve, const Changed& changed,
-                 const Truncated& truncated) {
+                 const GncOptions& gnc, int max_solves, bool one_to_one,
+                 std::vector<double>* weights, Values* values, const Solve& solve,
+                 const Changed& changed, const Truncated& truncated) {
   std::vector<bool> usable(graph.factors().size());
   for (std::size_t i = 0; i < usable.size(); ++i) usable[i] = !left_out[i];
   for (std::size_t i : group) usable[i] = true;
@@ -294,6 +315,10 @@ bool RetestGroup(const PoseGraph& graph, const std::vector<bool>& robust,
     w[static_cast<std::size_t>(std::lower_bound(index.begin(), index.end(), i) - index.begin())] =
         1.0;
   }
+  std::vector<std::size_t> sub_members;
+  for (std::size_t j = 0; j < index.size(); ++j) {
+    if (robust[index[j]]) sub_members.push_back(j);
+  }
   Values x = *values;
   const double c2 = gnc.threshold2();
   for (int k = 0; k < max_solves; ++k) {
@@ -303,13 +328,16 @@ bool RetestGroup(const PoseGraph& graph, const std::vector<bool>& robust,
       return false;
     }
     const std::vector<double> r2 = SquaredResiduals(sub, x);
+    const std::vector<double> previous = w;
+    for (std::size_t j = 0; j < index.size(); ++j) {
+      if (robust[index[j]]) w[j] = r2[j] <= c2 ? 1.0 : 0.0;
+    }
+    if (one_to_one) KeepOneToOne(sub.factors(), sub_members, r2, &w);
     std::map<int, double> count;
     for (std::size_t j = 0; j < index.size(); ++j) {
       if (!robust[index[j]]) continue;
-      const double next = r2[j] <= c2 ? 1.0 : 0.0;
       const RelativePoseFactor& f = sub.factors()[j];
-      count[std::min(f.a().robot, f.b().robot)] += next != w[j] ? 1.0 : 0.0;
-      w[j] = next;
+      count[std::min(f.a().robot, f.b().robot)] += w[j] != previous[j] ? 1.0 : 0.0;
     }
     if (changed(count, k) == 0.0) break;
   }
@@ -354,7 +382,8 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
   r.weights = std::move(weights);
   // As RunRobustDgs: the check's rejects that agree with the estimate come back, and the
   // inliers alone are solved.
-  const int readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
+  const int readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(),
+                                 options.one_to_one_after_gnc, &r.weights);
   if (readmitted > 0 || !AllWeightsOne(r.weights)) {
     bool solved = false;
     try {
@@ -369,14 +398,15 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
     }
     if (solved && options.retest_left_out) {
       const auto groups = RetestGroups(graph, check, robust, r.weights);
-      Retest(graph,
-             RetestCandidates(graph, check, robust, r.weights, r.values,
-                              options.consistency.min_support),
-             options.gnc.threshold2(), &r.weights, &r.values,
-             [&](const PoseGraph& g, const Values& start, std::size_t) {
-               return Optimize(g, start, solver).values;
-             },
-             [](const PoseGraph& g, const Values& x) { return g.cost(x); });
+      Retest(
+          graph,
+          RetestCandidates(graph, check, robust, r.weights, r.values,
+                           options.consistency.min_support),
+          options.gnc.threshold2(), robust, options.one_to_one_after_gnc, &r.weights, &r.values,
+          [&](const PoseGraph& g, const Values& start, std::size_t) {
+            return Optimize(g, start, solver).values;
+          },
+          [](const PoseGraph& g, const Values& x) { return g.cost(x); });
       for (const std::vector<std::size_t>& group : groups) {
         if (!options.retest_groups) break;
         const std::vector<std::size_t> members =
@@ -389,7 +419,7 @@ GncResult SolveRobustCentralized(const PoseGraph& graph,
         };
         RetestGroup(
             graph, robust, LeftOut(check, robust, r.weights), members, options.gnc,
-            options.retest_group_solves, &r.weights, &r.values,
+            options.retest_group_solves, options.one_to_one_after_gnc, &r.weights, &r.values,
             [&](const PoseGraph& g, const Values& start, int) {
               return Optimize(g, start, solver).values;
             },
@@ -484,13 +514,13 @@ class ChecksRejectsRetest {
         graph_, check_, robust_, r_.weights, r_.values, options_.consistency.min_support);
     const std::vector<std::vector<std::size_t>> groups =
         RetestGroups(graph_, check_, robust_, r_.weights);
-    r_.retests = static_cast<int>(candidates.size());
     r_.retest_readmitted = Retest(
-        graph_, candidates, options_.gnc.threshold2(), &r_.weights, &r_.values,
+        graph_, candidates, options_.gnc.threshold2(), robust_, options_.one_to_one_after_gnc,
+        &r_.weights, &r_.values,
         [&](const PoseGraph& g, const Values& start, std::size_t i) {
           return trialSolve(g, start, i);
         },
-        [&](const PoseGraph& g, const Values& x) { return teamCost(g, x); });
+        [&](const PoseGraph& g, const Values& x) { return teamCost(g, x); }, &r_.retests);
     if (!options_.retest_groups) return;
     for (const std::vector<std::size_t>& group : groups) retestGroup(group);
   }
@@ -578,8 +608,8 @@ class ChecksRejectsRetest {
     r_.consistency_bytes += LeftOutEstimateBytes(
         graph_, r_.values, [&](std::size_t i, const Key&) { return usable[i]; });
     const bool kept = RetestGroup(
-        graph_, robust_, left_out, members, options_.gnc, options_.retest_group_solves, &r_.weights,
-        &r_.values,
+        graph_, robust_, left_out, members, options_.gnc, options_.retest_group_solves,
+        options_.one_to_one_after_gnc, &r_.weights, &r_.values,
         [&](const PoseGraph& g, const Values& start, int) { return refinedSolve(g, start); },
         [&](const std::map<int, double>& count, int) {
           weightStep(usable);
@@ -692,7 +722,8 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
   // higher id sends the other its estimates of their poses.
   r.consistency_bytes += LeftOutEstimateBytes(
       graph, r.values, [&](std::size_t i, const Key&) { return !check.kept[i] && robust[i]; });
-  r.readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(), &r.weights);
+  r.readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(),
+                         options.one_to_one_after_gnc, &r.weights, &r.one_to_one_dropped);
   // The estimate of the inliers alone, where some weight is not 1 (the rounds kept a sliver,
   // min_weight, of every rejected factor) or some separator came back.
   if (r.readmitted > 0 || !AllWeightsOne(r.weights)) PolishInliers(graph, options, r);

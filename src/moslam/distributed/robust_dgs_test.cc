@@ -707,6 +707,73 @@ TEST(RobustDgs, ATeamTheCheckUnlinksIsAnUnderdeterminedErrorNamingTheCheck) {
   EXPECT_NO_THROW(RunRobustDgs(two, initial, DefaultRobustFactors(two), options));
 }
 
+// KeepOneToOne settles the object pairs of weight >= 0.5 among its members by r^T Omega r, the
+// smallest first: a landmark keeps one partner per other robot (its pairs with a third robot are
+// another matter), a pair listed twice is one pairing, pose-pose separators, non-members and
+// weights below 0.5 are left alone. BreaksOneToOne asks the same of one more factor.
+TEST(OneToOne, TheSmallestResidualKeepsALandmarksOnePartnerPerRobot) {
+  const auto pair = [](int ra, std::uint64_t a, int rb, std::uint64_t b) {
+    return RelativePoseFactor(Key::Object(ra, a), Key::Object(rb, b), SE3(), Matrix6::Identity());
+  };
+  const std::vector<RelativePoseFactor> f = {
+      pair(0, 0, 1, 0),  // 0: A0-B0, r2 1.0
+      pair(0, 0, 1, 1),  // 1: A0-B1, r2 0.5: wins over 0
+      pair(0, 0, 2, 7),  // 2: A0-C7, another robot: kept
+      pair(0, 1, 1, 1),  // 3: A1-B1, r2 2.0: B1 is A0's
+      pair(0, 0, 1, 1),  // 4: A0-B1 again: the same pairing, kept
+      RelativePoseFactor(Key::Pose(0, 3), Key::Pose(1, 4), SE3(), Matrix6::Identity()),  // 5
+      pair(0, 2, 1, 0),  // 6: A2-B0, weight 0.2: not considered
+      pair(0, 3, 1, 0),  // 7: A3-B0: not a member
+      pair(0, 0, 0, 5),  // 8: one robot's own loop closure: not a separator
+  };
+  const std::vector<double> r2 = {1.0, 0.5, 3.0, 2.0, 0.7, 9.0, 0.1, 0.1, 0.1};
+  std::vector<double> w = {1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.2, 1.0, 1.0};
+  const std::vector<std::size_t> members = {0, 1, 2, 3, 4, 5, 6, 8};
+  EXPECT_EQ(KeepOneToOne(f, members, r2, &w), 2);
+  EXPECT_EQ(w, (std::vector<double>{0.0, 1.0, 1.0, 0.0, 1.0, 1.0, 0.2, 1.0, 1.0}));
+  EXPECT_TRUE(BreaksOneToOne(f, members, w, 0));   // A0 has B1
+  EXPECT_TRUE(BreaksOneToOne(f, members, w, 3));   // B1 has A0
+  EXPECT_FALSE(BreaksOneToOne(f, members, w, 4));  // the same pairing
+  EXPECT_FALSE(BreaksOneToOne(f, members, w, 6));  // A2 and B0 are free
+  EXPECT_FALSE(BreaksOneToOne(f, members, w, 5));  // not an association
+  EXPECT_FALSE(BreaksOneToOne(f, {0, 3}, w, 0));   // only the members count
+  std::vector<double> short_weights(3, 1.0);
+  EXPECT_TRUE(test::ThrowsNaming([&] { KeepOneToOne(f, members, r2, &short_weights); },
+                                 "KeepOneToOne: member 3 out of range"));
+  EXPECT_THROW(BreaksOneToOne(f, members, w, 9), InvalidInputError);
+}
+
+// test::TwoChairsSideBySide: the check leaves the wrong pair out (one-to-one), and after GNC the
+// readmission brings it back, as it fits within c2: robot 0's chair 2 then has two partners. With
+// one_to_one_after_gnc the rule holds after GNC too: the wrong pair stays out, readmitted nor
+// re-tested (its support, four right separators, makes it a re-test candidate), and the estimate
+// is the optimum of the right factors.
+TEST(RobustDgs, OneToOneAfterGncKeepsOutTheSecondPartnerTheReadmissionTakesBack) {
+  const PoseGraph g = test::TwoChairsSideBySide();
+  const std::size_t wrong = g.factors().size() - 1;
+  const std::vector<bool> robust = DefaultRobustFactors(g);
+  ASSERT_TRUE(robust[wrong]);
+  const Values initial = ChordalInitialization(g, SE3());
+  RobustDgsOptions options;
+  const RobustDgsResult before = RunRobustDgs(g, initial, robust, options);
+  EXPECT_EQ(before.consistency_rejected, 1);
+  EXPECT_EQ(before.readmitted, 1);
+  EXPECT_EQ(before.weights[wrong], 1.0);
+
+  options.one_to_one_after_gnc = true;
+  const RobustDgsResult r = RunRobustDgs(g, initial, robust, options);
+  EXPECT_EQ(r.consistency_rejected, 1);
+  EXPECT_EQ(r.readmitted, 0);
+  EXPECT_EQ(r.retests, 0);
+  EXPECT_EQ(r.weights[wrong], 0.0);
+  for (std::size_t i = 0; i < wrong; ++i) EXPECT_EQ(r.weights[i], 1.0) << "factor " << i;
+  std::vector<bool> right(g.factors().size(), true);
+  right[wrong] = false;
+  const Values optimum = Optimize(SubGraph(g, right), initial).values;
+  EXPECT_LE(MaxPoseDifference(r.values, optimum), 1e-6);
+  EXPECT_GT(MaxPoseDifference(before.values, optimum), 1e-3);
+}
+
 TEST(RobustDgs, RejectsBadMasksAndOptions) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   EXPECT_THROW(RunRobustDgs(data.graph, data.initial, {true, false}), InvalidInputError);

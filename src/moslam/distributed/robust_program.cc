@@ -11,6 +11,7 @@
 #include "moslam/distributed/retest_program.h"
 #include "moslam/distributed/robust_robot.h"
 #include "moslam/distributed/separator_check_program.h"
+#include "moslam/distributed/separator_consistency.h"
 #include "moslam/robust/loop_consistency.h"
 
 namespace moslam {
@@ -181,9 +182,19 @@ class RobustProgram {
     RobustProgramResult& out = robot_.result();
     const double c2 = options_.gnc.threshold2();
     double changed = 0.0;  // readmitted or not one, of the weights it owns
+    const std::vector<double> verdicts = out.weights;
     for (std::size_t i : robot_.index().owned) {
-      if (out.weights[i] < 0.5 && r2[i] <= c2) {
-        out.weights[i] = 1.0;
+      if (out.weights[i] < 0.5 && r2[i] <= c2) out.weights[i] = 1.0;
+    }
+    if (options_.one_to_one_after_gnc) {
+      std::vector<std::size_t> members;
+      for (std::size_t i : robot_.index().owned) {
+        if (p_.robust[i]) members.push_back(i);
+      }
+      KeepOneToOne(p_.subgraph.factors(), members, r2, &out.weights);
+    }
+    for (std::size_t i : robot_.index().owned) {
+      if (verdicts[i] < 0.5 && out.weights[i] >= 0.5) {
         ++out.readmitted;
         changed += 1.0;
       }

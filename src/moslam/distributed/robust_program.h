@@ -139,6 +139,9 @@ struct RobustProgramOptions {
   // Then the robot pairs' groups of the check's rejects, as RobustDgsOptions::retest_groups.
   bool retest_groups = true;
   int retest_group_solves = 10;
+  // The check's one-to-one rule kept after GNC too, as RobustDgsOptions::one_to_one_after_gnc:
+  // each robot settles the separators it owns (all of a landmark's pairs with one robot).
+  bool one_to_one_after_gnc = false;
   // Throws InvalidInputError naming the first bad field.
   void validate() const;
 };

@@ -115,6 +115,7 @@ RobustDgsOptions ReferenceOptions(const RobustProgramOptions& o) {
   r.retest_left_out = o.retest_left_out;
   r.retest_groups = o.retest_groups;
   r.retest_group_solves = o.retest_group_solves;
+  r.one_to_one_after_gnc = o.one_to_one_after_gnc;
   return r;
 }
 
@@ -405,6 +406,31 @@ TEST(RobustProgram, TheRetestOfTheChecksRejectsIsRunRobustDgs) {
   EXPECT_EQ(team.results.at(1).retest_readmitted, 0);
   // Robot 1 sends every message of the check, the re-test's estimates included.
   EXPECT_EQ(team.results.at(1).check_bytes, reference.consistency_bytes);
+}
+
+// With the one-to-one rule kept after GNC (test::TwoChairsSideBySide, whose wrong pair the
+// readmission would take back and the re-test would try): the programs are RunRobustDgs, the
+// owner of the pair settling it alone.
+TEST(RobustProgram, OneToOneAfterGncIsRunRobustDgs) {
+  const PoseGraph graph = test::TwoChairsSideBySide();
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  options.one_to_one_after_gnc = true;
+  const RobustDgsResult reference = RunRobustDgs(graph, initial, robust, ReferenceOptions(options));
+  ASSERT_EQ(reference.weights.back(), 0.0);
+  ASSERT_EQ(reference.consistency_rejected, 1);
+  const TeamOutcome team = ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference);
+  ASSERT_EQ(team.error, "");
+  for (const auto& [robot, r] : team.results) {
+    EXPECT_EQ(r.readmitted, 0) << "robot " << robot;
+    EXPECT_EQ(r.retests, 0) << "robot " << robot;
+  }
+  options.one_to_one_after_gnc = false;  // the pair back, in both
+  const RobustDgsResult without = RunRobustDgs(graph, initial, robust, ReferenceOptions(options));
+  ASSERT_EQ(without.weights.back(), 1.0);
+  ExpectSameAsRunRobustDgs(graph, initial, robust, options, without);
 }
 
 // The graph's last factor unseen by the check (the `checked` mask; Jacobi options, chordal start):

@@ -5,6 +5,8 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <string>
+#include <utility>
 
 #include "moslam/common/errors.h"
 #include "moslam/distributed/messages.h"
@@ -463,6 +465,74 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
                             " factors");
   }
   return CentralizedCheck(graph, options, robust, local).run();
+}
+
+namespace {
+
+bool PairsObjectsOfTwoRobots(const RelativePoseFactor& f) {
+  return f.a().isObject() && f.b().isObject() && f.a().robot != f.b().robot;
+}
+
+void CheckMembers(const char* what, std::size_t n, const std::vector<std::size_t>& members,
+                  std::size_t r2_size, std::size_t weights_size) {
+  for (std::size_t i : members) {
+    if (i >= n || i >= r2_size || i >= weights_size) {
+      throw InvalidInputError(std::string(what) + ": member " + std::to_string(i) +
+                              " out of range (" + std::to_string(n) + " factors, " +
+                              std::to_string(r2_size) + " residuals, " +
+                              std::to_string(weights_size) + " weights)");
+    }
+  }
+}
+
+}  // namespace
+
+int KeepOneToOne(const std::vector<RelativePoseFactor>& factors,
+                 const std::vector<std::size_t>& members, const std::vector<double>& r2,
+                 std::vector<double>* weights) {
+  CheckMembers("KeepOneToOne", factors.size(), members, r2.size(), weights->size());
+  std::vector<std::pair<double, std::size_t>> order;
+  for (std::size_t i : members) {
+    if ((*weights)[i] >= 0.5 && PairsObjectsOfTwoRobots(factors[i])) order.emplace_back(r2[i], i);
+  }
+  std::sort(order.begin(), order.end());
+  // (landmark, other robot) -> the landmark of that robot it is paired with.
+  std::map<std::pair<Key, int>, Key> partner;
+  int dropped = 0;
+  for (const auto& [e, i] : order) {
+    const Key a = factors[i].a(), b = factors[i].b();
+    const auto pa = partner.find({a, b.robot});
+    const auto pb = partner.find({b, a.robot});
+    if ((pa != partner.end() && pa->second != b) || (pb != partner.end() && pb->second != a)) {
+      (*weights)[i] = 0.0;
+      ++dropped;
+      continue;
+    }
+    partner.emplace(std::pair{a, b.robot}, b);
+    partner.emplace(std::pair{b, a.robot}, a);
+  }
+  return dropped;
+}
+
+bool BreaksOneToOne(const std::vector<RelativePoseFactor>& factors,
+                    const std::vector<std::size_t>& members, const std::vector<double>& weights,
+                    std::size_t i) {
+  CheckMembers("BreaksOneToOne", factors.size(), members, factors.size(), weights.size());
+  if (i >= factors.size()) {
+    throw InvalidInputError("BreaksOneToOne: factor " + std::to_string(i) + " of " +
+                            std::to_string(factors.size()));
+  }
+  const RelativePoseFactor& f = factors[i];
+  if (!PairsObjectsOfTwoRobots(f)) return false;
+  for (std::size_t j : members) {
+    const RelativePoseFactor& g = factors[j];
+    if (j == i || weights[j] < 0.5 || !PairsObjectsOfTwoRobots(g)) continue;
+    for (const auto& [mine, other] : {std::pair{f.a(), f.b()}, std::pair{f.b(), f.a()}}) {
+      if (g.a() == mine && g.b().robot == other.robot && g.b() != other) return true;
+      if (g.b() == mine && g.a().robot == other.robot && g.a() != other) return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace moslam

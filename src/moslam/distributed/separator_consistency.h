@@ -161,4 +161,22 @@ SeparatorConsistencyResult CheckSeparatorConsistency(const PoseGraph& graph,
                                                      const std::vector<bool>& robust = {},
                                                      const GncOptions& local = {});
 
+// The one-to-one rule of object-object separators (SeparatorConsistencyOptions::
+// one_to_one_objects) applied to weights after the check: among the separators `members` lists
+// (factor positions) that pair an object of one robot with an object of another and weigh >= 0.5,
+// taken in increasing r2 (ties: position), each that would pair a landmark with a second landmark
+// of the other robot gets weight 0. `r2` holds r^T Omega r per factor (read at the members). A
+// landmark's pairs with one robot are all separators of that robot pair, so the robot owning a
+// pair's weights applies it to its own alone and gets the same weights. Returns how many it set to
+// 0. Throws InvalidInputError when a member is out of range of factors, r2 or weights.
+int KeepOneToOne(const std::vector<RelativePoseFactor>& factors,
+                 const std::vector<std::size_t>& members, const std::vector<double>& r2,
+                 std::vector<double>* weights);
+
+// Whether factor i, an object-object separator, would pair a landmark with a second landmark of
+// the other robot beside the members of weight >= 0.5 (false for any other factor).
+bool BreaksOneToOne(const std::vector<RelativePoseFactor>& factors,
+                    const std::vector<std::size_t>& members, const std::vector<double>& weights,
+                    std::size_t i);
+
 }  // namespace moslam

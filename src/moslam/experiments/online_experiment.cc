@@ -110,6 +110,7 @@ class OnlineMission {
       robust.gnc.threshold = config.base.gnc_threshold;
       robust.retest_left_out = config.base.retest_left_out;
       robust.retest_groups = config.base.retest_groups;
+      robust.one_to_one_after_gnc = config.base.one_to_one_after_gnc;
       options.robust = robust;
     }
     return options;

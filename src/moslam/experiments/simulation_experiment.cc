@@ -299,6 +299,7 @@ void RobustMetrics(const ExperimentConfig& config, unsigned seed, const JointPro
   options.gnc.threshold = config.gnc_threshold;
   options.retest_left_out = config.retest_left_out;
   options.retest_groups = config.retest_groups;
+  options.one_to_one_after_gnc = config.one_to_one_after_gnc;
   RobustDgsResult r;
   try {
     r = RunRobustDgs(joint.graph, joint.initial, t.robust, options);

@@ -97,6 +97,8 @@ struct ExperimentConfig {
   // RobustDgsOptions::retest_left_out and retest_groups.
   bool retest_left_out = true;
   bool retest_groups = true;
+  // RobustDgsOptions::one_to_one_after_gnc.
+  bool one_to_one_after_gnc = false;
   // The robots' landmark exclusion radius (ObjectSlamConfig::exclusion_radius; m, 0: off). `moslam
   // simulate` sets 0.5 m with --perception rendered: the front-end confuses a chair with its
   // quarter and half turns, which sampled measurements never do.
