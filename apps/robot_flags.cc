@@ -56,6 +56,7 @@ DgsNodeOptions NodeOptions(const SolveFlags& f) {
     if (r.check_separators) o.separator_check = r.consistency;
     o.retest_left_out = r.retest_left_out;
     o.retest_groups = r.retest_groups;
+    o.one_to_one_after_gnc = r.one_to_one_after_gnc;
     o.solver.refine = true;
   }
   return o;
@@ -69,6 +70,7 @@ RobustDgsOptions ReferenceRobustOptions(const DgsNodeOptions& o) {
   if (o.separator_check) r.consistency = *o.separator_check;
   r.retest_left_out = o.retest_left_out;
   r.retest_groups = o.retest_groups;
+  r.one_to_one_after_gnc = o.one_to_one_after_gnc;
   return r;
 }
 

@@ -43,6 +43,7 @@ TEST(RobotFlags, EveryFlagOfTheRobotsParserIsForwardedAndReadsBack) {
   f.solver.stages = "two-level";
   f.robust_args.retest_left_out = false;
   f.robust_args.retest_groups = false;
+  f.robust_args.one_to_one_after_gnc = true;
   f.robust_args.gnc_threshold = 9.5;
   f.robust_loop_closures = true;  // g2o data only; forwarded alike
   ScenarioFlags s;

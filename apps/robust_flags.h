@@ -19,10 +19,12 @@ struct RobustSolveArgs {
   int separator_support = 3;           // 0: no separator check
   bool retest_left_out = true;
   bool retest_groups = true;
+  bool one_to_one_after_gnc = false;
   // The GNC threshold and the separator check (whether, its kind and support) in `options`.
   void applyTo(RobustDgsOptions* options) const {
     options->retest_left_out = retest_left_out;
     options->retest_groups = retest_groups;
+    options->one_to_one_after_gnc = one_to_one_after_gnc;
     options->gnc.threshold = gnc_threshold;
     options->consistency.map_uncertainty = separator_test == "map";
     options->check_separators = separator_support > 0;
@@ -35,6 +37,7 @@ struct RobustSolveArgs {
                                   std::to_string(separator_support)};
     if (!retest_left_out) a.push_back("--no-retest-left-out");
     if (!retest_groups) a.push_back("--no-retest-groups");
+    if (one_to_one_after_gnc) a.push_back("--one-to-one-after-gnc");
     return a;
   }
 };
@@ -51,6 +54,13 @@ inline void AddRetestFlags(CLI::App* sub, bool* retest, bool* groups) {
                 "--robust: after that, do not test the separators of each robot pair the check "
                 "left out as a group (all of them in, the truncated cost's weights to a fixed "
                 "point: kept when the truncated cost falls)");
+}
+
+// --one-to-one-after-gnc (AddRobustSolveFlags adds it; `moslam simulate` alone).
+inline void AddOneToOneFlag(CLI::App* sub, bool* one_to_one) {
+  sub->add_flag("--one-to-one-after-gnc", *one_to_one,
+                "--robust: keep the separator check's one-to-one rule after GNC too: no landmark "
+                "stays paired with two landmarks of one robot (the smaller r^T Omega r wins)");
 }
 
 // --separator-test, --gnc-threshold, --separator-support and the re-test flags, written into
@@ -75,6 +85,7 @@ inline void AddRobustSolveFlags(CLI::App* sub, RobustSolveArgs* args) {
       ->check(NonNegative())
       ->capture_default_str();
   AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
+  AddOneToOneFlag(sub, &args->one_to_one_after_gnc);
 }
 
 }  // namespace moslam::cli

@@ -345,9 +345,7 @@ void AddRobustnessFlags(CLI::App* sub, const std::shared_ptr<SimulateArgs>& args
       ->check(NonNegative())
       ->capture_default_str();
   AddRetestFlags(sub, &args->retest_left_out, &args->retest_groups);
-  sub->add_flag("--one-to-one-after-gnc", args->one_to_one_after_gnc,
-                "--robust: keep the separator check's one-to-one rule after GNC too: no landmark "
-                "stays paired with two landmarks of one robot (the smaller r^T Omega r wins)");
+  AddOneToOneFlag(sub, &args->one_to_one_after_gnc);
 }
 
 // The mode (the batch tables or the online mission), what is printed and written, and which

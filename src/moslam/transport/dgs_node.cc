@@ -77,10 +77,11 @@ std::uint64_t RunFingerprint(int robot, const PoseGraph& g, const Values& initia
                              const std::vector<bool>& robust,
                              const std::optional<SeparatorConsistencyOptions>& check,
                              const std::vector<bool>& checked, bool retest_left_out,
-                             bool retest_groups) {
+                             bool retest_groups, bool one_to_one_after_gnc) {
   Fingerprint f;
   f.add(static_cast<std::uint64_t>(robot));
-  transport_detail::AddRobustOptions(f, gnc, check, retest_left_out, retest_groups);
+  transport_detail::AddRobustOptions(f, gnc, check, retest_left_out, retest_groups,
+                                     one_to_one_after_gnc);
   if (gnc) {
     for (bool b : robust) f.add(static_cast<std::uint64_t>(b));
     if (check) {
@@ -176,7 +177,7 @@ class DgsNode::Impl final : public TeamChannel {
       const std::uint64_t fingerprint =
           RunFingerprint(robot_, subgraph_, initial_, solver_, options_.gnc, robust_,
                          options_.separator_check, options_.checked, options_.retest_left_out,
-                         options_.retest_groups) ^
+                         options_.retest_groups, options_.one_to_one_after_gnc) ^
           options_.solve;
       journal_ = std::make_unique<transport_detail::NodeJournal>(
           (std::filesystem::path(options_.state_dir) / "journal.bin").string(), robot_,
@@ -296,6 +297,7 @@ class DgsNode::Impl final : public TeamChannel {
     if (options_.separator_check) options.consistency = *options_.separator_check;
     options.retest_left_out = options_.retest_left_out;
     options.retest_groups = options_.retest_groups;
+    options.one_to_one_after_gnc = options_.one_to_one_after_gnc;
     bool first = true;
     const AgentFactory make = [&](const PoseGraph& graph, const Values& start) -> RobotAgent& {
       for (const auto& [k, x] : agent_->estimate()) own_[k] = x;

@@ -93,6 +93,9 @@ struct DgsNodeOptions {
   // With separator_check: its rejects re-tested after the inliers' solve (robust_program.h).
   bool retest_left_out = true;
   bool retest_groups = true;  // and then the robot pairs' groups of them (robust_program.h)
+  // With gnc: the check's one-to-one rule kept after GNC too (RobustDgsOptions::
+  // one_to_one_after_gnc).
+  bool one_to_one_after_gnc = false;
   // The team, when the caller formed it already (a robot session, from the joining statuses of
   // its robots: robot_session.h): the node then does not wait for a status of each robot before
   // its first step. A robot of it found gone (the leave rule) at the first step, before any

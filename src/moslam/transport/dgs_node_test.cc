@@ -562,6 +562,7 @@ TEST(DgsNode, RefusesTheJournalOfAnotherRun) {
       {"one-to-one", [](DgsNodeOptions& x) { x.separator_check->one_to_one_objects = false; }},
       {"no re-test", [](DgsNodeOptions& x) { x.retest_left_out = false; }},
       {"no group re-test", [](DgsNodeOptions& x) { x.retest_groups = false; }},
+      {"one-to-one after GNC", [](DgsNodeOptions& x) { x.one_to_one_after_gnc = true; }},
   };
   for (const auto& [what, change] : changes) {
     const fs::path robust_dir = FreshDir("foreign_robust");
@@ -610,6 +611,7 @@ RobustDgsResult RobustReference(const Dataset& data, const DgsNodeOptions& o) {
   ro.consistency = *o.separator_check;
   ro.retest_left_out = o.retest_left_out;
   ro.retest_groups = o.retest_groups;
+  ro.one_to_one_after_gnc = o.one_to_one_after_gnc;
   return RunRobustDgs(data.graph, data.initial, DefaultRobustFactors(data.graph), ro);
 }
 
@@ -665,6 +667,28 @@ TEST(DgsNode, TheSeparatorCheckOverTheTransportEqualsRunRobustDgs) {
   EXPECT_EQ(team.results.at(1).covariance_messages, 1);
   EXPECT_EQ(team.results.at(1).transport.covariances_sent, 1);
   fs::remove_all(dir);
+}
+
+// The one-to-one rule after GNC over the transport (test::TwoChairsSideBySide, whose wrong pair
+// the readmission takes back without it): RunRobustDgs's weights and estimate, with and without.
+TEST(DgsNode, TheOneToOneRuleAfterGncOverTheTransportEqualsRunRobustDgs) {
+  Dataset data;
+  data.graph = test::TwoChairsSideBySide();
+  data.initial = ChordalInitialization(data.graph, SE3());
+  for (const bool one_to_one : {true, false}) {
+    SCOPED_TRACE(one_to_one ? "with the rule" : "without");
+    DgsNodeOptions o = WholeSolver();
+    o.gnc = GncOptions();
+    o.separator_check = SeparatorConsistencyOptions{0.0, 3, 2};
+    o.one_to_one_after_gnc = one_to_one;
+    const RobustDgsResult reference = RobustReference(data, o);
+    ASSERT_EQ(reference.weights.back(), one_to_one ? 0.0 : 1.0);
+    InProcessNetwork net;
+    const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
+    ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+    EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+    ExpectReferenceWeights(team, data.graph, reference);
+  }
 }
 
 // The re-test of the check's rejects (robust_program.h) over the transport: RunRobustDgs's

@@ -95,13 +95,17 @@ inline void AddSolverOptions(Fingerprint& f, const DgsOptions& o) {
   }
 }
 
-// The robust solve's options a distributed solve's result depends on (dgs_node.h, robust_program.h):
-// GNC, the separator check before it and the re-tests of its rejects; none without gnc.
+// The robust solve's options a distributed solve's result depends on (dgs_node.h,
+// robust_program.h): GNC, the separator check before it and the re-tests of its rejects, the
+// one-to-one rule after GNC (added only when on: the fingerprints of journals written before it
+// stay); none without gnc.
 inline void AddRobustOptions(Fingerprint& f, const std::optional<GncOptions>& gnc,
                              const std::optional<SeparatorConsistencyOptions>& check,
-                             bool retest_left_out, bool retest_groups) {
+                             bool retest_left_out, bool retest_groups,
+                             bool one_to_one_after_gnc = false) {
   f.add(static_cast<std::uint64_t>(gnc.has_value()));
   if (!gnc) return;
+  if (one_to_one_after_gnc) f.add(std::string("one-to-one after GNC"));
   for (double v : {gnc->threshold, gnc->mu_step, gnc->weight_tolerance, gnc->min_weight}) f.add(v);
   f.add(static_cast<std::uint64_t>(gnc->max_iterations));
   f.add(static_cast<std::uint64_t>(check.has_value()));

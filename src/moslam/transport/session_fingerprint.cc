@@ -101,8 +101,8 @@ std::uint64_t SessionFingerprint(const RobotScenarioData& d, const RobotSessionO
     AddSolverOptions(f, options.dgs.solver);
     if (options.dgs.gnc) {  // (only then: the fingerprints of least-squares journals stay)
       f.add(std::string("robust"));
-      AddRobustOptions(f, options.dgs.gnc, options.dgs.separator_check,
-                       options.dgs.retest_left_out, options.dgs.retest_groups);
+      AddRobustOptions(f, options.dgs.gnc, options.dgs.separator_check, options.dgs.retest_left_out,
+                       options.dgs.retest_groups, options.dgs.one_to_one_after_gnc);
     }
   }
   return f.value();

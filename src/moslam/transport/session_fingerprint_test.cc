@@ -65,6 +65,7 @@ TEST(SessionFingerprint, EverythingTheJournaledResultsDependOnChangesIt) {
        [](SessionRun& r) { r.options.dgs.separator_check->one_to_one_objects = false; }},
       {"no re-test", [](SessionRun& r) { r.options.dgs.retest_left_out = false; }},
       {"no group re-test", [](SessionRun& r) { r.options.dgs.retest_groups = false; }},
+      {"one-to-one after GNC", [](SessionRun& r) { r.options.dgs.one_to_one_after_gnc = true; }},
   };
   for (const auto& [what, change] : changes) {
     SessionRun changed = base;
