@@ -113,10 +113,9 @@ std::vector<std::size_t> RobustMembers(const std::vector<bool>& robust) {
 
 // Robust factors of weight < 0.5 whose squared residual at `values` is at most c2 get weight 1;
 // with one_to_one, KeepOneToOne then settles the object pairs (RobustDgsOptions::
-// one_to_one_after_gnc). Returns how many went from below 0.5 to 1; *dropped (optional): how many
-// of weight >= 0.5 the rule set to 0 (readmitted ones not counted).
+// one_to_one_after_gnc). Returns how many went from below 0.5 to 1.
 int Readmit(const PoseGraph& graph, const Values& values, const std::vector<bool>& robust,
-            double c2, bool one_to_one, std::vector<double>* weights, int* dropped = nullptr) {
+            double c2, bool one_to_one, std::vector<double>* weights) {
   const std::vector<double> r2 = SquaredResiduals(graph, values);
   const std::vector<double> before = *weights;
   for (std::size_t i = 0; i < r2.size(); ++i) {
@@ -126,7 +125,6 @@ int Readmit(const PoseGraph& graph, const Values& values, const std::vector<bool
   int count = 0;
   for (std::size_t i = 0; i < r2.size(); ++i) {
     if (before[i] < 0.5 && (*weights)[i] >= 0.5) ++count;
-    if (dropped && before[i] >= 0.5 && (*weights)[i] < 0.5) ++*dropped;
   }
   return count;
 }
@@ -723,7 +721,7 @@ RobustDgsResult RunRobustDgs(const PoseGraph& graph, const Values& initial,
   r.consistency_bytes += LeftOutEstimateBytes(
       graph, r.values, [&](std::size_t i, const Key&) { return !check.kept[i] && robust[i]; });
   r.readmitted = Readmit(graph, r.values, robust, options.gnc.threshold2(),
-                         options.one_to_one_after_gnc, &r.weights, &r.one_to_one_dropped);
+                         options.one_to_one_after_gnc, &r.weights);
   // The estimate of the inliers alone, where some weight is not 1 (the rounds kept a sliver,
   // min_weight, of every rejected factor) or some separator came back.
   if (r.readmitted > 0 || !AllWeightsOne(r.weights)) PolishInliers(graph, options, r);

@@ -130,7 +130,6 @@ struct RobustDgsResult {
   int consistency_rejected = 0;        // separators the check left out
   int consistency_deferred = 0;        // too few to confirm themselves, left to GNC
   int readmitted = 0;   // of those, back after GNC: their residual at the estimate within c2
-  int one_to_one_dropped = 0;  // of weight >= 0.5 before, set to 0 by one_to_one_after_gnc
   int retests = 0;      // separators re-tested against the joint estimate (retest_left_out)
   int retest_readmitted = 0;  // ... and back
   int group_retests = 0;      // robot pairs' groups re-tested together (retest_groups), and
