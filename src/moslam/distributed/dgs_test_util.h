@@ -1,7 +1,9 @@
 // Helpers shared by the distributed tests (not part of the library).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <string>
 #include <vector>
@@ -108,13 +110,11 @@ inline PoseGraph DriftingPairWithANearMiss(std::vector<bool>* wrong) {
   return g;
 }
 
-// Two robots that each saw six objects from two poses (exact observations), objects 2 and 3 two
-// chairs 0.3 m apart at one orientation; six right object-object separators (robot 0's landmark k
-// is robot 1's landmark k; the paper's Lambda, 5 deg / 0.2 m) and a wrong one, the last factor:
-// robot 0's chair 2 paired with robot 1's chair 3, which fits the right estimate within GNC's c2
-// (r^T Omega r 2.25) and agrees with four right separators by their loops, but pairs two landmarks
-// twice: the check's one-to-one rule leaves it out.
-inline PoseGraph TwoChairsSideBySide() {
+// Two robots that each saw six objects from two poses, objects 2 and 3 two chairs 0.3 m apart at
+// one orientation, and a right object-object separator per landmark pair (the paper's Lambda,
+// 5 deg / 0.2 m). Robot 1 maps the objects `twice` lists twice (see ObjectsMappedTwice);
+// otherwise every observation is exact.
+inline PoseGraph SixObjectsSeenByTwo(const std::vector<std::uint64_t>& twice) {
   const double deg = 3.14159265358979323846 / 180.0;
   const std::vector<SE3> objects = {
       SE3(SO3::Exp(Vector3(0.0, 0.0, 0.3)), Vector3(2.0, 0.0, 0.0)),
@@ -127,11 +127,15 @@ inline PoseGraph TwoChairsSideBySide() {
   };
   const SE3 start[2] = {SE3(), SE3(SO3::Exp(Vector3(0.0, 0.0, 2.5)), Vector3(4.0, 4.0, 0.0))};
   const SE3 step(SO3::Exp(Vector3(0.0, 0.0, 0.2)), Vector3(0.5, 0.1, 0.0));
+  const SE3 off(SO3(), Vector3(0.02, 0.0, 0.0));
   Vector6 d;
   d << Vector3::Constant(1.0 / std::pow(1.0 * deg, 2)), Vector3::Constant(1.0 / (0.02 * 0.02));
   const Matrix6 precise = d.asDiagonal();
   d << Vector3::Constant(1.0 / std::pow(5.0 * deg, 2)), Vector3::Constant(1.0 / (0.2 * 0.2));
   const Matrix6 lambda = d.asDiagonal();
+  const auto mapped_twice = [&](std::uint64_t k) {
+    return std::find(twice.begin(), twice.end(), k) != twice.end();
+  };
   PoseGraph g;
   for (int r = 0; r < 2; ++r) {
     const Key x0 = Key::Pose(r, 0), x1 = Key::Pose(r, 1);
@@ -139,17 +143,47 @@ inline PoseGraph TwoChairsSideBySide() {
     const SE3 poses[2] = {start[r], start[r] * step};
     for (std::uint64_t i = 0; i < 2; ++i) {
       for (std::uint64_t k = 0; k < objects.size(); ++k) {
-        g.add(RelativePoseFactor(Key::Pose(r, i), Key::Object(r, k), poses[i].between(objects[k]),
-                                 precise));
+        const SE3 z = poses[i].between(objects[k]);
+        if (r == 1 && mapped_twice(k)) {
+          const std::uint64_t landmark = i == 0 ? k : objects.size() + k;
+          g.add(RelativePoseFactor(Key::Pose(r, i), Key::Object(r, landmark), i == 0 ? z * off : z,
+                                   precise));
+        } else {
+          g.add(RelativePoseFactor(Key::Pose(r, i), Key::Object(r, k), z, precise));
+        }
       }
     }
   }
   for (std::uint64_t k = 0; k < objects.size(); ++k) {
     g.add(RelativePoseFactor(Key::Object(0, k), Key::Object(1, k), SE3(), lambda));
   }
+  for (std::uint64_t k : twice) {
+    g.add(RelativePoseFactor(Key::Object(0, k), Key::Object(1, objects.size() + k), SE3(), lambda));
+  }
+  return g;
+}
+
+// Two robots that each saw six objects from two poses (exact observations), objects 2 and 3 two
+// chairs 0.3 m apart at one orientation; six right object-object separators (robot 0's landmark k
+// is robot 1's landmark k; the paper's Lambda, 5 deg / 0.2 m) and a wrong one, the last factor:
+// robot 0's chair 2 paired with robot 1's chair 3, which fits the right estimate within GNC's c2
+// (r^T Omega r 2.25) and agrees with four right separators by their loops, but pairs two landmarks
+// twice: the check's one-to-one rule leaves it out.
+inline PoseGraph TwoChairsSideBySide() {
+  PoseGraph g = SixObjectsSeenByTwo({});
+  const Matrix6 lambda = g.factors().back().information();  // a separator's
   g.add(RelativePoseFactor(Key::Object(0, 2), Key::Object(1, 3), SE3(), lambda));
   return g;
 }
+
+// The six objects of TwoChairsSideBySide, robot 1 mapping objects 0-2 twice (a duplicate: its
+// pose 0 saw them as landmarks 0-2, its pose 1 as landmarks 6-8, as a robot that failed to
+// re-associate them does), its views of landmarks 0-2 2 cm off (along x in the object's frame),
+// every other view exact; nine right separators, robot 0's landmark k paired with robot 1's
+// landmarks k and, for k <= 2, 6 + k (the last three factors). The check keeps six, one partner
+// per landmark (its one-to-one rule; here landmarks 3-8), and leaves the other three out: a
+// consistent set, the pair's runner-up, each of which fits the estimate within c2.
+inline PoseGraph ObjectsMappedTwice() { return SixObjectsSeenByTwo({0, 1, 2}); }
 
 // The same pair, and wrong loop closures of robot 1 (the last `loop_closures` factors, 1-3):
 // between its poses 0-59, 5-50 and 10-45, its dead reckoning with a 3 m jump at pose 30, far

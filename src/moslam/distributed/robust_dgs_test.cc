@@ -774,6 +774,47 @@ TEST(RobustDgs, OneToOneAfterGncKeepsOutTheSecondPartnerTheReadmissionTakesBack)
   EXPECT_GT(MaxPoseDifference(before.values, optimum), 1e-3);
 }
 
+// test::ObjectsMappedTwice: robot 1 mapped three objects twice, its first views of them 2 cm off,
+// so nine right pairs join six landmarks of robot 0 to nine of robot 1. The check keeps six, one
+// partner per landmark (here the exact duplicates), and the three it leaves out are the pair's
+// runner-up. Without the rule after GNC the readmission takes the three back: three landmarks
+// with two partners. With it they stay out of the readmission (each has a partner of smaller
+// r^T Omega r) and of the one-by-one re-test, and are re-tested as a group, where the rule holds
+// too: each landmark keeps one partner, the one of smaller r^T Omega r, and the estimate is the
+// optimum of the pairs kept.
+TEST(RobustDgs, OneToOneAfterGncHoldsThroughTheGroupRetest) {
+  const PoseGraph g = test::ObjectsMappedTwice();
+  const std::vector<bool> robust = DefaultRobustFactors(g);
+  const Values initial = ChordalInitialization(g, SE3());
+  const std::size_t first = g.factors().size() - 9;  // the separators: A_k-B_k, then A_k-B_(6+k)
+  RobustDgsOptions options;
+  const RobustDgsResult before = RunRobustDgs(g, initial, robust, options);
+  EXPECT_EQ(before.consistency_rejected, 3);
+  EXPECT_EQ(before.readmitted, 3);
+  EXPECT_EQ(before.group_retests, 0);
+  for (std::size_t i = first; i < g.factors().size(); ++i) EXPECT_EQ(before.weights[i], 1.0);
+
+  options.one_to_one_after_gnc = true;
+  const RobustDgsResult r = RunRobustDgs(g, initial, robust, options);
+  EXPECT_EQ(r.consistency_rejected, 3);
+  EXPECT_EQ(r.readmitted, 0);
+  EXPECT_EQ(r.retests, 0);
+  EXPECT_EQ(r.group_retests, 1);
+  std::vector<bool> kept(g.factors().size(), true);
+  for (std::size_t k = 0; k < 6; ++k) {
+    const std::size_t original = first + k;
+    EXPECT_EQ(r.weights[original], k < 3 ? 0.0 : 1.0) << "separator A" << k << "-B" << k;
+    kept[original] = r.weights[original] >= 0.5;
+    if (k < 3) EXPECT_EQ(r.weights[first + 6 + k], 1.0) << "separator A" << k << "-B" << 6 + k;
+  }
+  const Values optimum = Optimize(SubGraph(g, kept), initial).values;
+  EXPECT_LE(MaxPoseDifference(r.values, optimum), 1e-6);
+  // The centralized reference makes the same decisions.
+  const GncResult central = SolveRobustCentralized(
+      g, [&](const PoseGraph&) { return initial; }, robust, options);
+  EXPECT_EQ(central.weights, r.weights);
+}
+
 TEST(RobustDgs, RejectsBadMasksAndOptions) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   EXPECT_THROW(RunRobustDgs(data.graph, data.initial, {true, false}), InvalidInputError);

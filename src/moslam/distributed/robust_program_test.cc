@@ -433,6 +433,27 @@ TEST(RobustProgram, OneToOneAfterGncIsRunRobustDgs) {
   ExpectSameAsRunRobustDgs(graph, initial, robust, options, without);
 }
 
+// The rule in the group re-test (test::ObjectsMappedTwice, whose three pairs the check leaves out
+// come back through the readmission without the rule, and are re-tested as a group with it): the
+// programs are RunRobustDgs either way.
+TEST(RobustProgram, OneToOneAfterGncInTheGroupRetestIsRunRobustDgs) {
+  const PoseGraph graph = test::ObjectsMappedTwice();
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  for (const bool one_to_one : {true, false}) {
+    SCOPED_TRACE(one_to_one ? "with the rule" : "without");
+    options.one_to_one_after_gnc = one_to_one;
+    const RobustDgsResult reference =
+        RunRobustDgs(graph, initial, robust, ReferenceOptions(options));
+    ASSERT_EQ(reference.group_retests, one_to_one ? 1 : 0);
+    ASSERT_EQ(reference.readmitted, one_to_one ? 0 : 3);
+    const TeamOutcome team = ExpectSameAsRunRobustDgs(graph, initial, robust, options, reference);
+    ASSERT_EQ(team.error, "");
+  }
+}
+
 // The graph's last factor unseen by the check (the `checked` mask; Jacobi options, chordal start):
 // RunRobustDgs with that mask, and the programs with it against it. Returns the reference.
 RobustDgsResult ExpectLastFactorUncheckedAsRunRobustDgs(const PoseGraph& graph) {

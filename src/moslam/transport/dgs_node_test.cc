@@ -3,6 +3,7 @@
 // crashing and restarting from its journal, a cut link, and a robot that leaves for good.
 #include "moslam/transport/dgs_node.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -670,24 +671,32 @@ TEST(DgsNode, TheSeparatorCheckOverTheTransportEqualsRunRobustDgs) {
 }
 
 // The one-to-one rule after GNC over the transport (test::TwoChairsSideBySide, whose wrong pair
-// the readmission takes back without it): RunRobustDgs's weights and estimate, with and without.
+// the readmission takes back without it; test::ObjectsMappedTwice, whose duplicates' pairs the
+// group re-test tries with it): RunRobustDgs's weights and estimate, with and without.
 TEST(DgsNode, TheOneToOneRuleAfterGncOverTheTransportEqualsRunRobustDgs) {
-  Dataset data;
-  data.graph = test::TwoChairsSideBySide();
-  data.initial = ChordalInitialization(data.graph, SE3());
-  for (const bool one_to_one : {true, false}) {
-    SCOPED_TRACE(one_to_one ? "with the rule" : "without");
-    DgsNodeOptions o = WholeSolver();
-    o.gnc = GncOptions();
-    o.separator_check = SeparatorConsistencyOptions{0.0, 3, 2};
-    o.one_to_one_after_gnc = one_to_one;
-    const RobustDgsResult reference = RobustReference(data, o);
-    ASSERT_EQ(reference.weights.back(), one_to_one ? 0.0 : 1.0);
-    InProcessNetwork net;
-    const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
-    ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
-    EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
-    ExpectReferenceWeights(team, data.graph, reference);
+  for (const bool twice : {false, true}) {
+    Dataset data;
+    data.graph = twice ? test::ObjectsMappedTwice() : test::TwoChairsSideBySide();
+    data.initial = ChordalInitialization(data.graph, SE3());
+    for (const bool one_to_one : {true, false}) {
+      SCOPED_TRACE(fmt::format("{}, {}", twice ? "objects mapped twice" : "two chairs",
+                               one_to_one ? "with the rule" : "without"));
+      DgsNodeOptions o = WholeSolver();
+      o.gnc = GncOptions();
+      o.separator_check = SeparatorConsistencyOptions{0.0, 3, 2};
+      o.one_to_one_after_gnc = one_to_one;
+      const RobustDgsResult reference = RobustReference(data, o);
+      if (twice) {
+        ASSERT_EQ(reference.group_retests, one_to_one ? 1 : 0);
+      } else {
+        ASSERT_EQ(reference.weights.back(), one_to_one ? 0.0 : 1.0);
+      }
+      InProcessNetwork net;
+      const TeamResult team = RunTeam(net, data, [&](int) { return RobotSetup{o}; });
+      ASSERT_TRUE(team.errors.empty()) << team.errors.begin()->second;
+      EXPECT_LE(MaxPoseDifference(team.merged(), reference.values), 1e-9);
+      ExpectReferenceWeights(team, data.graph, reference);
+    }
   }
 }
 
