@@ -37,10 +37,14 @@ RobotSessionOptions OnlineSessionOptions(const ScenarioSpec& spec) {
   o.slam = ScenarioSlamConfig(spec);
   o.online = true;
   o.dgs.solver = OnlineOptions::DefaultSolver();
-  o.dgs.join_timeout = milliseconds(20000);
-  o.dgs.stall_timeout = milliseconds(20000);
+  // Bounds of waiting for a partner, there only to end a broken run: no test waits them out (a
+  // robot that leaves is found by leave_timeout). Wide, as a partner busy with a group solve of
+  // its own may be far behind on a loaded machine: 31.6 s with 14 busy loops beside the robust
+  // restart test on 2 cores, whose quiet run takes 6 s; with 20 s they failed it.
+  o.dgs.join_timeout = milliseconds(120000);
+  o.dgs.stall_timeout = milliseconds(120000);
   o.dgs.finish_timeout = milliseconds(5000);
-  o.rendezvous_timeout = milliseconds(20000);
+  o.rendezvous_timeout = milliseconds(120000);
   o.log = [](const std::string&) {};
   return o;
 }

@@ -100,11 +100,15 @@ class Log {
 RobotSessionOptions Options(const ScenarioSpec& spec, Log& log, const std::string& state_dir = {}) {
   RobotSessionOptions o;
   o.slam = ScenarioSlamConfig(spec);
-  o.dgs.join_timeout = milliseconds(20000);
-  o.dgs.stall_timeout = milliseconds(20000);
+  // Bounds of waiting for a partner, there only to end a broken run: no test waits them out (a
+  // robot that leaves is found by leave_timeout). Wide, as a partner busy with a group solve of
+  // its own may be far behind on a loaded machine: 31.6 s with 14 busy loops beside the robust
+  // restart test on 2 cores, whose quiet run takes 6 s; with 20 s they failed it.
+  o.dgs.join_timeout = milliseconds(120000);
+  o.dgs.stall_timeout = milliseconds(120000);
   o.dgs.finish_timeout = milliseconds(5000);
   o.dgs.state_dir = state_dir;
-  o.rendezvous_timeout = milliseconds(20000);
+  o.rendezvous_timeout = milliseconds(120000);
   o.log = log.sink();
   return o;
 }
