@@ -181,8 +181,8 @@ inline PoseGraph TwoChairsSideBySide() {
 // re-associate them does), its views of landmarks 0-2 2 cm off (along x in the object's frame),
 // every other view exact; nine right separators, robot 0's landmark k paired with robot 1's
 // landmarks k and, for k <= 2, 6 + k (the last three factors). The check keeps six, one partner
-// per landmark (its one-to-one rule; here landmarks 3-8), and leaves the other three out: a
-// consistent set, the pair's runner-up, each of which fits the estimate within c2.
+// per landmark (its one-to-one rule; here the pairs to robot 1's landmarks 3-8), and leaves the
+// other three out: a consistent set, the pair's runner-up, each of which fits within c2.
 inline PoseGraph ObjectsMappedTwice() { return SixObjectsSeenByTwo({0, 1, 2}); }
 
 // The same pair, and wrong loop closures of robot 1 (the last `loop_closures` factors, 1-3):
