@@ -91,5 +91,45 @@ TEST(PoseGraph, CanonicalOrderIsTheSameWhateverTheListingOrder) {
   EXPECT_FALSE(CanonicalBefore(factors[3], factors[3]));
 }
 
+// Priors likewise: by key, then prior, then information (a robot's own file and the driver's
+// partition may list a robot's priors differently; LocalGraph sums over them in this order).
+TEST(PoseGraph, CanonicalOrderOfPriorsIsTheSameWhateverTheListingOrder) {
+  const Key a = Key::Pose(0, 0), b = Key::Pose(0, 3);
+  const Matrix6 I = Matrix6::Identity();
+  const SE3 x(SO3::Exp(Vector3(0.0, 0.1, 0.0)), Vector3(0.0, 2.0, 0.0));
+  const SE3 y(SO3::Exp(Vector3(0.0, 0.1, 0.0)), Vector3(0.0, 2.0, 1e-12));  // translation only
+  const std::vector<PriorFactor> priors = {PriorFactor(b, SE3(), I), PriorFactor(a, y, I),
+                                           PriorFactor(a, x, 3 * I), PriorFactor(a, x, I),
+                                           PriorFactor(a, SE3(), I)};
+  auto canonical = [](std::vector<PriorFactor> listed) {
+    std::stable_sort(listed.begin(), listed.end(),
+                     [](const auto& p, const auto& q) { return CanonicalBefore(p, q); });
+    return listed;
+  };
+  const std::vector<PriorFactor> expected = canonical(priors);
+  std::vector<PriorFactor> listed = priors;
+  std::vector<std::size_t> perm = {0, 1, 2, 3, 4};
+  int permutations = 0;
+  do {
+    for (std::size_t i = 0; i < perm.size(); ++i) listed[i] = priors[perm[i]];
+    const std::vector<PriorFactor> got = canonical(listed);
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      ASSERT_EQ(got[i].key(), expected[i].key());
+      ASSERT_EQ(got[i].prior().translation(), expected[i].prior().translation());
+      ASSERT_EQ(got[i].prior().rotation().matrix(), expected[i].prior().rotation().matrix());
+      ASSERT_EQ(got[i].information(), expected[i].information());
+    }
+    ++permutations;
+  } while (std::next_permutation(perm.begin(), perm.end()));
+  EXPECT_EQ(permutations, 120);
+  // The four priors on a come first, told apart by prior, then information; b's last.
+  EXPECT_EQ(expected[4].key(), b);
+  for (std::size_t i = 0; i + 1 < expected.size(); ++i) {
+    EXPECT_TRUE(CanonicalBefore(expected[i], expected[i + 1])) << i;
+    EXPECT_FALSE(CanonicalBefore(expected[i + 1], expected[i])) << i;
+  }
+  EXPECT_FALSE(CanonicalBefore(priors[3], priors[3]));
+}
+
 }  // namespace
 }  // namespace moslam
