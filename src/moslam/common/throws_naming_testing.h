@@ -6,7 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "moslam/common/errors.h"
 
@@ -24,6 +27,28 @@ template <typename E = InvalidInputError, typename F>
                                          << "': " << e.what();
   }
   return ::testing::AssertionFailure() << "no exception (expected one naming '" << named << "')";
+}
+
+// Whether `base` validates and each change, applied alone to a copy of it, makes validate() throw
+// an InvalidInputError naming the change's field (its first member):
+//   EXPECT_TRUE(EachChangeIsRefused<Config>({{"min_support", [](Config& c) { c.min_support = 0;
+//   }}}));
+template <typename Options>
+::testing::AssertionResult EachChangeIsRefused(
+    const std::vector<std::pair<std::string, std::function<void(Options&)>>>& changes,
+    const Options& base = Options{}) {
+  try {
+    base.validate();
+  } catch (const std::exception& e) {
+    return ::testing::AssertionFailure() << "the unchanged options are refused: " << e.what();
+  }
+  for (const auto& [field, change] : changes) {
+    Options changed = base;
+    change(changed);
+    const ::testing::AssertionResult r = ThrowsNaming([&] { changed.validate(); }, field);
+    if (!r) return ::testing::AssertionFailure() << "changing " << field << ": " << r.message();
+  }
+  return ::testing::AssertionSuccess();
 }
 
 }  // namespace moslam::test

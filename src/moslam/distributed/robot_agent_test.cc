@@ -339,5 +339,15 @@ TEST(RobotAgent, CentralizedTwoStageIsTheFixedPointOnEveryBlocksWorldFolder) {
   }
 }
 
+TEST(RobotAgent, BadOptionsNameTheField) {
+  using A = AgentOptions;
+  EXPECT_TRUE(test::EachChangeIsRefused<A>({
+      {"gamma must be in (0, 2)", [](A& o) { o.gamma = 0.0; }},
+      {"gamma must be in (0, 2)", [](A& o) { o.gamma = 2.0; }},
+      {"refine_gamma", [](A& o) { o.refine_gamma = std::nan(""); }},
+      {"refine_gamma", [](A& o) { o.refine_gamma = 2.0; }},
+  }));
+}
+
 }  // namespace
 }  // namespace moslam

@@ -805,7 +805,9 @@ TEST(RobustDgs, OneToOneAfterGncHoldsThroughTheGroupRetest) {
     const std::size_t original = first + k;
     EXPECT_EQ(r.weights[original], k < 3 ? 0.0 : 1.0) << "separator A" << k << "-B" << k;
     kept[original] = r.weights[original] >= 0.5;
-    if (k < 3) EXPECT_EQ(r.weights[first + 6 + k], 1.0) << "separator A" << k << "-B" << 6 + k;
+    if (k < 3) {
+      EXPECT_EQ(r.weights[first + 6 + k], 1.0) << "separator A" << k << "-B" << 6 + k;
+    }
   }
   const Values optimum = Optimize(SubGraph(g, kept), initial).values;
   EXPECT_LE(MaxPoseDifference(r.values, optimum), 1e-6);
@@ -896,6 +898,25 @@ TEST(CovarianceMessage, RoundTripsAndRejectsBadBytes) {
   EXPECT_THROW(DecodeCovarianceMessage(bad), InvalidInputError);
   m.covariance.resize(6, 7);
   EXPECT_THROW(EncodeCovarianceMessage(m), InvalidInputError);
+}
+
+TEST(RobustDgs, BadOptionsNameTheField) {
+  using R = RobustDgsOptions;
+  EXPECT_TRUE(test::EachChangeIsRefused<R>({
+      {"consistency.threshold", [](R& o) { o.consistency.threshold = -1.0; }},
+      {"consistency.threshold", [](R& o) { o.consistency.threshold = std::nan(""); }},
+      {"retest_group_solves", [](R& o) { o.retest_group_solves = 0; }},
+      {"consistency.min_support", [](R& o) { o.consistency.min_support = 0; }},
+  }));
+  using S = SeparatorConsistencyOptions;
+  EXPECT_TRUE(test::EachChangeIsRefused<S>(
+      {
+          {"threshold must be positive", [](S& o) { o.threshold = 0.0; }},
+          {"min_support", [](S& o) { o.min_support = 0; }},
+          {"linked_min_support", [](S& o) { o.linked_min_support = 0; }},
+          {"linked_min_support", [](S& o) { o.linked_min_support = o.min_support + 1; }},
+      },
+      S{}));
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/distributed/board_channel_test_util.h"
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/partition.h"
@@ -642,6 +643,25 @@ TEST(RobustProgram, RejectsBadInput) {
   EXPECT_THROW(RunRobustRobotProgram(p, options, make, channel), InvalidInputError);
   options.retest_group_solves = 10;
   EXPECT_THROW(RunRobustRobotProgram(p, options, nullptr, channel), InvalidInputError);
+}
+
+TEST(RobustProgram, BadOptionsNameTheField) {
+  using R = RobustProgramOptions;
+  R base;
+  base.solver.order = SweepOrder::kJacobi;
+  EXPECT_TRUE(test::EachChangeIsRefused<R>(
+      {
+          {"retest_group_solves", [](R& o) { o.retest_group_solves = 0; }},
+          {"solver.order must be Jacobi", [](R& o) { o.solver.order = SweepOrder::kGaussSeidel; }},
+          {"consistency.threshold", [](R& o) { o.consistency.threshold = -1.0; }},
+          {"min_support", [](R& o) { o.consistency.min_support = 0; }},
+      },
+      base));
+  // Without the check, its options are not read.
+  R unchecked = base;
+  unchecked.check_separators = false;
+  unchecked.consistency.threshold = -1.0;
+  EXPECT_NO_THROW(unchecked.validate());
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/perception/object_perception.h"
 #include "moslam/perception/rendered_sensing.h"
 #include "moslam/render/renderer.h"
@@ -263,9 +264,6 @@ TEST(RenderedSensing, AViewMeasuresTheObjectItsPosePlaces) {
   // Radius 0: always the box.
   EXPECT_EQ(MeasuredObject(seen, "chair", Vector3(0.8, 0.0, 3.0), 1, 0.0), 1);
   EXPECT_EQ(MeasuredObject(seen, "chair", Vector3(0.8, 0.0, 3.0), -1, 0.0), -1);
-  RenderedSensingConfig c;
-  c.same_object_radius = -0.1;
-  EXPECT_THROW(c.validate(), InvalidInputError);
 }
 
 TEST(Perception, ValidatesItsConfig) {
@@ -285,6 +283,21 @@ TEST(Perception, ValidatesItsConfig) {
   r.perception = CommittedModel();
   r.every = 0;
   EXPECT_THROW(r.validate(), InvalidInputError);
+}
+
+// (A default config is refused for its empty model path: the changes start from a valid one.)
+TEST(RenderedSensing, BadOptionsNameTheField) {
+  using C = RenderedSensingConfig;
+  C valid;
+  valid.perception = CommittedModel();
+  EXPECT_TRUE(test::EachChangeIsRefused<C>(
+      {
+          {"every", [](C& c) { c.every = 0; }},
+          {"min_visible_fraction", [](C& c) { c.min_visible_fraction = -0.1; }},
+          {"same_object_radius", [](C& c) { c.same_object_radius = std::nan(""); }},
+          {"same_object_radius", [](C& c) { c.same_object_radius = -1.0; }},
+      },
+      valid));
 }
 
 }  // namespace

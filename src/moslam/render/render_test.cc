@@ -350,5 +350,15 @@ TEST(ScenarioViews, JitterStaysWithinItsBounds) {
   EXPECT_THROW(vc.validate(), InvalidInputError);
 }
 
+TEST(YoloDataset, BadLabelOptionsNameTheField) {
+  using C = YoloLabelConfig;
+  EXPECT_TRUE(test::EachChangeIsRefused<C>({
+      {"min_visible_pixels", [](C& c) { c.min_visible_pixels = 0; }},
+      {"min_in_image_fraction", [](C& c) { c.min_in_image_fraction = 1.5; }},
+      {"min_in_image_fraction", [](C& c) { c.min_in_image_fraction = std::nan(""); }},
+      {"min_labels_per_frame", [](C& c) { c.min_labels_per_frame = -1; }},
+  }));
+}
+
 }  // namespace
 }  // namespace moslam

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -168,6 +169,17 @@ TEST(TumSequence, WriterRejectsMismatchedFrames) {
   f.timestamp = 2.0;
   f.depth = cv::Mat(10, 10, CV_32FC1, cv::Scalar(1.0f));
   EXPECT_THROW(w.add(f, SE3()), InvalidInputError);
+}
+
+TEST(TumSequence, BadReadOptionsNameTheField) {
+  using O = TumReadOptions;
+  EXPECT_TRUE(test::EachChangeIsRefused<O>({
+      {"max_time_difference", [](O& o) { o.max_time_difference = -0.01; }},
+      {"max_time_difference", [](O& o) { o.max_time_difference = INFINITY; }},
+      {"depth_scale", [](O& o) { o.depth_scale = 0.0; }},
+      {"depth_scale", [](O& o) { o.depth_scale = std::nan(""); }},
+      {"depth_scale", [](O& o) { o.depth_scale = INFINITY; }},
+  }));
 }
 
 }  // namespace

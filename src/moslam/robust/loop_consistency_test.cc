@@ -320,5 +320,14 @@ TEST(CheckEachRobotsLoopClosures, TellsTheLoopClosuresAlongTheOdometry) {
   EXPECT_EQ(CheckEachRobotsLoopClosures(g, robust).along_odometry, expected);
 }
 
+TEST(CheckLoopClosuresByOdometry, BadOptionsNameTheField) {
+  using O = OdometryCheckOptions;
+  EXPECT_TRUE(test::EachChangeIsRefused<O>({
+      {"threshold", [](O& o) { o.threshold = 0.0; }},
+      {"threshold", [](O& o) { o.threshold = INFINITY; }},
+      {"min_support", [](O& o) { o.min_support = 0; }},
+  }));
+}
+
 }  // namespace
 }  // namespace moslam

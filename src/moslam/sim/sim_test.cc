@@ -473,6 +473,14 @@ TEST(Sensing, CoverageCountsThePosesWithoutMeasurementAndTheLongestStretchPerRob
   EXPECT_EQ(none.fractionWithout(), 0.0);
 }
 
+TEST(Sensing, BadInformationFloorIsNamed) {
+  using C = SensingConfig;
+  EXPECT_TRUE(test::EachChangeIsRefused<C>({
+      {"information_sigma_floor", [](C& c) { c.information_sigma_floor = 0.0; }},
+      {"information_sigma_floor", [](C& c) { c.information_sigma_floor = INFINITY; }},
+  }));
+}
+
 }  // namespace
 }  // namespace moslam
 

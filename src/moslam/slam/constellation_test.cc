@@ -7,6 +7,7 @@
 #include <random>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/geometry/so3.h"
 
 namespace moslam {
@@ -197,6 +198,20 @@ TEST(Constellation, NoisyMapsAlignAndAWrongPairFailsConsistency) {
   const std::vector<std::size_t> kept = ConsistentSubset(a, b, pairs, config);
   EXPECT_EQ(kept.size(), 7u);
   for (std::size_t k : kept) EXPECT_NE(k, 7u);
+}
+
+TEST(Constellation, BadOptionsNameTheField) {
+  using C = ConstellationConfig;
+  EXPECT_TRUE(test::EachChangeIsRefused<C>({
+      {"sigma_translation", [](C& c) { c.sigma_translation = 0.0; }},
+      {"sigma_rotation_deg", [](C& c) { c.sigma_rotation_deg = std::nan(""); }},
+      {"num_sigmas", [](C& c) { c.num_sigmas = INFINITY; }},
+      {"drift_per_m", [](C& c) { c.drift_per_m = -0.01; }},
+      {"min_support", [](C& c) { c.min_support = 1; }},
+      {"ambiguity_margin", [](C& c) { c.ambiguity_margin = -1; }},
+      {"same_object_radius", [](C& c) { c.same_object_radius = std::nan(""); }},
+      {"max_search_nodes", [](C& c) { c.max_search_nodes = 0; }},
+  }));
 }
 
 }  // namespace

@@ -531,6 +531,30 @@ TEST(ObjectSlam, LoopClosureOptionsAreValidated) {
   EXPECT_THROW(c.validate(), InvalidInputError);
 }
 
+TEST(ObjectSlam, BadUpdateOptionsNameTheField) {
+  using C = ObjectSlamConfig;
+  EXPECT_TRUE(test::EachChangeIsRefused<C>({
+      {"update_every", [](C& c) { c.update_every = 0; }},
+      {"localization_iterations", [](C& c) { c.localization_iterations = -1; }},
+      {"iterations_per_update", [](C& c) { c.iterations_per_update = -1; }},
+      {"exclusion_radius", [](C& c) { c.exclusion_radius = INFINITY; }},
+      {"ambiguity_ratio", [](C& c) { c.ambiguity_ratio = 1.0; }},
+      {"covariance_gate", [](C& c) { c.covariance_gate = -1.0; }},
+  }));
+}
+
+TEST(MultiRobotSlam, BadOptionsNameTheField) {
+  using C = MultiRobotSlamConfig;
+  EXPECT_TRUE(test::EachChangeIsRefused<C>({
+      {"outlier_fraction", [](C& c) { c.outlier_fraction = 1.0; }},
+      {"outlier_fraction", [](C& c) { c.outlier_fraction = std::nan(""); }},
+      {"final_iterations", [](C& c) { c.final_iterations = -1; }},
+      {"leave_after", [](C& c) { c.leave_after[-1] = 3; }},
+      {"leave_after", [](C& c) { c.leave_after[1] = -3; }},
+      {"ObjectSlamConfig: update_every", [](C& c) { c.slam.update_every = 0; }},
+  }));
+}
+
 TEST(ObjectSlam, GroundTruthAssociationFollowsTheObjectIds) {
   ObjectSlamConfig c = TestSlamConfig();
   c.ground_truth_association = true;
