@@ -31,8 +31,7 @@ template <typename E = InvalidInputError, typename F>
 
 // Whether `base` validates and each change, applied alone to a copy of it, makes validate() throw
 // an InvalidInputError naming the change's field (its first member):
-//   EXPECT_TRUE(EachChangeIsRefused<Config>({{"min_support", [](Config& c) { c.min_support = 0;
-//   }}}));
+//   EXPECT_TRUE(EachChangeIsRefused<C>({{"min_support", [](C& c) { c.min_support = 0; }}}));
 template <typename Options>
 ::testing::AssertionResult EachChangeIsRefused(
     const std::vector<std::pair<std::string, std::function<void(Options&)>>>& changes,
