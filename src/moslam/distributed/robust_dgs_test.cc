@@ -909,14 +909,12 @@ TEST(RobustDgs, BadOptionsNameTheField) {
       {"consistency.min_support", [](R& o) { o.consistency.min_support = 0; }},
   }));
   using S = SeparatorConsistencyOptions;
-  EXPECT_TRUE(test::EachChangeIsRefused<S>(
-      {
-          {"threshold must be positive", [](S& o) { o.threshold = 0.0; }},
-          {"min_support", [](S& o) { o.min_support = 0; }},
-          {"linked_min_support", [](S& o) { o.linked_min_support = 0; }},
-          {"linked_min_support", [](S& o) { o.linked_min_support = o.min_support + 1; }},
-      },
-      S{}));
+  EXPECT_TRUE(test::EachChangeIsRefused<S>({
+      {"threshold must be positive", [](S& o) { o.threshold = 0.0; }},
+      {"min_support", [](S& o) { o.min_support = 0; }},
+      {"linked_min_support", [](S& o) { o.linked_min_support = 0; }},
+      {"linked_min_support", [](S& o) { o.linked_min_support = o.min_support + 1; }},
+  }));
 }
 
 }  // namespace
