@@ -27,8 +27,8 @@ int TrueObject(const std::vector<ObjectSlam>& robots, const Key& k) {
 }
 
 // Throws InvalidInputError unless every robot has a measurement set of the simulation's steps,
-// every rendezvous event fits (two distinct robots, a step of the simulation) and leave_after
-// names robots of the simulation.
+// every rendezvous event fits (two distinct robots, a step of the simulation), the events are in
+// step order and leave_after names robots of the simulation: before any work.
 void CheckSimulationFits(const SimulationData& data, const MultiRobotSlamConfig& config) {
   const int n = data.numRobots(), steps = data.numSteps();
   if (static_cast<int>(data.measurements.size()) != n) {
@@ -53,6 +53,11 @@ void CheckSimulationFits(const SimulationData& data, const MultiRobotSlamConfig&
                               std::to_string(e.alpha) + " and " + std::to_string(e.beta) +
                               " does not fit the simulation");
     }
+  }
+  if (!std::is_sorted(
+          data.rendezvous.begin(), data.rendezvous.end(),
+          [](const RendezvousEvent& a, const RendezvousEvent& b) { return a.step < b.step; })) {
+    throw InvalidInputError("RunMultiRobotObjectSlam: rendezvous events are not sorted by step");
   }
   for (const auto& [robot, step] : config.leave_after) {
     if (robot >= n) {
@@ -290,9 +295,6 @@ MultiRobotSlamResult RunMultiRobotObjectSlam(const SimulationData& data,
       both.insert(now.begin(), now.end());
     }
     if (config.on_rendezvous) HandGroupsOn(t, events_now, config, out);
-  }
-  if (next_event != data.rendezvous.size()) {
-    throw InvalidInputError("RunMultiRobotObjectSlam: rendezvous events are not sorted by step");
   }
   for (auto& robot : out.robots) {
     robot.optimize(config.final_iterations);

@@ -1098,6 +1098,33 @@ TEST(MultiRobot, NoiseFreeWorldIsRecoveredExactly) {
   }
 }
 
+// Simulation data that does not fit together is refused before any robot maps, naming why.
+TEST(MultiRobot, RefusesSimulationDataThatDoesNotFitNamingWhy) {
+  const SimulationData good = Simulation("house", 3, 12, 2.0, 0.05);
+  ASSERT_GE(good.rendezvous.size(), 2u);
+  ASSERT_LT(good.rendezvous.front().step, good.rendezvous.back().step);
+  const MultiRobotSlamConfig config;
+  const auto refused = [&](const SimulationData& d, const std::string& named) {
+    return test::ThrowsNaming([&] { RunMultiRobotObjectSlam(d, config); }, named);
+  };
+  SimulationData d = good;
+  d.measurements.pop_back();
+  EXPECT_TRUE(refused(d, "3 trajectories but 2 measurement sets"));
+  d = good;
+  d.measurements[1].odometry.pop_back();
+  EXPECT_TRUE(refused(d, "robot 1 has measurements inconsistent with 12 time steps"));
+  d = good;
+  d.rendezvous[0].beta = d.rendezvous[0].alpha;
+  EXPECT_TRUE(refused(d, "does not fit the simulation"));
+  d = good;
+  d.rendezvous[0].step = 12;
+  EXPECT_TRUE(refused(d, "rendezvous event at step 12"));
+  d = good;
+  std::swap(d.rendezvous.front(), d.rendezvous.back());
+  EXPECT_TRUE(refused(d, "not sorted by step"));
+  EXPECT_NO_THROW(RunMultiRobotObjectSlam(good, config));
+}
+
 TEST(MultiRobot, JointProblemUnionsTheRobotsAndTheSharedObjects) {
   const SimulationData d = Simulation("house", 3, 30, 2.0, 0.05);
   const MultiRobotSlamConfig config;
