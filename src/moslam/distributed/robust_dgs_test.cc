@@ -896,8 +896,24 @@ TEST(CovarianceMessage, RoundTripsAndRejectsBadBytes) {
   bad = wire;
   bad[4] = 4;  // receiver = sender
   EXPECT_THROW(DecodeCovarianceMessage(bad), InvalidInputError);
+  bad = wire;  // entry (0, 1), the second of the upper triangle, becomes +infinity
+  std::fill(bad.begin() + kCovarianceHeaderBytes + 8, bad.begin() + kCovarianceHeaderBytes + 16, 0);
+  bad[kCovarianceHeaderBytes + 14] = 0xF0;
+  bad[kCovarianceHeaderBytes + 15] = 0x7F;
+  EXPECT_TRUE(
+      test::ThrowsNaming([&] { DecodeCovarianceMessage(bad); }, "entry (0, 1) is not finite"));
+  // What the encoder refuses to send, named: a matrix of no pose block size, a robot id a u16
+  // cannot carry, a matrix that is not square.
+  CovarianceMessage odd = m;
+  odd.covariance = Eigen::MatrixXd::Identity(11, 11);
+  EXPECT_TRUE(test::ThrowsNaming([&] { EncodeCovarianceMessage(odd); },
+                                 "dimension 11 is not a multiple of 6"));
+  odd = m;
+  odd.sender = 70000;
+  EXPECT_TRUE(
+      test::ThrowsNaming([&] { EncodeCovarianceMessage(odd); }, "robot ids must be in [0, 65535]"));
   m.covariance.resize(6, 7);
-  EXPECT_THROW(EncodeCovarianceMessage(m), InvalidInputError);
+  EXPECT_TRUE(test::ThrowsNaming([&] { EncodeCovarianceMessage(m); }, "not square"));
 }
 
 TEST(RobustDgs, BadOptionsNameTheField) {

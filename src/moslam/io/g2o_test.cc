@@ -688,6 +688,28 @@ TEST(G2oFolder, DanglingRuleSpansTheFolder) {
   EXPECT_EQ(ReadG2oFolder(dir.string()).graph.factors().size(), 1u);
 }
 
+// One dataset is 2D or 3D: a folder mixing them is refused, naming the odd file, either way round.
+TEST(G2oFolder, RejectsA2DFileBesideA3DOne) {
+  const fs::path dir = ScratchDir();
+  const std::string planar = "VERTEX_SE2 " + Id(1, 0) + " 0 0 0\n";
+  WriteTextFile(dir / "0.g2o", Vertex(0, 0));
+  WriteTextFile(dir / "1.g2o", planar);
+  try {
+    ReadG2oFolder(dir.string());
+    FAIL() << "expected G2oParseError";
+  } catch (const G2oParseError& e) {
+    EXPECT_EQ(e.file(), (dir / "1.g2o").string());
+    EXPECT_NE(e.reason().find("a 2D file in a dataset whose first file is 3D"), std::string::npos)
+        << e.what();
+  }
+  WriteTextFile(dir / "0.g2o", "VERTEX_SE2 " + Id(0, 0) + " 0 0 0\n");
+  WriteTextFile(dir / "1.g2o", Vertex(1, 0));
+  EXPECT_TRUE(test::ThrowsNaming<G2oParseError>([&] { ReadG2oFolder(dir.string()); },
+                                                "a 3D file in a dataset whose first file is 2D"));
+  WriteTextFile(dir / "1.g2o", planar);
+  EXPECT_EQ(ReadG2oFolder(dir.string()).initial.size(), 2u);
+}
+
 TEST(G2oFolder, RejectsAVertexDefinedInTwoFiles) {
   const fs::path dir = ScratchDir();
   WriteTextFile(dir / "0.g2o", Vertex(0, 0) + Vertex(1, 0));

@@ -663,6 +663,27 @@ TEST(ObjectTemplate, AssemblesFeaturesComputedElsewhereAndRefusesMismatches) {
   bad->points[0].x = std::nanf("");
   EXPECT_THROW(AssembleObjectTemplate("x", *t.cloud, bad, t.features, t.config),
                InvalidInputError);
+  auto few_keypoints = std::make_shared<FeatureCloud>(*t.keypoints);
+  auto few_features = std::make_shared<PfhrgbCloud>(*t.features);
+  few_keypoints->resize(9);
+  few_features->resize(9);
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] { AssembleObjectTemplate("x", *t.cloud, few_keypoints, few_features, t.config); },
+      "9 keypoints with features; need at least 10"));
+}
+
+// A model whose points, normals and colours do not line up, and a template with no points to
+// save, are refused naming why.
+TEST(ObjectTemplate, RefusesAModelOfMismatchedSizesAndSavingNoPoints) {
+  ColoredPointSet model = test::MakeTestObject(0.01);
+  ASSERT_GT(model.size(), 10u);
+  model.colours_bgr.pop_back();
+  EXPECT_TRUE(test::ThrowsNaming([&] { MakeObjectTemplate("odd", model); },
+                                 "points, normals and colours_bgr must have the same size"));
+  ObjectTemplate empty;
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] { SaveObjectTemplate(empty, std::string(MOSLAM_BINARY_DIR) + "/never_written.pcd"); },
+      "the template has no points"));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/graph/synthetic.h"
 #include "moslam/solver/initialization.h"
 
@@ -155,6 +156,19 @@ TEST(Optimizer, AnchorStaysAtItsInitialValue) {
   const Key anchor = GaugeAnchor(s.graph);
   const OptimizerResult r = Optimize(s.graph, init);
   EXPECT_EQ((r.values.at(anchor).matrix() - init.at(anchor).matrix()).norm(), 0.0);
+}
+
+TEST(Optimizer, BadOptionsNameTheField) {
+  using O = OptimizerOptions;
+  EXPECT_TRUE(test::EachChangeIsRefused<O>({
+      {"max_iterations", [](O& o) { o.max_iterations = -1; }},
+      {"relative_cost_tolerance", [](O& o) { o.relative_cost_tolerance = NAN; }},
+      {"absolute_cost_tolerance", [](O& o) { o.absolute_cost_tolerance = -1.0; }},
+      {"step_tolerance", [](O& o) { o.step_tolerance = NAN; }},
+      {"lm_initial_lambda", [](O& o) { o.lm_initial_lambda = 0.0; }},
+      {"lm_initial_lambda", [](O& o) { o.lm_initial_lambda = INFINITY; }},
+      {"lm_max_lambda", [](O& o) { o.lm_max_lambda = o.lm_initial_lambda; }},
+  }));
 }
 
 TEST(Optimizer, RejectsBadInputWithExplanations) {
