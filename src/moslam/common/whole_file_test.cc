@@ -27,6 +27,17 @@ TEST(WholeFile, ReadsWhatWasWrittenAndNamesAMissingFile) {
   }
 }
 
+// A file that opens but whose read(2) fails is said, not returned short: /proc/self/mem read from
+// offset 0 fails with EIO (address 0 is never mapped), as a failing disk would.
+TEST(WholeFile, AFailedReadIsAReadErrorNamingThePath) {
+  const std::string path = "/proc/self/mem";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "no " << path;
+  std::string why;
+  EXPECT_FALSE(ReadWholeFile(path, &why).has_value());
+  EXPECT_EQ(why.rfind(path + ": read error", 0), 0u) << why;
+  EXPECT_TRUE(test::ThrowsNaming([&] { ReadWholeFileOrThrow(path); }, path + ": read error"));
+}
+
 // A folder holding one file, `name`, with `text` in it.
 std::filesystem::path FolderWith(const std::filesystem::path& dir, const std::string& name,
                                  const std::string& text) {
