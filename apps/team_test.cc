@@ -344,6 +344,24 @@ TEST(Team, CollectingRobotsThatHaveNotFinishedSaysWhichAndWhy) {
   fs::remove_all(out);
 }
 
+// A robot count the folder does not hold is refused before any robot starts, naming both.
+TEST(Team, ARobotCountThatIsNotTheFoldersIsRefusedNamingBoth) {
+  const fs::path out = FreshDir("robots_not_the_folders");
+  const std::string data = test::BlocksWorldFolder(2);
+  Child team({"team", "--data", data, "--robots", "3", "--out", out.string()}, "",
+             out / "team.log");
+  EXPECT_EQ(team.wait(Clock::now() + std::chrono::seconds(60)), 1) << team.output();
+  std::ifstream log_file(out / "team.log");
+  const std::string log((std::istreambuf_iterator<char>(log_file)),
+                        std::istreambuf_iterator<char>());
+  EXPECT_NE(log.find("moslam: error: team: --robots 3 but " + data +
+                     " holds 2 robot files (0.g2o .. 1.g2o)"),
+            std::string::npos)
+      << log;
+  EXPECT_FALSE(fs::exists(out / "robot0"));
+  fs::remove_all(out);
+}
+
 TEST(Team, TheWholeSolverOverDdsReachesTheCentralizedOptimum) {
   const fs::path out = FreshDir("whole");
   const nlohmann::json j = RunTeamCommand(
