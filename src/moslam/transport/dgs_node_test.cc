@@ -578,26 +578,43 @@ TEST(DgsNode, RefusesTheJournalOfAnotherRun) {
   fs::remove_all(dir);
 }
 
+// Each refusal of the node's options names what is wrong (DgsNodeOptions::validate and the
+// masks checked against the robot's subgraph).
 TEST(DgsNode, ValidatesOptions) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   const auto parts = PartitionByRobot(data.graph);
   InProcessNetwork net;
   auto t = net.connect(1);
+  const auto refused = [&](const DgsNodeOptions& o, const std::string& named) {
+    return test::ThrowsNaming([&] { DgsNode(1, parts[1].graph, data.initial, *t, o); }, named);
+  };
   DgsNodeOptions o = Options();
   o.solver.eta_rotation = 0.0;
-  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  EXPECT_TRUE(refused(o, "eta_rotation"));
   o = Options();
   o.leave_timeout = std::chrono::milliseconds(0);
-  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  EXPECT_TRUE(refused(o, "leave_timeout must be positive"));
   EXPECT_THROW(DgsNode(0, parts[1].graph, data.initial, *t, Options()), InvalidInputError);
   o = Options();
-  o.robust = {true};  // a mask without gnc
-  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
-  o.gnc = GncOptions();  // a mask of the wrong size
-  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  o.team = {1, 0};
+  EXPECT_TRUE(refused(o, "the team's robot ids must be distinct, non-negative and increasing"));
+  o = Options();
+  o.robust = {true};
+  EXPECT_TRUE(refused(o, "a robust mask without gnc options"));
+  o.gnc = GncOptions();
+  EXPECT_TRUE(refused(o, "the robust mask has 1 entries for"));
   o.robust.clear();
   o.gnc->mu_step = 1.0;
-  EXPECT_THROW(DgsNode(1, parts[1].graph, data.initial, *t, o), InvalidInputError);
+  EXPECT_TRUE(refused(o, "mu_step"));
+  o = Options();
+  o.separator_check = SeparatorConsistencyOptions();
+  EXPECT_TRUE(refused(o, "a separator check without gnc options"));
+  o = Options();
+  o.gnc = GncOptions();
+  o.checked = {true};
+  EXPECT_TRUE(refused(o, "a checked mask without a separator check"));
+  o.separator_check = SeparatorConsistencyOptions();
+  EXPECT_TRUE(refused(o, "the checked mask has 1 entries for"));
 }
 
 // The separator check before GNC over the transport (robust_program.h, C1-C4): on spoiled
