@@ -8,17 +8,8 @@
 # beside it: skips the build), SEED (default 1, of `moslam spoil`).
 # Writes docs/robust_dds.json and prints the Markdown table.
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-BUILD_DIR="${BUILD_DIR:-$ROOT/build-release}"
-if [[ -z "${MOSLAM:-}" ]]; then
-  if [[ ! -f "$BUILD_DIR/CMakeCache.txt" ]]; then
-    cmake_args=(-S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DMOSLAM_BUILD_BENCH=OFF)
-    command -v ninja >/dev/null && cmake_args+=(-G Ninja)
-    cmake "${cmake_args[@]}" >/dev/null
-  fi
-  cmake --build "$BUILD_DIR" --target moslam moslam-robot >/dev/null
-  MOSLAM="$BUILD_DIR/apps/moslam"
-fi
+MOSLAM_ALSO=moslam-robot
+source "$(dirname "${BASH_SOURCE[0]}")/lib/moslam.sh"
 SEED="${SEED:-1}"
 DATA="$ROOT/../shared/datasets/distributed-mapper/CogRob_distributed-mapper/distributed_mapper_core/data/blocks_world"
 WORK="$(mktemp -d)"

@@ -1,6 +1,7 @@
 # Sourced by the benchmark and table scripts: sets ROOT (the checkout) and MOSLAM (a built moslam
 # binary). When MOSLAM is not set, configures BUILD_DIR (Release, no benchmarks; default
-# build-release, or whatever the caller set) once and builds the moslam target there.
+# build-release, or whatever the caller set) once and builds the moslam target there, with the
+# executables moslam runs that the caller names in MOSLAM_ALSO (e.g. "moslam-robot").
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BUILD_DIR="${BUILD_DIR:-$ROOT/build-release}"
 if [[ -z "${MOSLAM:-}" ]]; then
@@ -9,6 +10,7 @@ if [[ -z "${MOSLAM:-}" ]]; then
     command -v ninja >/dev/null && cmake_args+=(-G Ninja)
     cmake "${cmake_args[@]}" >/dev/null
   fi
-  cmake --build "$BUILD_DIR" --target moslam >/dev/null
+  # shellcheck disable=SC2086  # MOSLAM_ALSO: a list of target names
+  cmake --build "$BUILD_DIR" --target moslam ${MOSLAM_ALSO:-} >/dev/null
   MOSLAM="$BUILD_DIR/apps/moslam"
 fi
