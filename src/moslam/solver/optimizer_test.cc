@@ -217,6 +217,14 @@ TEST(Optimizer, IterateStepsOneAtATime) {
   const OptimizerResult r = opt.optimize();
   EXPECT_GT(r.iterations, 1);
   EXPECT_EQ(r.history.size(), static_cast<size_t>(r.iterations));
+  // Once done, a step is no step: the summary reports where it stopped and nothing moves.
+  ASSERT_TRUE(opt.done());
+  const IterationSummary after = opt.iterate();
+  EXPECT_EQ(after.iteration, r.iterations);
+  EXPECT_EQ(after.cost, r.final_cost);
+  EXPECT_EQ(after.linear_solves, 0);
+  EXPECT_EQ(opt.result().history.size(), r.history.size());
+  EXPECT_EQ(opt.result().termination, r.termination);
 }
 
 TEST(Optimizer, MaxIterationsIsReported) {
@@ -226,6 +234,15 @@ TEST(Optimizer, MaxIterationsIsReported) {
   const OptimizerResult r = Optimize(s.graph, OdometryInitialization(s.graph), o);
   EXPECT_EQ(r.termination, TerminationStatus::kMaxIterations);
   EXPECT_EQ(r.iterations, 1);
+}
+
+// The names `solve --json` prints for each termination status, one per status.
+TEST(Optimizer, EveryTerminationStatusHasItsOwnName) {
+  EXPECT_EQ(ToString(TerminationStatus::kNotStarted), "not_started");
+  EXPECT_EQ(ToString(TerminationStatus::kConverged), "converged");
+  EXPECT_EQ(ToString(TerminationStatus::kMaxIterations), "max_iterations");
+  EXPECT_EQ(ToString(TerminationStatus::kCostIncreased), "cost_increased");
+  EXPECT_EQ(ToString(TerminationStatus::kNoDecreasingStep), "no_decreasing_step");
 }
 
 }  // namespace
