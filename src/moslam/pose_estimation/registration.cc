@@ -371,14 +371,6 @@ void RegistrationConfig::validate() const {
           "must be positive");
 }
 
-const char* ToString(Consensus consensus) {
-  switch (consensus) {
-    case Consensus::kPrerejective: return "prerejective";
-    case Consensus::kSacIa: return "sac-ia";
-  }
-  return "unknown";
-}
-
 const char* ToString(RegistrationStatus status) {
   switch (status) {
     case RegistrationStatus::kAccepted: return "accepted";

@@ -145,7 +145,6 @@ enum class Consensus {
   // segment keypoints (truncated error).
   kSacIa,
 };
-const char* ToString(Consensus consensus);
 
 struct RegistrationConfig {
   FeatureConfig features;  // must equal the template's (checked)

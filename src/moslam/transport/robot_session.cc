@@ -14,6 +14,7 @@
 #include "moslam/common/errors.h"
 #include "moslam/common/whole_file.h"
 #include "moslam/sim/world.h"
+#include "moslam/slam/constellation.h"
 #include "moslam/slam/rendezvous.h"
 #include "moslam/transport/event_record.h"
 #include "moslam/transport/online_group_solves.h"
@@ -344,8 +345,16 @@ class RobotSession::Impl {
         beta_T_alpha = BetaTAlpha(data_.initial_poses[static_cast<std::size_t>(e.alpha)],
                                   data_.initial_poses[static_cast<std::size_t>(e.beta)]);
       }
-      const SharedObjectsMessage answer =
-          AnswerObjectMap(*received, slam, beta_T_alpha, pairs_.shared(), options_.slam.rendezvous);
+      ConstellationAlignment alignment;
+      const SharedObjectsMessage answer = AnswerObjectMap(
+          *received, slam, beta_T_alpha, pairs_.shared(), options_.slam.rendezvous, &alignment);
+      if (!beta_T_alpha && alignment.status != AlignmentStatus::kAligned) {
+        options_.log(fmt::format(
+            "rendezvous with robot {} at step {}: alignment refused, {} (largest consistent set "
+            "{} objects, rival {}, of {} label-consistent pairs): no new pairs",
+            e.alpha, e.step, ToString(alignment.status), alignment.support, alignment.rival,
+            alignment.candidates));
+      }
       pairs = {answer.pairs, answer.removed};
       sendAnswer(e, pairs);
       channel_->record(EventRecord{static_cast<std::uint32_t>(index), pairs.pairs, pairs.removed});

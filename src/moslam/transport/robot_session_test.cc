@@ -3,6 +3,8 @@
 // AssembleJointProblem, RunDgs in Jacobi order); forged object lists and answers are rejected and
 // logged; a robot that crashes in the rendezvous phase and restarts from its journal loses
 // nothing. Between processes over DDS: apps/team_test.cc.
+#include "moslam/transport/robot_session.h"
+
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -23,9 +25,9 @@
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/online/group_solve.h"
+#include "moslam/slam/constellation.h"
 #include "moslam/transport/dying_transport_test_util.h"
 #include "moslam/transport/in_process_transport.h"
-#include "moslam/transport/robot_session.h"
 #include "moslam/transport/session_test_util.h"
 
 namespace moslam {
@@ -382,6 +384,18 @@ TEST(RobotSession, UnknownInitialPosesGiveTheInProcessPairsAndEstimateWithoutRea
     for (const SessionRendezvous& e : r.rendezvous) removed_seen += e.removed_shared;
   }
   EXPECT_EQ(removed_seen, 2 * removed);  // both robots of each event drop the pairs
+  // Beta logs each alignment it refuses, with the reason, as the in-process run refused it.
+  int refused = 0;
+  for (const RendezvousRecord& r : ref.slam.rendezvous) {
+    if (!r.alignment || *r.alignment == AlignmentStatus::kAligned) continue;
+    ++refused;
+    EXPECT_TRUE(
+        log.contains(fmt::format("rendezvous with robot {} at step {}: alignment refused, {}",
+                                 r.event.alpha, r.event.step, ToString(*r.alignment))))
+        << "step " << r.event.step;
+  }
+  EXPECT_GE(refused, 1);
+  EXPECT_FALSE(log.contains("alignment refused, aligned"));
 }
 
 TEST(RobotSession, RejectsAndLogsForgedObjectListsAndAnswersWithoutCrashing) {

@@ -204,24 +204,6 @@ std::string CheckCovariance(const CovariancePacket& p, int sender, int self) {
 
 }  // namespace
 
-std::string ToString(RobotState state) {
-  switch (state) {
-    case RobotState::kJoining:
-      return "joining";
-    case RobotState::kRotation:
-      return "rotation";
-    case RobotState::kPose:
-      return "pose";
-    case RobotState::kRefine:
-      return "refine";
-    case RobotState::kDone:
-      return "done";
-    case RobotState::kFailed:
-      return "failed";
-  }
-  return "unknown";
-}
-
 std::string CheckPacket(const Packet& packet, int sender, int self, const std::set<int>& known) {
   if (sender < 0 || sender > kMaxTransportRobot) {
     return fmt::format("sample from invalid robot id {}", sender);

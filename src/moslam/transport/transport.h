@@ -81,7 +81,6 @@ enum class RobotState : std::uint8_t {
   kDone = 4,
   kFailed = 5,
 };
-std::string ToString(RobotState state);
 
 // Online mapping: a shared pair of the sender's landmark with a landmark of a robot outside the
 // group solve it joins, and the sender's copy of that landmark (online/group_solve.h, TeamPair).
