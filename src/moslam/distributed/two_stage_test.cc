@@ -5,6 +5,7 @@
 #include <random>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/two_stage_terms.h"
 #include "moslam/graph/synthetic.h"
@@ -209,6 +210,112 @@ TEST(CentralizedTwoStage, RejectsDisconnectedGraphs) {
   g.add(RelativePoseFactor(Key::Pose(0, 0), Key::Pose(0, 1), SE3(), Matrix6::Identity()));
   g.add(RelativePoseFactor(Key::Pose(1, 0), Key::Pose(1, 1), SE3(), Matrix6::Identity()));
   EXPECT_THROW(CentralizedTwoStage(g, {}), UnderdeterminedError);
+}
+
+// BlockLeastSquares against the stacked problem solved directly: a chain of n unknowns of
+// block size bs with binary terms between neighbours, a unary term on each, and a term to a
+// fixed variable (its value given); min sum ||A_a x_a + A_b x_b + C||_W^2 is
+// x = -(J^T W J)^-1 J^T W c. Small systems take the dense path, larger ones CHOLMOD's.
+TEST(BlockLeastSquares, SolvesTheStackedLeastSquaresOnTheDenseAndTheSparsePath) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n01;
+  auto random = [&](int rows, int cols) {
+    Eigen::MatrixXd M(rows, cols);
+    for (Eigen::Index i = 0; i < M.size(); ++i) M.data()[i] = n01(rng);
+    return M;
+  };
+  for (const int n : {4, 20}) {  // 4 x 6 = 24 unknowns (dense), 20 x 6 = 120 (sparse)
+    SCOPED_TRACE(n);
+    const int bs = 6, ncols = 2, m = 6;
+    std::vector<Key> unknowns;
+    std::vector<std::pair<Key, Key>> coupled;
+    for (int i = 0; i < n; ++i) unknowns.push_back(Key::Pose(1, static_cast<std::uint64_t>(i)));
+    for (int i = 0; i + 1 < n; ++i) coupled.emplace_back(unknowns[i], unknowns[i + 1]);
+    const Key fixed = Key::Pose(0, 0);
+    const Eigen::MatrixXd x_fixed = random(bs, ncols);
+    std::vector<LinearTerm> terms;
+    auto term = [&](Key a, Key b, bool unary) {
+      LinearTerm t;
+      t.a = a;
+      t.b = b;
+      t.unary = unary;
+      t.A_a = random(m, bs);
+      if (!unary) t.A_b = random(m, bs);
+      t.C = random(m, ncols);
+      const Eigen::MatrixXd L = random(m, m);
+      t.W = L * L.transpose() + Eigen::MatrixXd::Identity(m, m);
+      terms.push_back(t);
+    };
+    for (int i = 0; i < n; ++i) term(unknowns[i], Key(), true);
+    for (int i = 0; i + 1 < n; ++i) term(unknowns[i], unknowns[i + 1], false);
+    term(fixed, unknowns[n / 2], false);
+
+    BlockLeastSquares ls(unknowns, bs, ncols, coupled);
+    ls.setZero();
+    for (const LinearTerm& t : terms) ls.add(t, &x_fixed, &x_fixed);
+    const std::vector<Eigen::MatrixXd> x = ls.solve();
+
+    // The same problem stacked: J x + c with the fixed end's A x_fixed moved into c.
+    const int rows = static_cast<int>(terms.size()) * m, dim = n * bs;
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(rows, dim), c(rows, ncols);
+    Eigen::MatrixXd W = Eigen::MatrixXd::Zero(rows, rows);
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+      const LinearTerm& t = terms[k];
+      const int r = static_cast<int>(k) * m;
+      c.middleRows(r, m) = t.C;
+      W.block(r, r, m, m) = t.W;
+      auto place = [&](const Key& key, const Eigen::MatrixXd& A) {
+        if (key == fixed) {
+          c.middleRows(r, m) += A * x_fixed;
+        } else {
+          J.block(r, static_cast<int>(key.index) * bs, m, bs) = A;
+        }
+      };
+      place(t.a, t.A_a);
+      if (!t.unary) place(t.b, t.A_b);
+    }
+    const Eigen::MatrixXd H = J.transpose() * W * J;
+    const Eigen::MatrixXd expected = -H.ldlt().solve(J.transpose() * W * c);
+    ASSERT_EQ(x.size(), static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      EXPECT_LT((x[i] - expected.middleRows(i * bs, bs)).norm(), 1e-9 * (1.0 + expected.norm()))
+          << i;
+    }
+    EXPECT_LT((ls.rhs() + J.transpose() * W * c).norm(), 1e-9 * (1.0 + ls.rhs().norm()));
+    const Eigen::VectorXd v = random(dim, 1);
+    EXPECT_LT((ls.multiply(v) - H * v).norm(), 1e-9 * (H * v).norm());
+    EXPECT_EQ(ls.row(unknowns[3]), 3 * bs);
+    // backSolve with one factorization for another right-hand side.
+    ls.factorize();
+    const std::vector<Eigen::MatrixXd> y = ls.backSolve(H * expected);
+    for (int i = 0; i < n; ++i) {
+      EXPECT_LT((y[i] - expected.middleRows(i * bs, bs)).norm(), 1e-8 * (1.0 + expected.norm()));
+    }
+
+    // Refusals, named: a vector of the wrong size, a key that is not an unknown, a fixed end
+    // without its value, an unknown listed twice.
+    EXPECT_TRUE(test::ThrowsNaming(
+        [&] { ls.multiply(Eigen::VectorXd::Zero(dim + 1)); },
+        "vector of size " + std::to_string(dim + 1) + ", expected " + std::to_string(dim)));
+    EXPECT_TRUE(test::ThrowsNaming([&] { ls.row(fixed); }, "is not an unknown"));
+    EXPECT_TRUE(test::ThrowsNaming([&] { ls.add(terms.back(), nullptr, nullptr); },
+                                   "no value for the fixed variable"));
+    std::vector<Key> twice = unknowns;
+    twice.push_back(unknowns[1]);
+    EXPECT_TRUE(test::ThrowsNaming(
+        [&] { BlockLeastSquares listed_twice(twice, bs, ncols, coupled); }, "listed twice"));
+  }
+  // An unknown no term anchors: the normal matrix is singular, NumericalError saying so.
+  BlockLeastSquares lonely({Key::Pose(1, 0), Key::Pose(1, 1)}, 3, 1, {});
+  LinearTerm t;
+  t.a = Key::Pose(1, 0);
+  t.unary = true;
+  t.A_a = Eigen::MatrixXd::Identity(3, 3);
+  t.C = Eigen::MatrixXd::Ones(3, 1);
+  t.W = Eigen::MatrixXd::Identity(3, 3);
+  lonely.add(t, nullptr, nullptr);
+  EXPECT_TRUE(
+      test::ThrowsNaming<NumericalError>([&] { lonely.solve(); }, "not anchored by any term"));
 }
 
 }  // namespace
