@@ -54,8 +54,10 @@ struct RobotSetup {
   bool restart_after_crash = false;
 };
 
+// on_error: called (under the team's lock) after a robot's node threw, with the robot.
 TeamResult RunTeam(InProcessNetwork& net, const Dataset& data,
-                   const std::function<RobotSetup(int)>& setup) {
+                   const std::function<RobotSetup(int)>& setup,
+                   const std::function<void(int)>& on_error = {}) {
   TeamResult team;
   std::mutex mutex;
   std::vector<std::thread> threads;
@@ -80,6 +82,7 @@ TeamResult RunTeam(InProcessNetwork& net, const Dataset& data,
         } catch (const std::exception& e) {
           std::lock_guard<std::mutex> lock(mutex);
           team.errors[part.robot] = e.what();
+          if (on_error) on_error(part.robot);
           return;
         }
       }
@@ -272,6 +275,48 @@ TEST(DgsNode, TheOthersFinishWithoutARobotThatLeaves) {
     it = it->first.robot == 3 ? survivors.erase(it) : std::next(it);
   }
   EXPECT_LE(MaxPoseDifference(reference.values, survivors), 1e-9);
+}
+
+// A robot alive but stuck (here: inside its round callback after round 4) is not a robot that
+// left: the others wait for it until the stall timeout, then fail naming the step, the robot and
+// what they miss of it, rather than continuing without its variables.
+TEST(DgsNode, ARobotAliveButStuckFailsTheOthersAfterTheStallTimeoutNamingIt) {
+  const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(4));
+  DgsNodeOptions base = Options();
+  base.stall_timeout = std::chrono::milliseconds(300);
+  base.leave_timeout = std::chrono::seconds(60);  // alive all along: it never leaves
+  std::mutex mutex;
+  std::condition_variable others_failed;
+  int failed = 0;
+  InProcessNetwork net;
+  const TeamResult team = RunTeam(
+      net, data,
+      [&](int robot) {
+        RobotSetup s{base, false};
+        if (robot == 3) {
+          s.options.on_round = [&](const DgsNodeRound& r) {
+            if (r.stage != DgsStage::kRotation || r.stage_round != 4) return;
+            std::unique_lock<std::mutex> lock(mutex);
+            // Bounded, so that a regression fails the test rather than hangs it.
+            others_failed.wait_for(lock, std::chrono::seconds(60), [&] { return failed == 3; });
+            throw Crash();
+          };
+        }
+        return s;
+      },
+      [&](int) {
+        std::lock_guard<std::mutex> lock(mutex);
+        ++failed;
+        others_failed.notify_all();
+      });
+  ASSERT_EQ(team.errors.size(), 4u);
+  EXPECT_EQ(team.errors.at(3), "crashed");
+  for (int r = 0; r < 3; ++r) {
+    EXPECT_NE(team.errors.at(r).find(fmt::format(
+                  "robot {}: no progress for 300 ms at step 5, waiting for robot(s) 3 (", r)),
+              std::string::npos)
+        << team.errors.at(r);
+  }
 }
 
 // With the team given (a robot session formed it), the nodes start without waiting for the
