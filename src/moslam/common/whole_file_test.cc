@@ -1,6 +1,7 @@
 #include "moslam/common/whole_file.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -77,6 +78,13 @@ TEST(WholeFile, ReadAndWriteFailuresNameThePathAndLeaveNothing) {
                          "writer: cannot rename into '" + (dir / "a_folder").string() + "'"));
   EXPECT_EQ(Entries(dir), (std::vector<std::string>{"a_file", "a_folder"}));
   EXPECT_EQ(ReadWholeFileOrThrow((dir / "a_file").string()), "x");
+  // The temporary cannot be written (a folder stands at its name): named, the file unchanged.
+  const std::string tmp = (dir / "a_file").string() + ".tmp" + std::to_string(::getpid());
+  std::filesystem::create_directory(tmp);
+  EXPECT_TRUE(test::ThrowsNaming([&] { WriteWholeFile((dir / "a_file").string(), "w", "writer"); },
+                                 "writer: cannot write '" + tmp + "'"));
+  EXPECT_EQ(ReadWholeFileOrThrow((dir / "a_file").string()), "x");
+  std::filesystem::remove(tmp);
   // Folders: created with their parents, or an error of the library's type naming the one in the
   // way (std::filesystem's own would escape as filesystem_error).
   CreateFolder(dir / "new" / "deeper", "test");
@@ -115,6 +123,18 @@ TEST(ReplaceDirectory, AMissingNewFolderIsAnErrorNamingBothAndTheOldIsKept) {
       "the map 'final': cannot put '" + (dir / "map.tmp").string() + "' in place of '" +
           (dir / "map").string() + "': the new folder does not exist"));
   EXPECT_EQ(Entries(dir / "map"), std::vector<std::string>{"old.g2o"});
+}
+
+TEST(ReplaceDirectory, ATargetWhoseParentIsMissingIsAnErrorNamingBothAndTheNewIsKept) {
+  const std::filesystem::path dir = test::ScratchDir();
+  FolderWith(dir / "map.tmp", "new.g2o", "new");
+  const std::filesystem::path target = dir / "no_such_parent" / "map";
+  EXPECT_TRUE(test::ThrowsNaming<InvalidInputError>(
+      [&] { ReplaceDirectory(dir / "map.tmp", target, "test"); },
+      "test: cannot put '" + (dir / "map.tmp").string() + "' in place of '" + target.string() +
+          "': "));
+  EXPECT_EQ(Entries(dir / "map.tmp"), std::vector<std::string>{"new.g2o"});
+  EXPECT_FALSE(std::filesystem::exists(target));
 }
 
 TEST(ReplaceDirectory, TheRenamesOfFilesystemsWithoutExchangeDoTheSame) {

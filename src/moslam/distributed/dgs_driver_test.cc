@@ -5,10 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <tuple>
 #include <random>
+#include <tuple>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/distributed/centralized_two_stage.h"
 #include "moslam/distributed/dgs_test_util.h"
 #include "moslam/distributed/messages.h"
@@ -557,6 +558,36 @@ TEST(Dgs, ValidatesOptionsAndFaults) {
   disconnected.add(RelativePoseFactor(Key::Pose(2, 0), Key::Pose(2, 1), SE3(), Matrix6::Identity()));
   EXPECT_THROW(RunDgs(disconnected, gt), UnderdeterminedError);
   EXPECT_THROW(SplitIntoRobots(g, gt, 2), InvalidInputError);  // two robots already
+}
+
+// The driver's stages in their order, a robot id a message cannot carry, an agent it does not
+// have and the names it parses: each refused naming what is wrong.
+TEST(Dgs, RefusesStagesOutOfOrderAndRobotsItCannotCarryNamingWhy) {
+  Values gt;
+  const PoseGraph g = test::ChainOfRobots(2, 3, &gt);
+  DgsDriver driver(g, gt);
+  EXPECT_TRUE(test::ThrowsNaming([&] { driver.runPoseStage(); },
+                                 "the pose stage runs once, after the rotation stage"));
+  driver.runRotationStage();
+  EXPECT_TRUE(
+      test::ThrowsNaming([&] { driver.runRotationStage(); }, "the rotation stage already ran"));
+  driver.runPoseStage();
+  EXPECT_TRUE(test::ThrowsNaming([&] { driver.runPoseStage(); }, "the pose stage runs once"));
+  EXPECT_TRUE(test::ThrowsNaming([&] { driver.agent(5); }, "no agent for robot 5"));
+
+  PoseGraph far = g;  // robot 70000 linked to robot 1: its id does not fit in a u16
+  far.add(RelativePoseFactor(Key::Pose(1, 2), Key::Pose(70000, 0), SE3(), Matrix6::Identity()));
+  EXPECT_TRUE(test::ThrowsNaming([&] { RunDgs(far, gt); },
+                                 "robot id 70000 does not fit in a message (at most 65535)"));
+
+  EXPECT_EQ(RefinePreconditionerFromString("two-level"), RefinePreconditioner::kTwoLevel);
+  EXPECT_TRUE(test::ThrowsNaming([&] { RefinePreconditionerFromString("jacobi"); },
+                                 "must be sweeps or two-level, got 'jacobi'"));
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] {
+        FlaggedRobotOrder({0, 1}, {{}});
+      },
+      "one link table per robot expected"));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/throws_naming_testing.h"
 
 namespace moslam {
 namespace {
@@ -548,6 +549,41 @@ TEST(CoarseMessages, PiecesRoundTripAndRules) {
   b = bytes;
   b[13] = 2;  // ncols
   rejects(b, "ncols other than 1");
+}
+
+// What each encoder refuses and each decoder rejects, with the message naming it: a pose read
+// from or written to a rotation-stage message, a control message of no kind, a coarse message
+// with k = 0 or with robot blocks in a piece message, a piece matrix without its centre on the
+// wire and a piece count past the limit.
+TEST(CoarseMessages, RefusalsNameWhatIsWrong) {
+  Message rotation = MakeMessage(DgsStage::kRotation, 1, 1);
+  EXPECT_TRUE(test::ThrowsNaming([&] { rotation.appendPose(Key::Pose(1, 9), SE3()); },
+                                 "a pose entry needs a stage of dimension 6, not 9"));
+  EXPECT_TRUE(test::ThrowsNaming([&] { rotation.pose(0); }, "dimension 6, not 9"));
+
+  ControlMessage control;
+  control.kind = static_cast<ControlKind>(0);
+  EXPECT_TRUE(test::ThrowsNaming([&] { EncodeControlMessage(control); }, "unknown kind 0"));
+
+  CoarseMessage share = ExampleShare();
+  share.k = 0;
+  EXPECT_TRUE(test::ThrowsNaming([&] { EncodeCoarseMessage(share); }, "k must be in [1, "));
+  CoarseMessage piece = ExamplePieceMatrix();
+  piece.blocks.emplace_back(1, std::vector<double>(36, 0.0));
+  EXPECT_TRUE(test::ThrowsNaming([&] { EncodeCoarseMessage(piece); }, "no robot blocks"));
+
+  const std::vector<std::uint8_t> bytes = EncodeCoarseMessage(ExamplePieceMatrix());
+  ASSERT_EQ(bytes[14], 3);  // the centre's size, then its 3 doubles, then the piece count
+  std::vector<std::uint8_t> no_centre = bytes;  // the centre's size 0 and its doubles cut
+  no_centre[14] = 0;
+  no_centre.erase(no_centre.begin() + 16, no_centre.begin() + 16 + 24);
+  EXPECT_TRUE(test::ThrowsNaming([&] { DecodeCoarseMessage(no_centre); },
+                                 "center size 0 (3 in a piece matrix, else 0)"));
+  std::vector<std::uint8_t> many = bytes;
+  const std::uint32_t count = kMaxCoarsePieces + 1;
+  for (int i = 0; i < 4; ++i) many[40 + i] = static_cast<std::uint8_t>(count >> (8 * i));
+  EXPECT_TRUE(test::ThrowsNaming([&] { DecodeCoarseMessage(many); },
+                                 "more than " + std::to_string(kMaxCoarsePieces) + " pieces"));
 }
 
 }  // namespace

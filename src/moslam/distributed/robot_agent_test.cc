@@ -300,6 +300,14 @@ TEST(RobotAgent, CoarseAndConjugateGradientCallsOutOfOrderAreRefused) {
   EXPECT_TRUE(ThrowsNaming([&] { a.refineCoarseResidual(); }, "before refineCoarseMatrix()"));
   EXPECT_NO_THROW(a.refineCoarseMatrix());
   EXPECT_NO_THROW(a.refineCoarseResidual());
+  // The coarse space by pieces: its residual and solution before its matrix of the step.
+  EXPECT_TRUE(ThrowsNaming([&] { a.refinePieceResidual(0); },
+                           "refinePieceResidual() before refinePieceMatrix() of the step"));
+  CoarseMessage pieces;
+  EXPECT_TRUE(ThrowsNaming([&] { a.applyRefinePieces(pieces); },
+                           "applyRefinePieces() before refinePieceMatrix() of the step"));
+  EXPECT_TRUE(
+      ThrowsNaming([&] { a.errorBound(0); }, "error-bound window must be in [1, 64], got 0"));
 }
 
 // The centralized two-stage estimate is a fixed point of every robot's local solves: given the

@@ -603,6 +603,33 @@ TEST(G2oWrite, AtomicWriteThatCannotRenameThrowsAndRemovesItsTemporary) {
   EXPECT_TRUE(fs::is_directory(path / "inside"));
 }
 
+TEST(G2oWrite, RefusesWhatItCannotWriteNamingIt) {
+  const fs::path dir = ScratchDir("refusals");
+  // An integer id carries 56 bits of index; a larger one is refused, not truncated.
+  const Values big{{Key::Pose(0, kMaxKeyIndex + 1), SE3()}};
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] {
+        WriteG2oFile((dir / "big.g2o").string(), PoseGraph(), big,
+                     {KeyScheme::kPosesOnly, /*plain_keys=*/true});
+      },
+      "key index " + std::to_string(kMaxKeyIndex + 1) + " does not fit in 56 bits"));
+  // A folder has a file per robot: a key of no robot has none.
+  const Values negative{{Key::Pose(-1, 0), SE3()}};
+  EXPECT_TRUE(
+      test::ThrowsNaming([&] { WriteG2oFolder((dir / "team").string(), PoseGraph(), negative); },
+                         "has a negative robot"));
+  // An atomic write whose temporary cannot be written names it and leaves nothing behind.
+  G2oWriteOptions atomic;
+  atomic.atomic = true;
+  const std::string path = (dir / "no_such_dir" / "map.g2o").string();
+  EXPECT_TRUE(test::ThrowsNaming<Error>(
+      [&] {
+        WriteG2oFile(path, PoseGraph(), Values{{Key::Pose(0, 0), SE3()}}, atomic);
+      },
+      path + ".tmp"));
+  EXPECT_FALSE(fs::exists(dir / "no_such_dir"));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Folders (distributed-mapper layout)
 

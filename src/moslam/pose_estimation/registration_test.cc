@@ -686,5 +686,23 @@ TEST(ObjectTemplate, RefusesAModelOfMismatchedSizesAndSavingNoPoints) {
       "the template has no points"));
 }
 
+// What no template can be made of, and a path no template can be saved to, named: a point that
+// is not finite, an object too small for 10 keypoints at the keypoint voxel asked for, a folder
+// that does not exist (PCL's writer throws there; the error names the path).
+TEST(ObjectTemplate, RefusesANonFinitePointTooFewKeypointsAndAnUnwritablePath) {
+  const ColoredPointSet good = test::MakeTestObject(0.01);
+  ColoredPointSet nan = good;
+  nan.points[3].x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(test::ThrowsNaming([&] { MakeObjectTemplate("nan", nan); },
+                                 "point 3 has a non-finite coordinate or normal"));
+  FeatureConfig coarse;
+  coarse.keypoint_voxel = 5.0;  // one keypoint for the whole object
+  EXPECT_TRUE(test::ThrowsNaming([&] { MakeObjectTemplate("coarse", good, coarse); },
+                                 "fewer than 10 keypoints have finite PFHRGB features"));
+  const ObjectTemplate t = MakeObjectTemplate("good", good);
+  const std::string path = std::string(MOSLAM_BINARY_DIR) + "/no_such_dir/template.pcd";
+  EXPECT_TRUE(test::ThrowsNaming([&] { SaveObjectTemplate(t, path); }, path));
+}
+
 }  // namespace
 }  // namespace moslam

@@ -606,6 +606,29 @@ TEST(ObjectSlam, RejectsMisuseAndBadMeasurementsWithoutChangingState) {
   ObjectSlamConfig c;
   c.update_every = 0;
   EXPECT_THROW(ObjectSlam(0, c), InvalidInputError);
+  // Reads of what it does not have and an estimate of another robot's variable, named.
+  EXPECT_TRUE(test::ThrowsNaming([&] { slam.pose(1); }, "ObjectSlam::pose: no pose 1"));
+  EXPECT_TRUE(
+      test::ThrowsNaming([&] { slam.landmarkPose(0); }, "ObjectSlam::landmarkPose: no landmark 0"));
+  EXPECT_TRUE(test::ThrowsNaming(
+      [&] {
+        slam.setEstimate({{Key::Pose(1, 0), SE3()}});
+      },
+      "robot 0: no variable b0"));
+  EXPECT_EQ(slam.numPoses(), 1);
+}
+
+TEST(AssociationGate, BadGatesNameTheField) {
+  using G = AssociationGate;
+  EXPECT_TRUE(test::EachChangeIsRefused<G>({
+      {"sigma must be", [](G& g) { g.sigma = 0.0; }},
+      {"sigma_rotation_deg must be finite", [](G& g) { g.sigma_rotation_deg = INFINITY; }},
+      {"num_sigmas", [](G& g) { g.num_sigmas = std::nan(""); }},
+  }));
+  EXPECT_TRUE(test::ThrowsNaming([] { AssociationGateForNoise(-1.0, 0.1, 3.0); },
+                                 "sigma_rotation_deg must be >= 0 and finite"));
+  EXPECT_TRUE(test::ThrowsNaming([] { AssociationGateForNoise(5.0, INFINITY, 3.0); },
+                                 "sigma_translation must be >= 0 and finite"));
 }
 
 // --------------------------------------------------------------------------------- messages
@@ -1122,7 +1145,17 @@ TEST(MultiRobot, RefusesSimulationDataThatDoesNotFitNamingWhy) {
   d = good;
   std::swap(d.rendezvous.front(), d.rendezvous.back());
   EXPECT_TRUE(refused(d, "not sorted by step"));
-  EXPECT_NO_THROW(RunMultiRobotObjectSlam(good, config));
+  const MultiRobotSlamResult r = RunMultiRobotObjectSlam(good, config);
+  // The ground truth of robots another simulation ran: more of them, or longer trajectories.
+  d = good;
+  d.trajectories.pop_back();
+  EXPECT_TRUE(test::ThrowsNaming([&] { JointGroundTruth(d, r.robots); },
+                                 "more robots than the simulation has"));
+  d = good;
+  d.trajectories[1].resize(5);
+  EXPECT_TRUE(test::ThrowsNaming([&] { JointGroundTruth(d, r.robots); },
+                                 "robot 1 does not match the simulation"));
+  EXPECT_EQ(JointGroundTruth(good, r.robots).count(Key::Pose(2, 11)), 1u);
 }
 
 TEST(MultiRobot, JointProblemUnionsTheRobotsAndTheSharedObjects) {

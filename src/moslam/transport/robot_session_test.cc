@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <condition_variable>
 #include <filesystem>
 #include <functional>
@@ -22,6 +23,7 @@
 
 #include "moslam/common/errors.h"
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/throws_naming_testing.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/metrics/metrics.h"
 #include "moslam/online/group_solve.h"
@@ -238,6 +240,21 @@ std::vector<RobotSessionResult> RunSessionsWithFaults(
   for (auto& t : threads) t.join();
   for (const std::string& e : errors) EXPECT_EQ(e, "");
   return results;
+}
+
+TEST(RobotSession, BadScenarioSpecsNameTheField) {
+  using S = ScenarioSpec;
+  EXPECT_TRUE(test::EachChangeIsRefused<S>({
+      {"scenario must be", [](S& s) { s.scenario = "office"; }},
+      {"robots must be in [1, 65535], got 0", [](S& s) { s.robots = 0; }},
+      {"robots must be in [1, 65535], got 65536", [](S& s) { s.robots = 65536; }},
+      {"sigma_rotation_deg", [](S& s) { s.sigma_rotation_deg = -1.0; }},
+      {"sigma_translation", [](S& s) { s.sigma_translation = INFINITY; }},
+      {"poses_per_robot", [](S& s) { s.poses_per_robot = 1; }},
+      {"exclusion_radius", [](S& s) { s.exclusion_radius = std::nan(""); }},
+      {"ambiguity_ratio", [](S& s) { s.ambiguity_ratio = 1.0; }},
+      {"covariance_gate", [](S& s) { s.covariance_gate = -0.5; }},
+  }));
 }
 
 TEST(RobotSession, OverTheInProcessTransportEqualsTheInProcessPipeline) {
