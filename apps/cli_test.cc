@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
@@ -16,6 +15,7 @@
 #include <string>
 
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/io/g2o.h"
 #include "moslam/metrics/metrics.h"
 
@@ -43,11 +43,6 @@ CommandResult RunShell(const std::string& command_line) {
 
 CommandResult RunMoslam(const std::string& args) {
   return RunShell(std::string(MOSLAM_BINARY) + " " + args);
-}
-
-std::string ReadBytes(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
 std::string LastLine(const std::string& s) {
@@ -711,8 +706,7 @@ TEST(CliSimulate, RunsEndToEndWithJsonAndPlot) {
     EXPECT_LE(run["refined_cost"].get<double>(), gn * (1.0 + 1e-4));
     EXPECT_GE(run["cost_eta1"].get<double>(), gn * (1.0 - 1e-9));
   }
-  std::ifstream in(svg);
-  std::string head((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string head = moslam::ReadWholeFileOrThrow(svg.string());
   EXPECT_NE(head.find("<svg"), std::string::npos);
   fs::remove(svg);
   // The same seed gives the same numbers.
@@ -755,8 +749,7 @@ TEST(CliSimulate, OnlineRunsTheMissionWithTheFlagsItIsGiven) {
   EXPECT_GT(m["wrong_pairs"].get<double>(), 0.0);
   EXPECT_EQ(m["set_aside_wrong"], m["wrong_pairs"]);
   EXPECT_EQ(m["set_aside"], m["set_aside_wrong"]);
-  std::ifstream in(svg);
-  const std::string plot((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string plot = moslam::ReadWholeFileOrThrow(svg.string());
   EXPECT_NE(plot.find("<polyline"), std::string::npos);
   fs::remove(svg);
 }
@@ -1063,7 +1056,10 @@ TEST(CliDetect, EvaluatesARenderedDatasetAndDetectsOnAnImage) {
   for (const fs::directory_entry& image : fs::directory_iterator(dir / "images")) {
     const fs::path copy = annotated_folder / image.path().filename();
     ASSERT_TRUE(fs::exists(copy)) << copy << " not written";
-    drawn_on += ReadBytes(copy) != ReadBytes(image.path()) ? 1 : 0;
+    drawn_on += moslam::ReadWholeFileOrThrow(copy.string()) !=
+                        moslam::ReadWholeFileOrThrow(image.path().string())
+                    ? 1
+                    : 0;
   }
   EXPECT_GT(drawn_on, 0);
 

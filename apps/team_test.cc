@@ -21,9 +21,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <functional>
-#include <iterator>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -32,6 +30,7 @@
 #include <thread>
 
 #include "moslam/common/scratch_dir_testing.h"
+#include "moslam/common/whole_file.h"
 #include "moslam/distributed/dgs_driver.h"
 #include "moslam/io/datasets_testing.h"
 #include "moslam/io/g2o.h"
@@ -330,9 +329,7 @@ TEST(Team, CollectingRobotsThatHaveNotFinishedSaysWhichAndWhy) {
   const nlohmann::json j = LastJson(team.output());
   ASSERT_TRUE(j.is_object()) << team.output();
   EXPECT_FALSE(j["ok"].get<bool>());
-  std::ifstream log_file(out / "team.log");
-  const std::string log((std::istreambuf_iterator<char>(log_file)),
-                        std::istreambuf_iterator<char>());
+  const std::string log = ReadWholeFileOrThrow((out / "team.log").string());
   for (int r = 0; r < 2; ++r) {
     const std::string summary = (out / ("robot" + std::to_string(r)) / "summary.json").string();
     EXPECT_NE(log.find("moslam: robot " + std::to_string(r) + " failed: no " + summary +
@@ -351,9 +348,7 @@ TEST(Team, ARobotCountThatIsNotTheFoldersIsRefusedNamingBoth) {
   Child team({"team", "--data", data, "--robots", "3", "--out", out.string()}, "",
              out / "team.log");
   EXPECT_EQ(team.wait(Clock::now() + std::chrono::seconds(60)), 1) << team.output();
-  std::ifstream log_file(out / "team.log");
-  const std::string log((std::istreambuf_iterator<char>(log_file)),
-                        std::istreambuf_iterator<char>());
+  const std::string log = ReadWholeFileOrThrow((out / "team.log").string());
   EXPECT_NE(log.find("moslam: error: team: --robots 3 but " + data +
                      " holds 2 robot files (0.g2o .. 1.g2o)"),
             std::string::npos)
@@ -870,8 +865,8 @@ TEST(Team, AnOnlineRobotBackAfterItWasFoundGoneContinuesAlone) {
     EXPECT_EQ(j["left_team"].get<bool>(), r == victim) << "robot " << r;
     EXPECT_TRUE(fs::exists(out / ("robot" + std::to_string(r)) / "maps" / "final" / "map.g2o"));
   }
-  std::ifstream err(out / ("stderr" + std::to_string(victim)));
-  const std::string text((std::istreambuf_iterator<char>(err)), std::istreambuf_iterator<char>());
+  const std::string text =
+      ReadWholeFileOrThrow((out / ("stderr" + std::to_string(victim))).string());
   EXPECT_NE(text.find("found this robot gone: it continues alone"), std::string::npos) << text;
   fs::remove_all(out);
 }
