@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <random>
 #include <set>
@@ -454,6 +455,35 @@ TEST(Refine, TheStepDecisionHalvesThenRejects) {
   EXPECT_FALSE(d.finished);
 }
 
+// Steps that keep raising F are rejected with the damping raised tenfold each time, from
+// initial_lambda; once it passes max_lambda the refinement gives up: finished, not converged.
+TEST(Refine, GivesUpWithNoDecreasingStepOnceTheDampingPassesItsBound) {
+  DgsOptions::Refinement opt;
+  opt.max_backtracks = 0;
+  opt.initial_lambda = 1e-4;
+  opt.max_lambda = 1e10;
+  RefineReport report;
+  report.status = StageStatus::kMaxIterations;  // as the stage starts it
+  RefineStepSummary s;
+  s.iteration = 1;
+  s.cost_before = 100.0;
+  s.cost_candidate = 120.0;
+  s.predicted_decrease = 10.0;
+  double lambda = 0.0;
+  int rejected = 0;
+  for (RefineDecision d; !d.finished && rejected < 100; ++rejected) {
+    d = DecideRefineStep(s, opt, lambda, report);
+    EXPECT_FALSE(d.accept || d.backtrack);
+    ++s.iteration;
+  }
+  // 1e-4 after the first rejection, x10 after each: 1e11 > 1e10 after the 16th.
+  EXPECT_EQ(rejected, 16);
+  EXPECT_EQ(report.rejected, 16);
+  EXPECT_DOUBLE_EQ(lambda, 1e11);
+  EXPECT_EQ(report.status, StageStatus::kNoDecreasingStep);
+  EXPECT_EQ(ToString(report.status), "no decreasing step");
+}
+
 // A graph its measurements fit exactly (kitti_08: odometry alone, a tree) has F = 0 at the
 // optimum; the steps bring F to rounding, where no gain is a fraction of F. The refinement stops
 // there by the absolute tolerance, as the centralized optimizer does (without it, in 2 robots: 50
@@ -535,6 +565,37 @@ TEST(Refine, ARobotThatStopsAnsweringDoesNotStopTheOthers) {
   const OptimizerResult polish = Optimize(pinned, r.values);
   EXPECT_LE(Relative(cost, d.graph.cost(polish.values)), kCostTolerance);
   EXPECT_LE(d.graph.cost(polish.values), cost * (1.0 + 1e-12));
+}
+
+// When every robot stops answering, nobody is left to coordinate: the refinement ends (no
+// coordinator, nothing more to gain) with each robot's estimate as it stood, before any step
+// when the team falls silent at step 1, after the first when at step 2.
+TEST(Refine, ATeamThatFallsSilentEndsWithEachRobotsLastEstimate) {
+  const Dataset d = ReadG2oFolder(test::BlocksWorldFolder(4));
+  DgsOptions unrefined = Refined();
+  unrefined.refine = false;
+  DgsOptions one_step = Refined();
+  one_step.refinement.max_iterations = 1;
+  const DgsResult before = RunDgs(d.graph, d.initial, unrefined);
+  const DgsResult after_one = RunDgs(d.graph, d.initial, one_step);
+  ASSERT_LT(d.graph.cost(after_one.values), d.graph.cost(before.values));
+  for (int step : {1, 2}) {
+    SCOPED_TRACE("silent from step " + std::to_string(step));
+    FaultInjection faults;
+    for (int robot = 0; robot < 4; ++robot) {
+      faults.silent.push_back({robot, DgsStage::kRefine, step});
+    }
+    const DgsResult r = RunDgs(d.graph, d.initial, Refined(), faults);
+    EXPECT_EQ(r.refine.status, StageStatus::kConverged);
+    EXPECT_EQ(r.refine.iterations, step - 1);
+    EXPECT_EQ(r.silent.size(), 4u);
+    const Values& expected = step == 1 ? before.values : after_one.values;
+    ASSERT_EQ(r.values.size(), expected.size());
+    for (const auto& [k, x] : expected) {
+      EXPECT_EQ(r.values.at(k).translation(), x.translation()) << ToString(k);
+      EXPECT_EQ(r.values.at(k).rotation().matrix(), x.rotation().matrix()) << ToString(k);
+    }
+  }
 }
 
 // Objects: object-pose edges are inner, object-object edges separators; the refinement reaches
@@ -856,6 +917,59 @@ TEST(RefineByPieces, CoarseCorrectionZeroesTheProjectedResidualOfEveryPiece) {
   }
   EXPECT_GT(largest(start), 1e-3);
   EXPECT_LT(largest(residuals()), 1e-9 * largest(start));
+}
+
+// A hand-made system of one robot's two pieces about its reference (so no shift): [I C; C I]
+// with C = c I is positive definite for |c| < 1, and then the solve is the exact A^-1 b; with
+// c = 2 it is not, and factorize() and solve() say so (no correction) rather than throwing. A
+// residual that is not finite gives no correction either; one of a robot outside the system, or
+// of another kind, is refused by name.
+TEST(RefineByPieces, AnIndefiniteMatrixGivesNoCorrectionAndAForeignResidualIsRefused) {
+  auto matrix = [](double c) {
+    CoarseMessage m = PieceMessage(CoarseKind::kPieceMatrix, 0, 0);
+    m.center = {0.0, 0.0, 0.0};
+    m.pieces = {{0, {0.0, 0.0, 0.0}}, {1, {0.0, 0.0, 0.0}}};
+    const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(6, 6);
+    m.piece_blocks = {{0, 0, 0, FlattenMatrix(I)},
+                      {0, 0, 1, FlattenMatrix(c * I)},
+                      {1, 0, 0, FlattenMatrix(c * I)},
+                      {1, 0, 1, FlattenMatrix(I)}};
+    return m;
+  };
+  CoarseMessage residual = PieceMessage(CoarseKind::kPieceResidual, 0, 0);
+  Eigen::VectorXd b(12);
+  for (int i = 0; i < 12; ++i) b(i) = 1.0 + i;
+  residual.pieces = {{0, std::vector<double>(b.data(), b.data() + 6)},
+                     {1, std::vector<double>(b.data() + 6, b.data() + 12)}};
+
+  PieceCoarseSystem definite;
+  definite.addMatrix(matrix(0.5));
+  ASSERT_TRUE(definite.factorize());
+  Eigen::VectorXd Y;
+  ASSERT_TRUE(definite.solve({residual}, &Y));
+  Eigen::MatrixXd A = Eigen::MatrixXd::Identity(12, 12);
+  A.topRightCorner(6, 6) = 0.5 * Eigen::MatrixXd::Identity(6, 6);
+  A.bottomLeftCorner(6, 6) = 0.5 * Eigen::MatrixXd::Identity(6, 6);
+  EXPECT_LT((Y - A.ldlt().solve(b)).norm(), 1e-12 * b.norm());
+
+  CoarseMessage not_finite = residual;
+  not_finite.pieces[1].values[2] = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(definite.solve({not_finite}, &Y));
+  CoarseMessage foreign = residual;
+  foreign.sender = 3;
+  EXPECT_THROW(definite.solve({foreign}, &Y), InvalidInputError);
+  try {
+    definite.solve({matrix(0.5)}, &Y);
+    ADD_FAILURE() << "a piece matrix taken as a residual";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a residual"), std::string::npos) << e.what();
+  }
+
+  PieceCoarseSystem indefinite;
+  indefinite.addMatrix(matrix(2.0));
+  EXPECT_FALSE(indefinite.factorize());
+  EXPECT_FALSE(indefinite.solve({residual}, &Y));
+  EXPECT_THROW(indefinite.addMatrix(residual), InvalidInputError);
 }
 
 // Long 2D chains: pieces of 50 poses let a run of the chain turn against the rest, which one

@@ -240,6 +240,68 @@ TEST(LoopClosureFactors, AreTheFactorsNotBetweenConsecutivePoses) {
   EXPECT_EQ(DefaultRobustFactors(one), (std::vector<bool>{false, true, true, true}));
 }
 
+// Two robots, each a chain of 4 poses, joined only by two links from the same pose that put
+// robot 1 5 m to either side of robot 0: the least-squares estimate sits between them, where the
+// two residuals are equal, so their weights fall together and GNC rejects both. The inliers then
+// leave robot 1 unanchored, and the result keeps the rounds' estimate rather than throwing (the
+// header's "unless that leaves part of the graph unanchored"). With one solve allowed, the same
+// graph stops at kMaxIterations with the weights still undecided.
+struct TwoRobotsJoinedByTwoContradictingLinks {
+  PoseGraph graph;
+  std::vector<bool> robust;
+  SE3 step{SO3::Exp(Vector3(0.0, 0.0, 0.2)), Vector3(1.0, 0.0, 0.0)};
+  TwoRobotsJoinedByTwoContradictingLinks() {
+    const Matrix6 info = 100.0 * Matrix6::Identity();
+    for (int robot : {0, 1}) {
+      for (std::uint64_t i = 0; i + 1 < 4; ++i) {
+        graph.add(RelativePoseFactor(Key::Pose(robot, i), Key::Pose(robot, i + 1), step, info));
+      }
+    }
+    for (double y : {5.0, -5.0}) {
+      graph.add(RelativePoseFactor(Key::Pose(0, 1), Key::Pose(1, 0),
+                                   SE3(SO3(), Vector3(0.0, y, 0.0)), info));
+    }
+    robust = SeparatorFactors(graph);
+  }
+};
+
+TEST(SolveGnc, InliersThatLeaveARobotUnanchoredKeepTheRoundsEstimate) {
+  const TwoRobotsJoinedByTwoContradictingLinks t;
+  ASSERT_EQ(t.robust, (std::vector<bool>{false, false, false, false, false, false, true, true}));
+  const Values initial = ChordalInitialization(t.graph, SE3());
+  const GncResult r = SolveGnc(t.graph, initial, t.robust);
+  EXPECT_EQ(r.status, GncStatus::kConverged);
+  EXPECT_EQ(r.outliers, 2);
+  EXPECT_LT(r.weights[6], 1e-6);
+  EXPECT_LT(r.weights[7], 1e-6);
+  ASSERT_EQ(r.values.size(), t.graph.keys().size());
+  // The inliers alone would leave robot 1 without an anchor.
+  EXPECT_THROW(Optimize(SubGraph(t.graph, Inliers(r.weights)), r.values), UnderdeterminedError);
+  // Each chain keeps its odometry; robot 1 stays where the rounds put it, between the two links.
+  for (int robot : {0, 1}) {
+    for (std::uint64_t i = 0; i + 1 < 4; ++i) {
+      const Vector6 e = r.values.at(Key::Pose(robot, i + 1))
+                            .localCoordinates(r.values.at(Key::Pose(robot, i)) * t.step);
+      EXPECT_LT(e.norm(), 1e-6) << robot << " " << i;
+    }
+  }
+  EXPECT_LT(SE3::Log(r.values.at(Key::Pose(0, 1)).between(r.values.at(Key::Pose(1, 0)))).norm(),
+            1e-6);
+}
+
+TEST(SolveGnc, StopsAtMaxIterationsWithTheWeightsUndecided) {
+  const TwoRobotsJoinedByTwoContradictingLinks t;
+  GncOptions o;
+  o.max_iterations = 1;
+  const GncResult r = SolveGnc(t.graph, ChordalInitialization(t.graph, SE3()), t.robust, o);
+  EXPECT_EQ(r.status, GncStatus::kMaxIterations);
+  EXPECT_EQ(ToString(r.status), "max iterations");
+  EXPECT_EQ(r.iterations, 1);
+  EXPECT_GT(r.weights[6], o.weight_tolerance);  // undecided: strictly between 0 and 1
+  EXPECT_LT(r.weights[6], 1.0 - o.weight_tolerance);
+  EXPECT_EQ(r.outliers, 2);  // both below 0.5 all the same
+}
+
 TEST(SolveGnc, RejectsAMaskOfTheWrongSize) {
   const Dataset data = ReadG2oFolder(test::BlocksWorldFolder(2));
   EXPECT_THROW(SolveGnc(data.graph, ChordalInitialization(data.graph, SE3()), {true}),
