@@ -408,17 +408,24 @@ TEST(Refine, AStepThatRaisesTheCostIsHalvedBeforeItIsRejected) {
   EXPECT_GT(Relative(s.graph.cost(damped.values), optimum), 1e-7);
 }
 
+// Step `iteration` of the refinement, whole, raising F from 100 to 120 where the model predicted
+// a decrease of 10.
+RefineStepSummary RaisingStep(int iteration) {
+  RefineStepSummary s;
+  s.iteration = iteration;
+  s.cost_before = 100.0;
+  s.cost_candidate = 120.0;
+  s.predicted_decrease = 10.0;
+  return s;
+}
+
 // The decision itself: a whole step that raises F is halved while halvings are left, a halved
 // one needs the Armijo decrease, and a halved step's small gain is no convergence.
 TEST(Refine, TheStepDecisionHalvesThenRejects) {
   DgsOptions::Refinement opt;
   opt.max_backtracks = 2;
   RefineReport report;
-  RefineStepSummary s;
-  s.iteration = 3;
-  s.cost_before = 100.0;
-  s.cost_candidate = 120.0;
-  s.predicted_decrease = 10.0;
+  RefineStepSummary s = RaisingStep(3);
   double lambda = 0.0;
   RefineDecision d = DecideRefineStep(s, opt, lambda, report);
   EXPECT_TRUE(d.backtrack);
@@ -464,11 +471,7 @@ TEST(Refine, GivesUpWithNoDecreasingStepOnceTheDampingPassesItsBound) {
   opt.max_lambda = 1e10;
   RefineReport report;
   report.status = StageStatus::kMaxIterations;  // as the stage starts it
-  RefineStepSummary s;
-  s.iteration = 1;
-  s.cost_before = 100.0;
-  s.cost_candidate = 120.0;
-  s.predicted_decrease = 10.0;
+  RefineStepSummary s = RaisingStep(1);
   double lambda = 0.0;
   int rejected = 0;
   for (RefineDecision d; !d.finished && rejected < 100; ++rejected) {
