@@ -4,11 +4,12 @@
 # alike). The fuzz targets (scripts/fuzz.sh) check the decoders this way; this checks everything
 # else the tests run. Not part of scripts/test.sh (each build takes 12-16 min on 2 cores).
 #   SANITIZER=address (default): AddressSanitizer and UndefinedBehaviorSanitizer, build-asan/
-#     (-O1 -g, assertions on: Eigen's size and index checks too); the suite 2-3x slower.
+#     (-O1 -g, assertions on: Eigen's size and index checks too); the suite about 5x slower.
 #   SANITIZER=thread: ThreadSanitizer, build-tsan/ (-O1 -g): data races and lock-order
 #     inversions among the threads moslam starts (the transports' receivers, the DGS nodes and
 #     team drivers of the tests, perception's workers). Cyclone DDS, PCL and OpenCV come
-#     uninstrumented from Debian: TSan sees their locks (pthread is intercepted), not their memory;
+#     uninstrumented from Debian: TSan sees their locks and memcpy (intercepted), not their own
+#     loads and stores;
 #     scripts/tsan-suppressions.txt lists the reports of theirs it hides, and why.
 # Usage: [SANITIZER=address|thread] scripts/sanitize.sh [ctest arguments, e.g. -R Robust]
 set -euo pipefail
