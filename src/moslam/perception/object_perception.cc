@@ -5,9 +5,9 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
-#include <thread>
 
 #include "moslam/common/errors.h"
+#include "moslam/common/workers.h"
 #include "moslam/detection/evaluation.h"
 #include "moslam/pose_estimation/feature_index.h"
 #include "moslam/pose_estimation/organized_cloud.h"
@@ -130,31 +130,6 @@ void PerceiveDetection(const PreparedFrame& prepared, const ObjectTemplate& obje
     if (o.box_agreement < config.min_box_agreement) o.status = PerceptionStatus::kBoxMismatch;
   }
   if (o.accepted()) o.body_T_object = ObjectMeasurementInBody(o.registration.camera_T_object);
-}
-
-// fn(i) for every i in [0, n): on this thread when workers <= 1, else i on worker i % workers.
-// Once all have joined, the exception of the lowest-numbered worker that threw is rethrown here.
-void ForEachOnWorkers(std::size_t n, std::size_t workers,
-                      const std::function<void(std::size_t)>& fn) {
-  if (workers <= 1) {
-    for (std::size_t i = 0; i < n; ++i) fn(i);
-    return;
-  }
-  std::vector<std::exception_ptr> errors(workers);
-  std::vector<std::thread> pool;
-  for (std::size_t w = 0; w < workers; ++w) {
-    pool.emplace_back([&, w] {
-      try {
-        for (std::size_t i = w; i < n; i += workers) fn(i);
-      } catch (...) {
-        errors[w] = std::current_exception();
-      }
-    });
-  }
-  for (std::thread& th : pool) th.join();
-  for (const std::exception_ptr& e : errors) {
-    if (e) std::rethrow_exception(e);
-  }
 }
 
 }  // namespace
