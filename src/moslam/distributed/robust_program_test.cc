@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -65,9 +66,34 @@ std::vector<std::pair<RobustRobotProblem, std::vector<std::size_t>>> Parts(
   return parts;
 }
 
+// What a robot receives from the team, changed before its program sees it (a faulty peer).
+using Tamper = std::function<void(int robot, TeamStep& received)>;
+
+// The board's channel with `tamper` applied to every step a robot receives.
+class TamperedChannel : public TeamChannel {
+ public:
+  TamperedChannel(test::SharedBoard& board, int robot, const Tamper& tamper)
+      : inner_(board, robot), robot_(robot), tamper_(tamper) {}
+  TeamStep step(DgsStage stage, const std::vector<OutgoingMessage>& estimates,
+                const TeamReport& report, const CoarseMessage* share,
+                const std::vector<WeightMessage>& weights,
+                const std::vector<CovarianceMessage>& covariances) override {
+    TeamStep got = inner_.step(stage, estimates, report, share, weights, covariances);
+    if (tamper_) tamper_(robot_, got);
+    return got;
+  }
+  std::set<int> absent() const override { return inner_.absent(); }
+  std::size_t steps() const { return inner_.steps(); }
+
+ private:
+  test::BoardChannel inner_;
+  int robot_;
+  const Tamper& tamper_;
+};
+
 TeamOutcome RunTeam(const PoseGraph& graph, const Values& initial, const std::vector<bool>& robust,
                     const RobustProgramOptions& options, const std::vector<bool>& checked = {},
-                    bool reversed = false) {
+                    bool reversed = false, const Tamper& tamper = {}) {
   const auto parts = Parts(graph, initial, robust, checked, reversed);
   const Key anchor = GaugeAnchor(graph);
   test::SharedBoard board(static_cast<int>(parts.size()));
@@ -87,7 +113,7 @@ TeamOutcome RunTeam(const PoseGraph& graph, const Values& initial, const std::ve
         agent = std::make_unique<RobotAgent>(p.robot, g, start, anchor, ao);
         return *agent;
       };
-      test::BoardChannel channel(board, p.robot);
+      TamperedChannel channel(board, p.robot, tamper);
       try {
         RobustProgramResult r = RunRobustRobotProgram(p, options, make, channel);
         EXPECT_EQ(static_cast<std::size_t>(r.channel_steps), channel.steps());
@@ -377,6 +403,38 @@ TEST(RobustProgram, TheCheckWithMapCovariancesIsRunRobustDgs) {
   EXPECT_EQ(team.results.at(1).check_messages, 4);
   EXPECT_EQ(team.results.at(1).check_bytes, reference.consistency_bytes);
   EXPECT_EQ(team.results.at(0).check_rejected, 2);
+}
+
+// A peer whose messages break the check's protocol is refused by name, not trusted: the lower
+// robot's check needs the higher one's covariance with its estimates, and the higher one reads a
+// verdict of one entry per separator they share, then the pair's flag.
+TEST(RobustProgram, ThePeersCheckMessagesThatBreakTheProtocolAreRefusedNamingIt) {
+  std::vector<bool> wrong;
+  const PoseGraph graph = test::DriftingPairWithWrongSeparators(&wrong);
+  const std::vector<bool> robust = DefaultRobustFactors(graph);
+  const Values initial = ChordalInitialization(graph, SE3());
+  RobustProgramOptions options;
+  options.solver.order = SweepOrder::kJacobi;
+  ASSERT_TRUE(options.consistency.map_uncertainty);
+  const Tamper no_covariance = [](int robot, TeamStep& got) {
+    if (robot == 0) got.covariances.clear();
+  };
+  EXPECT_NE(RunTeam(graph, initial, robust, options, {}, false, no_covariance)
+                .error.find("robot 1 sent its map's estimates without their covariance"),
+            std::string::npos);
+  bool first = true;  // only robot 1's thread reads and writes it
+  const Tamper short_verdict = [&first](int robot, TeamStep& got) {
+    const auto it = got.weights.find(0);
+    if (robot != 1 || it == got.weights.end() || !first) return;
+    first = false;  // the check's first exchange, before any GNC round
+    it->second.weights.pop_back();
+  };
+  const TeamOutcome team = RunTeam(graph, initial, robust, options, {}, false, short_verdict);
+  EXPECT_NE(team.error.find("robot 0 sent a separator check verdict of"), std::string::npos)
+      << team.error;
+  EXPECT_NE(team.error.find("of 8 entries where the 8 separators robot 1 shares with it need 9"),
+            std::string::npos)
+      << team.error;
 }
 
 // The re-test of the check's rejects (robust_dgs_test.cc, the same layout): the robots' programs

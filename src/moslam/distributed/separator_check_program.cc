@@ -166,11 +166,13 @@ class SeparatorCheck {
     for (const auto& [other, m] : got.weights) {
       if (other > problem_.robot || !pairs_.count(other)) continue;
       if (m.weights.size() != pairs_.at(other).size() + 1) {
-        throw InvalidInputError(
-            "robust program: robot " + std::to_string(other) +
-            " sent a separator check verdict of " + std::to_string(m.weights.size()) +
-            " entries for the " + std::to_string(pairs_.at(other).size()) + " separators robot " +
-            std::to_string(problem_.robot) + " shares with it (their subgraphs disagree)");
+        throw InvalidInputError("robust program: robot " + std::to_string(other) +
+                                " sent a separator check verdict of " +
+                                std::to_string(m.weights.size()) + " entries where the " +
+                                std::to_string(pairs_.at(other).size()) + " separators robot " +
+                                std::to_string(problem_.robot) + " shares with it need " +
+                                std::to_string(pairs_.at(other).size() + 1) +
+                                " (one each, then the pair's flag): their subgraphs disagree");
       }
       confirmed_[other] = m.weights.back() == 1.0;
       std::vector<double>& verdict = kept_by_other_[other];
