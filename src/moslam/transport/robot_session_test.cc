@@ -854,6 +854,34 @@ TEST(RobotSession, ValidatesItsInputs) {
   o = Options(Small(), log);
   o.rendezvous_timeout = milliseconds(0);
   EXPECT_THROW(o.validate(), InvalidInputError);
+  // Online, the group solve makes the masks, and a robot holds its partners' landmarks refined.
+  o = Options(Small(), log);
+  o.online = true;
+  o.dgs.gnc = GncOptions{};
+  o.dgs.robust.assign(3, true);
+  EXPECT_TRUE(test::ThrowsNaming([&] { o.validate(); }, "the robust and checked masks"));
+  o = Options(Small(), log);
+  o.online = true;
+  o.dgs.solver.refine = false;
+  EXPECT_TRUE(test::ThrowsNaming([&] { o.validate(); }, "online mapping needs the refinement"));
+  // Data that is not one robot's of the team, and events that do not fit it.
+  o = Options(Small(), log);
+  RobotScenarioData d = SliceForRobot(data, 1);
+  d.measurements.odometry.pop_back();
+  EXPECT_TRUE(
+      test::ThrowsNaming([&] { RobotSession(d, *t1, o); }, "inconsistent data for robot 1 of 3"));
+  d = SliceForRobot(data, 1);
+  d.initial_poses.pop_back();
+  EXPECT_TRUE(test::ThrowsNaming([&] { RobotSession(d, *t1, o); }, "inconsistent data"));
+  d = SliceForRobot(data, 1);
+  ASSERT_GE(d.events.size(), 2u);
+  std::swap(d.events[0], d.events[1]);
+  if (d.events[0].step == d.events[1].step) d.events[1].step = d.events[0].step - 1;
+  EXPECT_TRUE(test::ThrowsNaming([&] { RobotSession(d, *t1, o); },
+                                 "rendezvous event 1 (step " + std::to_string(d.events[1].step)));
+  d = SliceForRobot(data, 1);
+  d.events[0].beta = d.events[0].alpha;
+  EXPECT_TRUE(test::ThrowsNaming([&] { RobotSession(d, *t1, o); }, "does not fit the scenario"));
 }
 
 }  // namespace
