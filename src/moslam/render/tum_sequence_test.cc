@@ -156,6 +156,29 @@ TEST(TumSequence, MalformedLinesAreRejectedWithFileAndLine) {
   EXPECT_THROW(LoadTumFrame(ReadTumSequence(dir.string(), o), 0), InvalidInputError);  // no PNG
 }
 
+// camera.txt: one data line of seven numbers, the image size whole and in range, the intrinsics
+// valid, the depth scale positive; each refusal names the file's line and what is wrong.
+TEST(TumSequence, ACameraFileThatDoesNotDescribeACameraIsRefusedNamingWhy) {
+  TumSequenceText text;
+  text.rgb = "1.000 rgb/1.png\n";
+  text.depth = "1.000 depth/1.png\n";
+  const auto refused = [&](const std::string& camera, const std::string& why) {
+    text.camera = camera;
+    return test::ThrowsNaming([&] { ParseTumSequence(text, "/seq"); }, why);
+  };
+  const std::string ok = "525 525 319.5 239.5 640 480 5000\n";
+  EXPECT_TRUE(refused("# header\n525 525 319.5 239.5 640.5 480 5000\n",
+                      "/seq/camera.txt:2: width must be an integer in [1, 16384]"));
+  EXPECT_TRUE(refused("525 525 319.5 239.5 640 0 5000\n", "height must be an integer"));
+  EXPECT_TRUE(refused("525 525 319.5 239.5 640 20000 5000\n", "height must be an integer"));
+  EXPECT_TRUE(refused("-525 525 319.5 239.5 640 480 5000\n", "fx must be positive and finite"));
+  EXPECT_TRUE(refused("525 525 319.5 239.5 640 480 0\n", "depth_scale must be positive"));
+  EXPECT_TRUE(refused(ok + ok, "camera.txt:2: more than one data line"));
+  EXPECT_TRUE(refused("# only a comment\n", "no data line"));
+  text.camera = ok;
+  EXPECT_EQ(ParseTumSequence(text, "/seq").intrinsics.height, 480);
+}
+
 TEST(TumSequence, WriterRejectsMismatchedFrames) {
   const fs::path dir = FreshDir("writer");
   const auto k = PinholeIntrinsics::FromHorizontalFov(32, 24, 60.0);
@@ -169,6 +192,14 @@ TEST(TumSequence, WriterRejectsMismatchedFrames) {
   f.timestamp = 2.0;
   f.depth = cv::Mat(10, 10, CV_32FC1, cv::Scalar(1.0f));
   EXPECT_THROW(w.add(f, SE3()), InvalidInputError);
+  f.depth = cv::Mat(24, 32, CV_32FC1, cv::Scalar(1.0f));
+  f.rgb = cv::Mat(24, 32, CV_8UC1, cv::Scalar(1));
+  EXPECT_TRUE(test::ThrowsNaming([&] { w.add(f, SE3()); }, "rgb must be CV_8UC3"));
+  for (const double scale : {0.0, -1.0, std::nan(""), HUGE_VAL}) {
+    EXPECT_TRUE(test::ThrowsNaming([&] { TumSequenceWriter(FreshDir("scale").string(), k, scale); },
+                                   "depth_scale must be positive and finite"))
+        << scale;
+  }
 }
 
 TEST(TumSequence, BadReadOptionsNameTheField) {
