@@ -66,12 +66,22 @@ TEST(Intrinsics, BodyFromCameraAxes) {
 }
 
 TEST(RenderConfig, ValidateNamesTheField) {
-  RenderConfig c;
-  c.max_depth = 0.1;
-  EXPECT_TRUE(test::ThrowsNaming([&] { c.validate(); }, "max_depth"));
-  c = RenderConfig();
-  c.colour_noise_sigma = -1.0;
-  EXPECT_THROW(c.validate(), InvalidInputError);
+  using C = RenderConfig;
+  EXPECT_TRUE(test::EachChangeIsRefused<C>({
+      {"intrinsics: PinholeIntrinsics: width", [](C& c) { c.intrinsics.width = 0; }},
+      {"min_depth", [](C& c) { c.min_depth = 0.0; }},
+      {"max_depth", [](C& c) { c.max_depth = 0.1; }},
+      {"max_depth", [](C& c) { c.max_depth = HUGE_VAL; }},
+      {"wall_height", [](C& c) { c.wall_height = -1.0; }},
+      {"door_width", [](C& c) { c.door_width = std::nan(""); }},
+      {"style.floor_tile_m", [](C& c) { c.style.floor_tile_m = 0.0; }},
+      {"style.light_direction", [](C& c) { c.style.light_direction = Vector3::Zero(); }},
+      {"style.light_direction", [](C& c) { c.style.light_direction.x() = std::nan(""); }},
+      {"style.ambient", [](C& c) { c.style.ambient = -0.1; }},
+      {"style.ambient", [](C& c) { c.style.diffuse = HUGE_VAL; }},
+      {"depth_noise_model.a", [](C& c) { c.depth_noise_model.a = -1.0; }},
+      {"colour_noise_sigma", [](C& c) { c.colour_noise_sigma = -1.0; }},
+  }));
 }
 
 TEST(Renderer, DepthMatchesTheGeometryItDrew) {
@@ -95,6 +105,9 @@ TEST(Renderer, DepthMatchesTheGeometryItDrew) {
   }
   // Above the horizon nothing is hit (no walls in this world): no return.
   EXPECT_EQ(f.rgbd.depth.at<float>(5, 5), 0.0f);
+  // A body pose that is not finite gives no frame.
+  const SE3 lost(SO3(), Vector3(std::nan(""), 0.0, 0.5));
+  EXPECT_TRUE(test::ThrowsNaming([&] { r.render(lost); }, "world_T_body is not finite"));
 }
 
 TEST(Renderer, InstanceImageAndBoxAgreeWithTheProjection) {
