@@ -288,7 +288,15 @@ TEST(DetectorLoad, MissingOrUnreadableModelIsATypedError) {
   }
   c.model_path = (test::ScratchDir() / "not_a_model.onnx").string();
   std::ofstream(c.model_path) << "this is not an ONNX protobuf\n";
-  EXPECT_THROW(Detector{c}, InvalidInputError);
+  EXPECT_TRUE(test::ThrowsNaming([&] { Detector{c}; }, "(format moslam)"));
+  // Darknet: the weights and their cfg file, each named when it cannot be used.
+  c = TinyConfig(DetectorOutputFormat::kDarknet);
+  c.darknet_cfg_path = kTestData + "/no_such.cfg";
+  EXPECT_TRUE(test::ThrowsNaming([&] { Detector{c}; },
+                                 "Darknet cfg file '" + c.darknet_cfg_path + "' does not exist"));
+  c.darknet_cfg_path = (test::ScratchDir() / "not_a.cfg").string();
+  std::ofstream(c.darknet_cfg_path) << "[net]\nwidth=abc\n[no_such_layer]\n";
+  EXPECT_TRUE(test::ThrowsNaming([&] { Detector{c}; }, "(format darknet)"));
 }
 
 TEST(DetectorLoad, OutputShapeThatDoesNotFitIsATypedError) {
