@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "moslam/common/errors.h"
@@ -123,6 +124,34 @@ TEST(Perception, ATemplateFromTheCacheMeasuresAsTheOneBuilt) {
 
 // A unit cube 2 m ahead: its pixel box by the pinhole model; behind the camera, empty; partly
 // outside the image, clipped.
+// The statuses' names are what `moslam perceive --json` and the detection logs write, and what
+// scripts select on (scripts/bench-perception.sh): one name each, fixed.
+TEST(Perception, EveryStatusHasItsOwnName) {
+  using P = PerceptionStatus;
+  const std::vector<std::pair<P, std::string>> perception = {
+      {P::kAccepted, "accepted"},
+      {P::kNoTemplate, "no_template"},
+      {P::kSegmentationFailed, "segmentation_failed"},
+      {P::kTooFewPoints, "too_few_points"},
+      {P::kTooFewInliers, "too_few_inliers"},
+      {P::kGicpFailed, "gicp_failed"},
+      {P::kColourMismatch, "colour_mismatch"},
+      {P::kShapeMismatch, "shape_mismatch"},
+      {P::kBoxMismatch, "box_mismatch"},
+  };
+  for (const auto& [status, name] : perception) EXPECT_EQ(ToString(status), name);
+  using R = RegistrationStatus;
+  const std::vector<std::pair<R, std::string>> registration = {
+      {R::kAccepted, "accepted"},
+      {R::kTooFewPoints, "too_few_points"},
+      {R::kTooFewInliers, "too_few_inliers"},
+      {R::kGicpFailed, "gicp_failed"},
+      {R::kColourMismatch, "colour_mismatch"},
+      {R::kShapeMismatch, "shape_mismatch"},
+  };
+  for (const auto& [status, name] : registration) EXPECT_EQ(ToString(status), name);
+}
+
 TEST(Perception, ProjectedBoxIsThePinholeBoxClippedToTheImage) {
   FeatureCloud cube;
   for (double x : {-0.5, 0.5}) {
