@@ -10,11 +10,12 @@
 
 namespace moslam {
 
-// Calls fn(i) for every i in [0, n): on the calling thread when workers <= 1, else index i on
-// worker i % workers (the same split on every call: per-index outputs need no lock). A worker
-// that throws skips its own remaining indices; the others run all of theirs. Once every worker
-// has joined, the exception of the lowest-numbered worker that threw is rethrown on the caller.
-// On the calling thread the first exception propagates at once (the indices after it do not run).
+// Calls fn(i) for every i in [0, n): on the calling thread when workers <= 1 or n <= 1, else on
+// min(workers, n) threads, index i on worker i % that many (the same split on every call:
+// per-index outputs need no lock). A worker that throws skips its own remaining indices; the
+// others run all of theirs. Once every worker has joined, the exception of the lowest-numbered
+// worker that threw is rethrown on the caller. On the calling thread the first exception
+// propagates at once (the indices after it do not run).
 inline void ForEachOnWorkers(std::size_t n, std::size_t workers,
                              const std::function<void(std::size_t)>& fn) {
   if (workers <= 1 || n <= 1) {
