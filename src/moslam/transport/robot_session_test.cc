@@ -825,6 +825,27 @@ TEST(RobotSession, ABatchRobotThatDiesBeforeItsNodesFirstStatusIsLeftOutOfTheSol
   }
 }
 
+// A partner alive on the network whose session never answers (connected, no packet): the robot
+// waiting for it at their first rendezvous is not taken in by its liveness and fails at
+// rendezvous_timeout, naming the partner, the step and the wait.
+TEST(RobotSession, APartnerAliveButSilentFailsTheRendezvousAtItsTimeoutNamingIt) {
+  const SimulationData data = SimulateScenario(Small());
+  ASSERT_FALSE(data.rendezvous.empty());
+  const RendezvousEvent& first = data.rendezvous.front();
+  InProcessNetwork net;
+  Log log;
+  const std::unique_ptr<Transport> mine = net.connect(first.beta, {log.sink()});
+  const std::unique_ptr<Transport> silent = net.connect(first.alpha);
+  RobotSessionOptions o = Options(Small(), log);
+  o.rendezvous_timeout = milliseconds(200);
+  RobotSession session(SliceForRobot(data, first.beta), *mine, o);
+  EXPECT_TRUE(test::ThrowsNaming<Error>(
+      [&] { session.run(); },
+      fmt::format("robot {}: no object list from robot {} for the rendezvous of step {} within 200 "
+                  "ms",
+                  first.beta, first.alpha, first.step)));
+}
+
 TEST(RobotSession, ValidatesItsInputs) {
   ScenarioSpec bad = Small();
   bad.scenario = "moon";
