@@ -122,8 +122,6 @@ TEST(Perception, ATemplateFromTheCacheMeasuresAsTheOneBuilt) {
   same(perceive(unwritable, 0, 1));
 }
 
-// A unit cube 2 m ahead: its pixel box by the pinhole model; behind the camera, empty; partly
-// outside the image, clipped.
 // The statuses' names are what `moslam perceive --json` and the detection logs write, and what
 // scripts select on (scripts/bench-perception.sh): one name each, fixed.
 TEST(Perception, EveryStatusHasItsOwnName) {
@@ -152,6 +150,8 @@ TEST(Perception, EveryStatusHasItsOwnName) {
   for (const auto& [status, name] : registration) EXPECT_EQ(ToString(status), name);
 }
 
+// A unit cube 2 m ahead: its pixel box by the pinhole model; behind the camera, empty; partly
+// outside the image, clipped.
 TEST(Perception, ProjectedBoxIsThePinholeBoxClippedToTheImage) {
   FeatureCloud cube;
   for (double x : {-0.5, 0.5}) {
